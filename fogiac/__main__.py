@@ -1,0 +1,3 @@
+from fogiac.cli import main
+
+main()

@@ -1,0 +1,1 @@
+"""fogiac's Pulumi programs: one ComponentResource module per AWS resource family."""

@@ -123,6 +123,33 @@ def write_client_profile(
     return target
 
 
+def render_server_config(
+    *, bundle: certs.Bundle, client_cidr: str, listen: str, routes: tuple[str, ...],
+    port: int = 443, proto: str = "udp",
+) -> str:
+    """An OpenVPN server set up the way AWS Client VPN is, for tests and on-prem labs.
+
+    Mutual TLS with the stack's CA, ``dh none`` (ECDHE only), TLS 1.2 or newer, clients numbered
+    from ``client_cidr`` and told to route ``routes`` (the VPC) through the tunnel. Source NAT of
+    clients to the server's VPC-side address is the host's firewall's job, as at AWS.
+    """
+    if proto not in _PROTOCOLS:
+        raise VpnError(f"VPN protocol {proto!r} is not one of: {', '.join(_PROTOCOLS)}")
+    try:
+        clients = ipaddress.ip_network(client_cidr)
+        pushed = [ipaddress.ip_network(r) for r in routes]
+    except ValueError as err:
+        raise VpnError(f"bad VPN network: {err}") from None
+    return render(
+        "vpn/server.conf.j2", client_network=str(clients.network_address),
+        client_netmask=str(clients.netmask), proto=proto, listen=listen, port=port,
+        routes=[(str(n.network_address), str(n.netmask)) for n in pushed],
+        ca_pem=_pem(bundle.ca.cert_pem, what="CA certificate"),
+        cert_pem=_pem(bundle.server.cert_pem, what="server certificate"),
+        key_pem=_pem(bundle.server.key_pem, what="server key"),
+    )
+
+
 # -- OpenVPN's log (pure) -----------------------------------------------------------------------
 
 _DEVICE_RE = re.compile(r"TUN/TAP device (\S+) opened")

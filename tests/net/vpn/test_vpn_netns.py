@@ -1,0 +1,160 @@
+"""The generated client.ovpn against an AWS-like OpenVPN server, in network namespaces.
+
+Three namespaces stand for the robot ("edge"), the Client VPN endpoint ("aws": public side
+towards the edge, VPC side towards the cloud) and a cloud host ("cloud", VPC side only). The
+endpoint source-NATs clients to its VPC address, as AWS Client VPN does, so the cloud never
+sees, and cannot route to, the robot's tunnel address: the reason fogiac's relay is opened
+by the edge. Everything runs through ``fogiac vpn up|status|down`` for real.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import os
+import shutil
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterator
+
+import pytest
+
+from fogiac import certs
+from fogiac.net.vpn import render_server_config, write_client_profile
+from tests.support.netns import Namespace, NetLab, skip_reason
+
+pytestmark = pytest.mark.root
+
+_REASON = skip_reason() or (None if shutil.which("openvpn") else "needs openvpn (Debian package openvpn)")
+if _REASON:
+    pytest.skip(_REASON, allow_module_level=True)
+
+REPO = Path(__file__).resolve().parents[3]
+STACK = "lab-test"
+CLIENT_CIDR = "10.231.36.0/22"
+VPC_CIDR = "10.231.32.0/24"
+AWS_VPC, CLOUD = "10.231.32.1", "10.231.32.10"
+AWS_PUBLIC, EDGE_PUBLIC = "10.231.33.1", "10.231.33.2"
+NAT_TOOL = shutil.which("iptables")
+
+_SERVE_ONCE = (
+    "import socket,sys;s=socket.socket();s.bind((sys.argv[1],int(sys.argv[2])));s.listen();"
+    "print('ready',flush=True);c,a=s.accept();c.sendall(a[0].encode());c.close()"
+)
+_FETCH = (
+    "import socket,sys;c=socket.create_connection((sys.argv[1],int(sys.argv[2])),timeout=10);"
+    "print(c.recv(100).decode())"
+)
+
+
+@dataclass(frozen=True)
+class VpnLab:
+    edge: Namespace
+    aws: Namespace
+    cloud: Namespace
+    bundle: certs.Bundle
+    profile: Path
+    workdir: Path
+    nat: bool
+
+
+def fogiac(ns: Namespace, *args: str, check: bool = False) -> subprocess.CompletedProcess[str]:
+    """Run the real CLI inside ``ns``."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")]))}
+    return ns.run([sys.executable, "-m", "fogiac", *args], env=env, check=check, timeout=90)
+
+
+def _wait_for_line(path: Path, needle: str, *, proc: subprocess.Popen[str], timeout: float = 30) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if path.exists() and needle in path.read_text(errors="replace"):
+            return
+        if proc.poll() is not None:
+            break
+        time.sleep(0.1)
+    log = path.read_text(errors="replace") if path.exists() else "(no log)"
+    raise AssertionError(f"{needle!r} not seen in {path}:\n{log[-3000:]}")
+
+
+@pytest.fixture(scope="module")
+def lab(tmp_path_factory: pytest.TempPathFactory) -> Iterator[VpnLab]:
+    workdir = tmp_path_factory.mktemp("vpnlab")
+    bundle = certs.new_bundle(STACK)
+    with NetLab() as net:
+        edge, aws, cloud = net.namespace("edge"), net.namespace("aws"), net.namespace("cloud")
+        net.link(edge, aws, a_addr=f"{EDGE_PUBLIC}/30", b_addr=f"{AWS_PUBLIC}/30")
+        vpc = net.link(aws, cloud, a_addr=f"{AWS_VPC}/24", b_addr=f"{CLOUD}/24")
+        aws.sysctl("net.ipv4.ip_forward", "1")
+        if NAT_TOOL:
+            aws.run([NAT_TOOL, "-t", "nat", "-A", "POSTROUTING", "-s", CLIENT_CIDR,
+                     "-o", vpc.a_if, "-j", "MASQUERADE"])
+        else:  # without NAT the cloud needs a route back to the clients to answer at all
+            cloud.add_route(CLIENT_CIDR, via=AWS_VPC)
+
+        server_dir = workdir / "server"
+        server_conf = server_dir / "server.conf"
+        certs.write_private(server_conf, render_server_config(
+            bundle=bundle, client_cidr=CLIENT_CIDR, listen=AWS_PUBLIC, routes=(VPC_CIDR,),
+        ).encode())
+        server_log = server_dir / "openvpn.log"
+        server = aws.popen(["openvpn", "--config", str(server_conf), "--log", str(server_log)])
+        _wait_for_line(server_log, "Initialization Sequence Completed", proc=server)
+
+        profile = write_client_profile(endpoint_dns=AWS_PUBLIC, bundle=bundle, stack=STACK,
+                                       path=workdir / "edge-state" / "client.ovpn")
+        yield VpnLab(edge=edge, aws=aws, cloud=cloud, bundle=bundle, profile=profile,
+                     workdir=workdir, nat=NAT_TOOL is not None)
+
+
+def _tun_address(lab: VpnLab) -> ipaddress.IPv4Interface:
+    out = lab.edge.run(["ip", "-o", "-4", "addr", "show", "dev", "tun0"]).stdout
+    return ipaddress.IPv4Interface(out.split(" inet ")[1].split()[0])
+
+
+def test_vpn_up_brings_the_tunnel_up_with_a_client_cidr_address(lab: VpnLab) -> None:
+    assert fogiac(lab.edge, "vpn", "status", "--profile", str(lab.profile)).stdout == "VPN stopped\n"
+    up = fogiac(lab.edge, "vpn", "up", "--profile", str(lab.profile))
+    assert up.returncode == 0, up.stderr
+    address = _tun_address(lab)
+    assert address.network == ipaddress.IPv4Network(CLIENT_CIDR)
+    assert up.stdout.startswith("VPN up: running (pid ")
+    assert up.stdout.endswith(f") on tun0 {address}\n")
+    again = fogiac(lab.edge, "vpn", "up", "--profile", str(lab.profile))
+    assert (again.returncode, again.stdout) == (0, up.stdout.replace("VPN up", "VPN already up"))
+    status = fogiac(lab.edge, "vpn", "status", "--profile", str(lab.profile))
+    assert status.stdout == up.stdout.replace("VPN up:", "VPN")
+
+
+def test_edge_reaches_the_cloud_which_sees_the_nat_address(lab: VpnLab) -> None:
+    server = lab.cloud.popen([sys.executable, "-c", _SERVE_ONCE, CLOUD, "7100"], stdout=subprocess.PIPE)
+    assert server.stdout is not None and server.stdout.readline().strip() == "ready"
+    seen = lab.edge.run([sys.executable, "-c", _FETCH, CLOUD, "7100"]).stdout.strip()
+    if not lab.nat:
+        pytest.skip("no iptables here (Debian package iptables): the cloud reached the edge by a "
+                    f"return route, source NAT not checked (cloud saw {seen})")
+    assert seen == AWS_VPC, "the cloud must see the endpoint's VPC address, not the client's"
+    assert ipaddress.ip_address(seen) not in ipaddress.ip_network(CLIENT_CIDR)
+    # And the cloud cannot open a connection back to the robot's tunnel address: no route.
+    route = lab.cloud.run(["ip", "route", "get", str(_tun_address(lab).ip)], check=False)
+    assert route.returncode != 0 or "via" not in route.stdout
+
+
+def test_a_client_from_another_ca_is_refused(lab: VpnLab) -> None:
+    stranger = certs.new_bundle(STACK)
+    profile = write_client_profile(endpoint_dns=AWS_PUBLIC, bundle=stranger, stack=STACK,
+                                   path=lab.workdir / "stranger" / "client.ovpn")
+    up = fogiac(lab.edge, "vpn", "up", "--profile", str(profile), "--timeout", "20")
+    assert up.returncode == 1
+    assert up.stderr.startswith("error: OpenVPN failed: VERIFY ERROR")
+    assert fogiac(lab.edge, "vpn", "status", "--profile", str(profile)).stdout == "VPN stopped\n"
+
+
+def test_vpn_down_stops_it_and_is_idempotent(lab: VpnLab) -> None:
+    down = fogiac(lab.edge, "vpn", "down", "--profile", str(lab.profile))
+    assert (down.returncode, down.stdout) == (0, "VPN down\n")
+    assert lab.edge.run(["ip", "link", "show", "tun0"], check=False).returncode != 0
+    assert fogiac(lab.edge, "vpn", "status", "--profile", str(lab.profile)).stdout == "VPN stopped\n"
+    again = fogiac(lab.edge, "vpn", "down", "--profile", str(lab.profile))
+    assert (again.returncode, again.stdout) == (0, "VPN not running\n")

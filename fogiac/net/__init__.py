@@ -1,0 +1,1 @@
+"""The edge's connection to its cloud nodes: the relay (``fogiac.net.relay``) and the VPN."""

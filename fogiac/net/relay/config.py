@@ -1,0 +1,67 @@
+"""Frozen settings of each end, built by the CLI, the provisioner or tests."""
+
+from __future__ import annotations
+
+import os
+import socket
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from fogiac.errors import RelayError
+from fogiac.net.relay.compression import check_name
+from fogiac.net.relay.graph import TopicPolicy
+
+RELAY_PORT = 11411
+
+
+def default_ros_host() -> str:
+    """The address other nodes reach this one at, the way rospy picks it."""
+    return os.environ.get("ROS_IP") or os.environ.get("ROS_HOSTNAME") or socket.gethostname()
+
+
+def parse_hostport(text: str, *, default_port: int = RELAY_PORT) -> tuple[str, int]:
+    host, sep, port = text.rpartition(":")
+    if not sep:
+        return text, default_port
+    try:
+        return host.strip("[]"), int(port)
+    except ValueError:
+        raise RelayError(f"{text!r} is not HOST:PORT") from None
+
+
+@dataclass(frozen=True, kw_only=True)
+class EndConfig:
+    master_uri: str
+    certs: Path
+    ros_host: str = field(default_factory=default_ros_host)
+    queue_depth: int = 4  # per topic, latest-wins: deeper means more lag on a slow link
+    poll_interval: float = 0.5  # seconds between getSystemState polls
+    ping_interval: float = 1.0
+    dead_after: float = 10.0  # seconds without a frame before the link is declared dead
+    stats_file: Path | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class CloudConfig(EndConfig):
+    listen: tuple[str, int] = ("0.0.0.0", RELAY_PORT)
+    caller_id: str = "/fogiac_relay_cloud"
+
+
+@dataclass(frozen=True, kw_only=True)
+class EdgeConfig(EndConfig):
+    connect: tuple[str, int]
+    policy: TopicPolicy = TopicPolicy(auto=True)
+    compression: str = "none"
+    topic_compression: tuple[tuple[str, str], ...] = ()
+    server_name: str | None = None
+    caller_id: str = "/fogiac_relay_edge"
+    backoff_initial: float = 0.2
+    backoff_max: float = 5.0
+
+    def __post_init__(self) -> None:
+        check_name(self.compression)
+        for _, name in self.topic_compression:
+            check_name(name)
+
+    def compression_for(self, topic: str) -> str:
+        return dict(self.topic_compression).get(topic, self.compression)

@@ -1,0 +1,125 @@
+"""The edge end: dials the cloud end, keeps the link up, and decides what crosses it.
+
+The edge owns the topic policy. It polls its own master, hears the cloud's graph in STATE
+frames, and applies :func:`~fogiac.net.relay.graph.select_routes`: an outgoing route makes
+the edge a source; an incoming one becomes a SUBSCRIBE to the cloud. A lost link is redialled
+with bounded exponential backoff, and the routes are rebuilt from scratch on the new one.
+"""
+
+from __future__ import annotations
+
+import logging
+import socket
+import ssl
+import threading
+
+from fogiac.errors import RelayError
+from fogiac.net.relay import framing
+from fogiac.net.relay.cloud import HANDSHAKE_TIMEOUT, PROTOCOL_VERSION
+from fogiac.net.relay.config import EdgeConfig
+from fogiac.net.relay.end import RelayEnd
+from fogiac.net.relay.framing import Frame, FrameError, Kind
+from fogiac.net.relay.graph import GraphState, Route, select_routes
+from fogiac.net.relay.session import Session, read_frame, send_now
+from fogiac.net.relay.tls import client_context, expected_server_name
+
+log = logging.getLogger(__name__)
+
+
+class EdgeRelay(RelayEnd):
+    role = "edge"
+
+    def __init__(self, config: EdgeConfig) -> None:
+        super().__init__(config, config.caller_id)
+        self.edge_config = config
+        self._ctx = client_context(config.certs)
+        self._server_name = expected_server_name(config.certs, config.server_name)
+        self._wake = threading.Event()
+        self._cloud_graph = GraphState()
+        self.connected = threading.Event()
+        self.last_error: str | None = None
+
+    def _start_link(self) -> None:
+        self._spawn(self._dial_loop, "relay-dial")
+
+    def _stop_link(self) -> None:
+        self._wake.set()
+
+    def _dial_loop(self) -> None:
+        delay = self.edge_config.backoff_initial
+        while not self._stopping.is_set():
+            try:
+                sock = self._dial()
+            except (OSError, ssl.SSLError, RelayError) as err:
+                self.last_error = str(err)
+                log.warning("cannot reach the cloud relay at %s:%d: %s; retrying in %.1f s",
+                            *self.edge_config.connect, err, delay)
+                self._stopping.wait(delay)
+                delay = min(delay * 2, self.edge_config.backoff_max)
+                continue
+            delay = self.edge_config.backoff_initial
+            session = Session(sock=sock, node=self.node, config=self.config, peer="cloud")  # type: ignore[arg-type]
+            session.handlers[Kind.STATE] = self._on_state
+            self._cloud_graph = GraphState()
+            self.session = session
+            self.connected.set()
+            log.info("connected to the cloud relay at %s:%d", *self.edge_config.connect)
+            routing = self._spawn(self._route_loop, "relay-routes", session)
+            session.run()
+            self.connected.clear()
+            self._wake.set()
+            routing.join(timeout=10)
+            if not self._stopping.is_set():
+                self.reconnects += 1
+                self._stopping.wait(delay)
+
+    def _dial(self) -> ssl.SSLSocket:
+        host, port = self.edge_config.connect
+        raw = socket.create_connection((host, port), timeout=HANDSHAKE_TIMEOUT)
+        try:
+            sock = self._ctx.wrap_socket(raw, server_hostname=self._server_name)
+            send_now(sock, framing.json_frame(Kind.HELLO, {"role": "edge", "version": PROTOCOL_VERSION}))
+            # Under TLS 1.3 a refused client certificate shows up here, on the first read.
+            hello = read_frame(sock)
+            if hello.kind is not Kind.HELLO or framing.parse_json(hello).get("role") != "cloud":
+                raise FrameError(f"expected the cloud's HELLO, got {hello.kind.name}")
+        except BaseException:
+            raw.close()
+            raise
+        sock.settimeout(None)
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        return sock
+
+    def _on_state(self, frame: Frame) -> None:
+        try:
+            self._cloud_graph = GraphState.from_json(framing.parse_json(frame))
+        except (ValueError, TypeError, AttributeError) as err:
+            raise FrameError(f"bad STATE frame: {err}") from None
+        self._wake.set()
+
+    def _route_loop(self, session: Session) -> None:
+        """Poll the local graph, reconcile routes, until the session ends."""
+        current: frozenset[Route] = frozenset()
+        while session.alive and not self._stopping.is_set():
+            local = self.local_graph()
+            if local is not None:
+                wanted = select_routes(local, self._cloud_graph, self.edge_config.policy)
+                self._apply(session, current, wanted)
+                current = wanted
+            self._wake.wait(self.config.poll_interval)
+            self._wake.clear()
+
+    def _apply(self, session: Session, current: frozenset[Route], wanted: frozenset[Route]) -> None:
+        for route in sorted(wanted - current):
+            comp = self.edge_config.compression_for(route.topic)
+            if route.direction == "out":
+                session.start_source(route.topic, comp)
+            else:
+                session.send(framing.json_frame(Kind.SUBSCRIBE, {"topic": route.topic, "compression": comp}))
+                log.info("asking the cloud for %s (%s)", route.topic, comp)
+        for route in sorted(current - wanted):
+            if route.direction == "out":
+                session.stop_source(route.topic)
+            else:
+                session.send(framing.json_frame(Kind.UNSUBSCRIBE, {"topic": route.topic}))
+                log.info("no longer asking the cloud for %s", route.topic)

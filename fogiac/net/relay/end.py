@@ -1,0 +1,117 @@
+"""What the edge and cloud ends share: the ROS node, the monitor, the live figures."""
+
+from __future__ import annotations
+
+import logging
+import threading
+from typing import Any
+
+from fogiac.errors import RelayError
+from fogiac.net.relay.config import EndConfig
+from fogiac.net.relay.graph import GraphState, from_system_state
+from fogiac.net.relay.monitor import Monitor
+from fogiac.net.relay.node import RelayNode
+from fogiac.net.relay.session import Session
+from fogiac.net.relay.stats import RelayStats, write_stats
+
+log = logging.getLogger(__name__)
+
+
+class RelayEnd:
+    role = "end"
+
+    def __init__(self, config: EndConfig, caller_id: str) -> None:
+        self.config, self.caller_id = config, caller_id
+        self.node: RelayNode | None = None
+        self._monitor: Monitor | None = None
+        self.session: Session | None = None
+        self.reconnects = 0
+        self._stopping = threading.Event()
+        self._threads: list[threading.Thread] = []
+
+    def start(self) -> None:
+        """Register with the local master and begin linking; RelayError if the master is unreachable."""
+        self.node = RelayNode(master_uri=self.config.master_uri, caller_id=self.caller_id, host=self.config.ros_host)
+        self.node.start()
+        try:
+            self._monitor = Monitor(self.node)
+            self._monitor.start()
+            self._start_link()
+        except BaseException:
+            self.node.stop()
+            raise
+        self._spawn(self._stats_loop, "relay-stats")
+
+    def stop(self) -> None:
+        self._stopping.set()
+        self._stop_link()
+        session = self.session
+        if session is not None:
+            session.close("relay stopping")
+            session.closed.wait(10)
+        if self._monitor is not None:
+            self._monitor.stop()
+        if self.node is not None:
+            self.node.stop()
+        for thread in self._threads:
+            thread.join(timeout=5)
+
+    def __enter__(self) -> RelayEnd:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.stop()
+
+    def stats(self) -> RelayStats:
+        """Topics, latency, throughput and drops as of the last second."""
+        session = self.session
+        live = session is not None and session.alive
+        rtt = session.clock.rtt_ns if live and session else None
+        return RelayStats(
+            role=self.role, connected=live,
+            rtt_ms=None if rtt is None else round(rtt / 1e6, 3),
+            clock_offset_ms=round(session.clock.offset_ns / 1e6, 3) if live and session else 0.0,
+            reconnects=self.reconnects,
+            topics=tuple(sorted((c.snapshot() for c in session.counters()), key=lambda t: (t.topic, t.direction)))
+            if live and session else (),
+        )
+
+    # --- for subclasses --------------------------------------------------------------------
+    def _start_link(self) -> None:
+        raise NotImplementedError
+
+    def _stop_link(self) -> None:
+        raise NotImplementedError
+
+    def _spawn(self, target: Any, name: str, *args: Any) -> threading.Thread:
+        thread = threading.Thread(target=target, args=args, name=name, daemon=True)
+        thread.start()
+        self._threads.append(thread)
+        return thread
+
+    def local_graph(self) -> GraphState | None:
+        assert self.node is not None
+        try:
+            return from_system_state(self.node.master.system_state(), exclude={self.caller_id})
+        except RelayError as err:
+            log.warning("cannot read the local ROS graph: %s", err)
+            return None
+
+    def _stats_loop(self) -> None:
+        while not self._stopping.wait(1.0):
+            session = self.session
+            if session is not None:
+                for counters in session.counters():
+                    counters.tick()
+            stats = self.stats()
+            if self._monitor is not None:
+                self._monitor.publish(stats)
+            for t in stats.topics:
+                if t.drops:
+                    log.debug("%s: %d dropped so far", t.topic, t.drops)
+            if self.config.stats_file is not None:
+                try:
+                    write_stats(self.config.stats_file, stats)
+                except OSError as err:
+                    log.warning("cannot write %s: %s", self.config.stats_file, err)

@@ -1,0 +1,98 @@
+"""Which topics cross the relay, decided from both masters' graphs. Pure.
+
+Each end reports its master's ``getSystemState`` with the relay's own registrations left out
+(that is what keeps a relayed topic from bouncing back). The edge then applies
+:func:`select_routes`: in ``auto`` mode a topic crosses whenever it has a publisher on one
+side and a subscriber on the other, and stops crossing when either goes away.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+Direction = Literal["out", "in"]  # out: edge -> cloud; in: cloud -> edge
+DEFAULT_IGNORE = ("/rosout", "/rosout_agg", "/fogros/")
+
+
+@dataclass(frozen=True)
+class GraphState:
+    """Topic -> registered nodes, for publishers and subscribers of one master."""
+
+    publishers: Mapping[str, frozenset[str]] = field(default_factory=dict)
+    subscribers: Mapping[str, frozenset[str]] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "publishers": {t: sorted(n) for t, n in sorted(self.publishers.items())},
+            "subscribers": {t: sorted(n) for t, n in sorted(self.subscribers.items())},
+        }
+
+    @classmethod
+    def from_json(cls, body: Mapping[str, Any]) -> GraphState:
+        def side(key: str) -> dict[str, frozenset[str]]:
+            raw = body.get(key, {})
+            if not isinstance(raw, dict):
+                raise ValueError(f"{key} must be an object")
+            return {str(t): frozenset(map(str, nodes)) for t, nodes in raw.items()}
+
+        return cls(side("publishers"), side("subscribers"))
+
+
+def from_system_state(state: Any, *, exclude: Iterable[str]) -> GraphState:
+    """A GraphState from the master's ``[publishers, subscribers, services]`` answer."""
+    skip = set(exclude)
+
+    def side(entries: Any) -> dict[str, frozenset[str]]:
+        out: dict[str, frozenset[str]] = {}
+        for topic, nodes in entries:
+            kept = frozenset(n for n in nodes if n not in skip)
+            if kept:
+                out[topic] = kept
+        return out
+
+    return GraphState(side(state[0]), side(state[1]))
+
+
+@dataclass(frozen=True)
+class TopicPolicy:
+    """What the edge was told to relay.
+
+    ``out_topics``/``in_topics`` always cross in their direction; ``topics`` cross in whichever
+    direction has a publisher; ``auto`` adds every topic with a publisher on one side and a
+    subscriber on the other. Topics starting with an ``ignore`` prefix never cross on their own.
+    """
+
+    auto: bool = False
+    topics: tuple[str, ...] = ()
+    out_topics: tuple[str, ...] = ()
+    in_topics: tuple[str, ...] = ()
+    ignore: tuple[str, ...] = DEFAULT_IGNORE
+
+
+@dataclass(frozen=True, order=True)
+class Route:
+    topic: str
+    direction: Direction
+
+
+def _ignored(topic: str, prefixes: tuple[str, ...]) -> bool:
+    return any(topic == p or (p.endswith("/") and topic.startswith(p)) for p in prefixes)
+
+
+def select_routes(edge: GraphState, cloud: GraphState, policy: TopicPolicy) -> frozenset[Route]:
+    routes = {Route(t, "out") for t in policy.out_topics} | {Route(t, "in") for t in policy.in_topics}
+    for topic in policy.topics:
+        if edge.publishers.get(topic):
+            routes.add(Route(topic, "out"))
+        if cloud.publishers.get(topic):
+            routes.add(Route(topic, "in"))
+    if policy.auto:
+        for topic in edge.publishers.keys() & cloud.subscribers.keys():
+            if not _ignored(topic, policy.ignore):
+                routes.add(Route(topic, "out"))
+        for topic in cloud.publishers.keys() & edge.subscribers.keys():
+            if not _ignored(topic, policy.ignore):
+                routes.add(Route(topic, "in"))
+    return frozenset(routes)

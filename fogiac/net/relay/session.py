@@ -1,0 +1,252 @@
+"""One live link between the ends: frames in and out over the TLS socket, and the topics
+crossing it. When the connection ends, every registration it made is withdrawn.
+
+Threads: the caller of :meth:`Session.run` reads frames; one writer drains the
+:class:`~fogiac.net.relay.queues.Outbox`; one pinger keeps the clock offset fresh and declares
+a silent peer dead. Topic sources add publisher-reader threads (see ``pubsub``).
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import socket
+import ssl
+import threading
+import time
+from collections.abc import Callable
+
+from fogiac.errors import RelayError
+from fogiac.net.relay import framing
+from fogiac.net.relay.compression import codec
+from fogiac.net.relay.config import EndConfig
+from fogiac.net.relay.framing import Frame, FrameError, Kind
+from fogiac.net.relay.node import RelayNode
+from fogiac.net.relay.pubsub import LocalPublisher, LocalSubscription, TopicMeta
+from fogiac.net.relay.queues import Outbox
+from fogiac.net.relay.stats import ClockSync, TopicCounters
+from fogiac.net.relay.tcpros import recv_exact
+
+log = logging.getLogger(__name__)
+Handler = Callable[[Frame], None]
+
+
+def read_frame(sock: socket.socket) -> Frame:
+    """The next frame; FrameError before reading a payload whose length is absurd."""
+    kind, topic, size = framing.parse_header(bytes(recv_exact(sock, framing.HEADER.size)))
+    return Frame(kind, topic, recv_exact(sock, size) if size else b"")  # type: ignore[arg-type]
+
+
+def send_now(sock: socket.socket, frame: Frame) -> None:
+    """Write one frame before the session's writer exists (the HELLO exchange)."""
+    sock.sendall(framing.encode(frame))
+
+
+class _Source:
+    """A local topic sent over the link: subscribe, stamp, compress, queue latest-wins."""
+
+    def __init__(self, session: Session, topic: str, compression: str) -> None:
+        self.session, self.topic, self.id = session, topic, next(session._ids)
+        self._codec = codec(compression)
+        self.counters = TopicCounters(topic, "out", compression)
+        self._lock = threading.Lock()
+        self._opened = False
+        self.sub = LocalSubscription(session.node, topic, on_meta=self._meta, on_message=self._message)
+
+    def _meta(self, meta: TopicMeta) -> None:
+        with self._lock:
+            if not self._opened:
+                body = {"topic": self.topic, "compression": self._codec.name, **meta.to_json()}
+                self.session.send(framing.json_frame(Kind.OPEN, body, topic=self.id))
+                self._opened = True
+
+    def _message(self, data: bytes) -> None:
+        stamp = time.time_ns()
+        with self._lock:
+            body = self._codec.compress(data)
+        prefix = framing.data_prefix(self.id, stamp, len(body))
+        dropped = self.session.outbox.put(self.id, (prefix, body), depth=self.session.config.queue_depth)
+        self.counters.count(len(data))
+        if dropped:
+            self.counters.drop(dropped)
+
+    def stop(self) -> None:
+        self.sub.stop()
+        self.session.outbox.discard(self.id)
+        self.session.send(Frame(Kind.CLOSE, self.id, b""))
+
+
+class _Sink:
+    """A peer's topic published locally with the peer publisher's type, md5sum and latching."""
+
+    def __init__(self, session: Session, topic: str, meta: TopicMeta, compression: str) -> None:
+        self.session, self.topic = session, topic
+        self._codec = codec(compression)
+        self.counters = TopicCounters(topic, "in", compression)
+        self.pub = LocalPublisher(session.node, topic, meta, depth=session.config.queue_depth)
+
+    def deliver(self, stamp: int, body: memoryview) -> None:
+        data = self._codec.decompress(body)
+        latency = time.time_ns() - (stamp - self.session.clock.offset_ns)
+        self.counters.count(len(data), latency)
+        self.pub.publish(data)  # type: ignore[arg-type]
+
+
+class Session:
+    def __init__(self, *, sock: ssl.SSLSocket, node: RelayNode, config: EndConfig, peer: str) -> None:
+        self.sock, self.node, self.config, self.peer = sock, node, config, peer
+        self.outbox = Outbox()
+        self.clock = ClockSync()
+        self._ids = itertools.count(1)
+        self._sources: dict[str, _Source] = {}
+        self._sinks: dict[int, _Sink] = {}
+        self._lock = threading.Lock()
+        self._closing = threading.Event()
+        self.closed = threading.Event()
+        self._last_rx = time.monotonic()
+        self.handlers: dict[Kind, Handler] = {
+            Kind.OPEN: self._on_open, Kind.CLOSE: self._on_close, Kind.DATA: self._on_data,
+            Kind.PING: self._on_ping, Kind.PONG: self._on_pong,
+        }
+
+    # --- public ----------------------------------------------------------------------------
+    def send(self, frame: Frame) -> None:
+        self.outbox.put_control((framing.encode(frame),))
+
+    def start_source(self, topic: str, compression: str) -> None:
+        with self._lock:
+            if topic in self._sources or self._closing.is_set():
+                return
+            try:
+                source = self._sources[topic] = _Source(self, topic, compression)
+            except RelayError as err:
+                log.error("cannot relay %s: %s", topic, err)
+                return
+        try:
+            source.sub.start()
+        except RelayError as err:
+            log.error("cannot subscribe to %s: %s", topic, err)
+            with self._lock:
+                self._sources.pop(topic, None)
+            return
+        log.info("relaying %s to %s (%s)", topic, self.peer, compression)
+
+    def stop_source(self, topic: str) -> None:
+        with self._lock:
+            source = self._sources.pop(topic, None)
+        if source is not None:
+            source.stop()
+            log.info("stopped relaying %s", topic)
+
+    def counters(self) -> list[TopicCounters]:
+        with self._lock:
+            return [s.counters for s in self._sources.values()] + [s.counters for s in self._sinks.values()]
+
+    @property
+    def alive(self) -> bool:
+        return not self._closing.is_set()
+
+    def close(self, reason: str) -> None:
+        if not self._closing.is_set():
+            self._closing.set()
+            log.info("closing link to %s: %s", self.peer, reason)
+            self.outbox.close()
+            try:
+                socket.socket.shutdown(self.sock, socket.SHUT_RDWR)
+            except OSError:
+                pass
+
+    def run(self) -> None:
+        """Serve the link until it ends, then withdraw every registration it made."""
+        threading.Thread(target=self._write_loop, name="relay-writer", daemon=True).start()
+        threading.Thread(target=self._ping_loop, name="relay-pinger", daemon=True).start()
+        try:
+            while not self._closing.is_set():
+                frame = read_frame(self.sock)
+                self._last_rx = time.monotonic()
+                handler = self.handlers.get(frame.kind)
+                if handler is None:
+                    raise FrameError(f"unexpected {frame.kind.name} frame from {self.peer}")
+                handler(frame)
+        except FrameError as err:
+            log.warning("malformed frame from %s: %s; dropping this connection", self.peer, err)
+            self.close(str(err))
+        except (OSError, ConnectionError) as err:
+            self.close(f"connection lost: {err}")
+        except RelayError as err:
+            log.error("link to %s failed: %s", self.peer, err)
+            self.close(str(err))
+        finally:
+            self.close("done")
+            self._teardown()
+
+    # --- internals -------------------------------------------------------------------------
+    def _teardown(self) -> None:
+        with self._lock:
+            sources, self._sources = list(self._sources.values()), {}
+            sinks, self._sinks = list(self._sinks.values()), {}
+        for source in sources:
+            source.sub.stop()
+        for sink in sinks:
+            sink.pub.stop()
+        self.sock.close()
+        self.closed.set()
+
+    def _write_loop(self) -> None:
+        try:
+            while (item := self.outbox.get()) is not None:
+                for buf in item:
+                    self.sock.sendall(buf)
+        except OSError as err:
+            self.close(f"write failed: {err}")
+
+    def _ping_loop(self) -> None:
+        n = 0
+        while not self._closing.is_set():
+            self.send(framing.ping(time.time_ns()))
+            n += 1
+            self._closing.wait(0.05 if n < 8 else self.config.ping_interval)
+            if time.monotonic() - self._last_rx > self.config.dead_after:
+                self.close(f"no frame for {self.config.dead_after:g} s")
+
+    def _on_ping(self, frame: Frame) -> None:
+        self.send(framing.pong(framing.parse_ping(frame), time.time_ns()))
+
+    def _on_pong(self, frame: Frame) -> None:
+        t0, peer = framing.parse_pong(frame)
+        self.clock.add(t0, peer, time.time_ns())
+
+    def _on_open(self, frame: Frame) -> None:
+        body = framing.parse_json(frame)
+        try:
+            topic, meta = str(body["topic"]), TopicMeta.from_json(body)
+            compression = str(body.get("compression", "none"))
+            sink = _Sink(self, topic, meta, compression)
+        except (KeyError, ValueError, RelayError) as err:
+            raise FrameError(f"bad OPEN frame: {err}") from None
+        with self._lock:
+            stale = [i for i, s in self._sinks.items() if s.topic == topic]
+            old = [self._sinks.pop(i) for i in stale]
+        for s in old:
+            s.pub.stop()
+        try:
+            sink.pub.start()
+        except RelayError as err:
+            log.error("cannot advertise %s: %s", topic, err)
+            return
+        with self._lock:
+            self._sinks[frame.topic] = sink
+        log.info("publishing %s (%s%s) from %s", topic, meta.type, ", latched" if meta.latching else "", self.peer)
+
+    def _on_close(self, frame: Frame) -> None:
+        with self._lock:
+            sink = self._sinks.pop(frame.topic, None)
+        if sink is not None:
+            sink.pub.stop()
+            log.info("peer stopped sending %s", sink.topic)
+
+    def _on_data(self, frame: Frame) -> None:
+        stamp, body = framing.split_data(frame.payload)
+        sink = self._sinks.get(frame.topic)
+        if sink is not None:  # DATA racing its CLOSE is harmless
+            sink.deliver(stamp, body)

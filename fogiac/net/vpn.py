@@ -81,8 +81,9 @@ def render_client_profile(
     )
 
 
-def default_profile_path(stack: str) -> Path:
-    return stack_dir(stack) / PROFILE_NAME
+def default_profile_path(stack: str, *, create: bool = True) -> Path:
+    """``client.ovpn`` in the stack's state folder (made 0700 when ``create``)."""
+    return stack_dir(stack, create=create) / PROFILE_NAME
 
 
 def git_work_tree(path: Path) -> Path | None:

@@ -28,6 +28,7 @@ class RelayEnd:
         self.reconnects = 0
         self._stopping = threading.Event()
         self._threads: list[threading.Thread] = []
+        self._drops_logged: dict[str, int] = {}
 
     def start(self) -> None:
         """Register with the local master and begin linking; RelayError if the master is unreachable."""
@@ -108,8 +109,9 @@ class RelayEnd:
             if self._monitor is not None:
                 self._monitor.publish(stats)
             for t in stats.topics:
-                if t.drops:
-                    log.debug("%s: %d dropped so far", t.topic, t.drops)
+                if t.drops > self._drops_logged.get(t.topic, 0):
+                    log.info("%s: %d stale messages dropped so far (latest-wins queue)", t.topic, t.drops)
+                    self._drops_logged[t.topic] = t.drops
             if self.config.stats_file is not None:
                 try:
                     write_stats(self.config.stats_file, stats)

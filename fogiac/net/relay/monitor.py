@@ -57,6 +57,7 @@ class Monitor:
     def __init__(self, node: RelayNode) -> None:
         self._latency = LocalPublisher(node, LATENCY_TOPIC, STRING, depth=2)
         self._throughput = LocalPublisher(node, THROUGHPUT_TOPIC, STRING, depth=2)
+        self.published = 0  # messages built and sent; stays 0 while nobody listens
 
     def start(self) -> None:
         self._latency.start()
@@ -66,6 +67,7 @@ class Monitor:
         for pub, doc in ((self._latency, latency_doc), (self._throughput, throughput_doc)):
             if pub.has_subscribers:
                 pub.publish(string_msg(json.dumps(doc(stats), separators=(",", ":"))))
+                self.published += 1
 
     def stop(self) -> None:
         self._latency.stop()

@@ -18,6 +18,8 @@ from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import rsa
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
+from fogiac.plan import server_name
+
 _VALID_DAYS = 825
 
 
@@ -130,11 +132,6 @@ def issue(
         builder = builder.add_extension(x509.SubjectAlternativeName(alt_names), critical=False)
     cert = builder.sign(ca_key, hashes.SHA256())  # type: ignore[arg-type]
     return KeyPair(cert.public_bytes(serialization.Encoding.PEM), _key_pem(key))
-
-
-def server_name(stack: str) -> str:
-    """The DNS-style name every server certificate of ``stack`` carries (ACM needs a domain)."""
-    return f"server.{stack}.fogiac"
 
 
 def new_bundle(stack: str) -> Bundle:

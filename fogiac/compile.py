@@ -10,7 +10,6 @@ from __future__ import annotations
 import ipaddress
 
 from fogiac.catalog import catalog
-from fogiac.certs import server_name
 from fogiac.errors import PlanError
 from fogiac.manifest import Manifest, Node
 from fogiac.plan import (
@@ -31,6 +30,7 @@ from fogiac.plan import (
     SecurityGroup,
     Subnet,
     VpnSpec,
+    server_name,
 )
 
 TARGETS = ("aws", "hosts", "local")

@@ -255,12 +255,12 @@ class Manifest(_Model):
     """A fogiac deployment: which ROS nodes run off the robot, where, over which network."""
 
     name: str = Field(description="DNS-safe deployment name; tags every cloud resource.")
-    ros: Ros = Field(default_factory=Ros)
-    cloud: Cloud = Field(default_factory=Cloud)
-    network: Network = Field(default_factory=Network)
-    edge: Edge = Field(default_factory=Edge)
+    ros: Ros = Field(default_factory=Ros, description="ROS settings.")
+    cloud: Cloud = Field(default_factory=Cloud, description="Where the cloud nodes run.")
+    network: Network = Field(default_factory=Network, description="How the edge reaches them.")
+    edge: Edge = Field(default_factory=Edge, description="The robot's side.")
     nodes: tuple[Node, ...] = Field(min_length=1, description="The nodes that run off the robot.")
-    relay: Relay = Field(default_factory=Relay)
+    relay: Relay = Field(default_factory=Relay, description="How topics cross between edge and cloud.")
     tags: dict[str, str] = Field(default_factory=dict, description="Extra tags on every cloud resource.")
 
     @field_validator("name")
@@ -306,13 +306,15 @@ def _resolve_paths(data: dict, base: Path) -> list[tuple[tuple, str]]:
         if not (path.is_dir() if folder else path.is_file()):
             missing.append((loc + (key,), f"{value!r} does not exist (looked for {path})"))
 
-    for i, node in enumerate(data.get("nodes") or []):
+    nodes = data.get("nodes")
+    for i, node in enumerate(nodes if isinstance(nodes, list) else []):
         if isinstance(node, dict) and isinstance(node.get("launch"), dict):
             fix(node["launch"], "workspace", ("nodes", i, "launch"), folder=True)
             fix(node["launch"], "env_script", ("nodes", i, "launch"), folder=False)
     cloud = data.get("cloud")
     if isinstance(cloud, dict):
-        for i, host in enumerate(cloud.get("hosts") or []):
+        hosts = cloud.get("hosts")
+        for i, host in enumerate(hosts if isinstance(hosts, list) else []):
             if isinstance(host, dict):
                 fix(host, "key", ("cloud", "hosts", i), folder=False)
     return missing

@@ -22,7 +22,8 @@ Loc = tuple[str | int, ...]
 _FIELD_NAME = re.compile(r"^[a-z_][a-z0-9_]*$")
 _TYPE_TAGS = {"str", "int", "float", "bool", "list", "dict", "tuple", "set", "none"}
 _MISMATCH = {"literal_error", "model_type", "tuple_type", "list_type", "dict_type", "string_type",
-             "model_attributes_type", "ip_v4_network", "bool_parsing", "int_parsing", "int_type"}
+             "model_attributes_type", "ip_v4_network", "bool_parsing", "int_parsing", "int_type",
+             "too_short"}
 
 
 class FieldProblem(ValueError):
@@ -112,13 +113,19 @@ def line_index(root: yaml.Node | None) -> dict[Loc, int]:
     return lines
 
 
+_PLAIN_KEY = re.compile(r"^[A-Za-z0-9_:/.-]+$")
+
+
 def path_str(path: Loc) -> str:
+    """``nodes[1].machine``; odd keys (spaces, newlines, empty) are quoted so a line stays one line."""
     out = ""
     for part in path:
         if isinstance(part, int):
             out += f"[{part}]"
-        else:
+        elif _PLAIN_KEY.match(str(part)):
             out += ("." if out else "") + str(part)
+        else:
+            out += f"[{str(part)!r}]"
     return out or "(top)"
 
 

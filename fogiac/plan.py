@@ -21,6 +21,11 @@ RELAY_PORT = 11411
 OPERATOR = "operator"  # stands for the operator's address in ssh_from: auto until preflight resolves it
 
 
+def server_name(stack: str) -> str:
+    """The DNS-style name every server certificate of ``stack`` carries (ACM needs a domain)."""
+    return f"server.{stack}.fogiac"
+
+
 @dataclass(frozen=True)
 class Rule:
     """One security-group rule; ``cidr`` is a CIDR or the OPERATOR placeholder."""

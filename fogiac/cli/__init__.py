@@ -11,7 +11,6 @@ import importlib
 import pkgutil
 import sys
 
-import click
 import typer
 from typer.core import TyperGroup
 
@@ -21,18 +20,18 @@ from fogiac.errors import FogiacError, ManifestError
 class _FogiacGroup(TyperGroup):
     """Turns a FogiacError from any command into clean output and exit status 1."""
 
-    def invoke(self, ctx: click.Context):  # type: ignore[override]
+    def invoke(self, ctx):  # type: ignore[no-untyped-def,override]
         try:
             return super().invoke(ctx)
         except ManifestError as err:
             for line in err.problems:
                 typer.echo(line, err=True)
-            raise click.exceptions.Exit(1) from None
+            raise typer.Exit(1) from None
         except FogiacError as err:
             typer.echo(f"error: {err}", err=True)
-            raise click.exceptions.Exit(1) from None
+            raise typer.Exit(1) from None
 
-    def list_commands(self, ctx: click.Context) -> list[str]:
+    def list_commands(self, ctx) -> list[str]:  # type: ignore[no-untyped-def]
         return sorted(super().list_commands(ctx))
 
 

@@ -65,3 +65,21 @@ class EdgeConfig(EndConfig):
 
     def compression_for(self, topic: str) -> str:
         return dict(self.topic_compression).get(topic, self.compression)
+
+
+def _names(text: str) -> tuple[str, ...]:
+    names = tuple(n.strip() for n in text.split(",") if n.strip())
+    bad = [n for n in names if not n.startswith("/")]
+    if bad:
+        raise RelayError(f"topic names must be absolute (start with '/'): {', '.join(bad)}")
+    return names
+
+
+def policy_from_spec(topics: str = "auto", *, out_topics: str = "", in_topics: str = "") -> TopicPolicy:
+    """``--topics auto`` or ``--topics /a,/b`` (direction from where the publisher is), plus
+    ``--out``/``--in`` lists whose direction is fixed."""
+    auto = topics.strip() == "auto"
+    return TopicPolicy(
+        auto=auto, topics=() if auto else _names(topics),
+        out_topics=_names(out_topics), in_topics=_names(in_topics),
+    )

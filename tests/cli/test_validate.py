@@ -1,0 +1,57 @@
+"""`fogiac validate` and `fogiac schema` through the real CLI app."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+from typer.testing import CliRunner
+
+from fogiac.cli import app
+
+from ..conftest import EXAMPLES
+
+runner = CliRunner()
+
+
+def test_validate_a_good_manifest() -> None:
+    result = runner.invoke(app, ["validate", str(EXAMPLES / "motion-planning.yaml")])
+    assert result.exit_code == 0, result.output
+    assert "valid (1 node, 1 host, target aws)" in result.output
+
+
+def test_validate_reports_each_problem_on_one_line_exit_1(tmp_path: Path) -> None:
+    bad = tmp_path / "fogiac.yaml"
+    bad.write_text("name: x\nnodes:\n  - name: a\n    machine: g4dn.xlrge\n    image: i\n  - name: a\n    machine: t3.micro\n")
+    result = runner.invoke(app, ["validate", str(bad)])
+    assert result.exit_code == 1
+    assert result.output.splitlines() == [
+        f"{bad}:4: nodes[0].machine: 'g4dn.xlrge' is not a known instance type; did you mean 'g4dn.xlarge'?",
+        f"{bad}:6: nodes[1]: needs exactly one of image, launch or workload (got none)",
+    ]
+    assert "Traceback" not in result.output
+
+
+def test_validate_for_a_target_that_cannot_compile() -> None:
+    result = runner.invoke(app, ["validate", str(EXAMPLES / "minimal.yaml"), "--target", "hosts"])
+    assert result.exit_code == 1
+    assert result.output.strip() == "error: cloud.hosts: the hosts target needs at least one machine"
+
+
+def test_schema_is_json() -> None:
+    result = runner.invoke(app, ["schema"])
+    assert result.exit_code == 0
+    assert json.loads(result.output)["title"] == "fogiac manifest"
+
+
+def test_validate_imports_neither_pulumi_nor_boto3() -> None:
+    code = (
+        "import sys; from fogiac.cli import main; sys.argv=['fogiac','validate',%r]\n"
+        "try:\n    main()\nexcept SystemExit:\n    pass\n"
+        "bad=[m for m in sys.modules if m.split('.')[0] in ('pulumi','pulumi_aws','boto3','botocore','torch','fabric')]\n"
+        "print(bad)"
+    ) % str(EXAMPLES / "minimal.yaml")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip().splitlines()[-1] == "[]"

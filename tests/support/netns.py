@@ -202,6 +202,11 @@ class NetLab:
             run_ip("link", "set", ifname, "up")
         return link
 
+    def stop(self, proc: subprocess.Popen[str]) -> int | None:
+        """Stop one process started with :meth:`Namespace.popen` now (its whole group)."""
+        _kill_group(proc)
+        return proc.returncode
+
     def close(self) -> None:
         """Kill every process, delete namespaces, veths and /etc/netns files; never raises."""
         for ns in self._namespaces:

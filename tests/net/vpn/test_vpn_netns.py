@@ -9,8 +9,10 @@ by the edge. Everything runs through ``fogiac vpn up|status|down`` for real.
 
 from __future__ import annotations
 
+import importlib.util
 import ipaddress
 import os
+import select
 import shutil
 import subprocess
 import sys
@@ -38,6 +40,18 @@ VPC_CIDR = "10.231.32.0/24"
 AWS_VPC, CLOUD = "10.231.32.1", "10.231.32.10"
 AWS_PUBLIC, EDGE_PUBLIC = "10.231.33.1", "10.231.33.2"
 NAT_TOOL = shutil.which("iptables")
+
+ROS_SIDE = Path(__file__).with_name("_ros_side.py")
+# Each namespace has its own loopback, so fixed ports cannot collide with other test runs.
+MASTER = "http://127.0.0.1:11311"
+RELAY_PORT = 11411
+_WAIT_MASTER = (
+    "import sys,time,xmlrpc.client as x\n"
+    "for _ in range(200):\n"
+    "    try: x.ServerProxy(sys.argv[1]).getPid('/probe'); sys.exit(0)\n"
+    "    except OSError: time.sleep(0.1)\n"
+    "sys.exit(1)\n"
+)
 
 _SERVE_ONCE = (
     "import socket,sys;s=socket.socket();s.bind((sys.argv[1],int(sys.argv[2])));s.listen();"
@@ -139,6 +153,90 @@ def test_edge_reaches_the_cloud_which_sees_the_nat_address(lab: VpnLab) -> None:
     # And the cloud cannot open a connection back to the robot's tunnel address: no route.
     route = lab.cloud.run(["ip", "route", "get", str(_tun_address(lab).ip)], check=False)
     assert route.returncode != 0 or "via" not in route.stdout
+
+
+def _ros_skip_reason() -> str | None:
+    if shutil.which("roscore") is None:
+        return "needs roscore (Debian package ros-core)"
+    if importlib.util.find_spec("rospy") is None:
+        return "needs rospy (Debian package python3-rospy)"
+    if not (REPO / "fogiac" / "cli" / "relay.py").exists():
+        return "the relay's `fogiac relay cloud|edge` commands are not there yet"
+    return None
+
+
+def _ros_env(home: Path) -> dict[str, str]:
+    env = {**os.environ, "ROS_MASTER_URI": MASTER, "ROS_IP": "127.0.0.1", "ROS_HOME": str(home),
+           "ROS_LOG_DIR": str(home / "log"),
+           "PYTHONPATH": os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")]))}
+    env.pop("ROS_HOSTNAME", None)
+    return env
+
+
+def _read_lines(proc: subprocess.Popen[str], count: int, *, timeout: float) -> list[str]:
+    """The first ``count`` lines ``proc`` prints, or what came before the deadline."""
+    assert proc.stdout is not None
+    lines: list[str] = []
+    deadline = time.monotonic() + timeout
+    while len(lines) < count and time.monotonic() < deadline:
+        ready, _, _ = select.select([proc.stdout], [], [], 0.2)
+        if ready:
+            line = proc.stdout.readline()
+            if not line:
+                break
+            lines.append(line.strip())
+    return lines
+
+
+def _tail(path: Path) -> str:
+    return path.read_text(errors="replace")[-2000:] if path.exists() else "(no output)"
+
+
+def test_relay_carries_topics_both_ways_through_the_tunnel(lab: VpnLab, tmp_path: Path) -> None:
+    reason = _ros_skip_reason()
+    if reason:
+        pytest.skip(reason)
+    certs_dir = tmp_path / "certs"
+    certs.save_bundle(lab.bundle, certs_dir)  # one CA for the VPN and the relay, as in a stack
+    started: list[tuple[Namespace, subprocess.Popen[str]]] = []
+    logs: dict[str, Path] = {}
+
+    def start(ns: Namespace, what: str, argv: list[str], *, pipe: bool = False) -> subprocess.Popen[str]:
+        env = _ros_env(tmp_path / f"ros-{ns.name}")
+        if pipe:
+            proc = ns.popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+        else:
+            logs[what] = tmp_path / f"{what}.log"
+            with logs[what].open("w") as out:
+                proc = ns.popen(argv, env=env, stdout=out)
+        started.append((ns, proc))
+        return proc
+
+    try:
+        for ns in (lab.edge, lab.cloud):
+            start(ns, f"roscore-{ns.name[-5:]}", ["roscore", "-p", "11311"])
+            ns.run([sys.executable, "-c", _WAIT_MASTER, MASTER], timeout=30)
+        start(lab.cloud, "relay-cloud", [
+            sys.executable, "-m", "fogiac", "relay", "cloud", "--listen", f"{CLOUD}:{RELAY_PORT}",
+            "--master", MASTER, "--certs", str(certs_dir)])
+        start(lab.edge, "relay-edge", [
+            sys.executable, "-m", "fogiac", "relay", "edge", "--connect", f"{CLOUD}:{RELAY_PORT}",
+            "--master", MASTER, "--certs", str(certs_dir), "--topics", "auto"])
+        edge_node = start(lab.edge, "edge-node", [sys.executable, str(ROS_SIDE), "edge", "/to_cloud", "/to_edge"],
+                          pipe=True)
+        cloud_node = start(lab.cloud, "cloud-node",
+                           [sys.executable, str(ROS_SIDE), "cloud", "/to_edge", "/to_cloud"], pipe=True)
+        in_cloud = _read_lines(cloud_node, 5, timeout=60)
+        at_edge = _read_lines(edge_node, 5, timeout=60)
+        context = "\n".join(f"--- {k}\n{_tail(v)}" for k, v in logs.items() if k.startswith("relay"))
+        assert len(in_cloud) == 5 and len(at_edge) == 5, f"cloud heard {in_cloud}, edge heard {at_edge}\n{context}"
+        for heard, sender in ((in_cloud, "edge"), (at_edge, "cloud")):
+            assert all(line.split()[0] == sender for line in heard)
+            numbers = [int(line.split()[1]) for line in heard]
+            assert numbers == sorted(set(numbers)), f"out of order or repeated: {numbers}"
+    finally:
+        for ns, proc in reversed(started):
+            ns.lab.stop(proc)
 
 
 def test_a_client_from_another_ca_is_refused(lab: VpnLab) -> None:

@@ -1,0 +1,99 @@
+"""The ``local`` target's :class:`~fogiac.provision.host.Host`: a sandbox folder on this machine.
+
+Why: demos and CI deploy the same manifest without any machine. Each planned host becomes a
+folder under the stack's state directory with its own ROS master port and relay port, so the
+steps run unchanged and ``teardown`` leaves nothing outside the state directory.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import socket
+import subprocess
+from pathlib import Path
+from typing import Mapping
+
+from fogiac.errors import ProvisionError
+from fogiac.plan import Plan
+from fogiac.provision.host import LocalAccess, Result
+from fogiac.state import read_json, write_json_atomic
+
+
+class LocalHost:
+    """Runs commands with bash in the sandbox folder; ``put`` writes files directly."""
+
+    def __init__(self, *, name: str, base: str) -> None:
+        self.name = name
+        self.base = base
+        self.bytes_sent = 0
+
+    def connect(self) -> int:
+        Path(self.base).mkdir(parents=True, exist_ok=True, mode=0o700)
+        return 1
+
+    def run(self, command: str, *, check: bool = True, timeout: float | None = None) -> Result:
+        try:
+            done = subprocess.run(
+                ["bash", "-c", command], cwd=self.base, capture_output=True, text=True,
+                timeout=timeout, stdin=subprocess.DEVNULL,
+            )
+        except subprocess.TimeoutExpired:
+            raise ProvisionError(f"{self.name}: `{command[:60]}` timed out after {timeout}s") from None
+        result = Result(command=command, exit_code=done.returncode, stdout=done.stdout, stderr=done.stderr)
+        if check and not result.ok:
+            raise ProvisionError(f"{self.name}: `{' '.join(command.split())[:80]}` failed ({result.last_line()})")
+        return result
+
+    def sudo(self, command: str, *, check: bool = True, timeout: float | None = None) -> Result:
+        """The local target never escalates: a sandbox is owned by whoever runs fogiac."""
+        return self.run(command, check=check, timeout=timeout)
+
+    def put(self, data: bytes, remote: str, *, mode: int = 0o644) -> int:
+        path = Path(remote)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f".{path.name}.fogiac-tmp")
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, mode)
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.chmod(tmp, mode)
+        os.replace(tmp, path)
+        self.bytes_sent += len(data)
+        return len(data)
+
+    def get(self, remote: str, local: Path) -> Path:
+        shutil.copyfile(remote, local)
+        return local
+
+    def close(self) -> None:
+        pass
+
+
+def free_port() -> int:
+    """A TCP port nothing listens on right now (the kernel picks it)."""
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def sandbox_root(state_dir: Path) -> Path:
+    return state_dir / "local"
+
+
+def local_access(plan: Plan, *, state_dir: Path) -> Mapping[str, LocalAccess]:
+    """One sandbox per planned host, ports chosen once and kept in ``local/ports.json``.
+
+    Keeping the ports makes a second ``up`` a no-op: the services' rendered commands match.
+    """
+    root = sandbox_root(state_dir)
+    root.mkdir(parents=True, exist_ok=True, mode=0o700)
+    ports_file = root / "ports.json"
+    ports: dict[str, dict[str, int]] = read_json(ports_file) or {}
+    out: dict[str, LocalAccess] = {}
+    for host in plan.hosts:
+        chosen = ports.get(host.name) or {"master": free_port(), "relay": free_port()}
+        ports[host.name] = chosen
+        out[host.name] = LocalAccess(sandbox=root / host.name, master_port=chosen["master"],
+                                     relay_port=chosen["relay"])
+    write_json_atomic(ports_file, ports)
+    return out

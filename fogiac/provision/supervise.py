@@ -1,0 +1,299 @@
+"""A tiny process supervisor for hosts without systemd (containers, WSL, test namespaces).
+
+Why: a node must come back when it crashes, whether or not the host runs systemd. This file is
+standard-library only and self-contained: provisioning copies it to ``<base>/bin`` on each host
+and runs it with the host's ``python3``. Per service NAME in a run folder it keeps
+``NAME.pid`` (the supervisor), ``NAME.child`` (the running process), ``NAME.log`` (its output)
+and ``NAME.state`` (restart count). The child runs in its own session; on failure it is
+restarted with exponential backoff (1 s doubling to 30 s, reset after 10 s of good running).
+
+    supervise.py start NAME --dir RUN -- ARGV...   idempotent: a running service is left alone
+    supervise.py stop NAME --dir RUN               TERM the tree, KILL after a grace period
+    supervise.py stop-all --dir RUN
+    supervise.py status NAME --dir RUN             one JSON line
+    supervise.py health NAME --dir RUN --check master|node|alive --master URI --timeout S
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+import xmlrpc.client
+from pathlib import Path
+
+_GRACE = 5.0
+_BACKOFF_MAX = 30.0
+_GOOD_RUN = 10.0
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    try:  # a zombie is not alive
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except (OSError, IndexError):
+        return True
+
+
+def _read_pid(path: Path) -> int | None:
+    try:
+        pid = int(path.read_text().strip())
+    except (OSError, ValueError):
+        return None
+    return pid if _alive(pid) else None
+
+
+def _ppid(pid: int) -> int | None:
+    try:
+        return int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])
+    except (OSError, IndexError, ValueError):
+        return None
+
+
+def _descendants(root: int) -> list[int]:
+    parents: dict[int, list[int]] = {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            ppid = _ppid(int(entry.name))
+            if ppid is not None:
+                parents.setdefault(ppid, []).append(int(entry.name))
+    out, todo = [], [root]
+    while todo:
+        for child in parents.get(todo.pop(), []):
+            out.append(child)
+            todo.append(child)
+    return out
+
+
+def _in_tree(pid: int, root: int) -> bool:
+    while pid and pid > 1:
+        if pid == root:
+            return True
+        pid = _ppid(pid) or 0
+    return False
+
+
+def _kill_tree(pid: int, grace: float = _GRACE) -> None:
+    """TERM the process group and every descendant (roslaunch puts nodes in new sessions)."""
+    tree = [pid] + _descendants(pid)
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        for target in tree:
+            try:
+                os.killpg(target, sig) if target == pid else os.kill(target, sig)
+            except (ProcessLookupError, PermissionError):
+                pass
+        deadline = time.monotonic() + grace
+        while time.monotonic() < deadline and any(_alive(p) for p in tree):
+            time.sleep(0.05)
+        tree = [p for p in tree if _alive(p)]
+        if not tree:
+            return
+
+
+class _Files:
+    def __init__(self, run_dir: Path, name: str) -> None:
+        self.pid = run_dir / f"{name}.pid"
+        self.child = run_dir / f"{name}.child"
+        self.log = run_dir / f"{name}.log"
+        self.state = run_dir / f"{name}.state"
+
+
+def _note(log, text: str) -> None:  # type: ignore[no-untyped-def]
+    log.write(f"[fogiac-supervise {time.strftime('%Y-%m-%dT%H:%M:%S')}] {text}\n".encode())
+    log.flush()
+
+
+def _supervise(files: _Files, argv: list[str]) -> None:
+    """The supervisor's main loop (runs daemonized)."""
+    stopping = False
+    child: subprocess.Popen | None = None
+
+    def stop(signum, frame):  # type: ignore[no-untyped-def]
+        nonlocal stopping
+        stopping = True
+        if child is not None and child.poll() is None:
+            _kill_tree(child.pid)
+
+    signal.signal(signal.SIGTERM, stop)
+    signal.signal(signal.SIGINT, stop)
+    restarts, backoff = 0, 1.0
+    with open(files.log, "ab", buffering=0) as log:
+        while not stopping:
+            started = time.monotonic()
+            child = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
+                                     start_new_session=True)
+            files.child.write_text(f"{child.pid}\n")
+            files.state.write_text(json.dumps({"restarts": restarts, "child": child.pid}) + "\n")
+            code = child.wait()
+            if stopping:
+                break
+            _kill_tree(child.pid, grace=1.0)
+            if time.monotonic() - started > _GOOD_RUN:
+                backoff = 1.0
+            restarts += 1
+            _note(log, f"exited with {code}; restart {restarts} in {backoff:g}s")
+            deadline = time.monotonic() + backoff
+            while not stopping and time.monotonic() < deadline:
+                time.sleep(0.05)
+            backoff = min(backoff * 2, _BACKOFF_MAX)
+        _note(log, "stopped")
+    for path in (files.child, files.pid):
+        path.unlink(missing_ok=True)
+
+
+def start(run_dir: Path, name: str, argv: list[str]) -> str:
+    files = _Files(run_dir, name)
+    pid = _read_pid(files.pid)
+    if pid is not None:
+        return f"running {pid}"
+    run_dir.mkdir(parents=True, exist_ok=True)
+    files.pid.unlink(missing_ok=True)
+    first = os.fork()
+    if first:
+        os.waitpid(first, 0)
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline:
+            pid = _read_pid(files.pid)
+            if pid is not None and files.child.exists():
+                return f"started {pid}"
+            time.sleep(0.02)
+        return "started ?"
+    os.setsid()
+    if os.fork():
+        os._exit(0)
+    null = os.open(os.devnull, os.O_RDWR)
+    for fd in (0, 1, 2):
+        os.dup2(null, fd)
+    os.closerange(3, 1024)
+    files.pid.write_text(f"{os.getpid()}\n")
+    try:
+        _supervise(files, argv)
+    finally:
+        os._exit(0)
+
+
+def stop(run_dir: Path, name: str, *, timeout: float = 15.0) -> str:
+    files = _Files(run_dir, name)
+    pid = _read_pid(files.pid)
+    child = _read_pid(files.child)
+    if pid is None and child is None:
+        return "not running"
+    if pid is not None:
+        os.kill(pid, signal.SIGTERM)
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline and _alive(pid):
+            time.sleep(0.05)
+        if _alive(pid):
+            os.kill(pid, signal.SIGKILL)
+    child = _read_pid(files.child)
+    if child is not None:
+        _kill_tree(child)
+    for path in (files.child, files.pid):
+        path.unlink(missing_ok=True)
+    return "stopped"
+
+
+def status(run_dir: Path, name: str) -> dict:
+    files = _Files(run_dir, name)
+    try:
+        state = json.loads(files.state.read_text())
+    except (OSError, ValueError):
+        state = {}
+    pid = _read_pid(files.pid)
+    child = _read_pid(files.child) if pid is not None else None
+    return {"name": name, "running": pid is not None and child is not None, "pid": pid, "child": child,
+            "restarts": state.get("restarts", 0)}
+
+
+def _registered_pids(master: str) -> dict[str, int]:
+    proxy = xmlrpc.client.ServerProxy(master)
+    code, _, state = proxy.getSystemState("/fogiac_health")
+    names = {n for group in state for _, nodes in group for n in nodes} - {"/rosout"}
+    out: dict[str, int] = {}
+    for name in names:
+        code, _, uri = proxy.lookupNode("/fogiac_health", name)
+        if code == 1:
+            try:
+                out[name] = int(xmlrpc.client.ServerProxy(uri).getPid("/fogiac_health")[2])
+            except (OSError, xmlrpc.client.Error, ValueError):
+                pass
+    return out
+
+
+def health(run_dir: Path, name: str, *, check: str, master: str, timeout: float) -> tuple[bool, str]:
+    """Wait until the service is alive and, for ``node``, one of its processes is registered."""
+    deadline = time.monotonic() + timeout
+    why = "not checked"
+    while True:
+        info = status(run_dir, name)
+        child = info["child"]
+        if child is None:
+            why = "process not running"
+        elif check == "alive":
+            return True, f"pid {child}"
+        else:
+            try:
+                pids = _registered_pids(master)
+            except (OSError, xmlrpc.client.Error) as err:
+                why = f"ROS master {master} not answering ({err})"
+            else:
+                if check == "master":
+                    return True, f"master up, pid {child}"
+                mine = sorted(n for n, p in pids.items() if _in_tree(p, child))
+                if mine:
+                    return True, "registered " + ",".join(mine)
+                why = f"no node of pid {child} registered with {master}"
+        if time.monotonic() >= deadline:
+            return False, f"{why}; log: {_last_line(_Files(run_dir, name).log)}"
+        time.sleep(0.2)
+
+
+def _last_line(path: Path) -> str:
+    try:
+        lines = [ln for ln in path.read_text(errors="replace").splitlines() if ln.strip()]
+    except OSError:
+        return "(no log)"
+    return lines[-1].strip()[:200] if lines else "(empty)"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="fogiac-supervise")
+    parser.add_argument("action", choices=("start", "stop", "stop-all", "status", "health"))
+    parser.add_argument("name", nargs="?", default="")
+    parser.add_argument("--dir", required=True, type=Path)
+    parser.add_argument("--check", default="alive", choices=("alive", "master", "node"))
+    parser.add_argument("--master", default="http://127.0.0.1:11311")
+    parser.add_argument("--timeout", type=float, default=30.0)
+    parser.add_argument("command", nargs=argparse.REMAINDER)
+    args = parser.parse_args(argv)
+    command = args.command[1:] if args.command[:1] == ["--"] else args.command
+    if args.action == "start":
+        if not args.name or not command:
+            parser.error("start needs NAME -- ARGV")
+        print(start(args.dir, args.name, command))
+    elif args.action == "stop":
+        print(stop(args.dir, args.name))
+    elif args.action == "stop-all":
+        names = sorted(p.stem for p in args.dir.glob("*.pid")) if args.dir.is_dir() else []
+        for name in names:
+            print(f"{name}: {stop(args.dir, name)}")
+    elif args.action == "status":
+        print(json.dumps(status(args.dir, args.name)))
+    else:
+        ok, detail = health(args.dir, args.name, check=args.check, master=args.master, timeout=args.timeout)
+        print(detail)
+        return 0 if ok else 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

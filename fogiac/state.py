@@ -49,6 +49,20 @@ def write_json_atomic(path: Path, data: Any, *, mode: int = 0o600) -> None:
         raise
 
 
+def write_text_atomic(path: Path, text: str, *, mode: int = 0o644) -> None:
+    """Write a user-facing file (a manifest, a plan) whole or not at all."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, mode)
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
 def read_json(path: Path) -> Any | None:
     try:
         return json.loads(path.read_text())

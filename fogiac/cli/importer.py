@@ -1,0 +1,28 @@
+"""``fogiac import``: a FogROS launch file becomes the equivalent fogiac.yaml."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+
+def import_launch(
+    launch: Path = typer.Argument(..., help="A roslaunch file using FogROS's cloud nodes."),
+    out: Path = typer.Option(Path("fogiac.yaml"), "--out", "-o", help="Where to write the manifest."),
+    force: bool = typer.Option(False, "--force", help="Overwrite an existing manifest."),
+) -> None:
+    """Write the fogiac.yaml equivalent of a FogROS launch file (other nodes stay on the robot)."""
+    from fogiac.errors import FogiacError
+    from fogiac.fogros import import_launch as convert
+    from fogiac.state import write_text_atomic
+
+    if out.exists() and not force:
+        raise FogiacError(f"{out} exists; pass --force to overwrite it")
+    manifest, text = convert(launch, out=out)
+    write_text_atomic(out, text)
+    typer.echo(f"wrote {out}: {len(manifest.nodes)} cloud node(s) from {launch}")
+
+
+def register(app: typer.Typer) -> None:
+    app.command("import")(import_launch)

@@ -85,7 +85,9 @@ def _call(fn: Any, /, **kwargs: Any) -> Any:
 
 
 def paginate(api: Any, operation: str, key: str, **kwargs: Any) -> list[Any]:
-    """Every item under ``key`` across all pages of ``operation``."""
+    """Every item under ``key`` across all pages of ``operation`` (one call if it has no pages)."""
+    if not api.can_paginate(operation):
+        return list(_call(getattr(api, operation), **kwargs).get(key, []))
     items: list[Any] = []
     for page in _call(api.get_paginator(operation).paginate, **kwargs):
         items.extend(page.get(key, []))

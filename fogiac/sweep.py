@@ -33,7 +33,7 @@ _UNSUPPORTED = {"InternalFailure", "NotImplemented", "NotImplementedError", "Uns
 class Found:
     kind: str
     id: str
-    vpc: str = ""
+    detail: str = ""  # what deleting needs besides the id: attached VPCs, a key pair's name
 
     def __str__(self) -> str:
         return f"{self.kind} {self.id}"
@@ -90,7 +90,7 @@ def inventory(stack: str, *, ec2: Any, acm: Any) -> tuple[list[Found], list[str]
                        keep=lambda g: g["GroupName"] != "default"):
         found.append(Found("security-group", rid, g.get("VpcId", "")))
     for k in paginate(ec2, "describe_key_pairs", "KeyPairs", Filters=tags):
-        found.append(Found("key-pair", k["KeyPairId"]))
+        found.append(Found("key-pair", k["KeyPairId"], k["KeyName"]))
     for rid, s in both("describe_subnets", "Subnets", lambda s: s["SubnetId"]):
         found.append(Found("subnet", rid, s["VpcId"]))
     for rid, t in both("describe_route_tables", "RouteTables", lambda t: t["RouteTableId"],
@@ -139,7 +139,7 @@ def _delete(item: Found, *, ec2: Any, acm: Any) -> None:
     elif kind == "security-group":
         ec2.delete_security_group(GroupId=rid)
     elif kind == "key-pair":
-        ec2.delete_key_pair(KeyPairId=rid)
+        ec2.delete_key_pair(KeyName=item.detail)
     elif kind == "subnet":
         ec2.delete_subnet(SubnetId=rid)
     elif kind == "route-table":
@@ -149,7 +149,7 @@ def _delete(item: Found, *, ec2: Any, acm: Any) -> None:
                 ec2.disassociate_route_table(AssociationId=assoc["RouteTableAssociationId"])
         ec2.delete_route_table(RouteTableId=rid)
     elif kind == "internet-gateway":
-        for vpc in filter(None, item.vpc.split(",")):
+        for vpc in filter(None, item.detail.split(",")):
             ec2.detach_internet_gateway(InternetGatewayId=rid, VpcId=vpc)
         ec2.delete_internet_gateway(InternetGatewayId=rid)
     elif kind == "vpc":
@@ -204,5 +204,6 @@ def sweep(stack: str, *, ec2: Any, acm: Any, dry_run: bool, rounds: int = 6,
     left = tuple(current)
     return SweepResult(
         found=tuple(first), deleted=tuple(dict.fromkeys(d for d in deleted if d not in left)), left=left,
-        not_checked=tuple(skipped), errors=tuple(msg for item, msg in errors.items() if item in left),
+        not_checked=tuple(skipped),
+        errors=tuple(errors.get(item, f"{item}: still listed after deleting it") for item in left),
     )

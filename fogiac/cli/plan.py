@@ -1,0 +1,123 @@
+"""``fogiac plan``: what a manifest would create and cost, offline (no credentials, no Pulumi CLI)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import typer
+
+# The inputs worth a glance in the table, per resource type (the JSON has all of them).
+KEY_INPUTS: dict[str, tuple[str, ...]] = {
+    "aws:ec2/vpc:Vpc": ("cidrBlock",),
+    "aws:ec2/subnet:Subnet": ("cidrBlock", "availabilityZone", "mapPublicIpOnLaunch"),
+    "aws:ec2/routeTable:RouteTable": ("routes",),
+    "aws:ec2/routeTableAssociation:RouteTableAssociation": ("subnetId", "routeTableId"),
+    "aws:ec2/securityGroup:SecurityGroup": ("name",),
+    "aws:vpc/securityGroupIngressRule:SecurityGroupIngressRule": ("ipProtocol", "fromPort", "toPort", "cidrIpv4", "cidrIpv6"),
+    "aws:vpc/securityGroupEgressRule:SecurityGroupEgressRule": ("ipProtocol", "fromPort", "toPort", "cidrIpv4", "cidrIpv6"),
+    "aws:acm/certificate:Certificate": ("certificateBody", "privateKey"),
+    "aws:ec2clientvpn/endpoint:Endpoint": ("clientCidrBlock", "splitTunnel", "transportProtocol", "vpnPort", "authenticationOptions"),
+    "aws:ec2clientvpn/networkAssociation:NetworkAssociation": ("subnetId",),
+    "aws:ec2clientvpn/authorizationRule:AuthorizationRule": ("targetNetworkCidr",),
+    "aws:ec2/keyPair:KeyPair": ("keyName",),
+    "aws:ec2/instance:Instance": ("instanceType", "ami", "rootBlockDevice", "metadataOptions", "instanceMarketOptions"),
+}
+
+
+def _short(value: Any) -> str:
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k}={_short(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, list):
+        return "[" + ", ".join(_short(v) for v in value) + "]"
+    return str(value)
+
+
+def _key_inputs(resource: dict[str, Any]) -> str:
+    inputs = resource["inputs"]
+    return "  ".join(f"{k}={_short(inputs[k])}" for k in KEY_INPUTS.get(resource["type"], ()) if k in inputs)
+
+
+def _type(token: str) -> str:
+    """aws:ec2/vpc:Vpc -> ec2:Vpc (the JSON keeps the full token)."""
+    package, module, name = (token.split(":") + ["", ""])[:3]
+    return f"{module.split('/')[0]}:{name}" if package == "aws" else token
+
+
+def _table(title: str, *columns: str) -> Any:
+    from rich.table import Table
+
+    table = Table(title=title)
+    for column in columns:
+        table.add_column(column, overflow="fold")
+    return table
+
+
+def _render(doc: dict[str, Any]) -> None:
+    from rich.console import Console
+    from rich.markup import escape
+
+    console = Console()
+    console.print(f"[bold]fogiac plan[/] {doc['stack']}: target {doc['target']}, region {doc['region']}, mode {doc['mode']}")
+    if not doc["resources"]:
+        console.print(f"no cloud resources (target {doc['target']})")
+    for stack in doc["stacks"]:
+        rows = [r for r in doc["resources"] if r["stack"] == stack]
+        table = _table(f"{stack} stack: {len(rows)} to create", "", "type", "name", "key inputs")
+        for r in rows:
+            table.add_row("+", _type(r["type"]), escape(r["name"]), escape(_key_inputs(r)))
+        console.print(table)
+    hosts = _table("hosts", "host", "machine", "vCPUs", "GPUs", "memory GiB", "disk GB", "spot", "$/h", "nodes")
+    for h in doc["hosts"]:
+        hosts.add_row(h["name"], h["machine"], str(h["vcpus"]), str(h["gpus"]), f"{h['memory_gib']:g}",
+                      str(h["disk_gb"]), "yes" if h["spot"] else "no", f"{h['usd_per_hour']:.4f}", ", ".join(h["nodes"]))
+    console.print(hosts)
+    nodes = _table("nodes", "node", "host", "kind", "runs", "GPU")
+    for n in doc["nodes"]:
+        nodes.add_row(n["name"], n["host"], n["kind"], escape(n["runs"]), "yes" if n["gpu"] else "no")
+    console.print(nodes)
+    cost = _table("hourly cost (on-demand prices; spot at most this)", "item", "quantity", "$/h each", "$/h")
+    for line in doc["cost"]["lines"]:
+        cost.add_row(escape(line["item"]), f"{line['quantity']:g}", f"{line['usd_per_hour']:.4f}", f"{line['total']:.4f}")
+    total = doc["cost"]["hourly_usd"]
+    cost.add_row("[bold]total[/]", "", "", f"[bold]{total:.4f}[/]")
+    console.print(cost)
+    console.print(f"cost: ${total:.4f} per hour (about ${total * 730:.2f} per month if left running)")
+
+
+def plan(
+    manifest: Path = typer.Argument(Path("fogiac.yaml"), help="The manifest (fogiac.yaml)."),
+    target: str = typer.Option(None, "--target", help="aws, hosts or local (default: the manifest's)."),
+    env: str = typer.Option("dev", "--env", help="Environment: one stack per manifest and environment."),
+    as_json: bool = typer.Option(False, "--json", help="Print the versioned JSON document."),
+    out: Path = typer.Option(None, "--out", help="Also save the JSON document to this file."),
+    detailed_exitcode: bool = typer.Option(
+        False, "--detailed-exitcode", help="Exit 0 when nothing would change since the last up, 2 when something would."
+    ),
+) -> None:
+    """Show every resource, host and hourly cost the manifest implies, without touching the cloud."""
+    import hashlib
+
+    from fogiac.compile import compile_plan
+    from fogiac.manifest import load_manifest
+    from fogiac.offline import APPLIED_FILE, declare, document
+    from fogiac.state import read_json, stack_dir, write_json_atomic
+
+    compiled = compile_plan(load_manifest(manifest), target=target, environment=env)
+    sha = hashlib.sha256(manifest.read_bytes()).hexdigest()
+    doc = document(declare(compiled), manifest_path=str(manifest), manifest_sha256=sha)
+    if out is not None:
+        write_json_atomic(out, doc, mode=0o644)
+    if as_json:
+        typer.echo(json.dumps(doc, indent=2, sort_keys=True))
+    else:
+        _render(doc)
+    if detailed_exitcode:
+        applied = read_json(stack_dir(compiled.stack, create=False) / APPLIED_FILE)
+        unchanged = isinstance(applied, dict) and applied.get("plan_digest") == doc["plan_digest"]
+        raise typer.Exit(0 if unchanged else 2)
+
+
+def register(app: typer.Typer) -> None:
+    app.command()(plan)

@@ -1,0 +1,279 @@
+"""Offline plan: run the stack programs under Pulumi mocks and record what they declare.
+
+No credentials, no Pulumi CLI, no files written: ``fogiac plan`` shows the exact resources a
+manifest implies, with the inputs pulumi_aws would send. Values that only exist at ``up`` (ids,
+the operator's address, certificates, the SSH key) appear as ``<...>`` placeholders, and every
+secret as ``[secret]``. pulumi is imported inside the functions, so importing this module is cheap.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Any
+
+from fogiac.certs import Bundle, KeyPair
+from fogiac.plan import Plan
+
+if TYPE_CHECKING:
+    import pulumi.runtime
+
+SECRET = "[secret]"
+PROJECT = "fogiac"
+_PEM_KEY_MARK = "PRIVATE KEY-----"
+_SECRET_SIG = ("4dabf18193072939515e22adb298388d", "1b47061264138c4ac30d75fd1eb44270")  # pulumi rpc
+
+
+@dataclass(frozen=True)
+class DeclaredResource:
+    """One resource a stack program declares (a component when ``custom`` is False)."""
+
+    stack: str  # layer: network | compute
+    type: str  # e.g. aws:ec2/vpc:Vpc or fogiac:aws:Network
+    name: str
+    inputs: Mapping[str, Any]
+    custom: bool = True
+    action: str = "create"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"stack": self.stack, "type": self.type, "name": self.name, "action": self.action,
+                "inputs": _thaw(self.inputs)}
+
+
+@dataclass(frozen=True)
+class OfflinePlan:
+    plan: Plan
+    resources: tuple[DeclaredResource, ...]  # declaration order, network stack first
+    outputs: Mapping[str, Mapping[str, Any]]  # per layer, as the mocks resolved them
+
+    def layer(self, stack: str, *, components: bool = False) -> tuple[DeclaredResource, ...]:
+        return tuple(r for r in self.resources if r.stack == stack and (components or r.custom))
+
+    def of_type(self, type_: str) -> tuple[DeclaredResource, ...]:
+        return tuple(r for r in self.resources if r.type == type_)
+
+
+def _freeze(value: Any) -> Any:
+    if isinstance(value, Mapping):
+        return MappingProxyType({k: _freeze(v) for k, v in value.items()})
+    if isinstance(value, (list, tuple)):
+        return tuple(_freeze(v) for v in value)
+    return value
+
+
+def _thaw(value: Any) -> Any:
+    if isinstance(value, Mapping):
+        return {k: _thaw(v) for k, v in value.items()}
+    if isinstance(value, tuple):
+        return [_thaw(v) for v in value]
+    return value
+
+
+def redact(value: Any) -> Any:
+    """``value`` with Pulumi secrets (and any PEM private key, secret or not) as ``[secret]``,
+    keys sorted and whole numbers as ints."""
+    if isinstance(value, Mapping):
+        if value.get(_SECRET_SIG[0]) == _SECRET_SIG[1]:
+            return SECRET
+        return {k: redact(value[k]) for k in sorted(value)}
+    if isinstance(value, (list, tuple)):
+        return [redact(v) for v in value]
+    if isinstance(value, str) and _PEM_KEY_MARK in value:
+        return SECRET
+    if isinstance(value, float) and value.is_integer():
+        return int(value)  # the wire format has only floats; ports and sizes read better as ints
+    return value
+
+
+def offline_bundle(stack: str) -> Bundle:
+    """Stand-ins for the stack's certificates: a plan must neither write nor show real keys.
+
+    Generating three RSA 2048 keys would cost more than the rest of a plan, and their bodies
+    would change on every run; the certificates are made (once, persisted) at ``up``.
+    """
+
+    def pair(role: str) -> KeyPair:
+        return KeyPair(f"<{role} certificate of {stack}, made at up>".encode(), f"<{role} key>".encode())
+
+    return Bundle(ca=pair("CA"), server=pair("server"), client=pair("client"))
+
+
+def offline_public_key(stack: str) -> str:
+    return f"<ssh-ed25519 public key of {stack}, made at up>"
+
+
+def run_program(
+    program: Callable[[], None],
+    *,
+    mocks: pulumi.runtime.Mocks,
+    project: str,
+    stack: str,
+    preview: bool,
+) -> dict[str, Any]:
+    """Run ``program`` to completion under ``mocks`` and return its exports as plain values.
+
+    Each resource reaches ``mocks.new_resource`` once its inputs are known, so dependencies
+    register first and the ids and state a mock returns flow into dependants' inputs. Calls
+    may come from several threads at once. Unknown exports come back as None.
+    """
+    import pulumi
+    from pulumi.runtime import settings
+    from pulumi.runtime.stack import run_pulumi_func
+    from pulumi.runtime.sync_await import _sync_await
+
+    settings.ROOT.set(None)  # a fresh root stack per run, so runs never share exports
+    pulumi.runtime.set_mocks(mocks, project=project, stack=stack, preview=preview)
+    settings.SETTINGS.outputs.clear()
+    root = settings.get_root_resource()
+    exports: dict[str, Any] = {}
+
+    async def collect() -> None:
+        for key, value in dict(root.outputs).items():  # type: ignore[union-attr]
+            exports[key] = await pulumi.Output.from_input(value).future()
+
+    def body() -> Any:
+        program()
+        return collect()
+
+    try:
+        _sync_await(run_pulumi_func(body))
+    finally:
+        settings.ROOT.set(None)
+    return exports
+
+
+def _mock_class() -> type:
+    import pulumi
+
+    class PlanMocks(pulumi.runtime.Mocks):
+        """Answers every resource with ``<name.attr>`` placeholders and records its inputs."""
+
+        def __init__(self) -> None:
+            self.layer = "network"
+            self.seen: dict[tuple[str, str, str], DeclaredResource] = {}
+            self._lock = threading.Lock()
+
+        def new_resource(self, args: pulumi.runtime.MockResourceArgs) -> tuple[str, dict]:
+            record = DeclaredResource(
+                stack=self.layer,
+                type=args.typ,
+                name=args.name,
+                inputs=_freeze(redact(args.inputs)),
+                custom=bool(args.custom),
+            )
+            with self._lock:
+                self.seen[(self.layer, args.typ, args.name)] = record
+            state = dict(args.inputs)
+            for attr in _COMPUTED.get(args.typ, ()) + ("arn",):
+                state.setdefault(attr, f"<{args.name}.{attr}>")
+            return f"<{args.name}.id>", state
+
+        def call(self, args: pulumi.runtime.MockCallArgs) -> dict:  # type: ignore[override]
+            if args.token == "aws:ec2/getAmi:getAmi":
+                pattern = next((f["values"][0] for f in args.args.get("filters", []) if f["name"] == "name"), "?")
+                ami = f"<newest AMI named {pattern!r} by {','.join(args.args.get('owners', []))}>"
+                return {"id": ami, "imageId": ami, "name": pattern, "architecture": "x86_64"}
+            return {}
+
+    return PlanMocks
+
+
+# Attributes AWS computes that the programs read or export.
+_COMPUTED: dict[str, tuple[str, ...]] = {
+    "aws:ec2/instance:Instance": ("publicIp", "privateIp", "publicDns"),
+    "aws:ec2clientvpn/endpoint:Endpoint": ("dnsName",),
+}
+
+
+def declare(plan: Plan, *, mocks: Any | None = None) -> OfflinePlan:
+    """Run the network then the compute program for ``plan`` under mocks; targets other than
+    aws declare nothing."""
+    if plan.target != "aws":
+        return OfflinePlan(plan=plan, resources=(), outputs=MappingProxyType({}))
+    import pulumi
+
+    from fogiac.plan import OPERATOR
+    from stacks.firewall import OPERATOR_PLACEHOLDER
+    from stacks.program import compute_program, network_program
+
+    mocks = mocks if mocks is not None else _mock_class()()
+    order: list[tuple[str, str, str]] = []
+
+    def recording(layer: str, program: Callable[[], None]) -> Callable[[], None]:
+        def run() -> None:
+            def record(args: pulumi.ResourceTransformationArgs) -> None:
+                order.append((layer, args.type_, args.name))
+                return None
+
+            pulumi.runtime.register_stack_transformation(record)
+            program()
+
+        return run
+
+    operators = tuple(OPERATOR_PLACEHOLDER if c == OPERATOR else c for c in plan.ssh_from)
+    outputs: dict[str, Mapping[str, Any]] = {}
+    if hasattr(mocks, "layer"):
+        mocks.layer = "network"
+    outputs["network"] = run_program(
+        recording("network", lambda: network_program(plan, certs=offline_bundle(plan.stack), operator_cidrs=operators)),
+        mocks=mocks, project=PROJECT, stack=plan.stack, preview=True,
+    )
+    if hasattr(mocks, "layer"):
+        mocks.layer = "compute"
+    outputs["compute"] = run_program(
+        recording("compute", lambda: compute_program(
+            plan, network=outputs["network"], public_key_openssh=offline_public_key(plan.stack)
+        )),
+        mocks=mocks, project=PROJECT, stack=plan.stack, preview=True,
+    )
+    seen: Mapping[tuple[str, str, str], DeclaredResource] = getattr(mocks, "seen", {})
+    resources = tuple(seen[key] for key in order if key in seen)
+    return OfflinePlan(
+        plan=plan,
+        resources=resources,
+        outputs=MappingProxyType({k: _freeze(redact(v)) for k, v in outputs.items()}),
+    )
+
+
+FORMAT_VERSION = 1
+APPLIED_FILE = "applied.json"  # in stack_dir(stack): the document of the last successful up
+
+
+def document(offline: OfflinePlan, *, manifest_path: str, manifest_sha256: str) -> dict[str, Any]:
+    """The versioned ``fogiac plan --json`` document (also what ``up`` saves as applied.json).
+
+    ``plan_digest`` covers the compiled plan and every declared resource, and nothing that
+    varies between runs (paths, versions), so equal digests mean nothing would change.
+    """
+    import hashlib
+    import json
+
+    from fogiac import __version__, cost
+
+    plan = offline.plan
+    body = {
+        "stack": plan.stack,
+        "environment": plan.environment,
+        "target": plan.target,
+        "region": plan.region,
+        "zone": plan.zone,
+        "mode": plan.mode,
+        "stacks": sorted({r.stack for r in offline.resources}, key=_LAYER_ORDER.index),
+        "resources": [r.to_dict() for r in offline.resources if r.custom],
+        "hosts": cost.hosts(plan),
+        "nodes": cost.nodes(plan),
+        "cost": cost.cost(plan),
+    }
+    canonical = json.dumps({"plan": plan.digest(), **body}, sort_keys=True, separators=(",", ":"))
+    return {
+        "format_version": FORMAT_VERSION,
+        "fogiac_version": __version__,
+        "manifest": {"path": manifest_path, "sha256": manifest_sha256},
+        **body,
+        "plan_digest": hashlib.sha256(canonical.encode()).hexdigest(),
+    }
+
+
+_LAYER_ORDER = ["network", "compute"]

@@ -1,0 +1,124 @@
+"""Compute: the stack's SSH key pair and one EC2 instance per host.
+
+Every instance requires IMDSv2 (tokens), boots from an encrypted gp3 root volume of the node's
+``disk_gb``, gets its AMI by lookup (current Ubuntu LTS; for GPU types an image with the NVIDIA
+driver and container toolkit) and user data that installs Docker and prints its SSH host keys
+on the console between HOST_KEYS_BEGIN and HOST_KEYS_END, so provisioning can pin them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import pulumi
+import pulumi_aws as aws
+
+from fogiac.plan import HostSpec, ImageQuery
+from fogiac.render import render
+from stacks.tags import tagged
+
+HOST_KEYS_BEGIN = "-----BEGIN FOGIAC SSH HOST KEYS-----"
+HOST_KEYS_END = "-----END FOGIAC SSH HOST KEYS-----"
+USER_DATA_TEMPLATE = "cloud-init/user-data.yaml.j2"
+AMI_ARCHITECTURE = "x86_64"  # every type in fogiac's catalogue is x86_64
+
+
+@dataclass(frozen=True)
+class ComputeArgs:
+    hosts: tuple[HostSpec, ...]
+    subnet_id: pulumi.Input[str]
+    security_group_ids: tuple[pulumi.Input[str], ...]
+    public_key_openssh: str
+    tags: Mapping[str, str]
+
+
+def user_data(stack: str, host: HostSpec) -> str:
+    """The host's cloud-init document (pure: same host, same text)."""
+    return render(
+        USER_DATA_TEMPLATE,
+        stack=stack,
+        host=host.name,
+        machine=host.machine,
+        gpu=host.has_gpu,
+        begin_marker=HOST_KEYS_BEGIN,
+        end_marker=HOST_KEYS_END,
+    )
+
+
+def ami_filters(query: ImageQuery) -> list[aws.ec2.GetAmiFilterArgs]:
+    return [
+        aws.ec2.GetAmiFilterArgs(name="name", values=[query.name_pattern]),
+        aws.ec2.GetAmiFilterArgs(name="architecture", values=[AMI_ARCHITECTURE]),
+        aws.ec2.GetAmiFilterArgs(name="virtualization-type", values=["hvm"]),
+    ]
+
+
+def _spot() -> aws.ec2.InstanceInstanceMarketOptionsArgs:
+    return aws.ec2.InstanceInstanceMarketOptionsArgs(
+        market_type="spot",
+        spot_options=aws.ec2.InstanceInstanceMarketOptionsSpotOptionsArgs(
+            instance_interruption_behavior="terminate", spot_instance_type="one-time"
+        ),
+    )
+
+
+class Compute(pulumi.ComponentResource):
+    """The key pair, one AMI lookup per distinct image query, and the instances."""
+
+    key_pair: aws.ec2.KeyPair
+    instances: dict[str, aws.ec2.Instance]
+
+    def __init__(self, name: str, args: ComputeArgs, opts: pulumi.ResourceOptions | None = None) -> None:
+        super().__init__("fogiac:aws:Compute", name, None, opts)
+        child = pulumi.ResourceOptions(parent=self)
+        self.key_pair = aws.ec2.KeyPair(
+            f"{name}-key",
+            key_name=f"fogiac-{name}",
+            public_key=args.public_key_openssh,
+            tags=tagged(args.tags, f"{name}-key"),
+            opts=child,
+        )
+        images: dict[ImageQuery, pulumi.Output[str]] = {}
+        for host in args.hosts:
+            if host.image is not None and host.image not in images:
+                ami = aws.ec2.get_ami_output(
+                    owners=list(host.image.owners),
+                    most_recent=True,
+                    filters=ami_filters(host.image),
+                    opts=pulumi.InvokeOutputOptions(parent=self),
+                )
+                images[host.image] = ami.id
+        self.instances = {}
+        for host in args.hosts:
+            if host.image is None:
+                raise ValueError(f"host {host.name!r} has no image query; is the plan for the aws target?")
+            tags = dict(host.tags)
+            self.instances[host.name] = aws.ec2.Instance(
+                f"{name}-host-{host.name}",
+                ami=images[host.image],
+                instance_type=host.machine,
+                subnet_id=args.subnet_id,
+                vpc_security_group_ids=list(args.security_group_ids),
+                key_name=self.key_pair.key_name,
+                associate_public_ip_address=True,
+                metadata_options=aws.ec2.InstanceMetadataOptionsArgs(
+                    http_endpoint="enabled", http_tokens="required", http_put_response_hop_limit=2
+                ),
+                root_block_device=aws.ec2.InstanceRootBlockDeviceArgs(
+                    volume_type="gp3", volume_size=host.disk_gb, encrypted=True, delete_on_termination=True
+                ),
+                instance_market_options=_spot() if host.spot else None,
+                user_data=user_data(name, host),
+                tags=tagged(tags, f"{name}-{host.name}"),
+                volume_tags=tagged(tags, f"{name}-{host.name}"),
+                opts=child,
+            )
+        self.register_outputs(
+            {
+                "hosts": {
+                    key: {"instance_id": inst.id, "public_ip": inst.public_ip, "private_ip": inst.private_ip}
+                    for key, inst in self.instances.items()
+                }
+            }
+        )

@@ -1,0 +1,98 @@
+"""The two stack programs, network and compute, built from a compiled Plan.
+
+Both are plain functions run inside a Pulumi program: by ``stacks/__main__.py`` under
+``pulumi preview``/``up``, by the engine's Automation API, or under mocks for the offline plan
+(:mod:`fogiac.offline`). Compute takes network's outputs as plain values, so a second ``up``
+after ``down --keep-network`` never waits for the slow VPN association again.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import pulumi
+
+from fogiac.certs import Bundle
+from fogiac.errors import PlanError
+from fogiac.plan import Plan
+from stacks.compute import Compute, ComputeArgs
+from stacks.firewall import Firewall, FirewallArgs
+from stacks.network import Network, NetworkArgs
+from stacks.vpn import ClientVpn, ClientVpnArgs
+
+HOSTS_SUBNET = "hosts"  # the public subnet the instances live in
+HOSTS_GROUP = "hosts"  # the instances' security group
+VPN_GROUP = "vpn"  # the Client VPN endpoint's security group
+LAYERS = ("network", "compute")
+
+
+def _require_aws(plan: Plan) -> None:
+    if plan.target != "aws" or plan.network is None:
+        raise PlanError(f"target {plan.target!r} has no cloud stacks; only 'aws' does")
+
+
+def network_program(plan: Plan, *, certs: Bundle, operator_cidrs: tuple[str, ...]) -> None:
+    """Declare Network, Firewall and (in vpn mode) ClientVpn; export their ids."""
+    _require_aws(plan)
+    assert plan.network is not None
+    tags = dict(plan.tags)
+    network = Network(plan.stack, NetworkArgs(spec=plan.network, zone=plan.zone, tags=tags))
+    firewall = Firewall(
+        plan.stack,
+        FirewallArgs(
+            vpc_id=network.vpc.id, groups=plan.security_groups, operator_cidrs=tuple(operator_cidrs), tags=tags
+        ),
+    )
+    pulumi.export("vpc_id", network.vpc.id)
+    pulumi.export("subnet_ids", {key: subnet.id for key, subnet in network.subnets.items()})
+    pulumi.export("security_group_ids", {key: sg.id for key, sg in firewall.groups.items()})
+    if plan.vpn is not None:
+        vpn = ClientVpn(
+            plan.stack,
+            ClientVpnArgs(
+                spec=plan.vpn,
+                certs=certs,
+                vpc_id=network.vpc.id,
+                subnet_id=network.subnets[plan.vpn.target_subnet].id,
+                security_group_id=firewall.groups[VPN_GROUP].id,
+                tags=tags,
+            ),
+        )
+        pulumi.export("vpn_endpoint_id", vpn.endpoint.id)
+        pulumi.export("vpn_dns_name", vpn.endpoint.dns_name)
+
+
+def compute_program(plan: Plan, *, network: Mapping[str, Any], public_key_openssh: str) -> None:
+    """Declare Compute in the network stack's subnet and security group; export the hosts."""
+    _require_aws(plan)
+    try:
+        subnet_id = network["subnet_ids"][HOSTS_SUBNET]
+        group_id = network["security_group_ids"][HOSTS_GROUP]
+    except (KeyError, TypeError):
+        raise PlanError(
+            f"the network stack of {plan.stack!r} has no outputs subnet_ids.{HOSTS_SUBNET} and "
+            f"security_group_ids.{HOSTS_GROUP}; apply the network stack first"
+        ) from None
+    compute = Compute(
+        plan.stack,
+        ComputeArgs(
+            hosts=plan.hosts,
+            subnet_id=subnet_id,
+            security_group_ids=(group_id,),
+            public_key_openssh=public_key_openssh,
+            tags=dict(plan.tags),
+        ),
+    )
+    pulumi.export(
+        "hosts",
+        {
+            host.name: {
+                "instance_id": compute.instances[host.name].id,
+                "public_ip": compute.instances[host.name].public_ip,
+                "private_ip": compute.instances[host.name].private_ip,
+                "machine": host.machine,
+            }
+            for host in plan.hosts
+        },
+    )

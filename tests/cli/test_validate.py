@@ -55,3 +55,23 @@ def test_validate_imports_neither_pulumi_nor_boto3() -> None:
     ) % str(EXAMPLES / "minimal.yaml")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip().splitlines()[-1] == "[]"
+
+
+def test_init_writes_a_valid_starter_and_never_overwrites(tmp_path: Path) -> None:
+    path = tmp_path / "fogiac.yaml"
+    result = runner.invoke(app, ["init", str(path), "--name", "rover"])
+    assert result.exit_code == 0, result.output
+    check = runner.invoke(app, ["validate", str(path)])
+    assert check.exit_code == 0 and "valid (1 node" in check.output
+    again = runner.invoke(app, ["init", str(path)])
+    assert again.exit_code == 1 and again.output.strip() == f"error: {path} exists; edit it, or pick another path"
+    bad = runner.invoke(app, ["init", str(tmp_path / "other.yaml"), "--name", "Bad Name"])
+    assert bad.exit_code == 1 and not (tmp_path / "other.yaml").exists()
+
+
+def test_cost_lists_instances_and_client_vpn_per_hour_day_month() -> None:
+    result = runner.invoke(app, ["cost", str(EXAMPLES / "motion-planning.yaml")])
+    assert result.exit_code == 0, result.output
+    assert "instance planner (c5.24xlarge)" in result.output
+    assert "Client VPN subnet association" in result.output
+    assert "4.2300" in result.output and "101.52" in result.output and "3045.60" in result.output

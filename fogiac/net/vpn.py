@@ -293,18 +293,22 @@ def tunnel_up(*, profile: Path, timeout: float = 30.0, openvpn: str = "openvpn")
     while time.monotonic() < deadline:
         facts = _read_log(log)
         if facts.failure:
-            _stop(pid_file)
+            _stop(pid_file, settle=2.0)
             raise VpnError(f"OpenVPN failed: {facts.failure}; see {log}")
         if facts.ready:
             return Outcome(tunnel_status(profile=profile), changed=True)
         if pid_file.exists() and _running_pid(pid_file) is None:
             raise VpnError(f"OpenVPN exited before the tunnel came up; see {log}")
         time.sleep(0.1)
-    _stop(pid_file)
+    _stop(pid_file, settle=2.0)
     raise VpnError(f"the tunnel did not come up within {timeout:g} s (stopped OpenVPN); see {log}")
 
 
-def _stop(pid_file: Path, *, timeout: float = 10.0) -> bool:
+def _stop(pid_file: Path, *, timeout: float = 10.0, settle: float = 0.0) -> bool:
+    """Stop the OpenVPN named in ``pid_file``; ``settle``: wait that long for a new daemon's pid."""
+    deadline = time.monotonic() + settle
+    while not pid_file.exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
     pid = _running_pid(pid_file)
     if pid is None:
         pid_file.unlink(missing_ok=True)

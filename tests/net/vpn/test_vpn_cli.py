@@ -31,7 +31,7 @@ def test_status_and_down_with_the_manifests_stack(tmp_path: Path) -> None:
     assert not tmp_path.joinpath("minimal-prod").exists()  # looking does not create state
 
 
-@pytest.mark.skipif(os.geteuid() != 0, reason="as root, up gets past the root check")
+@pytest.mark.skipif(os.geteuid() != 0, reason="needs root: only root gets past the root check to the profile lookup")
 def test_up_without_a_profile_names_where_it_looked(tmp_path: Path) -> None:
     missing = tmp_path / "edge" / "client.ovpn"
     up = fogiac("vpn", "up", "--profile", str(missing), state=tmp_path)

@@ -23,6 +23,8 @@ from fogiac.state import read_json, write_json_atomic
 class LocalHost:
     """Runs commands with bash in the sandbox folder; ``put`` writes files directly."""
 
+    manager_name = "supervisor"  # never systemd units: a sandbox leaves nothing outside its folder
+
     def __init__(self, *, name: str, base: str) -> None:
         self.name = name
         self.base = base

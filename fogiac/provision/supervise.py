@@ -229,13 +229,18 @@ def _registered_pids(master: str) -> dict[str, int]:
     return out
 
 
-def health(run_dir: Path, name: str, *, check: str, master: str, timeout: float) -> tuple[bool, str]:
-    """Wait until the service is alive and, for ``node``, one of its processes is registered."""
+def health(run_dir: Path, name: str, *, check: str, master: str, timeout: float,
+           pid: int | None = None) -> tuple[bool, str]:
+    """Wait until the service is alive and registered with its master.
+
+    ``master``: the master answers; ``node``: a process of the service's tree is a registered
+    node; ``any``: some node is registered (containers: their processes are not our children);
+    ``alive``: the process runs. ``pid`` names the process when systemd, not us, runs it.
+    """
     deadline = time.monotonic() + timeout
     why = "not checked"
     while True:
-        info = status(run_dir, name)
-        child = info["child"]
+        child = (pid if pid and _alive(pid) else None) if pid is not None else status(run_dir, name)["child"]
         if child is None:
             why = "process not running"
         elif check == "alive":
@@ -248,7 +253,7 @@ def health(run_dir: Path, name: str, *, check: str, master: str, timeout: float)
             else:
                 if check == "master":
                     return True, f"master up, pid {child}"
-                mine = sorted(n for n, p in pids.items() if _in_tree(p, child))
+                mine = sorted(n for n, p in pids.items() if check == "any" or _in_tree(p, child))
                 if mine:
                     return True, "registered " + ",".join(mine)
                 why = f"no node of pid {child} registered with {master}"
@@ -270,12 +275,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("action", choices=("start", "stop", "stop-all", "status", "health"))
     parser.add_argument("name", nargs="?", default="")
     parser.add_argument("--dir", required=True, type=Path)
-    parser.add_argument("--check", default="alive", choices=("alive", "master", "node"))
+    parser.add_argument("--check", default="alive", choices=("alive", "master", "node", "any"))
+    parser.add_argument("--pid", type=int, default=None)
     parser.add_argument("--master", default="http://127.0.0.1:11311")
     parser.add_argument("--timeout", type=float, default=30.0)
-    parser.add_argument("command", nargs=argparse.REMAINDER)
-    args = parser.parse_args(argv)
-    command = args.command[1:] if args.command[:1] == ["--"] else args.command
+    argv = list(sys.argv[1:] if argv is None else argv)
+    command = argv[argv.index("--") + 1:] if "--" in argv else []
+    args = parser.parse_args(argv[: argv.index("--")] if "--" in argv else argv)
     if args.action == "start":
         if not args.name or not command:
             parser.error("start needs NAME -- ARGV")
@@ -289,7 +295,8 @@ def main(argv: list[str] | None = None) -> int:
     elif args.action == "status":
         print(json.dumps(status(args.dir, args.name)))
     else:
-        ok, detail = health(args.dir, args.name, check=args.check, master=args.master, timeout=args.timeout)
+        ok, detail = health(args.dir, args.name, check=args.check, master=args.master, timeout=args.timeout,
+                            pid=args.pid)
         print(detail)
         return 0 if ok else 1
     return 0

@@ -1,0 +1,207 @@
+"""Provision every host of a plan at once and report each host's outcome.
+
+Why threads: the work is waiting on SSH round trips and remote processes, so one thread per
+host makes N hosts take about as long as the slowest one. A failing host never stops or hides
+the others; :class:`ProvisionReport` carries every host's steps and error line.
+"""
+
+from __future__ import annotations
+
+import shutil
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Mapping
+
+from fogiac.errors import FogiacError, ProvisionError
+from fogiac.plan import HostSpec, Plan
+from fogiac.provision.host import HostAccess, LocalAccess, SshAccess, access_from_dict, q
+from fogiac.provision.managers import manager_for
+from fogiac.provision.services import Layout
+from fogiac.provision.steps import CHANGED, HostRun, Options, step
+from fogiac.state import read_json, write_json_atomic
+
+Progress = Callable[[str, str, str], None]  # (host, step, status)
+RECORD = "provision.json"
+
+
+@dataclass(frozen=True)
+class StepOutcome:
+    name: str
+    status: str  # changed | ok | skipped | failed
+    detail: str
+    seconds: float
+
+
+@dataclass(frozen=True)
+class HostOutcome:
+    host: str
+    address: str
+    steps: tuple[StepOutcome, ...]
+    error: str | None
+    files_pushed: int
+    bytes_sent: int
+    seconds: float
+    base: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return self.error is None
+
+    @property
+    def changed(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.steps if s.status == CHANGED)
+
+
+@dataclass(frozen=True)
+class ProvisionReport:
+    hosts: tuple[HostOutcome, ...]
+    seconds: float
+
+    @property
+    def ok(self) -> bool:
+        return all(h.ok for h in self.hosts)
+
+    @property
+    def failed(self) -> tuple[HostOutcome, ...]:
+        return tuple(h for h in self.hosts if not h.ok)
+
+    @property
+    def no_changes(self) -> bool:
+        return self.ok and not any(h.changed for h in self.hosts)
+
+    @property
+    def bytes_sent(self) -> int:
+        return sum(h.bytes_sent for h in self.hosts)
+
+    def summary(self) -> str:
+        if not self.ok:
+            return f"{len(self.failed)} of {len(self.hosts)} host(s) failed"
+        if self.no_changes:
+            return "no changes"
+        changed = sum(1 for h in self.hosts if h.changed)
+        return f"{changed} of {len(self.hosts)} host(s) changed"
+
+
+def _address(access: HostAccess) -> str:
+    return f"{access.address}:{access.port}" if isinstance(access, SshAccess) else str(access.sandbox)
+
+
+def _provision_one(plan: Plan, spec: HostSpec, access: HostAccess, *, known_hosts: Path, options: Options,
+                   progress: Progress | None) -> HostOutcome:
+    started = time.monotonic()
+    host = access.open(name=spec.name, known_hosts=known_hosts, stack=plan.stack)
+    run = HostRun(plan=plan, spec=spec, access=access, host=host, options=options)
+    done: list[StepOutcome] = []
+    error = None
+    try:
+        for name in spec.steps:
+            t0 = time.monotonic()
+            if progress:
+                progress(spec.name, name, "running")
+            try:
+                status, detail = step(name)(run)
+            except FogiacError as err:
+                error = str(err)
+            except Exception as err:  # a host's unexpected failure must not hide the others
+                error = f"{spec.name}: {name}: {type(err).__name__}: {err}"
+            if error is not None:
+                done.append(StepOutcome(name, "failed", error, time.monotonic() - t0))
+                if progress:
+                    progress(spec.name, name, "failed")
+                break
+            done.append(StepOutcome(name, status, detail, time.monotonic() - t0))
+            if progress:
+                progress(spec.name, name, status)
+    finally:
+        host.close()
+    return HostOutcome(host=spec.name, address=_address(access), steps=tuple(done), error=error,
+                       files_pushed=run.files_pushed, bytes_sent=host.bytes_sent,
+                       seconds=time.monotonic() - started, base=host.base)
+
+
+def _for_each(plan: Plan, hosts: Mapping[str, HostAccess], work: Callable[[HostSpec, HostAccess], HostOutcome]
+              ) -> tuple[HostOutcome, ...]:
+    missing = [h.name for h in plan.hosts if h.name not in hosts]
+    if missing:
+        raise ProvisionError(f"no access given for host(s) {', '.join(missing)}")
+    specs = list(plan.hosts)
+    with ThreadPoolExecutor(max_workers=max(1, len(specs)), thread_name_prefix="fogiac-provision") as pool:
+        return tuple(pool.map(lambda s: work(s, hosts[s.name]), specs))
+
+
+def provision(plan: Plan, *, hosts: Mapping[str, HostAccess], state_dir: Path, certs_dir: Path | None = None,
+              progress: Progress | None = None, health_timeout: float = 30.0,
+              allow_install: bool = False) -> ProvisionReport:
+    """Run each host's steps (``HostSpec.steps``) on all hosts in parallel; never raises per host.
+
+    ``state_dir`` is the stack's state folder: its ``known_hosts`` records SSH host keys, and
+    ``provision.json`` records how each host was reached so ``fogiac logs``/``ssh`` find it.
+    """
+    started = time.monotonic()
+    options = Options(certs_dir=certs_dir, health_timeout=health_timeout, allow_install=allow_install)
+    known_hosts = state_dir / "known_hosts"
+    outcomes = _for_each(plan, hosts, lambda spec, access: _provision_one(
+        plan, spec, access, known_hosts=known_hosts, options=options, progress=progress))
+    record_access(state_dir, plan, hosts, {o.host: o.base for o in outcomes if o.base})
+    return ProvisionReport(hosts=outcomes, seconds=time.monotonic() - started)
+
+
+def record_access(state_dir: Path, plan: Plan, hosts: Mapping[str, HostAccess], bases: Mapping[str, str]) -> None:
+    record = read_json(state_dir / RECORD) or {"hosts": {}}
+    for spec in plan.hosts:
+        entry = dict(hosts[spec.name].describe())
+        entry["base"] = bases.get(spec.name) or record["hosts"].get(spec.name, {}).get("base", "")
+        entry["nodes"] = list(spec.nodes)
+        record["hosts"][spec.name] = entry
+    write_json_atomic(state_dir / RECORD, record)
+
+
+def recorded_access(state_dir: Path) -> dict[str, tuple[HostAccess, str, tuple[str, ...]]]:
+    """{host: (access, base folder, nodes)} as the last provisioning recorded them."""
+    record = read_json(state_dir / RECORD) or {"hosts": {}}
+    return {name: (access_from_dict(entry), str(entry.get("base", "")), tuple(entry.get("nodes", ())))
+            for name, entry in record["hosts"].items()}
+
+
+def _stop_one(plan: Plan, spec: HostSpec, access: HostAccess, *, known_hosts: Path, remove: bool) -> HostOutcome:
+    started = time.monotonic()
+    host = access.open(name=spec.name, known_hosts=known_hosts, stack=plan.stack)
+    error, detail, status = None, "", "ok"
+    try:
+        host.connect()  # type: ignore[attr-defined]
+        stopped = manager_for(host).stop_all(host, Layout(host.base))
+        detail = f"stopped {', '.join(stopped)}" if stopped else "nothing running"
+        status = CHANGED if stopped else "ok"
+        if remove:
+            if isinstance(access, LocalAccess):
+                shutil.rmtree(access.sandbox, ignore_errors=True)
+            elif host.base.count("/") >= 2:  # never "" or "/": only fogiac's own folder
+                host.run(f"rm -rf -- {q(host.base)}")
+            detail += "; removed files"
+    except FogiacError as err:
+        error, status, detail = str(err), "failed", str(err)
+    finally:
+        host.close()
+    return HostOutcome(host=spec.name, address=_address(access), steps=(StepOutcome("stop", status, detail,
+                       time.monotonic() - started),), error=error, files_pushed=0, bytes_sent=0,
+                       seconds=time.monotonic() - started, base=host.base)
+
+
+def stop_all(plan: Plan, *, hosts: Mapping[str, HostAccess], state_dir: Path) -> ProvisionReport:
+    """Stop every service fogiac started on every host (files stay, so ``provision`` restarts them)."""
+    started = time.monotonic()
+    outcomes = _for_each(plan, hosts, lambda spec, access: _stop_one(
+        plan, spec, access, known_hosts=state_dir / "known_hosts", remove=False))
+    return ProvisionReport(hosts=outcomes, seconds=time.monotonic() - started)
+
+
+def teardown(plan: Plan, *, hosts: Mapping[str, HostAccess], state_dir: Path) -> ProvisionReport:
+    """Stop everything and remove fogiac's folder on each host (a local sandbox entirely)."""
+    started = time.monotonic()
+    outcomes = _for_each(plan, hosts, lambda spec, access: _stop_one(
+        plan, spec, access, known_hosts=state_dir / "known_hosts", remove=True))
+    if all(o.ok for o in outcomes):
+        (state_dir / RECORD).unlink(missing_ok=True)
+    return ProvisionReport(hosts=outcomes, seconds=time.monotonic() - started)

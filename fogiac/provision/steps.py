@@ -1,0 +1,278 @@
+"""The ordered, idempotent provisioning steps, one registry entry per name in ``HostSpec.steps``.
+
+Each step looks before it acts and returns ``changed`` (it altered the host) or ``ok`` (the
+host already matched). A second run over an unchanged plan therefore changes nothing, and the
+report says "no changes".
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+from fogiac.errors import ProvisionError
+from fogiac.plan import HostSpec, Plan
+from fogiac.provision import services as svc
+from fogiac.provision.host import Host, HostAccess, q
+from fogiac.provision.managers import manager_for
+from fogiac.provision.sync import push_tree
+from fogiac.render import render
+from fogiac.resources import package_dir
+
+CHANGED, OK, SKIPPED = "changed", "ok", "skipped"
+_CODE_IGNORE = ("tests/", "*.pt", "*.npz", "problems/", "*.ipynb")
+_ROS_PACKAGES = ("ros-core", "python3-rospy", "python3-std-msgs")
+_RELAY_CERTS = (("ca.pem", 0o644), ("server.pem", 0o644), ("server.key", 0o600))
+
+
+@dataclass(frozen=True)
+class Options:
+    """Caller's choices that hold for every host."""
+
+    certs_dir: Path | None = None
+    health_timeout: float = 30.0
+    allow_install: bool = False
+
+
+@dataclass
+class HostRun:
+    """One host's provisioning in progress: mutable because each step learns something
+    (the runtime, the pushed workspaces' digests) that later steps use."""
+
+    plan: Plan
+    spec: HostSpec
+    access: HostAccess
+    host: Host
+    options: Options
+    runtime: str = ""
+    files_pushed: int = 0
+    digests: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def layout(self) -> svc.Layout:
+        return svc.Layout(self.host.base)
+
+    def where(self) -> svc.Where:
+        code_root = self.layout.lib if self.access.ship_code else str(package_dir("fogiac").parent)
+        user = getattr(self.access, "user", "root")
+        return svc.Where(layout=self.layout, runtime=self.runtime or svc.NATIVE, master_port=self.access.master_port,
+                         relay_port=self.access.relay_port, ros_address=self.access.ros_address,
+                         python=self.access.python, code_root=code_root, user=user,
+                         workspace_digests=tuple(sorted(self.digests.items())))
+
+    def services(self) -> tuple[svc.Service, ...]:
+        where = self.where()
+        return (svc.master_service(self.plan, self.spec, where),) + svc.node_services(self.plan, self.spec, where)
+
+
+StepResult = tuple[str, str]  # (CHANGED | OK | SKIPPED, detail)
+
+
+def _sha(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def ensure_file(run: HostRun, data: bytes, remote: str, *, mode: int = 0o644) -> bool:
+    """Put ``data`` at ``remote`` unless the host already has exactly it; True if it wrote."""
+    found = run.host.run(f"sha256sum {q(remote)} 2>/dev/null", check=False).stdout.split()
+    if found[:1] == [_sha(data)]:
+        return False
+    run.host.put(data, remote, mode=mode)
+    run.files_pushed += 1
+    return True
+
+
+def step_connect(run: HostRun) -> StepResult:
+    attempts = run.host.connect()  # type: ignore[attr-defined]
+    return OK, f"reached in {attempts} attempt{'s' if attempts != 1 else ''}"
+
+
+def _probe(run: HostRun) -> dict[str, str]:
+    """Everything the runtime step needs to know about the host, in one round trip."""
+    layout = run.layout
+    folders = (layout.bin, layout.run, layout.services, layout.ws, layout.env, layout.state, layout.certs,
+               layout.ros_home, layout.tmp)
+    lines = [f"test -d {q(f)} || echo missing {q(f)}" for f in folders]
+    lines += [
+        "_ROSPY='import importlib.util as u, sys; sys.exit(u.find_spec(\"rospy\") is None)'",
+        "docker info >/dev/null 2>&1 && echo engine yes",
+        "command -v roscore >/dev/null && command -v roslaunch >/dev/null && "
+        "{ /usr/bin/python3 -c "$_ROSPY" || python3 -c "$_ROSPY"; } 2>/dev/null && echo ros yes",
+        "command -v nvidia-ctk >/dev/null && echo nvidia yes",
+        f"echo supervisor $(sha256sum {q(layout.supervisor)} 2>/dev/null | cut -c1-64)",
+    ]
+    facts: dict[str, str] = {}
+    for line in run.host.run(" ; ".join(lines), check=False).stdout.splitlines():
+        key, _, value = line.partition(" ")
+        facts[key] = f"{facts[key]} {value}" if key in facts else value
+    return facts
+
+
+def step_runtime(run: HostRun) -> StepResult:
+    host, layout, changes = run.host, run.layout, []
+    facts = _probe(run)
+    if facts.get("missing"):
+        host.run(f"mkdir -p -m 700 {facts['missing']}")
+        changes.append("folders")
+    run.runtime = svc.CONTAINER if facts.get("engine") == "yes" else svc.NATIVE
+    changes += _RUNTIMES[run.runtime](run, facts)
+    supervisor = Path(__file__).with_name("supervise.py").read_bytes()
+    if facts.get("supervisor") != _sha(supervisor):
+        host.put(supervisor, layout.supervisor, mode=0o755)
+        run.files_pushed += 1
+        changes.append("supervisor")
+    if run.access.ship_code:
+        for package in ("fogiac", "workloads"):
+            pushed = push_tree(host, package_dir(package), f"{layout.lib}/{package}", tmp_dir=layout.tmp,
+                               extra_ignore=_CODE_IGNORE)
+            run.files_pushed += pushed.files
+            if pushed.changed:
+                changes.append(f"{package} code")
+    detail = f"{run.runtime} ROS" + (f"; {', '.join(changes)}" if changes else "")
+    return (CHANGED if changes else OK), detail
+
+
+def _container_runtime(run: HostRun, facts: dict[str, str]) -> list[str]:
+    changes = []
+    if run.spec.has_gpu and facts.get("nvidia") != "yes":
+        script = render("provision/nvidia_toolkit.sh.j2")
+        run.host.put(script.encode(), f"{run.layout.tmp}/nvidia-toolkit.sh", mode=0o700)
+        run.host.sudo(f"bash {q(run.layout.tmp + '/nvidia-toolkit.sh')}", timeout=900)
+        changes.append("NVIDIA container toolkit")
+    image = svc.ros_image(run.plan)
+    if not run.host.run(f"docker image inspect {q(image)} >/dev/null 2>&1", check=False).ok:
+        run.host.run(f"docker pull -q {q(image)}", timeout=900)
+        changes.append(f"pulled {image}")
+    return changes
+
+
+def _native_runtime(run: HostRun, facts: dict[str, str]) -> list[str]:
+    if facts.get("ros") == "yes":
+        return []
+    if not run.options.allow_install:
+        raise ProvisionError(
+            f"{run.spec.name}: no ROS {run.plan.ros_distro} (roscore, roslaunch, rospy) and no container engine; "
+            f"install {' '.join(_ROS_PACKAGES)} or allow fogiac to install them"
+        )
+    script = render("provision/ros_native.sh.j2", distro=run.plan.ros_distro, packages=_ROS_PACKAGES)
+    run.host.put(script.encode(), f"{run.layout.tmp}/ros-native.sh", mode=0o700)
+    run.host.sudo(f"bash {q(run.layout.tmp + '/ros-native.sh')}", timeout=1800)
+    return ["installed ROS packages"]
+
+
+_RUNTIMES: dict[str, Callable[[HostRun, dict[str, str]], list[str]]] = {svc.CONTAINER: _container_runtime,
+                                                         svc.NATIVE: _native_runtime}
+
+
+def _workspaces(run: HostRun) -> list[str]:
+    seen: list[str] = []
+    for name in run.spec.nodes:
+        launch = run.plan.node(name).launch
+        if launch is not None and launch.workspace not in seen:
+            seen.append(launch.workspace)
+    return seen
+
+
+def step_workspace(run: HostRun) -> StepResult:
+    sent, files, removed = 0, 0, 0
+    for local in _workspaces(run):
+        pushed = push_tree(run.host, Path(local), run.layout.workspace(local), tmp_dir=run.layout.tmp)
+        run.digests[local] = pushed.digest
+        sent, files, removed = sent + pushed.bytes_sent, files + pushed.files, removed + pushed.removed
+    run.files_pushed += files
+    if not files and not removed:
+        return OK, "workspace up to date"
+    return CHANGED, f"pushed {files} file(s), {sent} bytes; removed {removed}"
+
+
+def step_env_script(run: HostRun) -> StepResult:
+    """Run each workspace's env scripts (and a catkin build) once per content hash."""
+    ran = []
+    for local in _workspaces(run):
+        scripts = sorted({n.launch.env_script for n in (run.plan.node(x) for x in run.spec.nodes)
+                          if n.launch and n.launch.workspace == local and n.launch.env_script})
+        bodies = [Path(s).read_bytes() for s in scripts]
+        key = _sha(b"\0".join([run.digests.get(local, "").encode(), *bodies]))
+        dest = run.layout.workspace(local)
+        marker = f"{run.layout.state}/setup-{dest.rsplit('/', 1)[-1]}.sha256"
+        if run.host.run(f"cat {q(marker)} 2>/dev/null", check=False).stdout.strip() == key:
+            continue
+        for i, body in enumerate(bodies):
+            path = f"{run.layout.tmp}/setup-{i}.sh"
+            run.host.put(body, path, mode=0o700)
+            run.host.run(f"cd {q(dest)} && . {q(run.layout.env_file)} && bash {q(path)}", timeout=1800)
+        run.host.run(f"cd {q(dest)} && if [ -f src/CMakeLists.txt ] && command -v catkin_make >/dev/null; "
+                     f"then . {q(run.layout.env_file)} && catkin_make >/dev/null; fi", timeout=1800)
+        run.host.put(key.encode() + b"\n", marker, mode=0o600)
+        ran.append(Path(local).name)
+    return (CHANGED, f"set up {', '.join(ran)}") if ran else (OK, "set up already")
+
+
+def step_services(run: HostRun) -> StepResult:
+    from fogiac.net.rosenv import side_env
+
+    env = side_env(side="cloud", master_uri=svc.master_uri(run.where()), address=run.access.ros_address).text
+    env_changed = ensure_file(run, env.encode(), run.layout.env_file)
+    manager = manager_for(run.host)
+    wanted = run.services()
+    started = manager.ensure(run.host, run.layout, wanted, restart_all=env_changed)
+    stopped = manager.prune(run.host, run.layout, keep=[s.name for s in wanted] + ["relay-cloud"])
+    if not started and not stopped and not env_changed:
+        return OK, f"{len(wanted)} service(s) running ({manager.name})"
+    parts = [f"started {', '.join(started)}"] if started else []
+    parts += [f"stopped {', '.join(stopped)}"] if stopped else []
+    return CHANGED, "; ".join(parts or ["ROS environment updated"]) + f" ({manager.name})"
+
+
+def relay_available(run: HostRun) -> bool:
+    return run.host.run(f"test -f {q(run.where().code_root + '/fogiac/cli/relay.py')}", check=False).ok
+
+
+def step_relay(run: HostRun) -> StepResult:
+    certs = run.options.certs_dir
+    if certs is None:
+        return SKIPPED, "no relay certificates given"
+    changed = [name for name, mode in _RELAY_CERTS
+               if ensure_file(run, (certs / name).read_bytes(), f"{run.layout.certs}/{name}", mode=mode)]
+    service = svc.relay_service(run.plan, run.spec, run.where())
+    if not relay_available(run):
+        ensure_file(run, service.script.encode(), f"{run.layout.services}/{service.name}.sh", mode=0o700)
+        return SKIPPED, "relay CLI not installed on the host; service script rendered only"
+    started = manager_for(run.host).ensure(run.host, run.layout, (service,), restart_all=bool(changed))
+    return (CHANGED, "relay cloud end started") if started or changed else (OK, "relay cloud end running")
+
+
+def step_health(run: HostRun) -> StepResult:
+    manager = manager_for(run.host)
+    checks = list(run.services())
+    if run.options.certs_dir is not None and relay_available(run):
+        checks.append(svc.relay_service(run.plan, run.spec, run.where()))
+    details = []
+    for service in checks:
+        ok, detail = manager.health(run.host, run.layout, service, master=svc.master_uri(run.where()),
+                                    timeout=run.options.health_timeout)
+        if not ok:
+            raise ProvisionError(f"{run.spec.name}: {service.name} unhealthy: {detail}")
+        if service.check in ("node", "any"):
+            details.append(f"{service.name.removeprefix('node-')}: {detail}")
+    return OK, "; ".join(details) or "all services up"
+
+
+STEPS: dict[str, Callable[[HostRun], StepResult]] = {
+    "connect": step_connect,
+    "runtime": step_runtime,
+    "workspace": step_workspace,
+    "env_script": step_env_script,
+    "services": step_services,
+    "relay": step_relay,
+    "health": step_health,
+}
+
+
+def step(name: str) -> Callable[[HostRun], StepResult]:
+    try:
+        return STEPS[name]
+    except KeyError:
+        raise ProvisionError(f"unknown provisioning step {name!r}; valid: {', '.join(STEPS)}") from None

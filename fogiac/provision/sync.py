@@ -1,0 +1,140 @@
+"""Push a folder to a host sending only what changed, by content hash.
+
+Why: workspaces hold meshes, weights and build leftovers; a second ``up`` must not resend them.
+The host keeps ``<dest>.manifest`` (``sha256  path`` lines, the ``sha256sum`` format) of what
+it received; a push compares it with the local folder and sends one gzip'd tar with the
+changed files and the new manifest, then deletes files that went away.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import hashlib
+import io
+import tarfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from fogiac.provision.host import Host, q
+
+DEFAULT_IGNORE = (".git/", ".hg/", ".svn/", "build/", "devel/", "install/", "log/", "logs/",
+                  "__pycache__/", "*.pyc", ".pytest_cache/", ".mypy_cache/", "*.swp", ".DS_Store",
+                  ".fogiacignore", ".catkin_tools/", ".venv/")
+
+
+@dataclass(frozen=True)
+class Pushed:
+    """What a push did: files sent (added or changed), files removed, bytes put on the wire."""
+
+    files: int
+    removed: int
+    bytes_sent: int
+    digest: str
+
+    @property
+    def changed(self) -> bool:
+        return bool(self.files or self.removed)
+
+
+def ignore_patterns(root: Path, extra: tuple[str, ...] = ()) -> tuple[str, ...]:
+    """The defaults, then ``.fogiacignore`` lines (gitignore-like: ``dir/``, globs, ``#`` comments)."""
+    patterns = list(DEFAULT_IGNORE) + list(extra)
+    ignore_file = root / ".fogiacignore"
+    if ignore_file.is_file():
+        for line in ignore_file.read_text().splitlines():
+            line = line.strip()
+            if line and not line.startswith("#"):
+                patterns.append(line.lstrip("/"))
+    return tuple(patterns)
+
+
+def _ignored(rel: str, is_dir: bool, patterns: tuple[str, ...]) -> bool:
+    name = rel.rsplit("/", 1)[-1]
+    for pattern in patterns:
+        if pattern.endswith("/"):
+            if not is_dir:
+                continue
+            pattern = pattern[:-1]
+        target = rel if "/" in pattern else name
+        if fnmatch.fnmatchcase(target, pattern):
+            return True
+    return False
+
+
+def scan(root: Path, patterns: tuple[str, ...]) -> dict[str, str]:
+    """``{relative path: sha256}`` of every file under ``root`` not ignored (symlinks followed)."""
+    out: dict[str, str] = {}
+    todo = [root]
+    while todo:
+        folder = todo.pop()
+        for entry in sorted(folder.iterdir()):
+            rel = entry.relative_to(root).as_posix()
+            if entry.is_dir():
+                if not _ignored(rel, True, patterns):
+                    todo.append(entry)
+            elif entry.is_file() and not _ignored(rel, False, patterns):
+                out[rel] = hashlib.sha256(entry.read_bytes()).hexdigest()
+    return out
+
+
+def manifest_text(hashes: dict[str, str]) -> str:
+    return "".join(f"{digest}  {path}\n" for path, digest in sorted(hashes.items()))
+
+
+def parse_manifest(text: str) -> dict[str, str]:
+    out = {}
+    for line in text.splitlines():
+        digest, sep, path = line.partition("  ")
+        if sep and len(digest) == 64:
+            out[path] = digest
+    return out
+
+
+def digest_of(hashes: dict[str, str]) -> str:
+    return hashlib.sha256(manifest_text(hashes).encode()).hexdigest()
+
+
+def diff(local: dict[str, str], remote: dict[str, str]) -> tuple[list[str], list[str]]:
+    """(paths to send, paths to delete on the host)."""
+    send = sorted(p for p, h in local.items() if remote.get(p) != h)
+    delete = sorted(p for p in remote if p not in local)
+    return send, delete
+
+
+def _tarball(root: Path, paths: list[str], *, dest_name: str, manifest: str) -> bytes:
+    buf = io.BytesIO()
+    with tarfile.open(fileobj=buf, mode="w:gz", compresslevel=6) as tar:
+        for rel in paths:
+            src = root / rel
+            info = tarfile.TarInfo(f"{dest_name}/{rel}")
+            data = src.read_bytes()
+            info.size = len(data)
+            info.mode = 0o755 if src.stat().st_mode & 0o111 else 0o644
+            info.mtime = int(time.time())
+            tar.addfile(info, io.BytesIO(data))
+        info = tarfile.TarInfo(f"{dest_name}.manifest")
+        data = manifest.encode()
+        info.size, info.mode, info.mtime = len(data), 0o600, int(time.time())
+        tar.addfile(info, io.BytesIO(data))
+    return buf.getvalue()
+
+
+def push_tree(host: Host, root: Path, dest: str, *, tmp_dir: str, extra_ignore: tuple[str, ...] = ()) -> Pushed:
+    """Make ``dest`` on ``host`` hold exactly ``root``'s non-ignored files; send only differences."""
+    local = scan(root, ignore_patterns(root, extra_ignore))
+    digest = digest_of(local)
+    found = host.run(f"cat {q(dest + '.manifest')} 2>/dev/null; test -d {q(dest)} || echo MISSING", check=False)
+    remote = {} if "MISSING" in found.stdout.splitlines() else parse_manifest(found.stdout)
+    send, delete = diff(local, remote)
+    if not send and not delete:
+        return Pushed(files=0, removed=0, bytes_sent=0, digest=digest)
+    parent, dest_name = dest.rsplit("/", 1)
+    blob = _tarball(root, send, dest_name=dest_name, manifest=manifest_text(local))
+    archive = f"{tmp_dir}/{dest_name}.tgz"
+    host.run(f"mkdir -p {q(tmp_dir)} {q(dest)}")
+    sent = host.put(blob, archive, mode=0o600)
+    removals = " ".join(q(f"{dest}/{p}") for p in delete)
+    host.run(f"tar -xzf {q(archive)} -C {q(parent)} && rm -f {q(archive)}"
+             + (f" && rm -f {removals}" if removals else ""))
+    return Pushed(files=len(send), removed=len(delete), bytes_sent=sent, digest=digest)

@@ -1,0 +1,224 @@
+"""The relay pair between two real roscores with rospy publishers and subscribers."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+import shutil
+import socket
+import ssl
+import struct
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from conftest import Master, Procs, indices, string_msg, wait_for
+from fogiac.certs import new_bundle, save_bundle
+from fogiac.net.relay import CloudConfig, CloudRelay, EdgeConfig, EdgeRelay, TopicPolicy
+from fogiac.net.relay.tls import client_context, expected_server_name
+
+pytestmark = pytest.mark.ros
+
+
+@contextlib.contextmanager
+def relay_pair(masters: tuple[Master, Master], certs: Path, **edge: object) -> Iterator[tuple[EdgeRelay, CloudRelay]]:
+    edge_master, cloud_master = masters
+    cloud = CloudRelay(CloudConfig(master_uri=cloud_master.uri, certs=certs, ros_host="127.0.0.1",
+                                   listen=("127.0.0.1", 0), poll_interval=0.1))
+    cloud.start()
+    try:
+        edge_end = EdgeRelay(EdgeConfig(master_uri=edge_master.uri, certs=edge.pop("edge_certs", certs),  # type: ignore[arg-type]
+                                        ros_host="127.0.0.1", connect=cloud.address, poll_interval=0.1,
+                                        backoff_max=1.0, **edge))  # type: ignore[arg-type]
+        edge_end.start()
+        try:
+            yield edge_end, cloud
+        finally:
+            edge_end.stop()
+    finally:
+        cloud.stop()
+
+
+def consecutive(values: list[int]) -> bool:
+    return values == list(range(values[0], values[0] + len(values)))
+
+
+def test_messages_cross_byte_identical_and_in_order_both_ways(masters: tuple[Master, Master], certs: Path,
+                                                                procs: Procs) -> None:
+    edge_m, cloud_m = masters
+    with relay_pair(masters, certs, policy=TopicPolicy(auto=True)):
+        procs.node(edge_m, "pub", "/up", "--forever", "--rate", "50", "--size", "300")
+        procs.node(cloud_m, "pub", "/down", "--forever", "--rate", "50")
+        up = procs.node(cloud_m, "sub", "/up", "--count", "40")
+        down = procs.node(edge_m, "sub", "/down", "--count", "40")
+        wait_for(lambda: len(up.data()) >= 40 and len(down.data()) >= 40, 30, "40 messages each way")
+    assert consecutive(indices(up.data())) and consecutive(indices(down.data()))
+    assert all(len(raw) == 304 for raw in up.data())
+
+
+def test_auto_discovery_adds_and_removes_topics(masters: tuple[Master, Master], certs: Path, procs: Procs) -> None:
+    edge_m, cloud_m = masters
+    with relay_pair(masters, certs, policy=TopicPolicy(auto=True)) as (edge, cloud):
+        pub = procs.node(edge_m, "pub", "/disc", "--forever")
+        wait_for(lambda: cloud.session is not None, 10, "link")
+        # A publisher alone is not enough: nobody on the cloud side wants it.
+        assert "/fogiac_relay_edge" not in edge_m.subscribers("/disc")
+        sub = procs.node(cloud_m, "sub", "/disc", "--count", "1000")
+        wait_for(lambda: len(sub.data()) >= 5, 20, "messages after the subscriber appeared")
+        assert cloud_m.publishers("/disc") == ["/fogiac_relay_cloud"]
+        assert [t.topic for t in edge.stats().topics] == ["/disc"]
+        procs.kill(sub)
+        wait_for(lambda: not cloud_m.publishers("/disc"), 10, "the cloud registration to go")
+        wait_for(lambda: "/fogiac_relay_edge" not in edge_m.subscribers("/disc"), 10, "the edge registration to go")
+        sub2 = procs.node(cloud_m, "sub", "/disc", "--count", "3")
+        wait_for(lambda: len(sub2.data()) >= 3, 20, "relaying to resume for a new subscriber")
+        procs.kill(pub)
+        wait_for(lambda: not cloud_m.publishers("/disc"), 10, "the route to go with the publisher")
+
+
+def test_latched_topic_stays_latched_for_late_subscribers(masters: tuple[Master, Master], certs: Path,
+                                                          procs: Procs) -> None:
+    edge_m, cloud_m = masters
+    with relay_pair(masters, certs, policy=TopicPolicy(topics=("/map",))):
+        procs.node(edge_m, "pub", "/map", "--count", "3", "--latch", "--rate", "100")
+        wait_for(lambda: cloud_m.publishers("/map") == ["/fogiac_relay_cloud"], 20, "the relay to advertise /map")
+        late = procs.node(cloud_m, "sub", "/map", "--count", "1")
+        wait_for(lambda: late.data(), 20, "the latched message")
+        assert late.data()[-1] == string_msg("msg 2")
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4"])
+def test_compressed_topics_round_trip(masters: tuple[Master, Master], certs: Path, procs: Procs,
+                                      compression: str) -> None:
+    edge_m, cloud_m = masters
+    topic = f"/img_{compression}"
+    with relay_pair(masters, certs, policy=TopicPolicy(auto=True), topic_compression=((topic, compression),)) as (edge, _):
+        procs.node(edge_m, "pub", topic, "--forever", "--rate", "50", "--size", "20000")
+        sub = procs.node(cloud_m, "sub", topic, "--count", "10")
+        wait_for(lambda: len(sub.data()) >= 10, 20, "compressed messages")
+        (stats,) = edge.stats().topics
+        assert stats.compression == compression
+    assert consecutive(indices(sub.data()))
+
+
+def test_wrong_client_certificate_is_refused(masters: tuple[Master, Master], certs: Path, tmp_path: Path,
+                                             caplog: pytest.LogCaptureFixture) -> None:
+    rogue = tmp_path / "rogue"
+    save_bundle(new_bundle("rogue"), rogue)
+    shutil.copy(certs / "ca.pem", rogue / "ca.pem")  # trusts the real cloud, shows a foreign client cert
+    shutil.copy(certs / "server.pem", rogue / "server.pem")
+    caplog.set_level(logging.INFO, logger="fogiac.net.relay")
+    with relay_pair(masters, certs, edge_certs=rogue, policy=TopicPolicy(auto=True)) as (edge, cloud):
+        wait_for(lambda: edge.last_error is not None, 15, "the edge to fail")
+        assert not edge.connected.is_set() and cloud.session is None
+    assert any("refused TLS connection" in r.getMessage() and "certificate verify failed" in r.getMessage()
+               for r in caplog.records)
+
+
+def _raw_client(certs: Path, address: tuple[str, int]) -> ssl.SSLSocket:
+    sock = socket.create_connection(address, timeout=5)
+    return client_context(certs).wrap_socket(sock, server_hostname=expected_server_name(certs))
+
+
+def test_garbage_from_a_peer_closes_only_that_connection(masters: tuple[Master, Master], certs: Path,
+                                                         procs: Procs) -> None:
+    edge_m, cloud_m = masters
+    with relay_pair(masters, certs, policy=TopicPolicy(auto=True)) as (edge, cloud):
+        procs.node(edge_m, "pub", "/steady", "--forever", "--rate", "50")
+        sub = procs.node(cloud_m, "sub", "/steady", "--count", "100000")
+        wait_for(lambda: len(sub.data()) >= 5, 20, "flow")
+        for garbage in (struct.pack("!IBI", 0xFFFFFFF0, 7, 1), b"\x00\x00\x00\x05\xee\x00\x00\x00\x00"):
+            with _raw_client(certs, cloud.address) as intruder:
+                intruder.sendall(garbage)
+                assert intruder.recv(100) == b""  # closed by the cloud end
+        before = len(sub.data())
+        wait_for(lambda: len(sub.data()) >= before + 10, 10, "the flow to go on")
+        assert edge.reconnects == 0 and cloud.reconnects == 0
+        assert consecutive(indices(sub.data()))
+
+
+def test_edge_drops_a_peer_sending_an_absurd_length_and_redials(masters: tuple[Master, Master], certs: Path) -> None:
+    """A fake cloud end completes TLS and HELLO, then sends a 4 GiB length prefix."""
+    from fogiac.net.relay import framing
+    from fogiac.net.relay.framing import Kind
+    from fogiac.net.relay.session import read_frame
+    from fogiac.net.relay.tls import server_context
+
+    ctx = server_context(certs)
+    listener = socket.create_server(("127.0.0.1", 0))
+    accepted: list[bool] = []
+    edge = EdgeRelay(EdgeConfig(master_uri=masters[0].uri, certs=certs, ros_host="127.0.0.1",
+                                connect=listener.getsockname()[:2], backoff_initial=0.1, backoff_max=0.5))
+    edge.start()
+    try:
+        for _ in range(2):
+            raw, _ = listener.accept()
+            with ctx.wrap_socket(raw, server_side=True) as conn:
+                assert read_frame(conn).kind is Kind.HELLO
+                conn.sendall(framing.encode(framing.json_frame(Kind.HELLO, {"role": "cloud"})))
+                conn.sendall(struct.pack("!IBI", 0xFFFFFFFF, 7, 1))
+                conn.settimeout(5)
+                try:
+                    while conn.recv(65536):  # pings until the edge hangs up
+                        pass
+                except (ssl.SSLError, OSError):
+                    pass
+                accepted.append(True)
+        assert len(accepted) == 2 and edge.reconnects >= 1
+    finally:
+        edge.stop()
+        listener.close()
+
+
+def test_cloud_restart_resumes_the_flow(masters: tuple[Master, Master], certs: Path, procs: Procs,
+                                        tmp_path: Path) -> None:
+    from conftest import free_port
+
+    edge_m, cloud_m = masters
+    port = free_port()
+    cloud_argv = ["-m", "fogiac", "relay", "cloud", "--listen", f"127.0.0.1:{port}", "--master", cloud_m.uri,
+                  "--certs", str(certs), "--ros-host", "127.0.0.1"]
+    import sys
+
+    first = procs.spawn([sys.executable, *cloud_argv], cloud_m.env)
+    stats_file = tmp_path / "edge.json"
+    edge = procs.spawn([sys.executable, "-m", "fogiac", "relay", "edge", "--connect", f"127.0.0.1:{port}",
+                        "--master", edge_m.uri, "--certs", str(certs), "--ros-host", "127.0.0.1",
+                        "--stats-file", str(stats_file)], edge_m.env)
+    procs.node(edge_m, "pub", "/resume", "--forever", "--rate", "50")
+    sub = procs.node(cloud_m, "sub", "/resume", "--count", "100000")
+    wait_for(lambda: len(sub.data()) >= 5, 30, "flow through the first cloud end")
+    procs.kill(first, 9)
+    procs.spawn([sys.executable, *cloud_argv], cloud_m.env)
+    before = len(sub.data())
+    wait_for(lambda: len(sub.data()) >= before + 20, 40, "flow through the restarted cloud end")
+    from fogiac.net.relay import read_stats
+
+    wait_for(lambda: stats_file.exists() and read_stats(stats_file).reconnects >= 1, 10, "stats to show a reconnect")
+    assert edge.popen.poll() is None
+
+
+def test_monitoring_publishes_only_while_subscribed(masters: tuple[Master, Master], certs: Path,
+                                                    procs: Procs) -> None:
+    edge_m, cloud_m = masters
+    with relay_pair(masters, certs, policy=TopicPolicy(auto=True)) as (edge, cloud):
+        procs.node(edge_m, "pub", "/mon", "--forever", "--rate", "20", "--size", "1000")
+        sub = procs.node(cloud_m, "sub", "/mon", "--count", "100000")
+        wait_for(lambda: len(sub.data()) >= 30, 20, "flow")
+        assert cloud._monitor is not None and cloud._monitor.published == 0
+        assert cloud_m.publishers("/fogros/latency") == ["/fogiac_relay_cloud"]
+        lat = procs.node(cloud_m, "sub", "/fogros/latency", "--count", "3")
+        thr = procs.node(edge_m, "sub", "/fogros/throughput", "--count", "3")
+        wait_for(lambda: len(lat.data()) >= 3 and len(thr.data()) >= 3, 20, "monitoring messages")
+        assert cloud._monitor.published > 0
+        latency = json.loads(lat.data()[-1][4:])
+        throughput = json.loads(thr.data()[-1][4:])
+    assert latency["role"] == "cloud" and latency["connected"] is True
+    mon = latency["topics"]["/mon"]
+    assert mon["direction"] == "in" and 0 < mon["median_ms"] < 1000
+    assert 0 < latency["rtt_ms"] < 1000
+    out = throughput["topics"]["/mon"]
+    assert throughput["role"] == "edge" and out["direction"] == "out"
+    assert 5 < out["msgs_per_s"] < 40 and 5 * 1004 < out["bytes_per_s"] < 40 * 1004 and out["drops"] == 0

@@ -75,7 +75,7 @@ class SshAccess:
 
     ``fingerprints`` pins the host key (``SHA256:...`` as the instance's console prints them,
     used on ``aws``); empty means trust on first contact and record it (``hosts``). ``base_dir``
-    is fogiac's folder on the host (default ``$HOME/.fogiac/<stack>``); ``python`` runs
+    is fogiac's folder on the host (default ``$HOME/.fogiac/<stack>/<host>``); ``python`` runs
     fogiac's own code there (the relay, shipped workloads).
     """
 

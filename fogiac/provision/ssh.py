@@ -90,7 +90,7 @@ class SshHost:
             break
         if not self.base:
             home = self.run("printf %s \"$HOME\"").stdout.strip()
-            self.base = f"{home}/.fogiac/{self.stack}"
+            self.base = f"{home}/.fogiac/{self.stack}/{self.name}"
         return attempt
 
     @property

@@ -99,7 +99,7 @@ def _probe(run: HostRun) -> dict[str, str]:
         "_ROSPY='import importlib.util as u, sys; sys.exit(u.find_spec(\"rospy\") is None)'",
         "docker info >/dev/null 2>&1 && echo engine yes",
         "command -v roscore >/dev/null && command -v roslaunch >/dev/null && "
-        "{ /usr/bin/python3 -c "$_ROSPY" || python3 -c "$_ROSPY"; } 2>/dev/null && echo ros yes",
+        '{ /usr/bin/python3 -c "$_ROSPY" || python3 -c "$_ROSPY"; } 2>/dev/null && echo ros yes',
         "command -v nvidia-ctk >/dev/null && echo nvidia yes",
         f"echo supervisor $(sha256sum {q(layout.supervisor)} 2>/dev/null | cut -c1-64)",
     ]

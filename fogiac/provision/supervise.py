@@ -210,7 +210,8 @@ def status(run_dir: Path, name: str) -> dict:
         state = {}
     pid = _read_pid(files.pid)
     child = _read_pid(files.child) if pid is not None else None
-    return {"name": name, "running": pid is not None and child is not None, "pid": pid, "child": child,
+    # "running" means supervised: between a crash and its restart the child is briefly absent.
+    return {"name": name, "running": pid is not None, "pid": pid, "child": child,
             "restarts": state.get("restarts", 0)}
 
 

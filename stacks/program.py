@@ -24,7 +24,6 @@ from stacks.vpn import ClientVpn, ClientVpnArgs
 HOSTS_SUBNET = "hosts"  # the public subnet the instances live in
 HOSTS_GROUP = "hosts"  # the instances' security group
 VPN_GROUP = "vpn"  # the Client VPN endpoint's security group
-LAYERS = ("network", "compute")
 
 
 def _require_aws(plan: Plan) -> None:

@@ -1,0 +1,15 @@
+"""``pulumi preview`` / ``pulumi up`` entry point for fogiac's stacks (see stacks/entry.py)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+try:
+    import stacks  # noqa: F401  (installed with fogiac)
+except ImportError:  # a checkout: the repository root holds the stacks package
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from stacks.entry import main  # noqa: E402
+
+main(base=Path.cwd())

@@ -1,0 +1,80 @@
+"""Manifests and their offline plans, shared by the stack tests (each plan runs once per module)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from fogiac.compile import compile_plan
+from fogiac.manifest import load_manifest
+from fogiac.offline import OfflinePlan, declare
+from fogiac.plan import Plan
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+PROXY = """\
+name: proxied
+cloud:
+  provider: aws
+  region: us-east-1
+  zone: us-east-1b
+network:
+  mode: proxy
+  vpc_cidr: 10.20.0.0/20
+  ssh_from: [198.51.100.0/24, 203.0.113.7/32]
+nodes:
+  - name: planner
+    machine: c5.4xlarge
+    workload: motion_planning
+    spot: true
+    disk_gb: 50
+"""
+
+GPU = """\
+name: grasp
+cloud:
+  provider: aws
+  region: us-west-2
+network:
+  ssh_from: [203.0.113.7/32]
+tags:
+  team: robots
+nodes:
+  - name: dexnet
+    machine: g4dn.xlarge
+    image: ghcr.io/example/dexnet:1
+    gpu: true
+    disk_gb: 100
+  - name: helper
+    machine: t3.medium
+    image: ros:noetic-ros-core
+  - name: helper2
+    machine: t3.medium
+    image: ros:noetic-ros-core
+"""
+
+
+def write_manifest(directory: Path, name: str, text: str) -> Path:
+    path = directory / f"{name}.yaml"
+    path.write_text(text)
+    return path
+
+
+def compiled(path: Path, **kwargs: str) -> Plan:
+    return compile_plan(load_manifest(path), **kwargs)
+
+
+@pytest.fixture(scope="module")
+def manifests(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    directory = tmp_path_factory.mktemp("manifests")
+    return {
+        "minimal": EXAMPLES / "minimal.yaml",
+        "proxy": write_manifest(directory, "proxy", PROXY),
+        "gpu": write_manifest(directory, "gpu", GPU),
+    }
+
+
+@pytest.fixture(scope="module")
+def offline(manifests: dict[str, Path]) -> dict[str, OfflinePlan]:
+    return {key: declare(compiled(path)) for key, path in manifests.items()}

@@ -1,0 +1,94 @@
+"""ClientVpn: ACM certificates with secret keys, mutual TLS, split tunnel, VPC authorization."""
+
+from __future__ import annotations
+
+import pytest
+
+from fogiac.certs import Bundle, new_bundle
+from fogiac.offline import OfflinePlan
+from stacks.program import network_program
+
+from .conftest import EXAMPLES, compiled
+from .recorder import Recorder, is_secret
+
+
+@pytest.fixture(scope="module")
+def bundle() -> Bundle:
+    return new_bundle("minimal-dev")
+
+
+@pytest.fixture(scope="module")
+def recorded(bundle: Bundle) -> tuple[Recorder, dict]:
+    plan = compiled(EXAMPLES / "minimal.yaml")
+    recorder = Recorder()
+    exports = recorder.run(
+        lambda: network_program(plan, certs=bundle, operator_cidrs=("192.0.2.7/32",)), stack=plan.stack
+    )
+    return recorder, exports
+
+
+def test_endpoint_uses_mutual_tls_and_split_tunnel(offline: dict[str, OfflinePlan]) -> None:
+    (endpoint,) = offline["minimal"].of_type("aws:ec2clientvpn/endpoint:Endpoint")
+    inputs = endpoint.inputs
+    assert inputs["authenticationOptions"] == (
+        {"type": "certificate-authentication", "rootCertificateChainArn": "<minimal-dev-cert-client.arn>"},
+    )
+    assert inputs["serverCertificateArn"] == "<minimal-dev-cert-server.arn>"
+    assert inputs["splitTunnel"] is True
+    assert inputs["clientCidrBlock"] == "10.200.0.0/22"
+    assert (inputs["transportProtocol"], inputs["vpnPort"]) == ("udp", 443)
+    assert inputs["connectionLogOptions"] == {"enabled": False}
+    assert inputs["securityGroupIds"] == ("<minimal-dev-sg-vpn.id>",)
+    assert inputs["vpcId"] == "<minimal-dev-vpc.id>"
+
+
+def test_association_and_authorization(offline: dict[str, OfflinePlan]) -> None:
+    (association,) = offline["minimal"].of_type("aws:ec2clientvpn/networkAssociation:NetworkAssociation")
+    assert association.inputs == {
+        "clientVpnEndpointId": "<minimal-dev-endpoint.id>", "subnetId": "<minimal-dev-subnet-vpn.id>"
+    }
+    (rule,) = offline["minimal"].of_type("aws:ec2clientvpn/authorizationRule:AuthorizationRule")
+    assert rule.inputs["targetNetworkCidr"] == "10.10.0.0/16"
+    assert rule.inputs["authorizeAllGroups"] is True
+
+
+def test_offline_plan_shows_no_key_material(offline: dict[str, OfflinePlan]) -> None:
+    for cert in offline["minimal"].of_type("aws:acm/certificate:Certificate"):
+        assert cert.inputs["privateKey"] == "[secret]"
+        assert "made at up" in cert.inputs["certificateBody"]
+
+
+def test_acm_gets_the_bundle_with_private_keys_as_secrets(recorded: tuple[Recorder, dict], bundle: Bundle) -> None:
+    recorder, _ = recorded
+    server = recorder.inputs["minimal-dev-cert-server"]
+    client = recorder.inputs["minimal-dev-cert-client"]
+    assert server["certificateBody"] == bundle.server.cert_pem.decode()
+    assert client["certificateBody"] == bundle.client.cert_pem.decode()
+    assert server["certificateChain"] == client["certificateChain"] == bundle.ca.cert_pem.decode()
+    for inputs, pair in ((server, bundle.server), (client, bundle.client)):
+        assert is_secret(inputs["privateKey"])
+        assert inputs["privateKey"]["value"] == pair.key_pem.decode()
+    endpoint = recorder.inputs["minimal-dev-endpoint"]
+    assert endpoint["serverCertificateArn"] == "arn:aws:test:::minimal-dev-cert-server"
+    assert endpoint["authenticationOptions"][0]["rootCertificateChainArn"] == "arn:aws:test:::minimal-dev-cert-client"
+
+
+def test_slow_vpn_resources_wait_thirty_minutes(recorded: tuple[Recorder, dict]) -> None:
+    recorder, _ = recorded
+    for name in ("minimal-dev-endpoint", "minimal-dev-vpn-association"):
+        timeouts = recorder.options[name].custom_timeouts
+        assert (timeouts.create, timeouts.delete) == ("30m", "30m")
+
+
+def test_ids_from_the_mocks_flow_into_dependants(recorded: tuple[Recorder, dict]) -> None:
+    recorder, exports = recorded
+    assert recorder.inputs["minimal-dev-vpn-association"] == {
+        "clientVpnEndpointId": "id-minimal-dev-endpoint", "subnetId": "id-minimal-dev-subnet-vpn"
+    }
+    assert exports["vpn_endpoint_id"] == "id-minimal-dev-endpoint"
+    assert exports["vpn_dns_name"] == "*.minimal-dev-endpoint.example"
+    assert exports["subnet_ids"] == {"hosts": "id-minimal-dev-subnet-hosts", "vpn": "id-minimal-dev-subnet-vpn"}
+    ssh = recorder.inputs["minimal-dev-hosts-in-tcp-22-192.0.2.7-32"]
+    assert ssh["cidrIpv4"] == "192.0.2.7/32"
+    assert ssh["securityGroupId"] == "id-minimal-dev-sg-hosts"
+

@@ -1,4 +1,4 @@
-"""Manifests and their offline plans, shared by the stack tests (each plan runs once per module)."""
+"""Manifests and their offline plans, shared by the stack tests (each plan runs once per session)."""
 
 from __future__ import annotations
 
@@ -65,7 +65,7 @@ def compiled(path: Path, **kwargs: str) -> Plan:
     return compile_plan(load_manifest(path), **kwargs)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def manifests(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     directory = tmp_path_factory.mktemp("manifests")
     return {
@@ -75,6 +75,6 @@ def manifests(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     }
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def offline(manifests: dict[str, Path]) -> dict[str, OfflinePlan]:
     return {key: declare(compiled(path)) for key, path in manifests.items()}

@@ -82,11 +82,12 @@ def read_header(sock: socket.socket) -> dict[str, str]:
     return fields
 
 
-def read_message(sock: socket.socket) -> bytes:
+def read_message(sock: socket.socket) -> bytearray:
+    """One message's bytes (a fresh buffer the caller may keep: no second copy)."""
     (size,) = _U32.unpack(recv_exact(sock, 4))
     if size > MAX_MESSAGE:
         raise TcprosError(f"message of {size} bytes exceeds {MAX_MESSAGE}")
-    return bytes(recv_exact(sock, size))
+    return recv_exact(sock, size)
 
 
 def write_message(sock: socket.socket, data: bytes) -> None:

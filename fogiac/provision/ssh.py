@@ -77,7 +77,7 @@ class SshHost:
                 ) from None
             except (OSError, socket.timeout, paramiko.SSHException, EOFError) as err:
                 conn.close()
-                last = str(err) or type(err).__name__
+                last = _reason(err)
                 pause = _BACKOFF[min(attempt - 1, len(_BACKOFF) - 1)]
                 if time.monotonic() + pause >= deadline:
                     raise ProvisionError(
@@ -133,6 +133,17 @@ class SshHost:
         if self._conn is not None:
             self._conn.close()  # type: ignore[attr-defined]
             self._conn = None
+
+
+def _reason(err: BaseException) -> str:
+    """The OS's words for a failed connect (paramiko wraps them as "[Errno None] Unable to ...")."""
+    inner = getattr(err, "errors", None)
+    if isinstance(inner, dict) and inner:
+        first = next(iter(inner.values()))
+        return first.strerror or str(first)
+    if isinstance(err, OSError) and err.strerror:
+        return err.strerror
+    return str(err) or type(err).__name__
 
 
 def _short(command: str, limit: int = 80) -> str:

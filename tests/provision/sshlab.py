@@ -1,0 +1,125 @@
+"""Real SSH hosts for provisioning tests: network namespaces, each running its own sshd.
+
+Why: provisioning is SSH, files and processes; faking any of them would test the fake. Each
+"host" is a namespace joined to the root namespace by a veth pair (10.232.K.2, K unique per
+test process), running Debian's ``/usr/sbin/sshd -D`` with a generated ed25519 host key and
+one authorized key. Namespaces share the filesystem, so every host gets its own ``base_dir``.
+Used by the tests and by ``benchmarks/provision.py``; cleanup (sshd, every process started in
+a namespace, the namespaces) runs even when the caller fails.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import socket
+import subprocess
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterator
+
+from tests.support.netns import NetLab, Namespace, skip_reason
+
+SSHD = "/usr/sbin/sshd"
+
+
+def lab_skip_reason() -> str | None:
+    reason = skip_reason()
+    if reason:
+        return reason
+    if not Path(SSHD).exists():
+        return "needs Debian's openssh-server (/usr/sbin/sshd)"
+    if shutil.which("ssh-keygen") is None:
+        return "needs ssh-keygen (openssh-client)"
+    return None
+
+
+@dataclass(frozen=True)
+class LabHost:
+    name: str
+    address: str
+    ns: Namespace
+    host_key_pub: Path
+    base_dir: Path
+
+
+def keygen(path: Path) -> Path:
+    subprocess.run(["ssh-keygen", "-q", "-t", "ed25519", "-N", "", "-f", str(path)], check=True)
+    return path
+
+
+def fingerprint_of(pub: Path) -> str:
+    out = subprocess.run(["ssh-keygen", "-lf", str(pub)], capture_output=True, text=True, check=True).stdout
+    return out.split()[1]
+
+
+def _wait_port(address: str, port: int, timeout: float = 15.0) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            with socket.create_connection((address, port), timeout=0.5):
+                return
+        except OSError:
+            time.sleep(0.05)
+    raise RuntimeError(f"sshd on {address}:{port} did not come up")
+
+
+def _octet_base() -> int:
+    return (os.getpid() % 27) * 9
+
+
+@contextmanager
+def ssh_lab(root: Path, count: int, *, dead: int = 0) -> Iterator[tuple[list[LabHost], Path]]:
+    """``count`` namespaces with sshd (plus ``dead`` ones without), and the client key path.
+
+    ``root`` holds keys, configs and each host's base folder; everything else is torn down on exit.
+    """
+    if count + dead > 9:
+        raise ValueError("at most 9 hosts per lab")
+    root.mkdir(parents=True, exist_ok=True)
+    client_key = keygen(root / "client_key")
+    Path("/run/sshd").mkdir(mode=0o755, exist_ok=True)  # sshd's privilege-separation folder
+    with NetLab() as lab:
+        hosts, daemons = [], []
+        for i in range(count + dead):
+            octet = _octet_base() + i
+            ns = lab.namespace(f"h{i}")
+            lab.link(None, ns, a_addr=f"10.232.{octet}.1/24", b_addr=f"10.232.{octet}.2/24")
+            ns.add_route("default", via=f"10.232.{octet}.1")
+            address = f"10.232.{octet}.2"
+            folder = root / f"h{i}"
+            folder.mkdir(exist_ok=True)
+            host_key = keygen(folder / "host_key")
+            hosts.append(LabHost(name=f"h{i}", address=address, ns=ns, host_key_pub=Path(f"{host_key}.pub"),
+                                 base_dir=folder / "base"))
+            if i >= count:
+                continue
+            (folder / "authorized_keys").write_text(Path(f"{client_key}.pub").read_text())
+            config = folder / "sshd_config"
+            config.write_text(
+                f"ListenAddress {address}\nPort 22\nHostKey {host_key}\nPidFile {folder}/sshd.pid\n"
+                f"AuthorizedKeysFile {folder}/authorized_keys\nPermitRootLogin prohibit-password\n"
+                "PasswordAuthentication no\nKbdInteractiveAuthentication no\nUsePAM no\nStrictModes no\n"
+                "MaxStartups 100\nMaxSessions 100\nSubsystem sftp internal-sftp\n"
+            )
+            # Debian's bash sources ~/.bashrc for every SSH command; this machine's runs `pyenv init`
+            # (~0.8 s). Real servers return early for non-interactive shells; so does this stand-in,
+            # bind-mounted in sshd's private mount namespace (made by `ip netns exec`) only.
+            (folder / "bashrc").write_text("# fogiac test host: non-interactive shells do nothing\n")
+            start = f"mount --bind {folder / 'bashrc'} {Path.home() / '.bashrc'} 2>/dev/null; exec {SSHD} -D -e -f {config}"
+            daemons.append(ns.popen(["sh", "-c", start], stdout=open(folder / "sshd.log", "w")))
+        try:
+            for host in hosts[:count]:
+                _wait_port(host.address, 22)
+            yield hosts, client_key
+        finally:
+            for daemon in daemons:  # reap sshd ourselves: a zombie looks alive to NetLab's cleanup
+                daemon.terminate()
+            for daemon in daemons:
+                try:
+                    daemon.wait(timeout=5)
+                except subprocess.TimeoutExpired:
+                    daemon.kill()
+                    daemon.wait()

@@ -11,6 +11,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
@@ -277,3 +278,15 @@ def document(offline: OfflinePlan, *, manifest_path: str, manifest_sha256: str) 
 
 
 _LAYER_ORDER = ["network", "compute"]
+
+
+def plan_document(plan: Plan, *, manifest: Path) -> dict[str, Any]:
+    """Declare ``plan`` offline and build its document; ``up`` saves this as APPLIED_FILE.
+
+    Both sides must build it here: the digest covers the offline placeholders (operator
+    address, certificates, SSH key), not the real values ``up`` used.
+    """
+    import hashlib
+
+    sha = hashlib.sha256(manifest.read_bytes()).hexdigest()
+    return document(declare(plan), manifest_path=str(manifest), manifest_sha256=sha)

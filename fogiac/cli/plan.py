@@ -97,16 +97,13 @@ def plan(
     ),
 ) -> None:
     """Show every resource, host and hourly cost the manifest implies, without touching the cloud."""
-    import hashlib
-
     from fogiac.compile import compile_plan
     from fogiac.manifest import load_manifest
-    from fogiac.offline import APPLIED_FILE, declare, document
+    from fogiac.offline import APPLIED_FILE, plan_document
     from fogiac.state import read_json, stack_dir, write_json_atomic
 
     compiled = compile_plan(load_manifest(manifest), target=target, environment=env)
-    sha = hashlib.sha256(manifest.read_bytes()).hexdigest()
-    doc = document(declare(compiled), manifest_path=str(manifest), manifest_sha256=sha)
+    doc = plan_document(compiled, manifest=manifest)
     if out is not None:
         write_json_atomic(out, doc, mode=0o644)
     if as_json:

@@ -314,10 +314,16 @@ def status(stack: str, *, region: str, ec2: Any = None,
     return sorted(rows, key=lambda r: (r.name, r.instance_id))
 
 
+def identity(*, region: str, sts: Any = None) -> str:
+    """The account the credentials belong to; CredentialsError (one line) when there are none."""
+    sts = sts or client("sts", region=region)
+    return str(_call(sts.get_caller_identity)["Account"])
+
+
 def sweep(stack: str, *, region: str, dry_run: bool, ec2: Any = None, acm: Any = None,
-          rounds: int = 6, first_delay_s: float = 1.0) -> Any:
+          kinds: Collection[str] | None = None, rounds: int = 6, first_delay_s: float = 1.0) -> Any:
     """Delete everything tagged ``fogiac:stack=<stack>`` (see :func:`fogiac.sweep.sweep`)."""
     from fogiac.sweep import sweep as _sweep
 
     return _sweep(stack, ec2=ec2 or client("ec2", region=region), acm=acm or client("acm", region=region),
-                  dry_run=dry_run, rounds=rounds, first_delay_s=first_delay_s)
+                  dry_run=dry_run, kinds=kinds, rounds=rounds, first_delay_s=first_delay_s)

@@ -10,7 +10,7 @@ Clients come from :mod:`fogiac.aws` (this module imports no AWS SDK itself).
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import dataclass
 from typing import Any
 
@@ -171,10 +171,16 @@ def _revoke_group_rules(groups: list[Found], *, ec2: Any) -> None:
             ec2.revoke_security_group_egress(GroupId=g["GroupId"], IpPermissions=g["IpPermissionsEgress"])
 
 
-def sweep(stack: str, *, ec2: Any, acm: Any, dry_run: bool, rounds: int = 6,
-          first_delay_s: float = 1.0, sleep: Callable[[float], None] = time.sleep) -> SweepResult:
-    """Delete all of ``stack`` in dependency order, retrying "in use" with bounded backoff."""
-    first, skipped = inventory(stack, ec2=ec2, acm=acm)
+def sweep(stack: str, *, ec2: Any, acm: Any, dry_run: bool, kinds: Collection[str] | None = None,
+          rounds: int = 6, first_delay_s: float = 1.0, sleep: Callable[[float], None] = time.sleep) -> SweepResult:
+    """Delete all of ``stack`` (or only ``kinds`` of it) in dependency order, retrying "in use"
+    with bounded backoff."""
+
+    def listing() -> tuple[list[Found], list[str]]:
+        found, skipped = inventory(stack, ec2=ec2, acm=acm)
+        return [f for f in found if kinds is None or f.kind in kinds], skipped
+
+    first, skipped = listing()
     if dry_run:
         return SweepResult(found=tuple(first), deleted=(), left=tuple(first), not_checked=tuple(skipped), errors=())
     deleted: list[Found] = []
@@ -198,7 +204,7 @@ def sweep(stack: str, *, ec2: Any, acm: Any, dry_run: bool, rounds: int = 6,
                 continue
             deleted.append(item)
             errors.pop(item, None)
-        current, skipped = inventory(stack, ec2=ec2, acm=acm)
+        current, skipped = listing()
         if current and attempt + 1 < rounds:
             sleep(first_delay_s * 2**attempt)
     left = tuple(current)

@@ -265,7 +265,8 @@ def health(run_dir: Path, name: str, *, check: str, master: str, timeout: float,
 
 def _last_line(path: Path) -> str:
     try:
-        lines = [ln for ln in path.read_text(errors="replace").splitlines() if ln.strip()]
+        lines = [ln for ln in path.read_text(errors="replace").splitlines()
+                 if ln.strip() and not ln.startswith("[fogiac-supervise ")]
     except OSError:
         return "(no log)"
     return lines[-1].strip()[:200] if lines else "(empty)"

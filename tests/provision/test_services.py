@@ -1,0 +1,140 @@
+"""The container path, checked on its exact text: no Docker engine or systemd runs here."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from fogiac.compile import compile_plan
+from fogiac.errors import ProvisionError
+from fogiac.manifest import parse_manifest
+from fogiac.plan import Plan
+from fogiac.provision import services as svc
+
+MANIFEST = """
+name: fleet
+cloud: {provider: aws, region: us-west-2}
+nodes:
+  - name: talker
+    machine: t3.small
+    image: ros:noetic-ros-core
+    command: [rostopic, pub, -r, "1", /chatter, std_msgs/String, "data: hello"]
+    env: {FOO: bar}
+  - name: grasp
+    machine: g4dn.xlarge
+    gpu: true
+    image: example/grasp:1.2
+  - name: plan
+    machine: c5.xlarge
+    workload: motion_planning
+  - name: arm
+    machine: t3.small
+    launch: {package: fogtest, file: talker.launch, workspace: ws}
+"""
+
+
+@pytest.fixture
+def plan(tmp_path: Path) -> Plan:
+    (tmp_path / "ws").mkdir()
+    return compile_plan(parse_manifest(MANIFEST, base=tmp_path))
+
+
+def _where(runtime: str, base: str = "/home/ubuntu/.fogiac/fleet-dev/x") -> svc.Where:
+    return svc.Where(layout=svc.Layout(base), runtime=runtime, master_port=11311, relay_port=11411,
+                     ros_address="10.10.0.5", python="python3", code_root=f"{base}/lib", user="ubuntu")
+
+
+def _line(plan: Plan, node: str) -> str:
+    spec = plan.host(node)
+    return svc.docker_run(plan.node(node), plan=plan, spec=spec, where=_where(svc.CONTAINER))
+
+
+def test_cpu_image_node_runs_without_gpu_flags(plan: Plan) -> None:
+    assert _line(plan, "talker") == (
+        "docker run --rm --network host --name fogiac-talker --env ROS_MASTER_URI=http://127.0.0.1:11311 "
+        "--env ROS_IP=10.10.0.5 --env FOO=bar ros:noetic-ros-core rostopic pub -r 1 /chatter std_msgs/String "
+        "'data: hello'"
+    )
+
+
+def test_gpu_types_get_gpus_all(plan: Plan) -> None:
+    assert _line(plan, "grasp") == (
+        "docker run --rm --network host --gpus all --name fogiac-grasp --env ROS_MASTER_URI=http://127.0.0.1:11311 "
+        "--env ROS_IP=10.10.0.5 example/grasp:1.2"
+    )
+
+
+def test_launch_node_mounts_its_pushed_workspace_read_only(plan: Plan) -> None:
+    ws = _where(svc.CONTAINER).layout.workspace(plan.node("arm").launch.workspace)  # type: ignore[union-attr]
+    assert _line(plan, "arm") == (
+        "docker run --rm --network host --name fogiac-arm --env ROS_MASTER_URI=http://127.0.0.1:11311 "
+        "--env ROS_IP=10.10.0.5 --env ROS_PACKAGE_PATH=/fogiac/ws/src:/fogiac/ws "
+        f"--volume {ws}:/fogiac/ws:ro ros:noetic-ros-core roslaunch fogtest talker.launch"
+    )
+
+
+def test_workload_node_runs_its_image(plan: Plan) -> None:
+    assert _line(plan, "plan") == (
+        "docker run --rm --network host --name fogiac-plan --env ROS_MASTER_URI=http://127.0.0.1:11311 "
+        "--env ROS_IP=10.10.0.5 fogiac/motion_planning:latest python -m workloads.motion_planning node"
+    )
+
+
+def test_container_service_script_and_systemd_unit(plan: Plan) -> None:
+    where = _where(svc.CONTAINER)
+    (service,) = svc.node_services(plan, plan.host("grasp"), where)
+    base = where.layout.base
+    assert service.name == "node-grasp" and service.check == "any"
+    assert service.script.splitlines()[-2:] == [
+        "docker rm -f fogiac-grasp >/dev/null 2>&1 || true",
+        "exec " + _line(plan, "grasp"),
+    ]
+    assert f". {base}/env/ros.sh" in service.script.splitlines()
+    assert service.unit == (
+        "# fogiac service node-grasp on host grasp (stack fleet-dev): rendered by fogiac, edits are overwritten.\n"
+        "[Unit]\nDescription=fogiac fleet-dev: node-grasp\n"
+        "After=network-online.target fogiac-ros-master.service\nWants=network-online.target\n\n"
+        "[Service]\nType=simple\nUser=ubuntu\n"
+        f"ExecStart=/bin/bash {base}/services/node-grasp.sh\n"
+        "Restart=on-failure\nRestartSec=2\nTimeoutStopSec=15\nKillMode=control-group\n\n"
+        "[Install]\nWantedBy=multi-user.target\n"
+    )
+
+
+def test_ros_master_runs_from_the_official_image_on_container_hosts(plan: Plan) -> None:
+    master = svc.master_service(plan, plan.host("talker"), _where(svc.CONTAINER))
+    assert master.script.splitlines()[-1] == (
+        "exec docker run --rm --network host --name fogiac-ros-master ros:noetic-ros-core roscore -p 11311"
+    )
+    gpu_master = svc.master_service(plan, plan.host("grasp"), _where(svc.CONTAINER))
+    assert "--gpus" not in gpu_master.script
+
+
+def test_native_hosts_run_roslaunch_and_workloads_directly(plan: Plan) -> None:
+    where = _where(svc.NATIVE)
+    (arm,) = svc.node_services(plan, plan.host("arm"), where)
+    ws = where.layout.workspace(plan.node("arm").launch.workspace)  # type: ignore[union-attr]
+    assert arm.script.splitlines()[-3:] == [
+        f"export ROS_PACKAGE_PATH={ws}/src:{ws}${{ROS_PACKAGE_PATH:+:$ROS_PACKAGE_PATH}}",
+        f"cd {ws}",
+        "exec roslaunch fogtest talker.launch",
+    ]
+    (workload,) = svc.node_services(plan, plan.host("plan"), where)
+    assert workload.script.splitlines()[-1] == "exec python3 -m workloads.motion_planning node"
+    assert f"export PYTHONPATH={where.code_root}${{PYTHONPATH:+:$PYTHONPATH}}" in workload.script
+
+
+def test_an_image_node_on_a_host_without_docker_is_a_clear_error(plan: Plan) -> None:
+    with pytest.raises(ProvisionError, match=r"^talker: node talker runs image ros:noetic-ros-core but the host has "
+                                             r"no working container engine \(`docker info` failed\)"):
+        svc.node_services(plan, plan.host("talker"), _where(svc.NATIVE))
+
+
+def test_relay_cloud_end_command(plan: Plan) -> None:
+    where = _where(svc.NATIVE)
+    relay = svc.relay_service(plan, plan.host("talker"), where)
+    assert relay.script.splitlines()[-1] == (
+        "exec python3 -m fogiac relay cloud --listen 0.0.0.0:11411 --master http://127.0.0.1:11311 "
+        f"--certs {where.layout.certs}"
+    )

@@ -1,0 +1,41 @@
+"""Hashed workspace sync against a real folder (the local host): only differences travel."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from fogiac.provision.local import LocalHost
+from fogiac.provision.sync import diff, ignore_patterns, push_tree, scan
+from tests.provision.conftest import make_workspace
+
+
+def test_ignore_patterns_skip_build_outputs_and_fogiacignore(tmp_path: Path) -> None:
+    ws = make_workspace(tmp_path / "ws", extra_files=2)
+    files = scan(ws, ignore_patterns(ws))
+    assert sorted(files) == [
+        "src/fogtest/config/params_000.yaml", "src/fogtest/config/params_001.yaml",
+        "src/fogtest/launch/talker.launch", "src/fogtest/package.xml", "src/fogtest/scripts/talker.py",
+    ]
+
+
+def test_diff_sends_changed_and_new_files_and_deletes_gone_ones() -> None:
+    assert diff({"a": "1", "b": "2", "c": "3"}, {"a": "1", "b": "9", "d": "4"}) == (["b", "c"], ["d"])
+
+
+def test_repush_sends_one_changed_file_and_removes_deleted_ones(tmp_path: Path) -> None:
+    ws = make_workspace(tmp_path / "ws", extra_files=30)
+    host = LocalHost(name="box", base=str(tmp_path / "box"))
+    host.connect()
+    dest = f"{host.base}/ws/demo"
+    first = push_tree(host, ws, dest, tmp_dir=f"{host.base}/tmp")
+    assert (first.files, first.removed) == (33, 0)
+    assert push_tree(host, ws, dest, tmp_dir=f"{host.base}/tmp").changed is False
+    (ws / "src/fogtest/config/params_003.yaml").write_text("gain: 2\n")
+    (ws / "src/fogtest/config/params_004.yaml").unlink()
+    again = push_tree(host, ws, dest, tmp_dir=f"{host.base}/tmp")
+    assert (again.files, again.removed) == (1, 1)
+    assert again.bytes_sent < first.bytes_sent / 4
+    assert Path(dest, "src/fogtest/config/params_003.yaml").read_text() == "gain: 2\n"
+    assert not Path(dest, "src/fogtest/config/params_004.yaml").exists()
+    assert Path(dest, "src/fogtest/scripts/talker.py").stat().st_mode & 0o111
+    assert Path(f"{dest}.manifest").read_text().count("\n") == 32

@@ -95,18 +95,18 @@ def untouched_on_failure(stack: str) -> Iterator[Callable[[], None]]:
 
 def _aws_up(plan: Plan, opts: UpOptions) -> UpResult:
     from fogiac import aws, engine
-    from fogiac.offline import APPLIED_FILE, declare, document
-    from fogiac.savedplan import manifest_sha256
+    from fogiac.offline import APPLIED_FILE, plan_document
 
     engine.pulumi_cli()  # before any state is touched
+    # applied.json is the same document `fogiac plan` builds from the compiled plan, so that
+    # `plan --detailed-exitcode` compares like with like; the zone actually used is in outputs.json.
+    doc = plan_document(plan, manifest=opts.manifest_path)
     with untouched_on_failure(plan.stack) as commit, stack_lock(plan.stack, operation="up"):
         recorded = read_json(stack_dir(plan.stack) / engine.OUTPUTS_FILE) or {}
         if recorded.get("zone") and not plan.zone_chosen:  # keep the subnets where they are
             plan = dataclasses.replace(plan, zone=recorded["zone"], zone_chosen=True)
         report = aws.preflight(plan, operator_cidr=opts.ssh_from, known_ids=engine.known_ids(plan.stack))
         plan = dataclasses.replace(plan, zone=report.zone)
-        doc = document(declare(plan), manifest_path=str(opts.manifest_path),
-                       manifest_sha256=manifest_sha256(opts.manifest_path))
         opts.show(doc, report)
         if not opts.yes and not opts.confirm(f"Create these resources in {plan.region} (${plan.hourly_usd:.4f}/h)?"):
             raise FogiacError("not applied: nothing was changed")

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import sys
 from collections import Counter
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Mapping, Optional
 
@@ -38,7 +40,7 @@ def _show(doc: Mapping[str, Any], report: Any) -> None:
     from rich.console import Console
 
     console = Console()
-    console.print(f"[bold]{doc['stack']}[/]: {doc['region']} zone {doc['zone']}, account {report.account}, "
+    console.print(f"[bold]{doc['stack']}[/]: {report.region} zone {report.zone}, account {report.account}, "
                   f"SSH from {', '.join(report.operator_cidrs)}")
     for stack in doc["stacks"]:
         counts = Counter(r["type"].rsplit(":", 1)[-1] for r in doc["resources"] if r["stack"] == stack)
@@ -47,6 +49,19 @@ def _show(doc: Mapping[str, Any], report: Any) -> None:
         console.print(f"  ${line['total']:.4f}/h  {line['item']}")
     total = doc["cost"]["hourly_usd"]
     console.print(f"[bold]cost: ${total:.4f} per hour[/] (about ${total * 730:.2f} per month if left running)")
+
+
+@contextmanager
+def _one_line_each() -> Iterator[None]:
+    """Preflight reports every problem at once: print each as its own ``error:`` line."""
+    from fogiac.errors import PreflightError
+
+    try:
+        yield
+    except PreflightError as err:
+        for line in str(err).splitlines():
+            typer.echo(f"error: {line}", err=True)
+        raise typer.Exit(1) from None
 
 
 class _Progress:
@@ -77,12 +92,18 @@ class _Progress:
             table.add_row(mark, f"{row.op} {row.name}", row.type, f"{row.elapsed(now):5.0f}s")
         return table
 
+    def __call__(self, event: Any) -> None:
+        """The engine's on_event: the display starts with the first event, after any question."""
+        if not self.live.is_started:
+            self.live.start()
+        self.timers(event)
+
     def __enter__(self) -> _Progress:
-        self.live.__enter__()
         return self
 
     def __exit__(self, *exc: object) -> None:
-        self.live.__exit__(*exc)  # type: ignore[arg-type]
+        if self.live.is_started:
+            self.live.stop()
 
 
 def up(manifest: Path = _MANIFEST, yes: bool = _YES, env: str = _ENV, target: Optional[str] = _TARGET,
@@ -97,11 +118,11 @@ def up(manifest: Path = _MANIFEST, yes: bool = _YES, env: str = _ENV, target: Op
     _need_yes(yes, "apply")
     if plan_file is not None:
         check_saved_plan(plan_file, manifest=manifest, stack=plan.stack, target=plan.target)
-    with _Progress() as progress:
+    with _one_line_each(), _Progress() as progress:
         result = chosen.up(plan, UpOptions(
             manifest_path=manifest, yes=yes, ssh_from=ssh_from, show=_show,
             confirm=lambda q: typer.confirm(q, default=False), announce=lambda line: typer.echo(line, err=True),
-            on_event=progress.timers))
+            on_event=progress))
     hosts = result.outputs.get("compute", {}).get("hosts", {})
     for name, host in sorted(hosts.items()):
         typer.echo(f"{name}: {host.get('instance_id')} {host.get('machine')} public {host.get('public_ip')} "
@@ -120,7 +141,7 @@ def down(manifest: Path = _MANIFEST, yes: bool = _YES, env: str = _ENV, target: 
     if not yes and not typer.confirm(f"Destroy everything of stack {plan.stack}?", default=False):
         raise typer.Exit(1)
     with _Progress() as progress:
-        result = chosen.down(plan, DownOptions(keep_network=keep_network, on_event=progress.timers))
+        result = chosen.down(plan, DownOptions(keep_network=keep_network, on_event=progress))
     for line in result.engine_errors:
         typer.echo(f"engine: {line}", err=True)
     for item in result.not_checked:

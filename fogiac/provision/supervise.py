@@ -181,25 +181,32 @@ def start(run_dir: Path, name: str, argv: list[str]) -> str:
         os._exit(0)
 
 
-def stop(run_dir: Path, name: str, *, timeout: float = 15.0) -> str:
-    files = _Files(run_dir, name)
-    pid = _read_pid(files.pid)
-    child = _read_pid(files.child)
-    if pid is None and child is None:
-        return "not running"
-    if pid is not None:
-        os.kill(pid, signal.SIGTERM)
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline and _alive(pid):
-            time.sleep(0.05)
-        if _alive(pid):
+def stop_many(run_dir: Path, names: list[str], *, timeout: float = 15.0) -> dict[str, str]:
+    """Stop several services at once: TERM every supervisor, then wait for all of them together."""
+    sups = {name: _read_pid(_Files(run_dir, name).pid) for name in names}
+    children = {name: _read_pid(_Files(run_dir, name).child) for name in names}
+    for pid in sups.values():
+        if pid is not None:
+            os.kill(pid, signal.SIGTERM)
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and any(p is not None and _alive(p) for p in sups.values()):
+        time.sleep(0.05)
+    out = {}
+    for name in names:
+        files, pid = _Files(run_dir, name), sups[name]
+        if pid is not None and _alive(pid):
             os.kill(pid, signal.SIGKILL)
-    child = _read_pid(files.child)
-    if child is not None:
-        _kill_tree(child)
-    for path in (files.child, files.pid):
-        path.unlink(missing_ok=True)
-    return "stopped"
+        child = _read_pid(files.child)
+        if child is not None:
+            _kill_tree(child)
+        for path in (files.child, files.pid):
+            path.unlink(missing_ok=True)
+        out[name] = "stopped" if pid is not None or children[name] is not None else "not running"
+    return out
+
+
+def stop(run_dir: Path, name: str, *, timeout: float = 15.0) -> str:
+    return stop_many(run_dir, [name], timeout=timeout)[name]
 
 
 def status(run_dir: Path, name: str) -> dict:
@@ -292,8 +299,8 @@ def main(argv: list[str] | None = None) -> int:
         print(stop(args.dir, args.name))
     elif args.action == "stop-all":
         names = sorted(p.stem for p in args.dir.glob("*.pid")) if args.dir.is_dir() else []
-        for name in names:
-            print(f"{name}: {stop(args.dir, name)}")
+        for name, outcome in stop_many(args.dir, names).items():
+            print(f"{name}: {outcome}")
     elif args.action == "status":
         print(json.dumps(status(args.dir, args.name)))
     else:

@@ -1,0 +1,117 @@
+"""``fogiac provision``, ``fogiac logs NODE`` and ``fogiac ssh NODE``: work on provisioned hosts.
+
+Thin: find the stack from the manifest, call :mod:`fogiac.provision`, render with rich.
+``logs`` and ``ssh`` find hosts from what the last provisioning recorded, so they work on every
+target (``aws``, ``hosts``, ``local``).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+_MANIFEST = typer.Argument(Path("fogiac.yaml"), help="The manifest (default: ./fogiac.yaml).", dir_okay=False)
+_ENV = typer.Option("dev", "--env", help="Environment (stack = <name>-<env>).")
+_TARGET = typer.Option(None, "--target", help="Override the manifest's target: hosts or local.")
+
+
+def _plan(manifest: Path, target: Optional[str], env: str):  # type: ignore[no-untyped-def]
+    from fogiac.compile import compile_plan
+    from fogiac.manifest import load_manifest
+
+    return compile_plan(load_manifest(manifest), target=target, environment=env)
+
+
+def _host_of(node: str, manifest: Path, env: str):  # type: ignore[no-untyped-def]
+    """(host name, access, base, stack dir) of the host running ``node``, from the last provisioning."""
+    from fogiac.errors import ProvisionError
+    from fogiac.provision import recorded_access
+    from fogiac.state import stack_dir
+
+    plan = _plan(manifest, None, env)
+    state = stack_dir(plan.stack)
+    for name, (access, base, nodes) in recorded_access(state).items():
+        if node in nodes:
+            return name, access, base, state, plan
+    known = sorted(n.name for n in plan.nodes)
+    raise ProvisionError(f"node {node!r} is not on any provisioned host of {plan.stack}"
+                         f" (nodes: {', '.join(known)}); run `fogiac up` or `fogiac provision` first")
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("provision")
+    def provision_cmd(manifest: Path = _MANIFEST, target: Optional[str] = _TARGET, env: str = _ENV,
+                      health_timeout: float = typer.Option(30.0, help="Seconds to wait for each node."),
+                      allow_install: bool = typer.Option(False, help="Install ROS from OS packages if missing."),
+                      teardown: bool = typer.Option(False, "--teardown", help="Stop everything and remove it.")) -> None:
+        """Provision an existing set of hosts (no cloud resources): ROS, code, nodes, relay."""
+        from rich.console import Console
+
+        from fogiac.certs import load_or_create_bundle
+        from fogiac.errors import ProvisionError
+        from fogiac.provision import access_for, provision, teardown as down
+        from fogiac.provision.report import report_table
+        from fogiac.state import stack_dir, stack_lock
+
+        plan = _plan(manifest, target, env)
+        if plan.target == "aws":
+            raise ProvisionError("`fogiac provision` is for --target hosts or local; aws hosts are provisioned by `fogiac up`")
+        state = stack_dir(plan.stack)
+        console = Console()
+        with stack_lock(plan.stack, operation="teardown" if teardown else "provision"):
+            hosts = access_for(plan, state_dir=state)
+            if teardown:
+                report = down(plan, hosts=hosts, state_dir=state)
+            else:
+                load_or_create_bundle(plan.stack, state / "certs")
+                with console.status(f"provisioning {len(plan.hosts)} host(s)"):
+                    report = provision(plan, hosts=hosts, state_dir=state, certs_dir=state / "certs",
+                                       health_timeout=health_timeout, allow_install=allow_install)
+        console.print(report_table(report, title="teardown" if teardown else "provisioning"))
+        for failed in report.failed:  # whole lines, whatever the terminal's width
+            typer.echo(f"error: {failed.error}", err=True)
+        typer.echo(report.summary())
+        if not report.ok:
+            raise typer.Exit(1)
+
+    @app.command("logs")
+    def logs(node: str, manifest: Path = _MANIFEST, env: str = _ENV,
+             lines: int = typer.Option(100, "--lines", "-n", help="How many lines.")) -> None:
+        """Print the last lines a node wrote on its host."""
+        from fogiac.provision.managers import manager_for
+        from fogiac.provision.services import Layout
+
+        name, access, base, state, plan = _host_of(node, manifest, env)
+        host = access.open(name=name, known_hosts=state / "known_hosts", stack=plan.stack)
+        try:
+            host.connect()  # type: ignore[attr-defined]
+            command = manager_for(host).logs_command(Layout(base or host.base), f"node-{node}", lines=lines)
+            typer.echo(host.run(command).stdout, nl=False)
+        finally:
+            host.close()
+
+    @app.command("ssh")
+    def ssh(node: str, manifest: Path = _MANIFEST, env: str = _ENV,
+            print_only: bool = typer.Option(False, "--print", help="Print the command instead of running it.")) -> None:
+        """Open a shell on the host running NODE (a local sandbox: a shell in its folder)."""
+        import shlex
+
+        from fogiac.provision.host import LocalAccess
+
+        name, access, base, state, _ = _host_of(node, manifest, env)
+        if isinstance(access, LocalAccess):
+            argv = ["bash", "--rcfile", f"{base}/env/ros.sh", "-i"]
+            cwd = base
+        else:
+            argv = ["ssh", "-t", "-i", str(access.key), "-p", str(access.port), "-o", "IdentitiesOnly=yes",
+                    "-o", f"UserKnownHostsFile={state / 'known_hosts'}", "-o", "StrictHostKeyChecking=yes",
+                    f"{access.user}@{access.address}", f"cd {shlex.quote(base)} && exec $SHELL -l"]
+            cwd = os.getcwd()
+        if print_only:
+            typer.echo(f"(cd {shlex.quote(cwd)} && {shlex.join(argv)})" if cwd != os.getcwd() else shlex.join(argv))
+            return
+        os.chdir(cwd)
+        os.execvp(argv[0], argv)

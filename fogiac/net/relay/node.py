@@ -133,7 +133,7 @@ class RelayNode:
     def _handshake(self, sock: socket.socket) -> None:
         try:
             sock.settimeout(5.0)
-            request = tcpros.read_header(sock)
+            request = tcpros.read_header(tcpros.Stream(sock, buffer=0))
             sock.settimeout(None)
             pub = self._publishers.get(request.get("topic", ""))
             if pub is None:

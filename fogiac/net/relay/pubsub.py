@@ -72,8 +72,13 @@ class _Outlet:
                         self._cond.wait()
                     if self._closed:
                         return
-                    data = self._queue.popleft()
-                tcpros.write_message(self.sock, data)
+                    batch = list(self._queue)
+                    self._queue.clear()
+                if len(batch) > 1 and sum(map(len, batch)) < 256 * 1024:
+                    self.sock.sendall(b"".join(tcpros.frame_message(d) for d in batch))
+                else:
+                    for data in batch:
+                        tcpros.write_message(self.sock, data)
         except OSError as err:
             log.debug("subscriber connection closed: %s", err)
         finally:
@@ -213,11 +218,15 @@ class LocalSubscription:
                         caller_id=self.node.caller_id, topic=self.topic,
                         type_name=self.node.topic_type(self.topic),
                     )))
-                    header = tcpros.read_header(sock)
-                    sock.settimeout(None)
-                    self._on_meta(TopicMeta.from_header(header))
-                    while not inlet.stop.is_set():
-                        self._on_message(tcpros.read_message(sock))
+                    stream = tcpros.Stream(sock)
+                    try:
+                        header = tcpros.read_header(stream)
+                        sock.settimeout(None)
+                        self._on_meta(TopicMeta.from_header(header))
+                        while not inlet.stop.is_set():
+                            self._on_message(tcpros.read_message(stream))
+                    finally:
+                        stream.close()
             except (OSError, RelayError) as err:
                 if not inlet.stop.is_set():
                     log.info("publisher %s of %s: %s; retrying", uri, self.topic, err)

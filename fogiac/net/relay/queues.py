@@ -46,6 +46,21 @@ class Outbox:
             self._cond.notify()
             return dropped
 
+    def get_batch(self, *, max_bytes: int = 256 * 1024) -> list[Item]:
+        """Block for one item, then take whatever else is already queued up to ``max_bytes``,
+        so many small messages leave in one write (one TLS record, one syscall)."""
+        first = self.get()
+        if first is None:
+            return []
+        batch, size = [first], sum(len(b) for b in first)
+        while size < max_bytes:
+            item = self.get(timeout=0)
+            if item is None:
+                break
+            batch.append(item)
+            size += sum(len(b) for b in item)
+        return batch
+
     def discard(self, topic: int) -> None:
         with self._cond:
             self._topics.pop(topic, None)

@@ -25,16 +25,21 @@ from fogiac.net.relay.node import RelayNode
 from fogiac.net.relay.pubsub import LocalPublisher, LocalSubscription, TopicMeta
 from fogiac.net.relay.queues import Outbox
 from fogiac.net.relay.stats import ClockSync, TopicCounters
-from fogiac.net.relay.tcpros import recv_exact
+from fogiac.net.relay.tcpros import Stream
 
 log = logging.getLogger(__name__)
 Handler = Callable[[Frame], None]
+_COALESCE = 256 * 1024  # join smaller writes: one TLS record beats several
 
 
-def read_frame(sock: socket.socket) -> Frame:
-    """The next frame; FrameError before reading a payload whose length is absurd."""
-    kind, topic, size = framing.parse_header(bytes(recv_exact(sock, framing.HEADER.size)))
-    return Frame(kind, topic, recv_exact(sock, size) if size else b"")  # type: ignore[arg-type]
+def read_frame(source: socket.socket | Stream) -> Frame:
+    """The next frame; FrameError before reading a payload whose length is absurd.
+
+    A bare socket is read without buffering (the HELLO exchange, before the session's
+    buffered stream takes over)."""
+    stream = source if isinstance(source, Stream) else Stream(source, buffer=0)
+    kind, topic, size = framing.parse_header(bytes(stream.exact(framing.HEADER.size)))
+    return Frame(kind, topic, stream.exact(size) if size else b"")
 
 
 def send_now(sock: socket.socket, frame: Frame) -> None:
@@ -160,9 +165,10 @@ class Session:
         """Serve the link until it ends, then withdraw every registration it made."""
         threading.Thread(target=self._write_loop, name="relay-writer", daemon=True).start()
         threading.Thread(target=self._ping_loop, name="relay-pinger", daemon=True).start()
+        stream = Stream(self.sock)
         try:
             while not self._closing.is_set():
-                frame = read_frame(self.sock)
+                frame = read_frame(stream)
                 self._last_rx = time.monotonic()
                 handler = self.handlers.get(frame.kind)
                 if handler is None:
@@ -178,6 +184,7 @@ class Session:
             self.close(str(err))
         finally:
             self.close("done")
+            stream.close()
             self._teardown()
 
     # --- internals -------------------------------------------------------------------------
@@ -194,9 +201,13 @@ class Session:
 
     def _write_loop(self) -> None:
         try:
-            while (item := self.outbox.get()) is not None:
-                for buf in item:
-                    self.sock.sendall(buf)
+            while batch := self.outbox.get_batch():
+                bufs = [buf for item in batch for buf in item]
+                if len(bufs) > 1 and sum(len(b) for b in bufs) <= _COALESCE:
+                    self.sock.sendall(b"".join(bufs))
+                else:
+                    for buf in bufs:
+                        self.sock.sendall(buf)
         except OSError as err:
             self.close(f"write failed: {err}")
 

@@ -30,7 +30,7 @@ PROJECT = "fogiac"
 LAYERS = ("network", "compute")
 PASSPHRASE_FILE = "pulumi-passphrase"
 OUTPUTS_FILE = "outputs.json"
-SSH_KEY_FILE = "ssh_key"
+SSH_KEY_FILE = Path("ssh") / "id_ed25519"  # in the stack folder, as stacks/entry.py has it
 CERTS_DIR = "certs"
 VPN_NOTICE = ("The Client VPN endpoint's subnet association takes about 10 minutes to create "
               "(and again to delete); its resources wait up to 30 minutes.")
@@ -99,21 +99,13 @@ def stack_config(plan: Plan) -> dict[str, str]:
 
 
 def ssh_public_key(stack: str) -> str:
-    """The stack's SSH key (ed25519, private half 0600), created on first use."""
-    from cryptography.hazmat.primitives import serialization
-    from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
+    """The stack's SSH key (ed25519, private half 0600), created on first use.
 
-    from fogiac.certs import write_private
+    Kept where ``stacks/entry.py`` (plain ``pulumi up``) keeps it, so both paths use one key.
+    """
+    from stacks.entry import load_or_create_ssh_key
 
-    private = stack_dir(stack) / SSH_KEY_FILE
-    public = private.with_name(SSH_KEY_FILE + ".pub")
-    if not (private.exists() and public.exists()):
-        key = Ed25519PrivateKey.generate()
-        write_private(private, key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.OpenSSH,
-                                                 serialization.NoEncryption()))
-        raw = key.public_key().public_bytes(serialization.Encoding.OpenSSH, serialization.PublicFormat.OpenSSH)
-        public.write_text(f"{raw.decode()} fogiac-{stack}\n")
-    return public.read_text().strip()
+    return load_or_create_ssh_key(stack_dir(stack) / SSH_KEY_FILE.parent)
 
 
 def known_ids(stack: str) -> frozenset[str]:

@@ -103,7 +103,7 @@ def test_workspace_uses_a_private_file_backend(monkeypatch: pytest.MonkeyPatch) 
 
 def test_ssh_key_is_made_once_private_half_0600() -> None:
     public = engine.ssh_public_key("k-dev")
-    assert public.startswith("ssh-ed25519 ") and public.endswith(" fogiac-k-dev")
+    assert public.startswith("ssh-ed25519 ")
     private = stack_dir("k-dev") / engine.SSH_KEY_FILE
     assert stat.S_IMODE(private.stat().st_mode) == 0o600
     assert b"OPENSSH PRIVATE KEY" in private.read_bytes()

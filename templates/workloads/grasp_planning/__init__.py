@@ -1,0 +1,1 @@
+"""Container recipe for the grasp-planning workload (Dockerfile.j2)."""

@@ -1,0 +1,27 @@
+"""The grasp planner's container recipe: the template's defaults and one render call."""
+
+from __future__ import annotations
+
+from typing import Any
+
+TEMPLATE = "workloads/grasp_planning/Dockerfile.j2"
+
+DEFAULTS: dict[str, Any] = {
+    "base_image": "nvidia/cuda:12.8.1-runtime-ubuntu22.04",
+    "torch_version": "2.13.0",
+    "torch_index_url": "",
+    "pip_packages": ["numpy>=1.24", "typer>=0.12"],
+    "device": "auto",
+    "threads": 0,
+    "model": "/opt/fogiac/workloads/grasp_planning/model.pt",
+}
+
+
+def dockerfile(**overrides: Any) -> str:
+    """The Dockerfile text; ``overrides`` replace DEFAULTS, unknown names are an error."""
+    from fogiac.render import render
+
+    unknown = sorted(set(overrides) - set(DEFAULTS))
+    if unknown:
+        raise ValueError(f"unknown Dockerfile variables {unknown}; valid: {sorted(DEFAULTS)}")
+    return render(TEMPLATE, **{**DEFAULTS, **overrides})

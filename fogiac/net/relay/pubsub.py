@@ -48,19 +48,19 @@ class TopicMeta:
 class _Outlet:
     """One subscriber connection with its own bounded queue, so a slow reader lags alone."""
 
-    def __init__(self, sock: socket.socket, depth: int, on_close: Callable[[_Outlet], None]) -> None:
-        self.sock, self._depth, self._on_close = sock, depth, on_close
+    def __init__(self, sock: socket.socket, depth: int, on_close: Callable[[_Outlet], None],
+                 on_drop: Callable[[], None]) -> None:
+        self.sock, self._depth, self._on_close, self._on_drop = sock, depth, on_close, on_drop
         self._queue: deque[bytes] = deque()
         self._cond = threading.Condition()
         self._closed = False
-        self.drops = 0
         threading.Thread(target=self._run, name="relay-outlet", daemon=True).start()
 
     def put(self, data: bytes) -> None:
         with self._cond:
             while len(self._queue) >= self._depth:
                 self._queue.popleft()
-                self.drops += 1
+                self._on_drop()
             self._queue.append(data)
             self._cond.notify()
 
@@ -104,6 +104,7 @@ class LocalPublisher:
         self._outlets: list[_Outlet] = []
         self._lock = threading.Lock()
         self._last: bytes | None = None
+        self.drops = 0  # stale messages a slow subscriber never got (latest-wins)
 
     def start(self) -> None:
         self.node.add_publisher(self)
@@ -126,10 +127,13 @@ class LocalPublisher:
         if request.get("tcp_nodelay") == "1":
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         with self._lock:
-            outlet = _Outlet(sock, self._depth, self._forget)
+            outlet = _Outlet(sock, self._depth, self._forget, self._dropped)
             if self.meta.latching and self._last is not None:
                 outlet.put(self._last)
             self._outlets.append(outlet)
+
+    def _dropped(self) -> None:
+        self.drops += 1
 
     def _forget(self, outlet: _Outlet) -> None:
         with self._lock:

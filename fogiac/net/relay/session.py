@@ -87,8 +87,8 @@ class _Sink:
     def __init__(self, session: Session, topic: str, meta: TopicMeta, compression: str) -> None:
         self.session, self.topic = session, topic
         self._codec = codec(compression)
-        self.counters = TopicCounters(topic, "in", compression)
         self.pub = LocalPublisher(session.node, topic, meta, depth=session.config.queue_depth)
+        self.counters = TopicCounters(topic, "in", compression, more_drops=lambda: self.pub.drops)
 
     def deliver(self, stamp: int, body: memoryview) -> None:
         data = self._codec.decompress(body)

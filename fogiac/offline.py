@@ -8,6 +8,8 @@ secret as ``[secret]``. pulumi is imported inside the functions, so importing th
 
 from __future__ import annotations
 
+import concurrent.futures
+import functools
 import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -116,13 +118,15 @@ def run_program(
     """Run ``program`` to completion under ``mocks`` and return its exports as plain values.
 
     Each resource reaches ``mocks.new_resource`` once its inputs are known, so dependencies
-    register first and the ids and state a mock returns flow into dependants' inputs. Calls
-    may come from several threads at once. Unknown exports come back as None.
+    register first and the ids and state a mock returns flow into dependants' inputs. The
+    mocks are called one at a time, from one worker thread, in an order fixed by the program:
+    a mock that creates real resources fails at the same resource every run. Unknown exports
+    come back as None.
     """
     import pulumi
     from pulumi.runtime import settings
     from pulumi.runtime.stack import run_pulumi_func
-    from pulumi.runtime.sync_await import _sync_await
+    from pulumi.runtime.sync_await import _ensure_event_loop, _sync_await
 
     settings.ROOT.set(None)  # a fresh root stack per run, so runs never share exports
     pulumi.runtime.set_mocks(mocks, project=project, stack=stack, preview=preview)
@@ -138,11 +142,23 @@ def run_program(
         program()
         return collect()
 
+    # The SDK sends every monitor call through the loop's default executor; one worker
+    # serialises them. Restored afterwards (a private attribute: set_default_executor
+    # cannot put back "none yet").
+    loop = _ensure_event_loop()
+    previous = getattr(loop, "_default_executor", None)
+    loop.set_default_executor(_serial_executor())
     try:
         _sync_await(run_pulumi_func(body))
     finally:
+        loop._default_executor = previous  # type: ignore[attr-defined]
         settings.ROOT.set(None)
     return exports
+
+
+@functools.lru_cache(maxsize=1)
+def _serial_executor() -> concurrent.futures.ThreadPoolExecutor:
+    return concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="fogiac-mocks")
 
 
 def _mock_class() -> type:

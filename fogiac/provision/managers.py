@@ -6,10 +6,16 @@ Why a registry: the steps say "make these services run"; how (unit files and ``s
 
 from __future__ import annotations
 
-from typing import Protocol, Sequence
+import hashlib
+from typing import TYPE_CHECKING, Protocol, Sequence
 
 from fogiac.provision.host import Host, q
 from fogiac.provision.services import Layout, Service
+
+if TYPE_CHECKING:
+    from fogiac.provision.probe import Facts
+
+Health = list[tuple[str, bool, str]]  # (service, healthy, detail)
 
 # The host's own Python 3 runs the supervisor (standard library only); the system one starts fastest.
 _SUP_PYTHON = '"$(command -v /usr/bin/python3 || command -v python3)"'
@@ -18,15 +24,18 @@ _SUP_PYTHON = '"$(command -v /usr/bin/python3 || command -v python3)"'
 class Manager(Protocol):
     name: str
 
-    def ensure(self, host: Host, layout: Layout, services: Sequence[Service], *, restart_all: bool) -> list[str]:
+    def ensure(self, host: Host, layout: Layout, services: Sequence[Service], *, restart_all: bool,
+               facts: Facts | None = None) -> list[str]:
         """Make each service run its current script; return the names (re)started."""
         ...
 
-    def prune(self, host: Host, layout: Layout, *, keep: Sequence[str]) -> list[str]:
+    def prune(self, host: Host, layout: Layout, *, keep: Sequence[str], facts: Facts | None = None) -> list[str]:
         """Stop services fogiac started earlier that are no longer wanted."""
         ...
 
-    def health(self, host: Host, layout: Layout, service: Service, *, master: str, timeout: float) -> tuple[bool, str]:
+    def health(self, host: Host, layout: Layout, services: Sequence[Service], *, master: str,
+               timeout: float) -> Health:
+        """Wait (up to ``timeout`` in all) until each service is up and registered."""
         ...
 
     def stop_all(self, host: Host, layout: Layout) -> list[str]:
@@ -63,9 +72,14 @@ class Supervisor:
     def _sup(self, layout: Layout, action: str, name: str = "") -> str:
         return f"{_SUP_PYTHON} {q(layout.supervisor)} {action} {q(name) if name else ''} --dir {q(layout.run)}"
 
-    def ensure(self, host: Host, layout: Layout, services: Sequence[Service], *, restart_all: bool) -> list[str]:
-        status = self._sup(layout, "status", "X").replace("X", "{name}", 1)
-        current = _current(host, layout, services, status)
+    def ensure(self, host: Host, layout: Layout, services: Sequence[Service], *, restart_all: bool,
+               facts: Facts | None = None) -> list[str]:
+        if facts is not None:
+            current = {s.name: (facts.sha(_script_path(layout, s.name)) or "",
+                                '"running": true' if facts.status.get(s.name, {}).get("running") else "")
+                       for s in services}
+        else:
+            current = _current(host, layout, services, self._sup(layout, "status", "X").replace("X", "{name}", 1))
         started = []
         for s in services:
             sha, state = current.get(s.name, ("", ""))
@@ -79,17 +93,30 @@ class Supervisor:
             started.append(s.name)
         return started
 
-    def prune(self, host: Host, layout: Layout, *, keep: Sequence[str]) -> list[str]:
-        names = host.run(f"cd {q(layout.run)} 2>/dev/null && ls *.pid 2>/dev/null", check=False).stdout.split()
-        gone = [n.removesuffix(".pid") for n in names if n.removesuffix(".pid") not in keep]
+    def prune(self, host: Host, layout: Layout, *, keep: Sequence[str], facts: Facts | None = None) -> list[str]:
+        if facts is not None:
+            names = [name for name, info in facts.status.items() if info.get("running")]
+        else:
+            out = host.run(f"cd {q(layout.run)} 2>/dev/null && ls *.pid 2>/dev/null", check=False).stdout
+            names = [n.removesuffix(".pid") for n in out.split()]
+        gone = [n for n in names if n not in keep]
         for name in gone:
             host.run(self._sup(layout, "stop", name))
         return gone
 
-    def health(self, host: Host, layout: Layout, service: Service, *, master: str, timeout: float) -> tuple[bool, str]:
-        result = host.run(f"{self._sup(layout, 'health', service.name)} --check {service.check} "
-                          f"--master {q(master)} --timeout {timeout:g}", check=False, timeout=timeout + 30)
-        return result.ok, result.last_line()
+    def health(self, host: Host, layout: Layout, services: Sequence[Service], *, master: str,
+               timeout: float) -> Health:
+        specs = " ".join(f"--spec {q(s.name + '=' + s.check)}" for s in services)
+        out = host.run(f"{self._sup(layout, 'health-all')} {specs} --master {q(master)} --timeout {timeout:g}",
+                       check=False, timeout=timeout + 30).stdout
+        results = []
+        for line in out.splitlines():
+            name, _, rest = line.partition(" ")
+            verdict, _, detail = rest.partition(" ")
+            results.append((name, verdict == "ok", detail))
+        seen = {name for name, _, _ in results}
+        results += [(s.name, False, "health check gave no answer") for s in services if s.name not in seen]
+        return results
 
     def stop_all(self, host: Host, layout: Layout) -> list[str]:
         out = host.run(f"test -f {q(layout.supervisor)} && {self._sup(layout, 'stop-all')}", check=False).stdout
@@ -108,13 +135,14 @@ class Systemd:
     def unit(name: str) -> str:
         return f"fogiac-{name}.service"
 
-    def ensure(self, host: Host, layout: Layout, services: Sequence[Service], *, restart_all: bool) -> list[str]:
+    def ensure(self, host: Host, layout: Layout, services: Sequence[Service], *, restart_all: bool,
+               facts: Facts | None = None) -> list[str]:
         current = _current(host, layout, services, "systemctl is-active fogiac-{name}.service")
         started = []
         for s in services:
             unit_path = f"/etc/systemd/system/{self.unit(s.name)}"
             unit_same = host.run(f"sha256sum {q(unit_path)} 2>/dev/null", check=False).stdout.split()[:1] == [
-                __import__("hashlib").sha256(s.unit.encode()).hexdigest()]
+                hashlib.sha256(s.unit.encode()).hexdigest()]
             sha, state = current.get(s.name, ("", ""))
             if sha == s.digest and unit_same and state == "active" and not restart_all:
                 continue
@@ -126,7 +154,7 @@ class Systemd:
             started.append(s.name)
         return started
 
-    def prune(self, host: Host, layout: Layout, *, keep: Sequence[str]) -> list[str]:
+    def prune(self, host: Host, layout: Layout, *, keep: Sequence[str], facts: Facts | None = None) -> list[str]:
         mine = self._units(host, layout)
         gone = [u for u in mine if u.removeprefix("fogiac-").removesuffix(".service") not in keep]
         for unit in gone:
@@ -138,12 +166,16 @@ class Systemd:
                        check=False).stdout
         return [line.rsplit("/", 1)[-1] for line in out.split()]
 
-    def health(self, host: Host, layout: Layout, service: Service, *, master: str, timeout: float) -> tuple[bool, str]:
-        pid = f"$(systemctl show -p MainPID --value {self.unit(service.name)})"
-        result = host.run(f"{_SUP_PYTHON} {q(layout.supervisor)} health {q(service.name)} --dir {q(layout.run)} "
-                          f"--pid {pid} --check {service.check} --master {q(master)} --timeout {timeout:g}",
-                          check=False, timeout=timeout + 30)
-        return result.ok, result.last_line()
+    def health(self, host: Host, layout: Layout, services: Sequence[Service], *, master: str,
+               timeout: float) -> Health:
+        results = []
+        for service in services:
+            pid = f"$(systemctl show -p MainPID --value {self.unit(service.name)})"
+            result = host.run(f"{_SUP_PYTHON} {q(layout.supervisor)} health {q(service.name)} --dir {q(layout.run)} "
+                              f"--pid {pid} --check {service.check} --master {q(master)} --timeout {timeout:g}",
+                              check=False, timeout=timeout + 30)
+            results.append((service.name, result.ok, result.last_line()))
+        return results
 
     def stop_all(self, host: Host, layout: Layout) -> list[str]:
         return self.prune(host, layout, keep=())
@@ -166,7 +198,10 @@ def manager_for(host: Host) -> Manager:
         return cached  # type: ignore[no-any-return]
     forced = getattr(host, "manager_name", None)
     if forced is None:
-        forced = "systemd" if host.run("test -d /run/systemd/system", check=False).ok else "supervisor"
+        systemd = getattr(host, "_fogiac_systemd", None)  # the runtime step's probe saw it
+        if systemd is None:
+            systemd = host.run("test -d /run/systemd/system", check=False).ok
+        forced = "systemd" if systemd else "supervisor"
     manager = MANAGERS[forced]
     setattr(host, "_fogiac_manager", manager)
     return manager

@@ -17,6 +17,7 @@ from fogiac.plan import HostSpec, Plan
 from fogiac.provision import services as svc
 from fogiac.provision.host import Host, HostAccess, q
 from fogiac.provision.managers import manager_for
+from fogiac.provision.probe import Facts, gather
 from fogiac.provision.sync import push_tree
 from fogiac.render import render
 from fogiac.resources import package_dir
@@ -47,6 +48,7 @@ class HostRun:
     host: Host
     options: Options
     runtime: str = ""
+    facts: Facts | None = None
     files_pushed: int = 0
     digests: dict[str, str] = field(default_factory=dict)
 
@@ -76,8 +78,10 @@ def _sha(data: bytes) -> str:
 
 def ensure_file(run: HostRun, data: bytes, remote: str, *, mode: int = 0o644) -> bool:
     """Put ``data`` at ``remote`` unless the host already has exactly it; True if it wrote."""
-    found = run.host.run(f"sha256sum {q(remote)} 2>/dev/null", check=False).stdout.split()
-    if found[:1] == [_sha(data)]:
+    known = run.facts.sha(remote) if run.facts is not None else None
+    if known is None:
+        known = (run.host.run(f"sha256sum {q(remote)} 2>/dev/null", check=False).stdout.split() or [""])[0]
+    if known == _sha(data):
         return False
     run.host.put(data, remote, mode=mode)
     run.files_pushed += 1
@@ -89,44 +93,22 @@ def step_connect(run: HostRun) -> StepResult:
     return OK, f"reached in {attempts} attempt{'s' if attempts != 1 else ''}"
 
 
-def _probe(run: HostRun) -> dict[str, str]:
-    """Everything the runtime step needs to know about the host, in one round trip."""
-    layout = run.layout
-    folders = (layout.bin, layout.run, layout.services, layout.ws, layout.env, layout.state, layout.certs,
-               layout.ros_home, layout.tmp)
-    lines = [f"test -d {q(f)} || echo missing {q(f)}" for f in folders]
-    lines += [
-        "_ROSPY='import importlib.util as u, sys; sys.exit(u.find_spec(\"rospy\") is None)'",
-        "docker info >/dev/null 2>&1 && echo engine yes",
-        "command -v roscore >/dev/null && command -v roslaunch >/dev/null && "
-        '{ /usr/bin/python3 -c "$_ROSPY" || python3 -c "$_ROSPY"; } 2>/dev/null && echo ros yes',
-        "command -v nvidia-ctk >/dev/null && echo nvidia yes",
-        f"echo supervisor $(sha256sum {q(layout.supervisor)} 2>/dev/null | cut -c1-64)",
-    ]
-    facts: dict[str, str] = {}
-    for line in run.host.run(" ; ".join(lines), check=False).stdout.splitlines():
-        key, _, value = line.partition(" ")
-        facts[key] = f"{facts[key]} {value}" if key in facts else value
-    return facts
-
-
 def step_runtime(run: HostRun) -> StepResult:
     host, layout, changes = run.host, run.layout, []
-    facts = _probe(run)
-    if facts.get("missing"):
-        host.run(f"mkdir -p -m 700 {facts['missing']}")
+    facts = run.facts = gather(host, layout, relay_cli=_relay_cli(run))
+    if facts.missing:
+        host.run(f"mkdir -p -m 700 {' '.join(q(f) for f in facts.missing)}")
         changes.append("folders")
-    run.runtime = svc.CONTAINER if facts.get("engine") == "yes" else svc.NATIVE
+    setattr(host, "_fogiac_systemd", "systemd" in facts.flags)
+    run.runtime = svc.CONTAINER if "engine" in facts.flags else svc.NATIVE
     changes += _RUNTIMES[run.runtime](run, facts)
-    supervisor = Path(__file__).with_name("supervise.py").read_bytes()
-    if facts.get("supervisor") != _sha(supervisor):
-        host.put(supervisor, layout.supervisor, mode=0o755)
-        run.files_pushed += 1
+    if ensure_file(run, Path(__file__).with_name("supervise.py").read_bytes(), layout.supervisor, mode=0o755):
         changes.append("supervisor")
     if run.access.ship_code:
         for package in ("fogiac", "workloads"):
-            pushed = push_tree(host, package_dir(package), f"{layout.lib}/{package}", tmp_dir=layout.tmp,
-                               extra_ignore=_CODE_IGNORE)
+            dest = f"{layout.lib}/{package}"
+            pushed = push_tree(host, package_dir(package), dest, tmp_dir=layout.tmp, extra_ignore=_CODE_IGNORE,
+                               remote_manifest=facts.manifest(f"{dest}.manifest"))
             run.files_pushed += pushed.files
             if pushed.changed:
                 changes.append(f"{package} code")
@@ -134,9 +116,14 @@ def step_runtime(run: HostRun) -> StepResult:
     return (CHANGED if changes else OK), detail
 
 
-def _container_runtime(run: HostRun, facts: dict[str, str]) -> list[str]:
+def _relay_cli(run: HostRun) -> str:
+    code_root = run.layout.lib if run.access.ship_code else str(package_dir("fogiac").parent)
+    return f"{code_root}/fogiac/cli/relay.py"
+
+
+def _container_runtime(run: HostRun, facts: Facts) -> list[str]:
     changes = []
-    if run.spec.has_gpu and facts.get("nvidia") != "yes":
+    if run.spec.has_gpu and "nvidia" not in facts.flags:
         script = render("provision/nvidia_toolkit.sh.j2")
         run.host.put(script.encode(), f"{run.layout.tmp}/nvidia-toolkit.sh", mode=0o700)
         run.host.sudo(f"bash {q(run.layout.tmp + '/nvidia-toolkit.sh')}", timeout=900)
@@ -148,8 +135,8 @@ def _container_runtime(run: HostRun, facts: dict[str, str]) -> list[str]:
     return changes
 
 
-def _native_runtime(run: HostRun, facts: dict[str, str]) -> list[str]:
-    if facts.get("ros") == "yes":
+def _native_runtime(run: HostRun, facts: Facts) -> list[str]:
+    if "ros" in facts.flags:
         return []
     if not run.options.allow_install:
         raise ProvisionError(
@@ -162,7 +149,7 @@ def _native_runtime(run: HostRun, facts: dict[str, str]) -> list[str]:
     return ["installed ROS packages"]
 
 
-_RUNTIMES: dict[str, Callable[[HostRun, dict[str, str]], list[str]]] = {svc.CONTAINER: _container_runtime,
+_RUNTIMES: dict[str, Callable[[HostRun, Facts], list[str]]] = {svc.CONTAINER: _container_runtime,
                                                          svc.NATIVE: _native_runtime}
 
 
@@ -178,7 +165,9 @@ def _workspaces(run: HostRun) -> list[str]:
 def step_workspace(run: HostRun) -> StepResult:
     sent, files, removed = 0, 0, 0
     for local in _workspaces(run):
-        pushed = push_tree(run.host, Path(local), run.layout.workspace(local), tmp_dir=run.layout.tmp)
+        dest = run.layout.workspace(local)
+        known = run.facts.manifest(f"{dest}.manifest") if run.facts is not None else None
+        pushed = push_tree(run.host, Path(local), dest, tmp_dir=run.layout.tmp, remote_manifest=known)
         run.digests[local] = pushed.digest
         sent, files, removed = sent + pushed.bytes_sent, files + pushed.files, removed + pushed.removed
     run.files_pushed += files
@@ -197,7 +186,9 @@ def step_env_script(run: HostRun) -> StepResult:
         key = _sha(b"\0".join([run.digests.get(local, "").encode(), *bodies]))
         dest = run.layout.workspace(local)
         marker = f"{run.layout.state}/setup-{dest.rsplit('/', 1)[-1]}.sha256"
-        if run.host.run(f"cat {q(marker)} 2>/dev/null", check=False).stdout.strip() == key:
+        done = (run.facts.marker(marker) if run.facts is not None
+                else run.host.run(f"cat {q(marker)} 2>/dev/null", check=False).stdout.strip())
+        if done == key:
             continue
         for i, body in enumerate(bodies):
             path = f"{run.layout.tmp}/setup-{i}.sh"
@@ -217,8 +208,8 @@ def step_services(run: HostRun) -> StepResult:
     env_changed = ensure_file(run, env.encode(), run.layout.env_file)
     manager = manager_for(run.host)
     wanted = run.services()
-    started = manager.ensure(run.host, run.layout, wanted, restart_all=env_changed)
-    stopped = manager.prune(run.host, run.layout, keep=[s.name for s in wanted] + ["relay-cloud"])
+    started = manager.ensure(run.host, run.layout, wanted, restart_all=env_changed, facts=run.facts)
+    stopped = manager.prune(run.host, run.layout, keep=[s.name for s in wanted] + ["relay-cloud"], facts=run.facts)
     if not started and not stopped and not env_changed:
         return OK, f"{len(wanted)} service(s) running ({manager.name})"
     parts = [f"started {', '.join(started)}"] if started else []
@@ -227,7 +218,9 @@ def step_services(run: HostRun) -> StepResult:
 
 
 def relay_available(run: HostRun) -> bool:
-    return run.host.run(f"test -f {q(run.where().code_root + '/fogiac/cli/relay.py')}", check=False).ok
+    if run.facts is not None:
+        return "relaycli" in run.facts.flags
+    return run.host.run(f"test -f {q(_relay_cli(run))}", check=False).ok
 
 
 def step_relay(run: HostRun) -> StepResult:
@@ -240,23 +233,23 @@ def step_relay(run: HostRun) -> StepResult:
     if not relay_available(run):
         ensure_file(run, service.script.encode(), f"{run.layout.services}/{service.name}.sh", mode=0o700)
         return SKIPPED, "relay CLI not installed on the host; service script rendered only"
-    started = manager_for(run.host).ensure(run.host, run.layout, (service,), restart_all=bool(changed))
+    started = manager_for(run.host).ensure(run.host, run.layout, (service,), restart_all=bool(changed),
+                                           facts=run.facts)
     return (CHANGED, "relay cloud end started") if started or changed else (OK, "relay cloud end running")
 
 
 def step_health(run: HostRun) -> StepResult:
-    manager = manager_for(run.host)
     checks = list(run.services())
     if run.options.certs_dir is not None and relay_available(run):
         checks.append(svc.relay_service(run.plan, run.spec, run.where()))
-    details = []
-    for service in checks:
-        ok, detail = manager.health(run.host, run.layout, service, master=svc.master_uri(run.where()),
-                                    timeout=run.options.health_timeout)
-        if not ok:
-            raise ProvisionError(f"{run.spec.name}: {service.name} unhealthy: {detail}")
-        if service.check in ("node", "any"):
-            details.append(f"{service.name.removeprefix('node-')}: {detail}")
+    results = manager_for(run.host).health(run.host, run.layout, checks, master=svc.master_uri(run.where()),
+                                           timeout=run.options.health_timeout)
+    bad = [f"{name} unhealthy: {detail}" for name, ok, detail in results if not ok]
+    if bad:
+        raise ProvisionError(f"{run.spec.name}: {'; '.join(bad)}")
+    kinds = {s.name: s.check for s in checks}
+    details = [f"{name.removeprefix('node-')}: {detail}" for name, _, detail in results
+               if kinds.get(name) in ("node", "any")]
     return OK, "; ".join(details) or "all services up"
 
 

@@ -11,7 +11,9 @@ restarted with exponential backoff (1 s doubling to 30 s, reset after 10 s of go
     supervise.py stop NAME --dir RUN               TERM the tree, KILL after a grace period
     supervise.py stop-all --dir RUN
     supervise.py status NAME --dir RUN             one JSON line
-    supervise.py health NAME --dir RUN --check master|node|alive --master URI --timeout S
+    supervise.py status-all --dir RUN              one JSON line per service ever started
+    supervise.py health NAME --dir RUN --check master|node|any|alive --master URI --timeout S
+    supervise.py health-all --dir RUN --spec NAME=CHECK ... --master URI --timeout S
 """
 
 from __future__ import annotations
@@ -281,7 +283,9 @@ def _last_line(path: Path) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="fogiac-supervise")
-    parser.add_argument("action", choices=("start", "stop", "stop-all", "status", "health"))
+    parser.add_argument("action", choices=("start", "stop", "stop-all", "status", "status-all", "health",
+                                           "health-all"))
+    parser.add_argument("--spec", action="append", default=[], help="NAME=CHECK for health-all")
     parser.add_argument("name", nargs="?", default="")
     parser.add_argument("--dir", required=True, type=Path)
     parser.add_argument("--check", default="alive", choices=("alive", "master", "node", "any"))
@@ -303,6 +307,20 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{name}: {outcome}")
     elif args.action == "status":
         print(json.dumps(status(args.dir, args.name)))
+    elif args.action == "status-all":
+        found = {p.stem for p in args.dir.glob("*.pid")} | {p.stem for p in args.dir.glob("*.state")}
+        for name in sorted(found):
+            print(json.dumps(status(args.dir, name)))
+    elif args.action == "health-all":
+        deadline = time.monotonic() + args.timeout
+        failed = 0
+        for spec in args.spec:
+            name, _, check = spec.partition("=")
+            ok, detail = health(args.dir, name, check=check, master=args.master,
+                                timeout=max(0.0, deadline - time.monotonic()))
+            failed += not ok
+            print(f"{name} {'ok' if ok else 'fail'} {detail}")
+        return 1 if failed else 0
     else:
         ok, detail = health(args.dir, args.name, check=args.check, master=args.master, timeout=args.timeout,
                             pid=args.pid)

@@ -3,7 +3,8 @@
 Why: workspaces hold meshes, weights and build leftovers; a second ``up`` must not resend them.
 The host keeps ``<dest>.manifest`` (``sha256  path`` lines, the ``sha256sum`` format) of what
 it received; a push compares it with the local folder and sends one gzip'd tar with the
-changed files and the new manifest, then deletes files that went away.
+changed files and only the manifest lines that changed (the host merges them with ``awk``),
+then deletes files that went away.
 """
 
 from __future__ import annotations
@@ -102,39 +103,50 @@ def diff(local: dict[str, str], remote: dict[str, str]) -> tuple[list[str], list
     return send, delete
 
 
-def _tarball(root: Path, paths: list[str], *, dest_name: str, manifest: str) -> bytes:
+def _member(tar: tarfile.TarFile, name: str, data: bytes, mode: int) -> None:
+    info = tarfile.TarInfo(name)
+    info.size, info.mode, info.mtime = len(data), mode, int(time.time())
+    tar.addfile(info, io.BytesIO(data))
+
+
+def _tarball(root: Path, send: list[str], drop: list[str], local: dict[str, str], *, dest_name: str) -> bytes:
     buf = io.BytesIO()
-    with tarfile.open(fileobj=buf, mode="w:gz", compresslevel=6) as tar:
-        for rel in paths:
+    with tarfile.open(fileobj=buf, mode="w:gz", compresslevel=9) as tar:
+        for rel in send:
             src = root / rel
-            info = tarfile.TarInfo(f"{dest_name}/{rel}")
-            data = src.read_bytes()
-            info.size = len(data)
-            info.mode = 0o755 if src.stat().st_mode & 0o111 else 0o644
-            info.mtime = int(time.time())
-            tar.addfile(info, io.BytesIO(data))
-        info = tarfile.TarInfo(f"{dest_name}.manifest")
-        data = manifest.encode()
-        info.size, info.mode, info.mtime = len(data), 0o600, int(time.time())
-        tar.addfile(info, io.BytesIO(data))
+            _member(tar, f"{dest_name}/{rel}", src.read_bytes(), 0o755 if src.stat().st_mode & 0o111 else 0o644)
+        _member(tar, f"{dest_name}.delta", manifest_text({p: local[p] for p in send}).encode(), 0o600)
+        _member(tar, f"{dest_name}.drop", "".join(f"{p}\n" for p in drop).encode(), 0o600)
     return buf.getvalue()
 
 
-def push_tree(host: Host, root: Path, dest: str, *, tmp_dir: str, extra_ignore: tuple[str, ...] = ()) -> Pushed:
-    """Make ``dest`` on ``host`` hold exactly ``root``'s non-ignored files; send only differences."""
+# Keep manifest lines whose path (from column 67: 64 hex digits, two spaces) is not dropped,
+# then add the new lines: the host's manifest now describes exactly what it holds.
+_MERGE = ("awk 'NR==FNR {{drop[$0]=1; next}} !(substr($0, 67) in drop)' {n}.drop {n}.manifest > {n}.merge "
+          "2>/dev/null; cat {n}.delta >> {n}.merge && mv {n}.merge {n}.manifest && rm -f {n}.drop {n}.delta")
+
+
+def push_tree(host: Host, root: Path, dest: str, *, tmp_dir: str, extra_ignore: tuple[str, ...] = (),
+              remote_manifest: str | None = None) -> Pushed:
+    """Make ``dest`` on ``host`` hold exactly ``root``'s non-ignored files; send only differences.
+
+    ``remote_manifest``: the host's manifest text when a probe already read it ('' if absent).
+    """
     local = scan(root, ignore_patterns(root, extra_ignore))
     digest = digest_of(local)
-    found = host.run(f"cat {q(dest + '.manifest')} 2>/dev/null; test -d {q(dest)} || echo MISSING", check=False)
-    remote = {} if "MISSING" in found.stdout.splitlines() else parse_manifest(found.stdout)
+    if remote_manifest is None:
+        found = host.run(f"cat {q(dest + '.manifest')} 2>/dev/null", check=False)
+        remote_manifest = found.stdout
+    remote = parse_manifest(remote_manifest)
     send, delete = diff(local, remote)
     if not send and not delete:
         return Pushed(files=0, removed=0, bytes_sent=0, digest=digest)
     parent, dest_name = dest.rsplit("/", 1)
-    blob = _tarball(root, send, dest_name=dest_name, manifest=manifest_text(local))
+    blob = _tarball(root, send, sorted(send + delete), local, dest_name=dest_name)
     archive = f"{tmp_dir}/{dest_name}.tgz"
     host.run(f"mkdir -p {q(tmp_dir)} {q(dest)}")
     sent = host.put(blob, archive, mode=0o600)
     removals = " ".join(q(f"{dest}/{p}") for p in delete)
-    host.run(f"tar -xzf {q(archive)} -C {q(parent)} && rm -f {q(archive)}"
-             + (f" && rm -f {removals}" if removals else ""))
+    host.run(f"tar -xzf {q(archive)} -C {q(parent)} && rm -f {q(archive)} && cd {q(parent)} && "
+             + _MERGE.format(n=q(dest_name)) + (f" && rm -f {removals}" if removals else ""))
     return Pushed(files=len(send), removed=len(delete), bytes_sent=sent, digest=digest)

@@ -1,0 +1,102 @@
+"""Provisioning benchmark on real SSH hosts (network namespaces with sshd; needs root and ROS).
+
+Figures, each a ratio against a baseline measured in the same run:
+  1. wall time provisioning N hosts vs 1 host, from scratch          (goal <= 1.5x)
+  2. a no-op re-run vs the first run over N hosts                     (goal <= 10%)
+  3. workspace bytes sent re-pushing after one changed file vs first  (goal <= 5%)
+
+    sudo .venv/bin/python benchmarks/provision.py --hosts 8 --files 40
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO))
+
+from fogiac.compile import compile_plan  # noqa: E402
+from fogiac.manifest import load_manifest  # noqa: E402
+from fogiac.provision import ProvisionReport, provision, teardown  # noqa: E402
+from fogiac.provision.targets import hosts_access  # noqa: E402
+from tests.provision.conftest import hosts_manifest, make_workspace, ros_skip_reason  # noqa: E402
+from tests.provision.sshlab import LabHost, lab_skip_reason, ssh_lab  # noqa: E402
+
+
+def _workspace_bytes(report: ProvisionReport) -> int:
+    total = 0
+    for host in report.hosts:
+        for step in host.steps:
+            found = re.match(r"pushed \d+ file\(s\), (\d+) bytes", step.detail)
+            if step.name == "workspace" and found:
+                total += int(found.group(1))
+    return total
+
+
+class Bench:
+    def __init__(self, root: Path, hosts: list[LabHost], key: Path, files: int) -> None:
+        self.root, self.hosts, self.key = root, hosts, key
+        self.state = root / "state"
+        self.state.mkdir()
+        self.workspace = make_workspace(root / "ws", extra_files=files)
+
+    def _plan_access(self, hosts: list[LabHost]):  # type: ignore[no-untyped-def]
+        manifest = hosts_manifest(self.root / "fogiac.yaml", hosts=[(h.name, h.address) for h in hosts],
+                                  key=self.key, workspace=self.workspace, name="bench")
+        plan = compile_plan(load_manifest(manifest))
+        by_name = {h.name: h for h in hosts}
+        access = {n: replace(a, base_dir=str(by_name[n].base_dir), ship_code=False)  # type: ignore[type-var]
+                  for n, a in hosts_access(plan, state_dir=self.state, python=sys.executable).items()}
+        return plan, access
+
+    def run(self, hosts: list[LabHost]) -> tuple[float, ProvisionReport]:
+        plan, access = self._plan_access(hosts)
+        started = time.monotonic()
+        report = provision(plan, hosts=access, state_dir=self.state, health_timeout=120)
+        elapsed = time.monotonic() - started
+        if not report.ok:
+            raise SystemExit("provisioning failed: " + "; ".join(h.error or "" for h in report.failed))
+        return elapsed, report
+
+    def down(self, hosts: list[LabHost]) -> None:
+        plan, access = self._plan_access(hosts)
+        teardown(plan, hosts=access, state_dir=self.state)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--hosts", type=int, default=8)
+    parser.add_argument("--files", type=int, default=40, help="extra config files in the workspace")
+    args = parser.parse_args()
+    reason = lab_skip_reason() or ros_skip_reason()
+    if reason:
+        print(f"skipped: {reason}")
+        return 0
+    with tempfile.TemporaryDirectory(prefix="fogiac-bench-") as tmp, ssh_lab(Path(tmp), args.hosts) as (hosts, key):
+        bench = Bench(Path(tmp), hosts, key, args.files)
+        one, _ = bench.run(hosts[:1])
+        bench.down(hosts[:1])
+        many, first = bench.run(hosts)
+        noop, again = bench.run(hosts)
+        changed = bench.workspace / "src" / "fogtest" / "config" / "params_007.yaml"
+        changed.write_text(changed.read_text() + "tuned: true\n")
+        _, repush = bench.run(hosts)
+        bench.down(hosts)
+    first_bytes, repush_bytes = _workspace_bytes(first), _workspace_bytes(repush)
+    print(f"workspace: {args.files} extra config files beside the fogtest package")
+    print(f"provision 1 host:            {one:6.2f} s")
+    print(f"provision {args.hosts} hosts:           {many:6.2f} s   ratio {many / one:.2f}x   (goal <= 1.5x)")
+    print(f"no-op re-run ({again.summary()}): {noop:6.2f} s   ratio {noop / many:.1%}   (goal <= 10%)")
+    print(f"workspace bytes, first push: {first_bytes} B over {args.hosts} hosts; after one changed file: "
+          f"{repush_bytes} B   ratio {repush_bytes / first_bytes:.1%}   (goal <= 5%)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,75 @@
+"""What a host already has, learnt in one SSH round trip before any step acts.
+
+Why: every command over SSH costs a session (tens of milliseconds on a LAN, far more across
+the internet). Steps look things up here instead of asking the host one question at a time,
+so a no-op re-run costs a connection, this probe and the health check.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+
+from fogiac.provision.host import Host
+from fogiac.provision.services import Layout
+from fogiac.render import render
+
+
+@dataclass
+class Facts:
+    """Parsed probe output; paths are relative to the host's base folder."""
+
+    base: str
+    missing: list[str] = field(default_factory=list)
+    flags: set[str] = field(default_factory=set)  # engine, ros, nvidia, systemd, relaycli
+    shas: dict[str, str] = field(default_factory=dict)
+    manifests: dict[str, list[str]] = field(default_factory=dict)
+    markers: dict[str, str] = field(default_factory=dict)
+    status: dict[str, dict] = field(default_factory=dict)
+
+    def _rel(self, path: str) -> str:
+        prefix = self.base.rstrip("/") + "/"
+        return path[len(prefix):] if path.startswith(prefix) else path
+
+    def sha(self, path: str) -> str | None:
+        """The file's sha256, '' when the probe saw it is absent, None when the probe did not look."""
+        rel = self._rel(path)
+        if rel.split("/", 1)[0] not in ("bin", "env", "services", "certs"):
+            return None
+        return self.shas.get(rel, "")
+
+    def manifest(self, path: str) -> str:
+        return "".join(f"{line}\n" for line in self.manifests.get(self._rel(path), []))
+
+    def marker(self, path: str) -> str:
+        return self.markers.get(self._rel(path), "")
+
+
+def gather(host: Host, layout: Layout, *, relay_cli: str) -> Facts:
+    folders = (layout.bin, layout.run, layout.services, layout.ws, layout.env, layout.state, layout.certs,
+               layout.ros_home, layout.tmp)
+    script = render("provision/probe.sh.j2", folders=folders, relay_cli=relay_cli, base=layout.base,
+                    supervisor=layout.supervisor, run_dir=layout.run)
+    facts = Facts(base=layout.base)
+    for line in host.run(script, check=False).stdout.splitlines():
+        key, _, rest = line.partition(" ")
+        if key == "missing":
+            facts.missing.append(rest)
+        elif key in ("engine", "ros", "nvidia", "systemd", "relaycli"):
+            facts.flags.add(key)
+        elif key == "sha":
+            digest, _, path = rest.partition(" ")
+            facts.shas[path] = digest
+        elif key == "manifest":
+            path, _, entry = rest.partition(" ")
+            facts.manifests.setdefault(path, []).append(entry)
+        elif key == "marker":
+            path, _, value = rest.partition(" ")
+            facts.markers[path] = value.strip()
+        elif key == "status":
+            try:
+                info = json.loads(rest)
+            except ValueError:
+                continue
+            facts.status[str(info.get("name"))] = info
+    return facts

@@ -59,7 +59,8 @@ def _render(doc: dict[str, Any]) -> None:
     from rich.markup import escape
 
     console = Console()
-    console.print(f"[bold]fogiac plan[/] {doc['stack']}: target {doc['target']}, region {doc['region']}, mode {doc['mode']}")
+    where = f", region {doc['region']}, mode {doc['mode']}" if doc["target"] == "aws" else ""
+    console.print(f"[bold]fogiac plan[/] {doc['stack']}: target {doc['target']}{where}")
     if not doc["resources"]:
         console.print(f"no cloud resources (target {doc['target']})")
     for stack in doc["stacks"]:
@@ -68,10 +69,16 @@ def _render(doc: dict[str, Any]) -> None:
         for r in rows:
             table.add_row("+", _type(r["type"]), escape(r["name"]), escape(_key_inputs(r)))
         console.print(table)
-    hosts = _table("hosts", "host", "machine", "vCPUs", "GPUs", "memory GiB", "disk GB", "spot", "$/h", "nodes")
-    for h in doc["hosts"]:
-        hosts.add_row(h["name"], h["machine"], str(h["vcpus"]), str(h["gpus"]), f"{h['memory_gib']:g}",
-                      str(h["disk_gb"]), "yes" if h["spot"] else "no", f"{h['usd_per_hour']:.4f}", ", ".join(h["nodes"]))
+    if doc["target"] == "aws":
+        hosts = _table("hosts", "host", "machine", "vCPUs", "GPUs", "memory GiB", "disk GB", "spot", "$/h", "nodes")
+        for h in doc["hosts"]:
+            hosts.add_row(h["name"], h["machine"], str(h["vcpus"]), str(h["gpus"]), f"{h['memory_gib']:g}",
+                          str(h["disk_gb"]), "yes" if h["spot"] else "no", f"{h['usd_per_hour']:.4f}",
+                          ", ".join(h["nodes"]))
+    else:
+        hosts = _table("hosts", "host", "address", "GPUs", "nodes")
+        for h in doc["hosts"]:
+            hosts.add_row(h["name"], escape(str(h["address"])), str(h["gpus"]), ", ".join(h["nodes"]))
     console.print(hosts)
     nodes = _table("nodes", "node", "host", "kind", "runs", "GPU")
     for n in doc["nodes"]:

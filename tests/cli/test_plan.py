@@ -5,6 +5,8 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -137,3 +139,9 @@ def test_errors_are_one_line_exit_1(minimal: Path, tmp_path: Path) -> None:
     assert code == 1
     assert "nodes[0].machine: 't3.smal' is not a known instance type" in out
     assert "Traceback" not in out
+
+
+def test_the_cli_loads_no_cloud_sdk_until_plan_runs() -> None:
+    code = "import sys, fogiac.cli; print(sorted({m.split('.')[0] for m in sys.modules} & {'pulumi', 'boto3'}))"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True)
+    assert done.stdout.strip() == "[]"

@@ -211,7 +211,6 @@ def declare(plan: Plan, *, mocks: Any | None = None) -> OfflinePlan:
         return OfflinePlan(plan=plan, resources=(), outputs=MappingProxyType({}))
     import pulumi
 
-    from fogiac.plan import OPERATOR
     from stacks.firewall import OPERATOR_PLACEHOLDER
     from stacks.program import compute_program, network_program
 
@@ -229,7 +228,7 @@ def declare(plan: Plan, *, mocks: Any | None = None) -> OfflinePlan:
 
         return run
 
-    operators = tuple(OPERATOR_PLACEHOLDER if c == OPERATOR else c for c in plan.ssh_from)
+    operators = (OPERATOR_PLACEHOLDER,)  # stands in wherever ssh_from is auto
     outputs: dict[str, Mapping[str, Any]] = {}
     if hasattr(mocks, "layer"):
         mocks.layer = "network"

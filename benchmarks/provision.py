@@ -11,6 +11,7 @@ Figures, each a ratio against a baseline measured in the same run:
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import sys
 import tempfile
@@ -27,6 +28,15 @@ from fogiac.provision import ProvisionReport, provision, teardown  # noqa: E402
 from fogiac.provision.targets import hosts_access  # noqa: E402
 from tests.provision.conftest import hosts_manifest, make_workspace, ros_skip_reason  # noqa: E402
 from tests.provision.sshlab import LabHost, lab_skip_reason, ssh_lab  # noqa: E402
+
+
+def _slowest_steps(report: ProvisionReport) -> str:
+    """Each step's slowest host, to show where the time goes."""
+    slowest: dict[str, float] = {}
+    for host in report.hosts:
+        for step in host.steps:
+            slowest[step.name] = max(slowest.get(step.name, 0.0), step.seconds)
+    return ", ".join(f"{name} {seconds:.1f}s" for name, seconds in slowest.items())
 
 
 def _workspace_bytes(report: ProvisionReport) -> int:
@@ -80,7 +90,7 @@ def main() -> int:
         return 0
     with tempfile.TemporaryDirectory(prefix="fogiac-bench-") as tmp, ssh_lab(Path(tmp), args.hosts) as (hosts, key):
         bench = Bench(Path(tmp), hosts, key, args.files)
-        one, _ = bench.run(hosts[:1])
+        one, single = bench.run(hosts[:1])
         bench.down(hosts[:1])
         many, first = bench.run(hosts)
         noop, again = bench.run(hosts)
@@ -90,8 +100,10 @@ def main() -> int:
         bench.down(hosts)
     first_bytes, repush_bytes = _workspace_bytes(first), _workspace_bytes(repush)
     print(f"workspace: {args.files} extra config files beside the fogtest package")
-    print(f"provision 1 host:            {one:6.2f} s")
-    print(f"provision {args.hosts} hosts:           {many:6.2f} s   ratio {many / one:.2f}x   (goal <= 1.5x)")
+    print(f"provision 1 host:            {one:6.2f} s   ({_slowest_steps(single)})")
+    print(f"provision {args.hosts} hosts:           {many:6.2f} s   ratio {many / one:.2f}x   (goal <= 1.5x)   "
+          f"({_slowest_steps(first)})")
+    print(f"CPUs on this machine: {os.cpu_count()} (every host's roscore, roslaunch, node and relay share them)")
     print(f"no-op re-run ({again.summary()}): {noop:6.2f} s   ratio {noop / many:.1%}   (goal <= 10%)")
     print(f"workspace bytes, first push: {first_bytes} B over {args.hosts} hosts; after one changed file: "
           f"{repush_bytes} B   ratio {repush_bytes / first_bytes:.1%}   (goal <= 5%)")

@@ -5,7 +5,7 @@ Figures, each a ratio against a baseline measured in the same run:
   2. a no-op re-run vs the first run over N hosts                     (goal <= 10%)
   3. workspace bytes sent re-pushing after one changed file vs first  (goal <= 5%)
 
-    sudo .venv/bin/python benchmarks/provision.py --hosts 8 --files 40
+    sudo .venv/bin/python benchmarks/provision.py --hosts 8 --files 40 [--mesh-kb 256]
 """
 
 from __future__ import annotations
@@ -83,6 +83,8 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--hosts", type=int, default=8)
     parser.add_argument("--files", type=int, default=40, help="extra config files in the workspace")
+    parser.add_argument("--mesh-kb", type=int, default=0,
+                        help="add a binary mesh of this size (incompressible, like an STL) to the workspace")
     args = parser.parse_args()
     reason = lab_skip_reason() or ros_skip_reason()
     if reason:
@@ -90,6 +92,10 @@ def main() -> int:
         return 0
     with tempfile.TemporaryDirectory(prefix="fogiac-bench-") as tmp, ssh_lab(Path(tmp), args.hosts) as (hosts, key):
         bench = Bench(Path(tmp), hosts, key, args.files)
+        if args.mesh_kb:
+            meshes = bench.workspace / "src" / "fogtest" / "meshes"
+            meshes.mkdir()
+            (meshes / "gripper.stl").write_bytes(os.urandom(args.mesh_kb * 1024))
         one, single = bench.run(hosts[:1])
         bench.down(hosts[:1])
         many, first = bench.run(hosts)
@@ -99,7 +105,8 @@ def main() -> int:
         _, repush = bench.run(hosts)
         bench.down(hosts)
     first_bytes, repush_bytes = _workspace_bytes(first), _workspace_bytes(repush)
-    print(f"workspace: {args.files} extra config files beside the fogtest package")
+    mesh = f" and a {args.mesh_kb} KiB binary mesh" if args.mesh_kb else ""
+    print(f"workspace: the fogtest package with {args.files} extra config files{mesh}")
     print(f"provision 1 host:            {one:6.2f} s   ({_slowest_steps(single)})")
     print(f"provision {args.hosts} hosts:           {many:6.2f} s   ratio {many / one:.2f}x   (goal <= 1.5x)   "
           f"({_slowest_steps(first)})")

@@ -141,7 +141,7 @@ def docker_run(node: NodeSpec, *, plan: Plan, spec: HostSpec, where: Where) -> s
     if node.kind == "image":
         image, command = node.image or "", node.command
     elif node.kind == "launch" and node.launch is not None:
-        image, command = ros_image(plan), ("roslaunch", node.launch.package, node.launch.file)
+        image, command = ros_image(plan), ("roslaunch", "--wait", node.launch.package, node.launch.file)
         volumes = ((where.layout.workspace(node.launch.workspace), _WS_MOUNT),)
         env += (("ROS_PACKAGE_PATH", f"{_WS_MOUNT}/src:{_WS_MOUNT}"),)
     else:
@@ -156,6 +156,8 @@ def _container_node(node: NodeSpec, plan: Plan, spec: HostSpec, where: Where) ->
             "pre": (f"docker rm -f {name} >/dev/null 2>&1 || true",), "check": "any"}
 
 
+# roslaunch --wait: without it, a roslaunch that starts before the host's master service would
+# start a master of its own on the same port and make the real one crash-loop.
 def _native_node(node: NodeSpec, plan: Plan, spec: HostSpec, where: Where) -> dict[str, object]:
     if node.kind == "image":
         raise ProvisionError(
@@ -164,7 +166,7 @@ def _native_node(node: NodeSpec, plan: Plan, spec: HostSpec, where: Where) -> di
         )
     if node.kind == "launch" and node.launch is not None:
         ws = where.layout.workspace(node.launch.workspace)
-        return {"command": f"roslaunch {_q(node.launch.package)} {_q(node.launch.file)}",
+        return {"command": f"roslaunch --wait {_q(node.launch.package)} {_q(node.launch.file)}",
                 "package_path": f"{ws}/src:{ws}", "check": "node", "cwd": ws}
     return {"command": f"{_q(where.python)} -m workloads.{node.workload} node",
             "python_path": where.code_root, "check": "node"}

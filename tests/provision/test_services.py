@@ -70,7 +70,7 @@ def test_launch_node_mounts_its_pushed_workspace_read_only(plan: Plan) -> None:
     assert _line(plan, "arm") == (
         "docker run --rm --network host --name fogiac-arm --env ROS_MASTER_URI=http://127.0.0.1:11311 "
         "--env ROS_IP=10.10.0.5 --env ROS_PACKAGE_PATH=/fogiac/ws/src:/fogiac/ws "
-        f"--volume {ws}:/fogiac/ws:ro ros:noetic-ros-core roslaunch fogtest talker.launch"
+        f"--volume {ws}:/fogiac/ws:ro ros:noetic-ros-core roslaunch --wait fogtest talker.launch"
     )
 
 
@@ -118,7 +118,7 @@ def test_native_hosts_run_roslaunch_and_workloads_directly(plan: Plan) -> None:
     assert arm.script.splitlines()[-3:] == [
         f"export ROS_PACKAGE_PATH={ws}/src:{ws}${{ROS_PACKAGE_PATH:+:$ROS_PACKAGE_PATH}}",
         f"cd {ws}",
-        "exec roslaunch fogtest talker.launch",
+        "exec roslaunch --wait fogtest talker.launch",
     ]
     (workload,) = svc.node_services(plan, plan.host("plan"), where)
     assert workload.script.splitlines()[-1] == "exec python3 -m workloads.motion_planning node"

@@ -5,6 +5,8 @@ under 0.3 s and importing neither pulumi nor boto3. Each figure is the best of N
 fresh interpreter, printed beside ``python -c pass`` measured in the same run.
 
     .venv/bin/python benchmarks/plan.py [--runs 5]
+
+On a shared machine, ``nice -n -10`` (as root) keeps other work from inflating the wall times.
 """
 
 from __future__ import annotations

@@ -1,0 +1,106 @@
+"""Robot-side client: send plan requests to the node and time each answer.
+
+``request_paths`` is what an end-to-end demo calls from its own rospy node; ``main`` (behind
+``python -m workloads.motion_planning client``) makes an anonymous node and prints JSON.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from fogiac.errors import WorkloadError
+from workloads.motion_planning.node import DEFAULT_PROBLEM_DIR, pose_from_msg, pose_to_msg
+from workloads.motion_planning.problem import Pose
+
+REQUEST_TOPIC = "/motion_planning/request"
+PATH_TOPIC = "/motion_planning/path"
+COMPUTE_TIME_TOPIC = "/motion_planning/compute_time"
+
+
+@dataclass(frozen=True)
+class Timing:
+    """One request's outcome: round trip as the robot saw it, and the node's compute time."""
+
+    name: str
+    solved: bool
+    round_trip_s: float
+    compute_time_s: float
+    path: tuple[Pose, ...]
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "solved": self.solved, "round_trip_s": self.round_trip_s,
+                "compute_time_s": self.compute_time_s, "path": [p.as_dict() for p in self.path]}
+
+
+def shipped_problems() -> list[str]:
+    return sorted(p.stem for p in DEFAULT_PROBLEM_DIR.glob("*.cfg"))
+
+
+def request_paths(names: Sequence[str], *, timeout: float = 120.0, endpoints: dict[str, tuple[Pose, Pose]] | None = None,
+                  connect_timeout: float = 30.0) -> list[Timing]:
+    """Send one request per problem name, in turn, and wait for each path. Needs rospy.init_node done."""
+    import rospy
+    from geometry_msgs.msg import PoseArray
+    from std_msgs.msg import Float64
+
+    cond = threading.Condition()
+    paths: dict[tuple[str, int], Any] = {}
+    last_compute = [0.0]
+
+    def on_time(msg: Float64) -> None:
+        with cond:
+            last_compute[0] = msg.data
+
+    def on_path(msg: PoseArray) -> None:
+        with cond:
+            paths[(msg.header.frame_id, msg.header.stamp.to_nsec())] = (time.perf_counter(), last_compute[0], msg)
+            cond.notify_all()
+
+    subs = [rospy.Subscriber(COMPUTE_TIME_TOPIC, Float64, on_time, queue_size=10),
+            rospy.Subscriber(PATH_TOPIC, PoseArray, on_path, queue_size=10)]
+    pub = rospy.Publisher(REQUEST_TOPIC, PoseArray, queue_size=10)
+    try:
+        _wait_connected(pub, subs, connect_timeout)
+        timings = []
+        for name in names:
+            request = PoseArray()
+            request.header.frame_id = name
+            request.header.stamp = rospy.Time.now()
+            if endpoints and name in endpoints:
+                request.poses = [pose_to_msg(p) for p in endpoints[name]]
+            key = (name, request.header.stamp.to_nsec())
+            sent = time.perf_counter()
+            pub.publish(request)
+            with cond:
+                if not cond.wait_for(lambda: key in paths, timeout=timeout):
+                    raise WorkloadError(f"no path for {name!r} on {PATH_TOPIC} within {timeout:g} s")
+                received, compute, msg = paths.pop(key)
+            path = tuple(pose_from_msg(p) for p in msg.poses)
+            timings.append(Timing(name, bool(path), received - sent, compute, path))
+        return timings
+    finally:
+        for sub in subs:
+            sub.unregister()
+        pub.unregister()
+
+
+def _wait_connected(pub: Any, subs: Sequence[Any], timeout: float) -> None:
+    end = time.monotonic() + timeout
+    while pub.get_num_connections() == 0 or any(s.get_num_connections() == 0 for s in subs):
+        if time.monotonic() > end:
+            raise WorkloadError(f"no motion_planning node answered on {REQUEST_TOPIC} within {timeout:g} s")
+        time.sleep(0.05)
+
+
+def main(names: Sequence[str], *, timeout: float) -> int:
+    import rospy
+
+    rospy.init_node("motion_planning_client", anonymous=True, disable_signals=True)
+    timings = request_paths(list(names) or shipped_problems(), timeout=timeout)
+    print(json.dumps([t.as_dict() for t in timings]))
+    return 0 if all(t.solved for t in timings) else 1

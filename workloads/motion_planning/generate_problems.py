@@ -1,0 +1,177 @@
+"""Write the shipped problems (meshes + OMPL.app-style .cfg) into ``problems/``.
+
+Run ``python -m workloads.motion_planning.generate_problems`` to regenerate them; output is
+deterministic (the maze uses a fixed seed). Every world is built from boxes, so meshes stay
+a few KB, and walls extend past the position bounds by more than the robot's radius, so
+the only way through is the intended one.
+
+- ``easy``: one wall with a wide window; a test fixture that solves in milliseconds.
+- ``twisty``: a narrow twisting tunnel: plates whose slots turn 40 degrees apiece; a flat bar
+  must roll to pass each one.
+- ``cubicles``: two storeys of office cubicles with doors, joined by a hatch in the slab.
+- ``maze``: an apartment-scale 6 x 6 maze of 2 m rooms under a ceiling, for a sofa-sized box.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from collections.abc import Sequence
+from pathlib import Path
+
+import trimesh
+
+PROBLEMS_DIR = Path(__file__).resolve().parent / "problems"
+Vec = Sequence[float]
+
+
+def box(center: Vec, size: Vec, *, rot_x: float = 0.0) -> trimesh.Trimesh:
+    """An axis-aligned box, optionally turned about the x axis through the origin."""
+    tf = trimesh.transformations.rotation_matrix(rot_x, [1, 0, 0]) @ trimesh.transformations.translation_matrix(center)
+    return trimesh.creation.box(extents=size, transform=tf)
+
+
+def plate_with_slot(x: float, *, half: float, thick: float, slot: Vec, offset: Vec, angle: float) -> list[trimesh.Trimesh]:
+    """A square plate in the y-z plane at ``x`` with a rectangular slot, all turned by ``angle``."""
+    sl, sw = slot  # slot extent along the plate's own y and z before turning
+    oy, oz = offset
+    top, bottom, left, right = oz + sw / 2, oz - sw / 2, oy - sl / 2, oy + sl / 2
+    parts = [
+        box((x, 0, (top + half) / 2), (thick, 2 * half, half - top)),
+        box((x, 0, (bottom - half) / 2), (thick, 2 * half, bottom + half)),
+        box((x, (left - half) / 2, oz), (thick, left + half, sw)),
+        box((x, (right + half) / 2, oz), (thick, half - right, sw)),
+    ]
+    for p in parts:
+        p.apply_transform(trimesh.transformations.rotation_matrix(angle, [1, 0, 0], [x, 0, 0]))
+    return parts
+
+
+def wall_with_door(a: Vec, b: Vec, *, height: float, z0: float, thick: float, door: float | None,
+                   door_w: float, door_h: float) -> list[trimesh.Trimesh]:
+    """A straight wall from a to b (2-D, axis-aligned) with an optional door centred at ``door``."""
+    (ax, ay), (bx, by) = a, b
+    along_x = abs(bx - ax) > abs(by - ay)
+    lo, hi = (min(ax, bx), max(ax, bx)) if along_x else (min(ay, by), max(ay, by))
+    fixed = ay if along_x else ax
+    spans = [(lo, hi)] if door is None else [(lo, door - door_w / 2), (door + door_w / 2, hi)]
+    parts = []
+    for s0, s1 in spans:
+        if s1 - s0 > 1e-9:
+            parts.append(_wall_piece(along_x, fixed, s0, s1, z0, z0 + height, thick))
+    if door is not None:
+        parts.append(_wall_piece(along_x, fixed, door - door_w / 2, door + door_w / 2, z0 + door_h, z0 + height, thick))
+    return parts
+
+
+def _wall_piece(along_x: bool, fixed: float, s0: float, s1: float, z0: float, z1: float, thick: float) -> trimesh.Trimesh:
+    c, length = (s0 + s1) / 2, s1 - s0 + thick
+    center = (c, fixed, (z0 + z1) / 2) if along_x else (fixed, c, (z0 + z1) / 2)
+    size = (length, thick, z1 - z0) if along_x else (thick, length, z1 - z0)
+    return box(center, size)
+
+
+def write_cfg(path: Path, *, robot: str, world: str, start: Vec, goal: Vec, start_rot: Vec = (1, 0, 0, 0),
+              goal_rot: Vec = (1, 0, 0, 0), lo: Vec, hi: Vec, time_limit: float, fraction: float) -> None:
+    """``*_rot`` are (axis.x, axis.y, axis.z, theta)."""
+    lines = ["[problem]", f"name = {path.stem}", f"robot = {robot}", f"world = {world}"]
+    for end, pos, rot in (("start", start, start_rot), ("goal", goal, goal_rot)):
+        lines += [f"{end}.{k} = {v:g}" for k, v in zip("xyz", pos)]
+        lines += [f"{end}.theta = {rot[3]:.6f}"] + [f"{end}.axis.{k} = {v:g}" for k, v in zip("xyz", rot[:3])]
+    lines += [f"volume.{m}.{k} = {v:g}" for m, vec in (("min", lo), ("max", hi)) for k, v in zip("xyz", vec)]
+    lines += ["", "[solver]", f"time_limit = {time_limit:g}", f"longest_valid_segment_fraction = {fraction:g}",
+              "", "[benchmark]", f"time_limit = {time_limit:g}", "run_count = 10", ""]
+    path.write_text("\n".join(lines), encoding="utf-8")
+
+
+def export(meshes: list[trimesh.Trimesh], path: Path) -> None:
+    trimesh.util.concatenate(meshes).export(str(path))
+
+
+def easy(out: Path) -> None:
+    parts = [box((0, 0, 2.75), (0.3, 10, 4.5)), box((0, 0, -2.75), (0.3, 10, 4.5)),  # a 1 m x 1 m window
+             box((0, 2.75, 0), (0.3, 4.5, 1.0)), box((0, -2.75, 0), (0.3, 4.5, 1.0))]
+    export(parts, out / "easy_env.stl")
+    export([box((0, 0, 0), (1.0, 0.3, 0.3))], out / "easy_robot.stl")
+    write_cfg(out / "easy.cfg", robot="easy_robot.stl", world="easy_env.stl", start=(-2, 0, 0), goal=(2, 0, 0),
+              goal_rot=(0, 0, 1, math.pi / 2), lo=(-3, -3, -3), hi=(3, 3, 3), time_limit=5, fraction=0.005)
+
+
+def twisty(out: Path, *, plates: int = 4, slot: Vec = (2.9, 0.95), name: str = "twisty") -> None:
+    parts = []
+    for k in range(plates):
+        off = (0.6 * math.cos(1.3 * k), 0.6 * math.sin(1.3 * k))
+        parts += plate_with_slot(3.0 * (k + 1), half=5.0, thick=0.4, slot=slot, offset=off, angle=math.radians(40 * k))
+    export(parts, out / f"{name}_env.stl")
+    export([box((0, 0, 0), (0.4, 2.0, 0.35))], out / f"{name}_robot.stl")
+    length = 3.0 * (plates + 1)
+    write_cfg(out / f"{name}.cfg", robot=f"{name}_robot.stl", world=f"{name}_env.stl", start=(0.5, 0, 0),
+              goal=(length - 0.5, 0, 0), lo=(0, -2.5, -2.5), hi=(length, 2.5, 2.5), time_limit=60, fraction=0.002)
+
+
+def cubicles(out: Path, *, n: int = 2, door_w: float = 1.4, name: str = "cubicles") -> None:
+    t, h, cell = 0.2, 3.0, 4.0
+    size = n * cell
+    parts = [box((size / 2, size / 2, -0.25), (size + 6, size + 6, 0.5)),
+             box((size / 2, size / 2, 2 * h + 0.25), (size + 6, size + 6, 0.5))]
+    hatch = (size - 2.0, size - 2.0, 1.6)  # centre x, y and side of the hole between storeys
+    hx0, hx1, hy0, hy1 = hatch[0] - hatch[2] / 2, hatch[0] + hatch[2] / 2, hatch[1] - hatch[2] / 2, hatch[1] + hatch[2] / 2
+    for cx, cy, sx, sy in (((hx0 - 3) / 2, size / 2, hx0 + 3, size + 6), ((hx1 + size + 3) / 2, size / 2, size + 3 - hx1, size + 6),
+                           (hatch[0], (hy0 - 3) / 2, hatch[2], hy0 + 3), (hatch[0], (hy1 + size + 3) / 2, hatch[2], size + 3 - hy1)):
+        parts.append(box((cx, cy, h), (sx, sy, 0.3)))
+    for storey in range(2):
+        z0 = storey * h + (0.15 if storey else 0.0)
+        for i in range(n + 1):
+            for j in range(n):
+                door = j * cell + cell / 2 + (1.0 if (i + j + storey) % 2 else -1.0) if 0 < i < n else None
+                parts += wall_with_door((i * cell, j * cell), (i * cell, (j + 1) * cell), height=h - 0.15, z0=z0,
+                                        thick=t, door=door, door_w=door_w, door_h=2.0)
+                door = j * cell + cell / 2 if 0 < i < n and (i + j) % 2 == storey else None
+                parts += wall_with_door((j * cell, i * cell), ((j + 1) * cell, i * cell), height=h - 0.15, z0=z0,
+                                        thick=t, door=door, door_w=door_w, door_h=2.0)
+    export(parts, out / f"{name}_env.stl")
+    robot = [box((0, 0, 0), (0.9, 0.3, 0.3)), box((0.3, 0, 0.3), (0.3, 0.3, 0.4))]  # an L: vertex mean is off-centre
+    export(robot, out / f"{name}_robot.stl")
+    write_cfg(out / f"{name}.cfg", robot=f"{name}_robot.stl", world=f"{name}_env.stl", start=(2, 2, 1.0),
+              goal=(2, 2, h + 1.2), lo=(0, 0, 0.1), hi=(size, size, 2 * h - 0.1), time_limit=60, fraction=0.002)
+
+
+def maze(out: Path, *, cells: int = 6, cell: float = 2.0, seed: int = 7) -> None:
+    rng = random.Random(seed)
+    size, height, t = cells * cell, 2.4, 0.2
+    walls = {("v", i, j) for i in range(cells + 1) for j in range(cells)} | {("h", i, j) for i in range(cells + 1) for j in range(cells)}
+    seen, stack = {(0, 0)}, [(0, 0)]
+    while stack:  # depth-first carving: a perfect maze, one route between any two rooms
+        x, y = stack[-1]
+        nbrs = [(x + dx, y + dy) for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1))
+                if 0 <= x + dx < cells and 0 <= y + dy < cells and (x + dx, y + dy) not in seen]
+        if not nbrs:
+            stack.pop()
+            continue
+        nx, ny = rng.choice(nbrs)
+        walls.discard(("v", max(x, nx), y) if nx != x else ("h", max(y, ny), x))
+        seen.add((nx, ny))
+        stack.append((nx, ny))
+    parts = [box((size / 2, size / 2, -0.25), (size + 4, size + 4, 0.5)), box((size / 2, size / 2, height + 0.25), (size + 4, size + 4, 0.5))]
+    for kind, i, j in sorted(walls):
+        a, b = ((i * cell, j * cell), (i * cell, (j + 1) * cell)) if kind == "v" else ((j * cell, i * cell), ((j + 1) * cell, i * cell))
+        parts += wall_with_door(a, b, height=height, z0=0.0, thick=t, door=None, door_w=0, door_h=0)
+    export(parts, out / "maze_env.stl")
+    export([box((0, 0, 0), (1.3, 0.6, 0.7)), box((0, 0.2, 0.5), (1.3, 0.2, 0.3))], out / "maze_robot.stl")
+    write_cfg(out / "maze.cfg", robot="maze_robot.stl", world="maze_env.stl", start=(1, 1, 1.0),
+              goal=(size - 1, size - 1, 1.0), goal_rot=(0, 0, 1, math.pi / 2), lo=(0, 0, 0.55), hi=(size, size, 1.8),
+              time_limit=60, fraction=0.002)
+
+
+GENERATORS = {"easy": easy, "twisty": twisty, "cubicles": cubicles, "maze": maze}
+
+
+def main() -> None:
+    PROBLEMS_DIR.mkdir(parents=True, exist_ok=True)
+    for name, make in GENERATORS.items():
+        make(PROBLEMS_DIR)
+        print(f"wrote {name}")
+
+
+if __name__ == "__main__":
+    main()

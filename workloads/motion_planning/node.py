@@ -1,0 +1,104 @@
+"""ROS 1 node around :func:`solve`, on standard messages only (no message build step).
+
+Topics (node name ``motion_planning``, so ``~x`` is ``/motion_planning/x``; remap as usual):
+
+- in  ``~request``       geometry_msgs/PoseArray: ``header.frame_id`` names a problem (a ``.cfg``
+  in ``~problem_dir``, without extension); ``poses`` is ``[start, goal]`` or empty for the
+  file's own endpoints.
+- out ``~compute_time``  std_msgs/Float64: seconds :func:`solve` took (published first).
+- out ``~path``          geometry_msgs/PoseArray: the simplified path, start to goal, with the
+  request's header (frame_id and stamp; rospy renumbers ``seq`` itself, so match on stamp).
+  An empty ``poses`` list means no path: unknown problem, bad request or not solved in time.
+
+Params: ``~cores`` (default: all cores), ``~time_limit`` (default: each cfg's), ``~problem_dir``
+(default: the shipped problems), ``~planner`` (default ``rrtconnect``).
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from pathlib import Path
+from typing import Any
+
+from fogiac.errors import WorkloadError
+from workloads.motion_planning.planner import DEFAULT_PLANNER, solve, warm_up
+from workloads.motion_planning.problem import Pose, Problem, load_problem
+
+NODE_NAME = "motion_planning"
+DEFAULT_PROBLEM_DIR = Path(__file__).resolve().parent / "problems"
+
+
+def pose_from_msg(msg: Any) -> Pose:
+    p, q = msg.position, msg.orientation
+    return Pose(p.x, p.y, p.z, q.x, q.y, q.z, q.w)
+
+
+def pose_to_msg(pose: Pose) -> Any:
+    from geometry_msgs.msg import Point, Pose as PoseMsg, Quaternion
+
+    return PoseMsg(Point(pose.x, pose.y, pose.z), Quaternion(pose.qx, pose.qy, pose.qz, pose.qw))
+
+
+class PlannerNode:
+    """Keeps loaded problems; answers each request on the subscriber's thread, one at a time."""
+
+    def __init__(self, *, problem_dir: Path, cores: int, time_limit: float | None, planner: str) -> None:
+        self.problem_dir, self.cores, self.time_limit, self.planner = problem_dir, cores, time_limit, planner
+        self._problems: dict[str, Problem] = {}
+        self._lock = threading.Lock()
+
+    def problem(self, name: str) -> Problem:
+        if name not in self._problems:
+            path = self.problem_dir / f"{name}.cfg"
+            if "/" in name or not path.is_file():
+                known = sorted(p.stem for p in self.problem_dir.glob("*.cfg"))
+                raise WorkloadError(f"unknown problem {name!r}; known: {', '.join(known)}")
+            self._problems[name] = load_problem(path)
+        return self._problems[name]
+
+    def handle(self, request: Any) -> tuple[float, list[Pose]]:
+        """(compute seconds, path) for one PoseArray request; an empty path on any failure."""
+        import rospy
+
+        with self._lock:
+            try:
+                problem = self.problem(request.header.frame_id)
+                if len(request.poses) not in (0, 2):
+                    raise WorkloadError(f"request has {len(request.poses)} poses; send [start, goal] or none")
+                if request.poses:
+                    problem = problem.with_endpoints(*(pose_from_msg(p) for p in request.poses))
+                solution = solve(problem, cores=self.cores, time_limit=self.time_limit, planner=self.planner)
+            except WorkloadError as err:
+                rospy.logerr(f"motion_planning: {err}")
+                return 0.0, []
+            if not solution.solved:
+                rospy.logwarn(f"motion_planning: {problem.name}: not solved ({solution.status})")
+            return solution.solve_time_s, list(solution.path)
+
+
+def main() -> None:
+    import rospy
+    from geometry_msgs.msg import PoseArray
+    from std_msgs.msg import Float64
+
+    rospy.init_node(NODE_NAME)
+    time_limit = rospy.get_param("~time_limit", None)
+    node = PlannerNode(
+        problem_dir=Path(rospy.get_param("~problem_dir", str(DEFAULT_PROBLEM_DIR))),
+        cores=int(rospy.get_param("~cores", os.cpu_count() or 1)),
+        time_limit=float(time_limit) if time_limit is not None else None,
+        planner=str(rospy.get_param("~planner", DEFAULT_PLANNER)),
+    )
+    warm_up()
+    path_pub = rospy.Publisher("~path", PoseArray, queue_size=10)
+    time_pub = rospy.Publisher("~compute_time", Float64, queue_size=10)
+
+    def on_request(request: PoseArray) -> None:
+        seconds, path = node.handle(request)
+        time_pub.publish(Float64(seconds))
+        path_pub.publish(PoseArray(header=request.header, poses=[pose_to_msg(p) for p in path]))
+
+    rospy.Subscriber("~request", PoseArray, on_request, queue_size=10)
+    rospy.loginfo(f"motion_planning: ready, {node.cores} cores, problems in {node.problem_dir}")
+    rospy.spin()

@@ -1,0 +1,216 @@
+"""OMPL.app-style ``.cfg`` problem files, read once into a frozen :class:`Problem`.
+
+OMPL.app's conventions are kept so its benchmark problems come out right:
+
+- meshes are read the way assimp reads them: a COLLADA file whose ``<up_axis>`` is ``Z_UP``
+  is turned Y-up, (x, y, z) becomes (x, z, -y) (``X_UP``: (x, y, z) becomes (-y, x, z));
+  STL and OBJ files are taken as they are; COLLADA ``<unit>`` is not applied;
+- the robot mesh is shifted so the mean of its (merged) vertices is at the origin before a
+  pose is applied;
+- a pose is a position plus an axis-angle rotation (``theta`` in radians);
+- without ``volume.*`` the bounds are the world mesh's bounding box, grown to hold start and goal.
+"""
+
+from __future__ import annotations
+
+import configparser
+import difflib
+import math
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from fogiac.errors import WorkloadError
+
+# assimp's root-node rotation per COLLADA up axis, applied to column vectors.
+_UP_AXIS = {
+    "Y_UP": np.eye(3),
+    "Z_UP": np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]),
+    "X_UP": np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]),
+}
+_PROBLEM_KEYS = (
+    "robot", "world",
+    *(f"{end}.{k}" for end in ("start", "goal") for k in ("x", "y", "z", "theta", "axis.x", "axis.y", "axis.z")),
+)
+_VOLUME_KEYS = tuple(f"volume.{m}.{a}" for m in ("min", "max") for a in "xyz")
+DEFAULT_TIME_LIMIT = 10.0
+DEFAULT_SEGMENT_FRACTION = 0.01
+
+
+@dataclass(frozen=True)
+class Pose:
+    """Position plus unit quaternion (x, y, z, w order as in geometry_msgs/Pose)."""
+
+    x: float
+    y: float
+    z: float
+    qx: float = 0.0
+    qy: float = 0.0
+    qz: float = 0.0
+    qw: float = 1.0
+
+    @classmethod
+    def from_axis_angle(cls, x: float, y: float, z: float, *, axis: tuple[float, float, float], theta: float) -> Pose:
+        norm = math.sqrt(sum(a * a for a in axis))
+        if norm == 0.0:
+            return cls(x, y, z)
+        s = math.sin(theta / 2.0) / norm
+        return cls(x, y, z, axis[0] * s, axis[1] * s, axis[2] * s, math.cos(theta / 2.0))
+
+    def position(self) -> np.ndarray:
+        return np.array([self.x, self.y, self.z])
+
+    def quaternion(self) -> np.ndarray:
+        """(w, x, y, z), normalised: the order fcl and OMPL's SO3 math use."""
+        q = np.array([self.qw, self.qx, self.qy, self.qz])
+        return q / np.linalg.norm(q)
+
+    def as_dict(self) -> dict[str, float]:
+        return {k: getattr(self, k) for k in ("x", "y", "z", "qx", "qy", "qz", "qw")}
+
+
+@dataclass(frozen=True, eq=False)
+class Mesh:
+    """Triangle soup: float (n, 3) vertices and int (m, 3) faces."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+
+    def radius(self) -> float:
+        return float(np.linalg.norm(self.vertices, axis=1).max()) if len(self.vertices) else 0.0
+
+
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """A rigid body to move from start to goal among a static world, inside position bounds."""
+
+    name: str
+    robot: Mesh  # already mean-centred
+    world: Mesh
+    start: Pose
+    goal: Pose
+    bounds_min: tuple[float, float, float]
+    bounds_max: tuple[float, float, float]
+    time_limit: float = DEFAULT_TIME_LIMIT
+    segment_fraction: float = DEFAULT_SEGMENT_FRACTION
+    source: str = field(default="")
+
+    def with_endpoints(self, start: Pose, goal: Pose) -> Problem:
+        """The same scene with other endpoints (a ROS request may bring its own)."""
+        return Problem(self.name, self.robot, self.world, start, goal, self.bounds_min, self.bounds_max,
+                       self.time_limit, self.segment_fraction, self.source)
+
+
+def read_mesh(path: Path, *, cfg: Path, key: str) -> Mesh:
+    """Load a mesh like assimp does; errors name the cfg file and key that pointed here."""
+    import trimesh
+
+    if not path.is_file():
+        raise WorkloadError(f"{cfg}: [problem] {key}: mesh file not found: {path}")
+    try:
+        mesh = trimesh.load(str(path), force="mesh", process=True)
+    except Exception as err:  # trimesh raises many types for unreadable files
+        raise WorkloadError(f"{cfg}: [problem] {key}: cannot read mesh {path}: {err}".replace("\n", " ")) from err
+    vertices = np.asarray(mesh.vertices, dtype=float)
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    if len(faces) == 0:
+        raise WorkloadError(f"{cfg}: [problem] {key}: mesh {path} has no triangles")
+    if path.suffix.lower() == ".dae":
+        vertices = vertices @ _UP_AXIS[collada_up_axis(path)].T
+    return Mesh(vertices, faces)
+
+
+def collada_up_axis(path: Path) -> str:
+    """The ``<asset><up_axis>`` of a COLLADA file; Y_UP when absent, as the spec says."""
+    for _, elem in ET.iterparse(str(path)):
+        if elem.tag.rsplit("}", 1)[-1] == "up_axis":
+            axis = (elem.text or "").strip()
+            return axis if axis in _UP_AXIS else "Y_UP"
+    return "Y_UP"
+
+
+def load_problem(path: str | Path) -> Problem:
+    """Read and check an OMPL.app-style problem file; every error names the file and the key."""
+    cfg_path = Path(path)
+    parser = configparser.ConfigParser(interpolation=None)
+    try:
+        with cfg_path.open(encoding="utf-8") as fh:
+            parser.read_file(fh)
+    except FileNotFoundError as err:
+        raise WorkloadError(f"{cfg_path}: problem file not found") from err
+    except configparser.Error as err:
+        raise WorkloadError(f"{cfg_path}: not an INI-style problem file: {err.message.splitlines()[0]}") from err
+    if not parser.has_section("problem"):
+        raise WorkloadError(f"{cfg_path}: no [problem] section")
+    section = parser["problem"]
+    for key in _PROBLEM_KEYS:
+        if key not in section:
+            near = difflib.get_close_matches(key, list(section.keys()), n=1)
+            hint = f" (did you mean {near[0]!r}?)" if near else ""
+            raise WorkloadError(f"{cfg_path}: [problem] {key}: missing{hint}")
+    num = {key: _number(cfg_path, "problem", key, section[key]) for key in _PROBLEM_KEYS[2:]}
+    start, goal = (
+        Pose.from_axis_angle(num[f"{e}.x"], num[f"{e}.y"], num[f"{e}.z"], theta=num[f"{e}.theta"],
+                             axis=(num[f"{e}.axis.x"], num[f"{e}.axis.y"], num[f"{e}.axis.z"]))
+        for e in ("start", "goal")
+    )
+    base = cfg_path.parent
+    robot = read_mesh(base / section["robot"], cfg=cfg_path, key="robot")
+    robot = Mesh(robot.vertices - robot.vertices.mean(axis=0), robot.faces)
+    world = read_mesh(base / section["world"], cfg=cfg_path, key="world")
+    lo, hi = _bounds(cfg_path, section, world, start, goal)
+    return Problem(
+        name=section.get("name", cfg_path.stem).strip() or cfg_path.stem,
+        robot=robot, world=world, start=start, goal=goal, bounds_min=lo, bounds_max=hi,
+        time_limit=_time_limit(cfg_path, parser),
+        segment_fraction=_positive(cfg_path, parser, "solver", "longest_valid_segment_fraction",
+                                   DEFAULT_SEGMENT_FRACTION),
+        source=str(cfg_path),
+    )
+
+
+def _bounds(cfg: Path, section: configparser.SectionProxy, world: Mesh, start: Pose,
+            goal: Pose) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    given = [k for k in _VOLUME_KEYS if k in section]
+    if given and len(given) < len(_VOLUME_KEYS):
+        missing = next(k for k in _VOLUME_KEYS if k not in section)
+        raise WorkloadError(f"{cfg}: [problem] {missing}: missing (give all six volume.* keys or none)")
+    if given:
+        v = [_number(cfg, "problem", k, section[k]) for k in _VOLUME_KEYS]
+        lo, hi = v[:3], v[3:]
+        for axis, a, b in zip("xyz", lo, hi):
+            if a >= b:
+                raise WorkloadError(f"{cfg}: [problem] volume.min.{axis}: must be less than volume.max.{axis}")
+    else:
+        pts = np.vstack([world.vertices, start.position(), goal.position()])
+        lo, hi = pts.min(axis=0).tolist(), pts.max(axis=0).tolist()
+    return (lo[0], lo[1], lo[2]), (hi[0], hi[1], hi[2])
+
+
+def _time_limit(cfg: Path, parser: configparser.ConfigParser) -> float:
+    """[solver] time_limit wins over [benchmark] time_limit; OMPL.app files carry the latter."""
+    for section in ("solver", "benchmark"):
+        if parser.has_option(section, "time_limit"):
+            return _positive(cfg, parser, section, "time_limit", DEFAULT_TIME_LIMIT)
+    return DEFAULT_TIME_LIMIT
+
+
+def _positive(cfg: Path, parser: configparser.ConfigParser, section: str, key: str, default: float) -> float:
+    if not parser.has_option(section, key):
+        return default
+    value = _number(cfg, section, key, parser.get(section, key))
+    if value <= 0:
+        raise WorkloadError(f"{cfg}: [{section}] {key}: must be positive, got {value:g}")
+    return value
+
+
+def _number(cfg: Path, section: str, key: str, raw: str) -> float:
+    try:
+        value = float(raw)
+    except ValueError:
+        raise WorkloadError(f"{cfg}: [{section}] {key}: {raw.strip()!r} is not a number") from None
+    if not math.isfinite(value):
+        raise WorkloadError(f"{cfg}: [{section}] {key}: {raw.strip()!r} is not a finite number")
+    return value

@@ -222,3 +222,9 @@ def test_monitoring_publishes_only_while_subscribed(masters: tuple[Master, Maste
     out = throughput["topics"]["/mon"]
     assert throughput["role"] == "edge" and out["direction"] == "out"
     assert 5 < out["msgs_per_s"] < 40 and 5 * 1004 < out["bytes_per_s"] < 40 * 1004 and out["drops"] == 0
+
+
+def test_edge_refuses_a_cloud_with_another_name(masters: tuple[Master, Master], certs: Path) -> None:
+    with relay_pair(masters, certs, server_name="impostor.fogiac", policy=TopicPolicy(auto=True)) as (edge, cloud):
+        wait_for(lambda: edge.last_error is not None, 15, "the edge to fail")
+        assert "Hostname mismatch" in edge.last_error and not edge.connected.is_set()

@@ -172,7 +172,7 @@ def _revoke_group_rules(groups: list[Found], *, ec2: Any) -> None:
 
 
 def sweep(stack: str, *, ec2: Any, acm: Any, dry_run: bool, kinds: Collection[str] | None = None,
-          rounds: int = 6, first_delay_s: float = 1.0, sleep: Callable[[float], None] = time.sleep) -> SweepResult:
+          rounds: int = 6, first_delay_s: float = 1.0, sleep: Callable[[float], None] | None = None) -> SweepResult:
     """Delete all of ``stack`` (or only ``kinds`` of it) in dependency order, retrying "in use"
     with bounded backoff."""
 
@@ -206,7 +206,7 @@ def sweep(stack: str, *, ec2: Any, acm: Any, dry_run: bool, kinds: Collection[st
             errors.pop(item, None)
         current, skipped = listing()
         if current and attempt + 1 < rounds:
-            sleep(first_delay_s * 2**attempt)
+            (sleep or time.sleep)(first_delay_s * 2**attempt)
     left = tuple(current)
     return SweepResult(
         found=tuple(first), deleted=tuple(dict.fromkeys(d for d in deleted if d not in left)), left=left,

@@ -118,10 +118,11 @@ class Harness:
 
     # ---- destroy -----------------------------------------------------------------------------
 
-    def destroy(self) -> list[str]:
-        """Delete everything in the state, newest first, continuing past errors; return the errors."""
+    def destroy(self, *, layers: tuple[str, ...] = ("compute", "network")) -> list[str]:
+        """Delete ``layers`` in that order, each newest first, continuing past errors; return the errors."""
         errors = []
-        for key in reversed(list(self.state)):
+        keys = [k for layer in layers for k in reversed(list(self.state)) if k.startswith(f"{layer}/")]
+        for key in keys:
             entry = self.state[key]
             try:
                 _DELETE[entry["type"]](self, entry)

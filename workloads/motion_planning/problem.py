@@ -147,7 +147,8 @@ def load_problem(path: str | Path) -> Problem:
     section = parser["problem"]
     for key in _PROBLEM_KEYS:
         if key not in section:
-            near = difflib.get_close_matches(key, list(section.keys()), n=1)
+            unknown = [k for k in section if k not in _PROBLEM_KEYS and k not in _VOLUME_KEYS]
+            near = difflib.get_close_matches(key, unknown, n=1)
             hint = f" (did you mean {near[0]!r}?)" if near else ""
             raise WorkloadError(f"{cfg_path}: [problem] {key}: missing{hint}")
     num = {key: _number(cfg_path, "problem", key, section[key]) for key in _PROBLEM_KEYS[2:]}

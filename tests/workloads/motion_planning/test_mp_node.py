@@ -1,0 +1,123 @@
+"""The ROS node against a real roscore; the robot-side client runs in its own process."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+import xmlrpc.client
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from mp_support import PROBLEMS, REPO
+
+from workloads.motion_planning import Pose, load_problem, path_is_collision_free
+
+pytestmark = pytest.mark.ros
+
+ENDPOINTS_CLIENT = """
+import json, math, rospy
+from workloads.motion_planning.client import request_paths
+from workloads.motion_planning.problem import Pose
+rospy.init_node("mp_test_client", anonymous=True, disable_signals=True)
+ends = {"easy": (Pose(-2.0, -1.0, 1.0), Pose(2.0, 1.0, -1.0, 0.0, 0.0, math.sin(0.5), math.cos(0.5)))}
+print(json.dumps([t.as_dict() for t in request_paths(["easy"], timeout=60, endpoints=ends)]))
+"""
+
+
+def _ros_missing() -> str | None:
+    if shutil.which("roscore") is None:
+        return "roscore not installed (apt-get install ros-core)"
+    probe = subprocess.run([sys.executable, "-c", "import rospy, geometry_msgs.msg, std_msgs.msg"], capture_output=True)
+    if probe.returncode:
+        return "rospy or geometry_msgs/std_msgs not importable (apt-get install python3-rospy python3-geometry-msgs)"
+    return None
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _stop(proc: subprocess.Popen) -> None:
+    """SIGINT the process group, then SIGKILL whatever is left of it."""
+    for sig in (signal.SIGINT, signal.SIGKILL):
+        if proc.poll() is None:
+            try:
+                os.killpg(proc.pid, sig)
+                proc.wait(timeout=10)
+            except (ProcessLookupError, subprocess.TimeoutExpired):
+                pass
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+
+
+@pytest.fixture
+def node_env(tmp_path: Path) -> Iterator[dict[str, str]]:
+    """A roscore on a free port and the planner node (2 cores) attached to it."""
+    reason = _ros_missing()
+    if reason:
+        pytest.skip(reason)
+    port = _free_port()
+    env = {**os.environ, "ROS_MASTER_URI": f"http://127.0.0.1:{port}", "ROS_HOSTNAME": "127.0.0.1",
+           "ROS_HOME": str(tmp_path / "ros"), "ROS_LOG_DIR": str(tmp_path / "ros" / "log"),
+           "PYTHONPATH": os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH", "")) if p)}
+    procs: list[subprocess.Popen] = []
+    try:
+        procs.append(subprocess.Popen(["roscore", "-p", str(port)], env=env, start_new_session=True,
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        master = xmlrpc.client.ServerProxy(env["ROS_MASTER_URI"])
+        deadline = time.monotonic() + 30
+        while True:
+            try:
+                master.getSystemState("/test")
+                break
+            except OSError:
+                if time.monotonic() > deadline:
+                    pytest.fail("roscore did not come up within 30 s")
+                time.sleep(0.2)
+        log = (tmp_path / "node.log").open("w")
+        procs.append(subprocess.Popen([sys.executable, "-m", "workloads.motion_planning", "node", "_cores:=2",
+                                       f"_problem_dir:={PROBLEMS}", "_time_limit:=30"], cwd=REPO, env=env,
+                                      start_new_session=True, stdout=log, stderr=subprocess.STDOUT))
+        yield env
+    finally:
+        for proc in reversed(procs):
+            _stop(proc)
+
+
+def _client(env: dict[str, str], *args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, *args], cwd=REPO, env=env, capture_output=True, text=True, timeout=180)
+
+
+def test_node_answers_with_a_collision_free_path(node_env: dict[str, str]) -> None:
+    result = _client(node_env, "-m", "workloads.motion_planning", "client", "easy", "nosuchproblem", "--timeout", "60")
+    assert result.returncode == 1, result.stderr  # the unknown problem gets an empty path
+    easy, unknown = json.loads(result.stdout)
+    assert (easy["name"], easy["solved"], unknown["name"], unknown["solved"]) == ("easy", True, "nosuchproblem", False)
+    assert easy["compute_time_s"] > 0 and easy["round_trip_s"] >= easy["compute_time_s"]
+    problem = load_problem(PROBLEMS / "easy.cfg")
+    path = [Pose(**p) for p in easy["path"]]
+    assert path[0].as_dict() == pytest.approx(problem.start.as_dict(), abs=1e-6)
+    assert path[-1].as_dict() == pytest.approx(problem.goal.as_dict(), abs=1e-6)
+    assert path_is_collision_free(problem, path, resolution=0.01)
+
+
+def test_request_brings_its_own_endpoints(node_env: dict[str, str]) -> None:
+    result = _client(node_env, "-c", ENDPOINTS_CLIENT)
+    assert result.returncode == 0, result.stderr
+    (timing,) = json.loads(result.stdout)
+    path = [Pose(**p) for p in timing["path"]]
+    assert (path[0].x, path[0].y, path[0].z) == pytest.approx((-2.0, -1.0, 1.0), abs=1e-6)
+    assert (path[-1].x, path[-1].y, path[-1].z) == pytest.approx((2.0, 1.0, -1.0), abs=1e-6)
+    problem = load_problem(PROBLEMS / "easy.cfg").with_endpoints(path[0], path[-1])
+    assert path_is_collision_free(problem, path, resolution=0.01)

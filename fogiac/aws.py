@@ -88,10 +88,11 @@ def paginate(api: Any, operation: str, key: str, **kwargs: Any) -> list[Any]:
     """Every item under ``key`` across all pages of ``operation`` (one call if it has no pages)."""
     if not api.can_paginate(operation):
         return list(_call(getattr(api, operation), **kwargs).get(key, []))
-    items: list[Any] = []
-    for page in _call(api.get_paginator(operation).paginate, **kwargs):
-        items.extend(page.get(key, []))
-    return items
+
+    def every_page() -> list[Any]:  # pages are fetched while iterating: errors surface here
+        return [item for page in api.get_paginator(operation).paginate(**kwargs) for item in page.get(key, [])]
+
+    return list(_call(every_page))
 
 
 def tag_filter(stack: str) -> list[dict[str, Any]]:

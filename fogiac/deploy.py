@@ -108,10 +108,10 @@ def _aws_up(plan: Plan, opts: UpOptions) -> UpResult:
         report = aws.preflight(plan, operator_cidr=opts.ssh_from, known_ids=engine.known_ids(plan.stack))
         plan = dataclasses.replace(plan, zone=report.zone)
         opts.show(doc, report)
-        if not opts.yes and not opts.confirm(f"Create these resources in {plan.region} (${plan.hourly_usd:.4f}/h)?"):
-            raise FogiacError("not applied: nothing was changed")
         if plan.vpn is not None:
             opts.announce(engine.VPN_NOTICE)
+        if not opts.yes and not opts.confirm(f"Create these resources in {plan.region} (${plan.hourly_usd:.4f}/h)?"):
+            raise FogiacError("not applied: nothing was changed")
         commit()
         outputs = engine.Engine(plan, on_event=opts.on_event).up(operator_cidrs=report.operator_cidrs)
         folder = stack_dir(plan.stack)

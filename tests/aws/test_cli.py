@@ -65,8 +65,12 @@ def test_missing_pulumi_cli(state: Path, tmp_path: Path, without_cli: None) -> N
 def test_missing_credentials(state: Path, tmp_path: Path, with_cli: None, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("AWS_ACCESS_KEY_ID")
     monkeypatch.delenv("AWS_SECRET_ACCESS_KEY")
-    for verb in ("up", "down"):
-        result = fogiac(verb, str(write_manifest(tmp_path, "nocreds")), "--yes")
+    doctor = fogiac("doctor", str(write_manifest(tmp_path, "nocreds")))
+    assert doctor.exit_code == 1
+    assert "FAIL preflight: no AWS credentials found: set AWS_PROFILE" in doctor.stdout
+    for verb in ("up", "down", "status", "sweep"):
+        extra = ("--dry-run",) if verb == "sweep" else () if verb == "status" else ("--yes",)
+        result = fogiac(verb, str(write_manifest(tmp_path, "nocreds")), *extra)
         assert result.exit_code == 1, verb
         assert result.stderr.splitlines() == [
             "error: no AWS credentials found: set AWS_PROFILE, or AWS_ACCESS_KEY_ID and AWS_SECRET_ACCESS_KEY, "

@@ -10,7 +10,7 @@ Topics (node name ``motion_planning``, so ``~x`` is ``/motion_planning/x``; rema
   request's header (frame_id and stamp; rospy renumbers ``seq`` itself, so match on stamp).
   An empty ``poses`` list means no path: unknown problem, bad request or not solved in time.
 
-Params: ``~cores`` (default: all cores), ``~time_limit`` (default: each cfg's), ``~problem_dir``
+Params: ``~cores`` (0 or unset: all cores), ``~time_limit`` (0 or unset: each cfg's), ``~problem_dir``
 (default: the shipped problems), ``~planner`` (default ``rrtconnect``).
 """
 
@@ -83,11 +83,12 @@ def main() -> None:
     from std_msgs.msg import Float64
 
     rospy.init_node(NODE_NAME)
-    time_limit = rospy.get_param("~time_limit", None)
+    time_limit = float(rospy.get_param("~time_limit", 0.0))
+    cores = int(rospy.get_param("~cores", 0))
     node = PlannerNode(
         problem_dir=Path(rospy.get_param("~problem_dir", str(DEFAULT_PROBLEM_DIR))),
-        cores=int(rospy.get_param("~cores", os.cpu_count() or 1)),
-        time_limit=float(time_limit) if time_limit is not None else None,
+        cores=cores if cores > 0 else os.cpu_count() or 1,
+        time_limit=time_limit if time_limit > 0 else None,
         planner=str(rospy.get_param("~planner", DEFAULT_PLANNER)),
     )
     warm_up()

@@ -1,0 +1,1 @@
+"""Container recipe for the motion-planning workload (Dockerfile.j2)."""

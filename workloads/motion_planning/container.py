@@ -1,0 +1,28 @@
+"""The motion planner's container recipe: the template's defaults and one render call."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fogiac.errors import WorkloadError
+
+TEMPLATE = "workloads/motion_planning/Dockerfile.j2"
+
+DEFAULTS: dict[str, Any] = {
+    "ros_distro": "noetic",
+    "python": "python3.9",
+    "pip_packages": ["ompl==2.0.1", "python-fcl>=0.7", "trimesh>=4", "numpy>=1.24", "pycollada>=0.8"],
+    "cores": 0,
+    "time_limit": 0,
+    "planner": "rrtconnect",
+}
+
+
+def dockerfile(**overrides: Any) -> str:
+    """The Dockerfile text; ``overrides`` replace DEFAULTS, unknown names are an error."""
+    from fogiac.render import render
+
+    unknown = sorted(set(overrides) - set(DEFAULTS))
+    if unknown:
+        raise WorkloadError(f"unknown Dockerfile variables {', '.join(unknown)}; valid: {', '.join(sorted(DEFAULTS))}")
+    return render(TEMPLATE, **{**DEFAULTS, **overrides})

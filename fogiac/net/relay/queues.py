@@ -46,13 +46,22 @@ class Outbox:
             self._cond.notify()
             return dropped
 
-    def get_batch(self, *, max_bytes: int = 256 * 1024) -> list[Item]:
-        """Block for one item, then take whatever else is already queued up to ``max_bytes``,
-        so many small messages leave in one write (one TLS record, one syscall)."""
-        first = self.get()
-        if first is None:
-            return []
-        batch, size = [first], sum(len(b) for b in first)
+    def wait(self) -> bool:
+        """Block until something is queued (True) or the outbox is closed (False)."""
+        with self._cond:
+            while not self._closed and not self._control and not any(self._topics.values()):
+                self._cond.wait()
+            return not self._closed
+
+    def empty(self) -> bool:
+        with self._cond:
+            return not self._control and not any(self._topics.values())
+
+    def take_batch(self, *, max_bytes: int = 256 * 1024) -> list[Item]:
+        """Whatever is queued now, up to about ``max_bytes``, so many small messages leave in
+        one write (one TLS record, one syscall). Never blocks."""
+        batch: list[Item] = []
+        size = 0
         while size < max_bytes:
             item = self.get(timeout=0)
             if item is None:

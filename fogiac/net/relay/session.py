@@ -23,7 +23,7 @@ from fogiac.net.relay.config import EndConfig
 from fogiac.net.relay.framing import Frame, FrameError, Kind
 from fogiac.net.relay.node import RelayNode
 from fogiac.net.relay.pubsub import LocalPublisher, LocalSubscription, TopicMeta
-from fogiac.net.relay.queues import Outbox
+from fogiac.net.relay.queues import Item, Outbox
 from fogiac.net.relay.stats import ClockSync, TopicCounters
 from fogiac.net.relay.tcpros import Stream
 
@@ -70,7 +70,7 @@ class _Source:
         with self._lock:
             body = self._codec.compress(data)
         prefix = framing.data_prefix(self.id, stamp, len(body))
-        dropped = self.session.outbox.put(self.id, (prefix, body), depth=self.session.config.queue_depth)
+        dropped = self.session.send_data(self.id, (prefix, body), depth=self.session.config.queue_depth)
         self.counters.count(len(data))
         if dropped:
             self.counters.drop(dropped)
@@ -106,6 +106,7 @@ class Session:
         self._sources: dict[str, _Source] = {}
         self._sinks: dict[int, _Sink] = {}
         self._lock = threading.Lock()
+        self._send_lock = threading.Lock()  # whoever writes to the socket holds it
         self._closing = threading.Event()
         self.closed = threading.Event()
         self._last_rx = time.monotonic()
@@ -199,15 +200,36 @@ class Session:
         self.sock.close()
         self.closed.set()
 
+    def send_data(self, topic: int, item: Item, *, depth: int) -> int:
+        """Queue a DATA frame latest-wins; returns how many stale ones were dropped.
+
+        When the link is idle and nothing is queued, the calling thread writes it at once:
+        items leave the outbox only under the send lock, so order is kept."""
+        if self._send_lock.acquire(blocking=False):
+            try:
+                if self.outbox.empty() and not self._closing.is_set():
+                    self._write([item])
+                    return 0
+            except OSError as err:
+                self.close(f"write failed: {err}")
+                return 0
+            finally:
+                self._send_lock.release()
+        return self.outbox.put(topic, item, depth=depth)
+
+    def _write(self, batch: list[Item]) -> None:
+        bufs = [buf for item in batch for buf in item]
+        if len(bufs) > 1 and sum(len(b) for b in bufs) <= _COALESCE:
+            self.sock.sendall(b"".join(bufs))
+        else:
+            for buf in bufs:
+                self.sock.sendall(buf)
+
     def _write_loop(self) -> None:
         try:
-            while batch := self.outbox.get_batch():
-                bufs = [buf for item in batch for buf in item]
-                if len(bufs) > 1 and sum(len(b) for b in bufs) <= _COALESCE:
-                    self.sock.sendall(b"".join(bufs))
-                else:
-                    for buf in bufs:
-                        self.sock.sendall(buf)
+            while self.outbox.wait():
+                with self._send_lock:
+                    self._write(self.outbox.take_batch())
         except OSError as err:
             self.close(f"write failed: {err}")
 

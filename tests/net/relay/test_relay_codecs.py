@@ -164,9 +164,13 @@ def test_outbox_drops_oldest_and_serves_control_first() -> None:
     box.put_control((b"ctl",))
     got = [box.get(timeout=0) for _ in range(4)]
     assert got == [(b"ctl",), (b"\x02",), (b"b",), (b"\x03",)]
-    assert box.get(timeout=0) is None
+    assert box.get(timeout=0) is None and box.empty()
+    box.put(3, (b"x" * 10,), depth=9)
+    box.put(3, (b"y" * 10,), depth=9)
+    assert box.take_batch(max_bytes=5) == [(b"x" * 10,)]
+    assert box.take_batch() == [(b"y" * 10,)] and box.take_batch() == []
     box.close()
-    assert box.get() is None
+    assert box.get() is None and not box.wait()
 
 
 def test_clock_sync_keeps_the_shortest_round_trip() -> None:

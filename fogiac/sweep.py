@@ -25,8 +25,13 @@ _GONE = {"InvalidVpcID.NotFound", "InvalidSubnetID.NotFound", "InvalidGroup.NotF
          "InvalidRouteTableID.NotFound", "InvalidInternetGatewayID.NotFound", "InvalidKeyPair.NotFound",
          "InvalidNetworkInterfaceID.NotFound", "InvalidAllocationID.NotFound", "InvalidInstanceID.NotFound",
          "ResourceNotFoundException", "InvalidClientVpnEndpointId.NotFound"}
-_UNSUPPORTED = {"InternalFailure", "NotImplemented", "NotImplementedError", "UnsupportedOperation",
-                "InvalidAction", "UnknownOperationException"}
+_UNSUPPORTED = {"NotImplemented", "UnsupportedOperation", "InvalidAction", "UnknownOperationException"}
+
+
+def _unsupported(err: BaseException) -> bool:
+    """The endpoint lacks the API (HTTP 501, or a code saying so): not an error in the resources."""
+    status = getattr(err, "response", {}).get("ResponseMetadata", {}).get("HTTPStatusCode")
+    return status == 501 or error_code(err) in _UNSUPPORTED
 
 
 @dataclass(frozen=True, order=True)
@@ -73,12 +78,12 @@ def inventory(stack: str, *, ec2: Any, acm: Any) -> tuple[list[Found], list[str]
         for e in paginate(ec2, "describe_client_vpn_endpoints", "ClientVpnEndpoints", Filters=tags):
             if e.get("Status", {}).get("Code") != "deleted":
                 found.append(Found("client-vpn-endpoint", e["ClientVpnEndpointId"], e.get("VpcId", "")))
-    except Exception as err:  # noqa: BLE001 (LocalStack answers Client VPN calls with InternalFailure)
-        if error_code(err) not in _UNSUPPORTED:
+    except Exception as err:  # noqa: BLE001 (LocalStack answers Client VPN calls with 501)
+        if not _unsupported(err):
             raise
         skipped.append(f"client-vpn-endpoint (not supported by this endpoint: {error_code(err)})")
     live = [{"Name": "instance-state-name", "Values": ["pending", "running", "shutting-down", "stopping", "stopped"]}]
-    for rid, r in both("describe_instances", "Reservations", lambda r: r["Instances"][0]["InstanceId"], live):
+    for _, r in both("describe_instances", "Reservations", lambda r: r["Instances"][0]["InstanceId"], live):
         for inst in r["Instances"]:
             found.append(Found("instance", inst["InstanceId"], inst.get("VpcId", "")))
     for a in paginate(ec2, "describe_addresses", "Addresses", Filters=tags):

@@ -76,7 +76,9 @@ def test_down_after_a_failed_apply_leaves_nothing(engine_is_harness: Harness, ec
     result = down(str(path), "--yes")
     assert result.exit_code == 0, result.output
     assert result.stdout.splitlines()[-1] == "halfway-dev: nothing left"
-    assert f"could not delete" not in result.stderr and orphan["GroupId"]
+    assert "could not delete" not in result.stderr
+    gone = ec2.describe_security_groups(Filters=[{"Name": "group-id", "Values": [orphan["GroupId"]]}])
+    assert gone["SecurityGroups"] == []
     assert _tagged(ec2, plan.stack) == {"vpcs": [], "instances": [], "keys": []}
 
 

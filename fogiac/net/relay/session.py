@@ -203,9 +203,11 @@ class Session:
     def send_data(self, topic: int, item: Item, *, depth: int) -> int:
         """Queue a DATA frame latest-wins; returns how many stale ones were dropped.
 
-        When the link is idle and nothing is queued, the calling thread writes it at once:
-        items leave the outbox only under the send lock, so order is kept."""
-        if self._send_lock.acquire(blocking=False):
+        When the link is idle and nothing is queued, the calling thread writes a small one at
+        once: items leave the outbox only under the send lock, so order is kept. Big ones go
+        through the writer thread so reading the next one overlaps encrypting this one."""
+        small = sum(len(b) for b in item) <= _COALESCE  # big ones pipeline through the writer
+        if small and self._send_lock.acquire(blocking=False):
             try:
                 if self.outbox.empty() and not self._closing.is_set():
                     self._write([item])

@@ -23,6 +23,7 @@ def main() -> None:
     parser.add_argument("--latch", action="store_true")
     parser.add_argument("--size", type=int, default=0)
     parser.add_argument("--forever", action="store_true", help="pub: keep going after --count")
+    parser.add_argument("--prefix", default="msg", help="pub: text before the index")
     args = parser.parse_args()
 
     import rospy
@@ -34,7 +35,7 @@ def main() -> None:
         print("ready", flush=True)
         i = 0
         while not rospy.is_shutdown() and (args.forever or i < args.count):
-            pub.publish(String(data=f"msg {i}".ljust(args.size, "x")))
+            pub.publish(String(data=f"{args.prefix} {i}".ljust(args.size, "x")))
             i += 1
             time.sleep(1.0 / args.rate)
         if args.latch:

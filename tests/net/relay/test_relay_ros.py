@@ -228,3 +228,18 @@ def test_edge_refuses_a_cloud_with_another_name(masters: tuple[Master, Master], 
     with relay_pair(masters, certs, server_name="impostor.fogiac", policy=TopicPolicy(auto=True)) as (edge, cloud):
         wait_for(lambda: edge.last_error is not None, 15, "the edge to fail")
         assert "Hostname mismatch" in edge.last_error and not edge.connected.is_set()
+
+
+def test_publishers_joining_later_are_followed(masters: tuple[Master, Master], certs: Path, procs: Procs) -> None:
+    """The master's publisherUpdate reaches the relay: a second publisher's messages cross too."""
+    edge_m, cloud_m = masters
+    with relay_pair(masters, certs, policy=TopicPolicy(auto=True)):
+        procs.node(edge_m, "pub", "/multi", "--forever", "--rate", "20")
+        sub = procs.node(cloud_m, "sub", "/multi", "--count", "100000")
+        wait_for(lambda: len(sub.data()) >= 3, 20, "the first publisher's messages")
+        second = procs.node(edge_m, "pub", "/multi", "--forever", "--rate", "20", "--prefix", "other")
+        wait_for(lambda: any(raw[4:].startswith(b"other") for raw in sub.data()), 20, "the second publisher's")
+        procs.kill(second)
+        wait_for(lambda: len(edge_m.publishers("/multi")) == 1, 10, "the second publisher to leave")
+        count = len(sub.data())
+        wait_for(lambda: len(sub.data()) >= count + 5, 10, "the first publisher to keep flowing")

@@ -77,6 +77,9 @@ class CloudRelay(RelayEnd):
             hello = read_frame(sock)
             if hello.kind is not Kind.HELLO or framing.parse_json(hello).get("role") != "edge":
                 raise FrameError(f"expected the edge's HELLO, got {hello.kind.name}")
+            if framing.parse_json(hello).get("version") != PROTOCOL_VERSION:
+                raise FrameError(f"edge speaks relay protocol {framing.parse_json(hello).get('version')}, "
+                                 f"this cloud end {PROTOCOL_VERSION}")
             send_now(sock, framing.json_frame(Kind.HELLO, {"role": "cloud", "version": PROTOCOL_VERSION}))
             sock.settimeout(None)
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)

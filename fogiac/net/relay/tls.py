@@ -20,7 +20,7 @@ def _need(directory: Path, *names: str) -> list[Path]:
     return paths
 
 
-def _base(purpose: ssl.Purpose, protocol: int) -> ssl.SSLContext:
+def _base(protocol: int) -> ssl.SSLContext:
     ctx = ssl.SSLContext(protocol)
     ctx.minimum_version = ssl.TLSVersion.TLSv1_3
     ctx.verify_mode = ssl.CERT_REQUIRED
@@ -29,7 +29,7 @@ def _base(purpose: ssl.Purpose, protocol: int) -> ssl.SSLContext:
 
 def server_context(certs: Path) -> ssl.SSLContext:
     ca, cert, key = _need(certs, "ca.pem", "server.pem", "server.key")
-    ctx = _base(ssl.Purpose.CLIENT_AUTH, ssl.PROTOCOL_TLS_SERVER)
+    ctx = _base(ssl.PROTOCOL_TLS_SERVER)
     ctx.load_cert_chain(cert, key)
     ctx.load_verify_locations(cafile=str(ca))
     # No session tickets: reader and writer threads share the socket, and a ticket written
@@ -40,7 +40,7 @@ def server_context(certs: Path) -> ssl.SSLContext:
 
 def client_context(certs: Path) -> ssl.SSLContext:
     ca, cert, key = _need(certs, "ca.pem", "client.pem", "client.key")
-    ctx = _base(ssl.Purpose.SERVER_AUTH, ssl.PROTOCOL_TLS_CLIENT)
+    ctx = _base(ssl.PROTOCOL_TLS_CLIENT)
     ctx.check_hostname = True
     ctx.load_cert_chain(cert, key)
     ctx.load_verify_locations(cafile=str(ca))

@@ -30,6 +30,13 @@ from tests.provision.conftest import hosts_manifest, make_workspace, ros_skip_re
 from tests.provision.sshlab import LabHost, lab_skip_reason, ssh_lab  # noqa: E402
 
 
+def _cpu_busy() -> tuple[float, float]:
+    """(busy, total) jiffies of all CPUs, from /proc/stat."""
+    fields = [float(x) for x in Path("/proc/stat").read_text().splitlines()[0].split()[1:]]
+    idle = fields[3] + fields[4]
+    return sum(fields) - idle, sum(fields)
+
+
 def _slowest_steps(report: ProvisionReport) -> str:
     """Each step's slowest host, to show where the time goes."""
     slowest: dict[str, float] = {}
@@ -67,9 +74,12 @@ class Bench:
 
     def run(self, hosts: list[LabHost]) -> tuple[float, ProvisionReport]:
         plan, access = self._plan_access(hosts)
+        busy0, total0 = _cpu_busy()
         started = time.monotonic()
         report = provision(plan, hosts=access, state_dir=self.state, health_timeout=120)
         elapsed = time.monotonic() - started
+        busy1, total1 = _cpu_busy()
+        self.busy = (busy1 - busy0) / max(1.0, total1 - total0)
         if not report.ok:
             raise SystemExit("provisioning failed: " + "; ".join(h.error or "" for h in report.failed))
         return elapsed, report
@@ -97,8 +107,10 @@ def main() -> int:
             meshes.mkdir()
             (meshes / "gripper.stl").write_bytes(os.urandom(args.mesh_kb * 1024))
         one, single = bench.run(hosts[:1])
+        busy_one = bench.busy
         bench.down(hosts[:1])
         many, first = bench.run(hosts)
+        busy_many = bench.busy
         noop, again = bench.run(hosts)
         changed = bench.workspace / "src" / "fogtest" / "config" / "params_007.yaml"
         changed.write_text(changed.read_text() + "tuned: true\n")
@@ -110,8 +122,11 @@ def main() -> int:
     print(f"provision 1 host:            {one:6.2f} s   ({_slowest_steps(single)})")
     print(f"provision {args.hosts} hosts:           {many:6.2f} s   ratio {many / one:.2f}x   (goal <= 1.5x)   "
           f"({_slowest_steps(first)})")
-    print(f"CPUs on this machine: {os.cpu_count()} (every host's roscore, roslaunch, node and relay share them)")
-    print(f"no-op re-run ({again.summary()}): {noop:6.2f} s   ratio {noop / many:.1%}   (goal <= 10%)")
+    print(f"CPU busy (whole machine, {os.cpu_count()} CPUs shared by every host's roscore and nodes): "
+          f"{busy_one:.0%} during 1 host, {busy_many:.0%} during {args.hosts} hosts; load average now "
+          f"{os.getloadavg()[0]:.1f}")
+    print(f"no-op re-run ({again.summary()}): {noop:6.2f} s   ratio {noop / many:.1%}   (goal <= 10%)   "
+          f"({_slowest_steps(again)})")
     print(f"workspace bytes, first push: {first_bytes} B over {args.hosts} hosts; after one changed file: "
           f"{repush_bytes} B   ratio {repush_bytes / first_bytes:.1%}   (goal <= 5%)")
     return 0

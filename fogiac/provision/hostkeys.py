@@ -30,12 +30,22 @@ def known_name(address: str, port: int) -> str:
     return address if port == 22 else f"[{address}]:{port}"
 
 
+_LOCKS: dict[Path, threading.Lock] = {}
+_LOCKS_GUARD = threading.Lock()
+
+
+def _lock_for(path: Path) -> threading.Lock:
+    """One lock per file, however many KnownHosts objects (one per host thread) point at it."""
+    with _LOCKS_GUARD:
+        return _LOCKS.setdefault(path.resolve(), threading.Lock())
+
+
 class KnownHosts:
     """One stack's known_hosts file, safe to share between provisioning threads."""
 
     def __init__(self, path: Path) -> None:
         self.path = path
-        self._lock = threading.Lock()
+        self._lock = _lock_for(path)
 
     def _load(self) -> paramiko.HostKeys:
         keys = paramiko.HostKeys()

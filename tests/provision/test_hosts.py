@@ -89,10 +89,10 @@ def test_first_run_starts_a_rospy_node_inside_each_namespace(lab: Deployment) ->
     report = lab.provision()
     assert report.ok, [h.error for h in report.hosts]
     for outcome in report.hosts:
-        assert {"runtime", "workspace", "services"} <= set(outcome.changed)
+        assert {"runtime", "workspace", "services"} <= set(outcome.changed), outcome
     for host in lab.hosts[:2]:
         pid = lab.node_pid(host)
-        assert pid in host.ns.pids(), "the node runs inside the host's own namespace"
+        assert pid in host.ns.pids(), ("the node runs inside the host's own namespace", pid, report)
     known = lab.state / "known_hosts"
     assert known.stat().st_mode & 0o777 == 0o600
     assert len(known.read_text().splitlines()) == 2

@@ -16,6 +16,7 @@ import subprocess
 import time
 import urllib.request
 from collections.abc import Iterator
+from typing import Any
 from pathlib import Path
 
 import pytest
@@ -103,8 +104,7 @@ def _stop(proc: subprocess.Popen[bytes]) -> None:
             continue
 
 
-@pytest.fixture
-def aws_env(localstack: str, monkeypatch: pytest.MonkeyPatch) -> str:
+def _point_at(localstack: str, monkeypatch: pytest.MonkeyPatch) -> None:
     """Point boto3 (and fogiac) at LocalStack with test keys; never at a real account."""
     for key in [k for k in os.environ if k.startswith("AWS_")]:
         monkeypatch.delenv(key)
@@ -115,19 +115,30 @@ def aws_env(localstack: str, monkeypatch: pytest.MonkeyPatch) -> str:
     monkeypatch.setenv("AWS_EC2_METADATA_DISABLED", "true")
     monkeypatch.setenv("AWS_CONFIG_FILE", os.devnull)
     monkeypatch.setenv("AWS_SHARED_CREDENTIALS_FILE", os.devnull)
+
+
+@pytest.fixture
+def aws_env(localstack: str, monkeypatch: pytest.MonkeyPatch) -> str:
+    _point_at(localstack, monkeypatch)
     monkeypatch.setenv("FOGIAC_OPERATOR_CIDR", "203.0.113.7/32")
     return localstack
 
 
-@pytest.fixture
-def ec2(aws_env: str):  # type: ignore[no-untyped-def]
+@pytest.fixture(scope="session")
+def _clients(localstack: str) -> dict[str, Any]:
+    """One ec2 and one acm client for the session (making a boto3 client costs a second or two)."""
     from fogiac.aws import client
 
-    return client("ec2", region=REGION)
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        _point_at(localstack, monkeypatch)
+        return {"ec2": client("ec2", region=REGION), "acm": client("acm", region=REGION)}
 
 
 @pytest.fixture
-def acm(aws_env: str):  # type: ignore[no-untyped-def]
-    from fogiac.aws import client
+def ec2(aws_env: str, _clients: dict[str, Any]) -> Any:
+    return _clients["ec2"]
 
-    return client("acm", region=REGION)
+
+@pytest.fixture
+def acm(aws_env: str, _clients: dict[str, Any]) -> Any:
+    return _clients["acm"]

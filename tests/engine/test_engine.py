@@ -165,3 +165,31 @@ def test_no_boto3_or_pulumi_on_import() -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
                          env={**os.environ, "PYTHONPATH": str(Path(__file__).parents[2])})
     assert out.stdout.strip() == "[]"
+
+
+def test_workspace_options_for_the_automation_api(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from fogiac.compile import compile_plan
+    from fogiac.manifest import load_manifest
+
+    monkeypatch.setenv("PATH", str(tmp_path / "bin"))
+    fake_pulumi(tmp_path / "bin", f"v{engine.PULUMI_CLI_VERSION}")
+    monkeypatch.delenv("PULUMI_CONFIG_PASSPHRASE", raising=False)
+    monkeypatch.delenv("PULUMI_CONFIG_PASSPHRASE_FILE", raising=False)
+    plan = compile_plan(load_manifest(Path(__file__).parents[2] / "examples" / "minimal.yaml"))
+    opts = engine.Engine(plan)._options()
+    backend = (stack_dir(plan.stack) / "pulumi").as_uri()
+    assert opts.secrets_provider == "passphrase"
+    assert opts.project_settings.name == engine.PROJECT and opts.project_settings.backend.url == backend
+    assert opts.env_vars["PULUMI_BACKEND_URL"] == backend
+    assert opts.env_vars["PULUMI_CONFIG_PASSPHRASE"] == engine.passphrase(plan.stack)
+    assert engine.stack_config(plan) == {"aws:region": "us-west-2"}
+
+
+def test_engine_failures_become_one_line() -> None:
+    from pulumi.automation import CommandError, CommandResult
+
+    err = CommandError(CommandResult(stdout="Updating (x)\n", code=255, stderr=(
+        "Updating...\n  error: creating EC2 Instance: InsufficientInstanceCapacity\n\n")))
+    assert engine._last_error(err) == "error: creating EC2 Instance: InsufficientInstanceCapacity"
+    assert engine._changes({"create": 12, "same": 0, "update": 1}) == "create 12, update 1"
+    assert engine._changes({}) == "no changes"

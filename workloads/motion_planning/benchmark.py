@@ -2,9 +2,10 @@
 
 ``python -m workloads.motion_planning.benchmark --runs 10 --out benchmarks/out``
 
-Runs are paired: run i uses seed ``seed + 1000 i`` on 1 core, and the same seed for worker 0
-of the multi-core race (the others take the next seeds), so a multi-core run is never a
-worse draw than its 1-core twin, only a luckier one or a slower one through contention.
+Runs are paired and interleaved: run i uses seed ``seed + 1000 i`` on 1 core and, right after,
+the same seed for worker 0 of the multi-core race (the others take the next seeds), so a
+multi-core run is never a worse draw than its 1-core twin, only a luckier one or a slower one
+through contention, and load that drifts during the benchmark hits both sides alike.
 Failed runs count with their elapsed time (about the time limit), so medians stay honest.
 Figures are ratios against the 1-core baseline measured in the same run.
 """
@@ -19,7 +20,7 @@ from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from workloads.motion_planning.planner import solve, warm_up
+from workloads.motion_planning.planner import Solution, solve, warm_up
 from workloads.motion_planning.problem import load_problem
 
 PROBLEMS_DIR = Path(__file__).resolve().parent / "problems"
@@ -36,12 +37,20 @@ class Row:
     times_s: tuple[float, ...]
 
 
-def measure(cfg: Path, *, cores: int, runs: int, seed: int, time_limit: float | None) -> Row:
+def measure(cfg: Path, *, cores: Sequence[int], runs: int, seed: int, time_limit: float | None) -> list[Row]:
+    """Interleaved: run i goes 1 core, then N cores, back to back, so load drift hits both alike."""
     problem = load_problem(cfg)
-    results = [solve(problem, cores=cores, time_limit=time_limit, seed=seed + 1000 * i) for i in range(runs)]
-    times = tuple(r.solve_time_s for r in results)
-    return Row(problem.name, cores, runs, sum(r.solved for r in results) / runs, statistics.median(times),
-               statistics.median(r.plan_time_s if r.solved else r.solve_time_s for r in results), times)
+    results: dict[int, list[Solution]] = {c: [] for c in cores}
+    for i in range(runs):
+        for c in cores:
+            results[c].append(solve(problem, cores=c, time_limit=time_limit, seed=seed + 1000 * i))
+    rows = []
+    for c, done in results.items():
+        times = tuple(r.solve_time_s for r in done)
+        plan = [r.plan_time_s if r.solved else r.solve_time_s for r in done]
+        rows.append(Row(problem.name, c, runs, sum(r.solved for r in done) / runs, statistics.median(times),
+                        statistics.median(plan), times))
+    return rows
 
 
 def table(rows: Sequence[Row], cores: int) -> str:
@@ -95,11 +104,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     warm_up()
     rows = []
     for name in names:
-        for cores in (1, args.cores):
-            row = measure(PROBLEMS_DIR / f"{name}.cfg", cores=cores, runs=args.runs, seed=args.seed,
-                          time_limit=args.time_limit)
-            print(f"  {name} on {cores} core(s): median {row.median_solve_s:.3f} s, {row.success_rate:.0%} solved",
-                  flush=True)
+        for row in measure(PROBLEMS_DIR / f"{name}.cfg", cores=(1, args.cores), runs=args.runs, seed=args.seed,
+                           time_limit=args.time_limit):
+            print(f"  {name} on {row.cores} core(s): median {row.median_solve_s:.3f} s, "
+                  f"{row.success_rate:.0%} solved", flush=True)
             rows.append(row)
     print(table(rows, args.cores))
     args.out.mkdir(parents=True, exist_ok=True)

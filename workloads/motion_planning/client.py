@@ -41,8 +41,8 @@ def shipped_problems() -> list[str]:
     return sorted(p.stem for p in DEFAULT_PROBLEM_DIR.glob("*.cfg"))
 
 
-def request_paths(names: Sequence[str], *, timeout: float = 120.0, endpoints: dict[str, tuple[Pose, Pose]] | None = None,
-                  connect_timeout: float = 30.0) -> list[Timing]:
+def request_paths(names: Sequence[str], *, timeout: float = 120.0,
+                  endpoints: dict[str, tuple[Pose, Pose]] | None = None, connect_timeout: float = 30.0) -> list[Timing]:
     """Send one request per problem name, in turn, and wait for each path. Needs rospy.init_node done."""
     import rospy
     from geometry_msgs.msg import PoseArray

@@ -25,13 +25,18 @@ PROBLEMS_DIR = Path(__file__).resolve().parent / "problems"
 Vec = Sequence[float]
 
 
-def box(center: Vec, size: Vec, *, rot_x: float = 0.0) -> trimesh.Trimesh:
-    """An axis-aligned box, optionally turned about the x axis through the origin."""
-    tf = trimesh.transformations.rotation_matrix(rot_x, [1, 0, 0]) @ trimesh.transformations.translation_matrix(center)
-    return trimesh.creation.box(extents=size, transform=tf)
+def box(center: Vec, size: Vec) -> trimesh.Trimesh:
+    """An axis-aligned box."""
+    return trimesh.creation.box(extents=size, transform=trimesh.transformations.translation_matrix(center))
 
 
-def plate_with_slot(x: float, *, half: float, thick: float, slot: Vec, offset: Vec, angle: float) -> list[trimesh.Trimesh]:
+def box_between(lo: Vec, hi: Vec) -> trimesh.Trimesh:
+    """The axis-aligned box with corners ``lo`` and ``hi``."""
+    return box([(a + b) / 2 for a, b in zip(lo, hi)], [b - a for a, b in zip(lo, hi)])
+
+
+def plate_with_slot(x: float, *, half: float, thick: float, slot: Vec, offset: Vec,
+                    angle: float) -> list[trimesh.Trimesh]:
     """A square plate in the y-z plane at ``x`` with a rectangular slot, all turned by ``angle``."""
     sl, sw = slot  # slot extent along the plate's own y and z before turning
     oy, oz = offset
@@ -59,12 +64,14 @@ def wall_with_door(a: Vec, b: Vec, *, height: float, z0: float, thick: float, do
     for s0, s1 in spans:
         if s1 - s0 > 1e-9:
             parts.append(_wall_piece(along_x, fixed, s0, s1, z0, z0 + height, thick))
-    if door is not None:
-        parts.append(_wall_piece(along_x, fixed, door - door_w / 2, door + door_w / 2, z0 + door_h, z0 + height, thick))
+    if door is not None:  # the lintel over the door
+        parts.append(_wall_piece(along_x, fixed, door - door_w / 2, door + door_w / 2, z0 + door_h, z0 + height,
+                                 thick))
     return parts
 
 
-def _wall_piece(along_x: bool, fixed: float, s0: float, s1: float, z0: float, z1: float, thick: float) -> trimesh.Trimesh:
+def _wall_piece(along_x: bool, fixed: float, s0: float, s1: float, z0: float, z1: float,
+                thick: float) -> trimesh.Trimesh:
     c, length = (s0 + s1) / 2, s1 - s0 + thick
     center = (c, fixed, (z0 + z1) / 2) if along_x else (fixed, c, (z0 + z1) / 2)
     size = (length, thick, z1 - z0) if along_x else (thick, length, z1 - z0)
@@ -94,7 +101,7 @@ def easy(out: Path) -> None:
     export(parts, out / "easy_env.stl")
     export([box((0, 0, 0), (1.0, 0.3, 0.3))], out / "easy_robot.stl")
     write_cfg(out / "easy.cfg", robot="easy_robot.stl", world="easy_env.stl", start=(-2, 0, 0), goal=(2, 0, 0),
-              goal_rot=(0, 0, 1, math.pi / 2), lo=(-3, -3, -3), hi=(3, 3, 3), time_limit=5, fraction=0.005)
+              goal_rot=(0, 0, 1, math.pi / 2), lo=(-3, -3, -3), hi=(3, 3, 3), time_limit=10, fraction=0.005)
 
 
 def twisty(out: Path, *, plates: int = 4, slot: Vec = (2.9, 0.95), name: str = "twisty") -> None:
@@ -112,13 +119,12 @@ def twisty(out: Path, *, plates: int = 4, slot: Vec = (2.9, 0.95), name: str = "
 def cubicles(out: Path, *, n: int = 2, door_w: float = 1.4, name: str = "cubicles") -> None:
     t, h, cell = 0.2, 3.0, 4.0
     size = n * cell
-    parts = [box((size / 2, size / 2, -0.25), (size + 6, size + 6, 0.5)),
-             box((size / 2, size / 2, 2 * h + 0.25), (size + 6, size + 6, 0.5))]
-    hatch = (size - 2.0, size - 2.0, 1.6)  # centre x, y and side of the hole between storeys
-    hx0, hx1, hy0, hy1 = hatch[0] - hatch[2] / 2, hatch[0] + hatch[2] / 2, hatch[1] - hatch[2] / 2, hatch[1] + hatch[2] / 2
-    for cx, cy, sx, sy in (((hx0 - 3) / 2, size / 2, hx0 + 3, size + 6), ((hx1 + size + 3) / 2, size / 2, size + 3 - hx1, size + 6),
-                           (hatch[0], (hy0 - 3) / 2, hatch[2], hy0 + 3), (hatch[0], (hy1 + size + 3) / 2, hatch[2], size + 3 - hy1)):
-        parts.append(box((cx, cy, h), (sx, sy, 0.3)))
+    lo, hi = -3.0, size + 3.0  # floor, slab and ceiling reach past the walls
+    parts = [box_between((lo, lo, -0.5), (hi, hi, 0.0)), box_between((lo, lo, 2 * h), (hi, hi, 2 * h + 0.5))]
+    h0, h1 = size - 2.8, size - 1.2  # the 1.6 m square hatch between storeys, in the far cubicle
+    z0, z1 = h - 0.15, h + 0.15
+    parts += [box_between((lo, lo, z0), (h0, hi, z1)), box_between((h1, lo, z0), (hi, hi, z1)),
+              box_between((h0, lo, z0), (h1, h0, z1)), box_between((h0, h1, z0), (h1, hi, z1))]
     for storey in range(2):
         z0 = storey * h + (0.15 if storey else 0.0)
         for i in range(n + 1):
@@ -139,7 +145,7 @@ def cubicles(out: Path, *, n: int = 2, door_w: float = 1.4, name: str = "cubicle
 def maze(out: Path, *, cells: int = 6, cell: float = 2.0, seed: int = 7) -> None:
     rng = random.Random(seed)
     size, height, t = cells * cell, 2.4, 0.2
-    walls = {("v", i, j) for i in range(cells + 1) for j in range(cells)} | {("h", i, j) for i in range(cells + 1) for j in range(cells)}
+    walls = {(kind, i, j) for kind in "vh" for i in range(cells + 1) for j in range(cells)}
     seen, stack = {(0, 0)}, [(0, 0)]
     while stack:  # depth-first carving: a perfect maze, one route between any two rooms
         x, y = stack[-1]
@@ -152,9 +158,12 @@ def maze(out: Path, *, cells: int = 6, cell: float = 2.0, seed: int = 7) -> None
         walls.discard(("v", max(x, nx), y) if nx != x else ("h", max(y, ny), x))
         seen.add((nx, ny))
         stack.append((nx, ny))
-    parts = [box((size / 2, size / 2, -0.25), (size + 4, size + 4, 0.5)), box((size / 2, size / 2, height + 0.25), (size + 4, size + 4, 0.5))]
+    parts = [box_between((-2, -2, -0.5), (size + 2, size + 2, 0)),
+             box_between((-2, -2, height), (size + 2, size + 2, height + 0.5))]
     for kind, i, j in sorted(walls):
-        a, b = ((i * cell, j * cell), (i * cell, (j + 1) * cell)) if kind == "v" else ((j * cell, i * cell), ((j + 1) * cell, i * cell))
+        a, b = (i * cell, j * cell), (i * cell, (j + 1) * cell)
+        if kind == "h":
+            a, b = a[::-1], b[::-1]
         parts += wall_with_door(a, b, height=height, z0=0.0, thick=t, door=None, door_w=0, door_h=0)
     export(parts, out / "maze_env.stl")
     export([box((0, 0, 0), (1.3, 0.6, 0.7)), box((0, 0.2, 0.5), (1.3, 0.2, 0.3))], out / "maze_robot.stl")

@@ -20,7 +20,8 @@ def _bvh(mesh: Mesh):  # -> fcl.BVHModel
 
     model = fcl.BVHModel()
     model.beginModel(len(mesh.vertices), len(mesh.faces))
-    model.addSubModel(np.ascontiguousarray(mesh.vertices, dtype=float), np.ascontiguousarray(mesh.faces, dtype=np.int32))
+    model.addSubModel(np.ascontiguousarray(mesh.vertices, dtype=float),
+                      np.ascontiguousarray(mesh.faces, dtype=np.int32))
     model.endModel()
     return model
 

@@ -72,6 +72,9 @@ class PlannerNode:
             except WorkloadError as err:
                 rospy.logerr(f"motion_planning: {err}")
                 return 0.0, []
+            except Exception as err:  # a robot waits for an answer: log the bug, answer "no path"
+                rospy.logerr(f"motion_planning: {type(err).__name__}: {err}")
+                return 0.0, []
             if not solution.solved:
                 rospy.logwarn(f"motion_planning: {problem.name}: not solved ({solution.status})")
             return solution.solve_time_s, list(solution.path)

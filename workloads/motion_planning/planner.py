@@ -110,17 +110,18 @@ def solve(problem: Problem, *, cores: int | None = None, time_limit: float | Non
                     args=(problem, planner, base_seed + i, limit, simplify_time, flag, results, i, os.getpid()))
         for i in range(n)
     ]
-    for w in workers:
-        w.start()
     winner: dict[str, Any] | None = None
     statuses: list[str] = []
+    started: list[Any] = []
     try:
+        for w in workers:
+            w.start()
+            started.append(w)
         deadline = t0 + limit + simplify_time + 30.0  # generous: start-up and simplification
         while winner is None and len(statuses) < n:
-            try:
-                msg = results.get(timeout=max(0.01, deadline - time.perf_counter()))
-            except queue.Empty:
-                statuses.append("worker did not report")
+            msg = _next_message(results, started, deadline)
+            if msg is None:
+                statuses.append("a worker died or hung without reporting")
                 break
             if msg["solved"]:
                 winner = msg
@@ -129,12 +130,26 @@ def solve(problem: Problem, *, cores: int | None = None, time_limit: float | Non
         elapsed = time.perf_counter() - t0
     finally:
         flag.value = 1
-        _reap(workers, results)
+        _reap(started, results)
     if winner is None:
         return Solution(False, statuses[0] if statuses else "no worker ran", (), n, elapsed, 0.0, 0.0, None, planner)
     path = tuple(Pose(*p) for p in winner["path"])
     return Solution(True, winner["status"], path, n, elapsed, winner["plan_time_s"], winner["simplify_time_s"],
                     winner["index"], planner)
+
+
+def _next_message(results: Any, workers: list[Any], deadline: float) -> dict[str, Any] | None:
+    """The next worker report; None once every worker is gone (or the deadline passed) without one."""
+    while time.perf_counter() < deadline:
+        try:
+            return results.get(timeout=0.05)
+        except queue.Empty:
+            if not any(w.is_alive() for w in workers):
+                try:  # a worker may have exited right after reporting
+                    return results.get(timeout=0.5)
+                except queue.Empty:
+                    return None
+    return None
 
 
 def _reap(workers: list[Any], results: Any) -> None:

@@ -11,7 +11,7 @@ from mp_support import PROBLEMS, descendants
 
 from fogiac.errors import WorkloadError
 from workloads.motion_planning import Pose, load_problem, path_is_collision_free, solve
-from workloads.motion_planning.generate_problems import twisty
+from workloads.motion_planning.generate_problems import GENERATORS, twisty
 
 
 @pytest.fixture(scope="module")
@@ -76,7 +76,8 @@ def test_start_in_collision_is_reported_not_raised(easy) -> None:
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
-        ({"planner": "rrtstar9"}, r"^unknown planner 'rrtstar9'; valid: bkpiece, kpiece, lbkpiece, prm, rrt, rrtconnect$"),
+        ({"planner": "rrtstar9"},
+         r"^unknown planner 'rrtstar9'; valid: bkpiece, kpiece, lbkpiece, prm, rrt, rrtconnect$"),
         ({"cores": 0}, r"^cores must be at least 1, got 0$"),
         ({"time_limit": 0}, r"^time limit must be positive, got 0$"),
     ],
@@ -86,8 +87,10 @@ def test_bad_arguments(easy, kwargs: dict, message: str) -> None:
         solve(easy, **kwargs)
 
 
-def test_generator_is_deterministic(tmp_path: Path) -> None:
-    twisty(tmp_path, plates=2)
-    first = (tmp_path / "twisty_env.stl").read_bytes()
-    twisty(tmp_path, plates=2)
-    assert (tmp_path / "twisty_env.stl").read_bytes() == first
+def test_shipped_problems_are_what_the_generator_writes(tmp_path: Path) -> None:
+    for make in GENERATORS.values():
+        make(tmp_path)
+    shipped = sorted(p.name for p in PROBLEMS.iterdir() if p.suffix in (".cfg", ".stl"))
+    assert shipped == sorted(p.name for p in tmp_path.iterdir())
+    for name in shipped:
+        assert (tmp_path / name).read_bytes() == (PROBLEMS / name).read_bytes(), name

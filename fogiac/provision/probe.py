@@ -21,7 +21,11 @@ class Facts:
 
     base: str
     missing: list[str] = field(default_factory=list)
-    flags: set[str] = field(default_factory=set)  # engine, ros, nvidia, systemd, relaycli
+    flags: set[str] = field(default_factory=set)  # engine, ros, roscore, nvidia, systemd, relaycli
+
+    @property
+    def has_ros(self) -> bool:
+        return {"ros", "roscore"} <= self.flags
     shas: dict[str, str] = field(default_factory=dict)
     manifests: dict[str, list[str]] = field(default_factory=dict)
     markers: dict[str, str] = field(default_factory=dict)
@@ -55,7 +59,7 @@ def gather(host: Host, layout: Layout, *, relay_cli: str) -> Facts:
         key, _, rest = line.partition(" ")
         if key == "missing":
             facts.missing.append(rest)
-        elif key in ("engine", "ros", "nvidia", "systemd", "relaycli"):
+        elif key in ("engine", "ros", "roscore", "nvidia", "systemd", "relaycli"):
             facts.flags.add(key)
         elif key == "sha":
             digest, _, path = rest.partition(" ")

@@ -136,8 +136,11 @@ def _container_runtime(run: HostRun, facts: Facts) -> list[str]:
 
 
 def _native_runtime(run: HostRun, facts: Facts) -> list[str]:
-    if "ros" in facts.flags:
+    if facts.has_ros:
         return []
+    rospy = "import importlib.util as u, sys; sys.exit(u.find_spec('rospy') is None)"
+    if "roscore" in facts.flags and run.host.run(f"python3 -c {q(rospy)}", check=False).ok:
+        return []  # an older supervisor on the host did not answer the rospy question
     if not run.options.allow_install:
         raise ProvisionError(
             f"{run.spec.name}: no ROS {run.plan.ros_distro} (roscore, roslaunch, rospy) and no container engine; "

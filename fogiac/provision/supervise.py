@@ -12,6 +12,7 @@ restarted with exponential backoff (1 s doubling to 30 s, reset after 10 s of go
     supervise.py stop-all --dir RUN
     supervise.py status NAME --dir RUN             one JSON line
     supervise.py status-all --dir RUN              one JSON line per service ever started
+    supervise.py probe --dir RUN                   "ros yes" if rospy imports, then "status JSON" lines
     supervise.py health NAME --dir RUN --check master|node|any|alive --master URI --timeout S
     supervise.py health-all --dir RUN --spec NAME=CHECK ... --master URI --timeout S
 """
@@ -283,8 +284,8 @@ def _last_line(path: Path) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="fogiac-supervise")
-    parser.add_argument("action", choices=("start", "stop", "stop-all", "status", "status-all", "health",
-                                           "health-all"))
+    parser.add_argument("action", choices=("start", "stop", "stop-all", "status", "status-all", "probe",
+                                           "health", "health-all"))
     parser.add_argument("--spec", action="append", default=[], help="NAME=CHECK for health-all")
     parser.add_argument("name", nargs="?", default="")
     parser.add_argument("--dir", required=True, type=Path)
@@ -307,10 +308,16 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{name}: {outcome}")
     elif args.action == "status":
         print(json.dumps(status(args.dir, args.name)))
-    elif args.action == "status-all":
+    elif args.action in ("status-all", "probe"):
+        prefix = "status " if args.action == "probe" else ""
+        if args.action == "probe":  # one interpreter start answers both of provisioning's questions
+            import importlib.util
+
+            if importlib.util.find_spec("rospy") is not None:
+                print("ros yes")
         found = {p.stem for p in args.dir.glob("*.pid")} | {p.stem for p in args.dir.glob("*.state")}
         for name in sorted(found):
-            print(json.dumps(status(args.dir, name)))
+            print(prefix + json.dumps(status(args.dir, name)))
     elif args.action == "health-all":
         deadline = time.monotonic() + args.timeout
         failed = 0

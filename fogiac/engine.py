@@ -191,8 +191,11 @@ class Engine:
         results: list[LayerResult] = []
         programs = self.programs(operator_cidrs=operator_cidrs, network_outputs=lambda: results[0].outputs)
         for layer in LAYERS:
+            if layer == "compute" and not results[0].outputs.get("subnet_ids"):
+                results.append(LayerResult(layer, True, {}, "previewed once the network stack exists"))
+                continue
             stack = self._stack(layer, programs[layer])
-            result = stack.preview(on_event=self.on_event)
+            result = stack.preview(on_event=self.on_event, color="never")
             outputs = {k: v.value for k, v in stack.outputs().items()}
             results.append(LayerResult(layer, True, outputs, _changes(result.change_summary)))
         return results

@@ -127,9 +127,6 @@ def _delete(item: Found, *, ec2: Any, acm: Any) -> None:
             if net.get("Status", {}).get("Code") not in {"disassociating", "disassociated"}:
                 ec2.disassociate_client_vpn_target_network(ClientVpnEndpointId=rid, AssociationId=net["AssociationId"])
         ec2.delete_client_vpn_endpoint(ClientVpnEndpointId=rid)
-    elif kind == "instance":
-        ec2.terminate_instances(InstanceIds=[rid])
-        ec2.get_waiter("instance_terminated").wait(InstanceIds=[rid], WaiterConfig={"Delay": 5, "MaxAttempts": 60})
     elif kind == "elastic-ip":
         addr = ec2.describe_addresses(AllocationIds=[rid])["Addresses"][0]
         if addr.get("AssociationId"):
@@ -165,6 +162,29 @@ def _delete(item: Found, *, ec2: Any, acm: Any) -> None:
         raise ValueError(kind)
 
 
+def _terminate(instances: list[Found], *, ec2: Any) -> dict[Found, str]:
+    """Terminate all at once (one protected instance must not hold up the others), then wait."""
+    if not instances:
+        return {}
+    failed: dict[Found, str] = {}
+    try:
+        ec2.terminate_instances(InstanceIds=[f.id for f in instances])
+    except Exception:  # noqa: BLE001 (one at a time, to learn which ones refuse)
+        for item in instances:
+            try:
+                ec2.terminate_instances(InstanceIds=[item.id])
+            except Exception as err:  # noqa: BLE001
+                if error_code(err) not in _GONE:
+                    failed[item] = f"{item}: {err}"
+    going = [f.id for f in instances if f not in failed]
+    if going:
+        try:
+            ec2.get_waiter("instance_terminated").wait(InstanceIds=going, WaiterConfig={"Delay": 5, "MaxAttempts": 60})
+        except Exception as err:  # noqa: BLE001 (reported through the next listing)
+            failed.update({f: f"{f}: not terminated yet ({err})" for f in instances if f.id in going})
+    return failed
+
+
 def _revoke_group_rules(groups: list[Found], *, ec2: Any) -> None:
     """Drop every rule of the groups about to go, so groups that name each other can be deleted."""
     if not groups:
@@ -198,7 +218,13 @@ def sweep(stack: str, *, ec2: Any, acm: Any, dry_run: bool, kinds: Collection[st
             _revoke_group_rules([f for f in current if f.kind == "security-group"], ec2=ec2)
         except Exception as err:  # noqa: BLE001 (a group already gone: the deletions below will say)
             errors[Found("security-group", "*")] = f"revoking rules: {err}"
+        instances = [f for f in current if f.kind == "instance"]
+        stuck = _terminate(instances, ec2=ec2)
+        errors.update(stuck)
+        deleted.extend(f for f in instances if f not in stuck)
         for item in current:
+            if item.kind == "instance":
+                continue
             try:
                 _delete(item, ec2=ec2, acm=acm)
             except Exception as err:  # noqa: BLE001 (retried next round, reported if it stays)

@@ -26,7 +26,6 @@ import signal
 import subprocess
 import sys
 import time
-import xmlrpc.client
 from pathlib import Path
 
 _GRACE = 5.0
@@ -226,6 +225,8 @@ def status(run_dir: Path, name: str) -> dict:
 
 
 def _registered_pids(master: str) -> dict[str, int]:
+    import xmlrpc.client  # lazily: it costs more than the rest of this script's start-up
+
     proxy = xmlrpc.client.ServerProxy(master)
     code, _, state = proxy.getSystemState("/fogiac_health")
     names = {n for group in state for _, nodes in group for n in nodes} - {"/rosout"}
@@ -259,7 +260,7 @@ def health(run_dir: Path, name: str, *, check: str, master: str, timeout: float,
         else:
             try:
                 pids = _registered_pids(master)
-            except (OSError, xmlrpc.client.Error) as err:
+            except (OSError, ValueError, _xmlrpc_error()) as err:
                 why = f"ROS master {master} not answering ({err})"
             else:
                 if check == "master":
@@ -271,6 +272,12 @@ def health(run_dir: Path, name: str, *, check: str, master: str, timeout: float,
         if time.monotonic() >= deadline:
             return False, f"{why}; log: {_last_line(_Files(run_dir, name).log)}"
         time.sleep(0.2)
+
+
+def _xmlrpc_error() -> type[Exception]:
+    import xmlrpc.client
+
+    return xmlrpc.client.Error
 
 
 def _last_line(path: Path) -> str:

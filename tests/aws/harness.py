@@ -83,6 +83,11 @@ class Harness:
             plan, network=outputs["network"], public_key_openssh=public_key_openssh))
         return outputs
 
+    def run_layer(self, plan: Plan, layer: str, program: Callable[[], None]) -> dict[str, Any]:
+        """Run one layer's program (as built by fogiac's Engine); its resources go to LocalStack."""
+        self.created, self.reused = ([], []) if layer == "network" else (self.created, self.reused)
+        return self._run(plan, layer, program)
+
     def _run(self, plan: Plan, layer: str, program: Callable[[], None]) -> dict[str, Any]:
         return run_program(program, mocks=_Mocks(self, layer), project=PROJECT, stack=f"{plan.stack}-{layer}",
                            preview=False)

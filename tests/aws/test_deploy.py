@@ -1,8 +1,10 @@
-"""fogiac down end to end against LocalStack, with the harness standing in for the Pulumi engine.
+"""fogiac up and down end to end against LocalStack, the harness standing in for the Pulumi engine.
 
-The engine's destroy cannot run here (no Pulumi CLI); the harness deletes what it applied, layer
-by layer, as the engine would. Everything else is fogiac's real down: the lock, the sweep of
-what no state knows, the report of what is left, the exit status and the state files.
+The engine cannot run here (no Pulumi CLI): a subclass of fogiac's Engine keeps everything but
+the Automation API calls (the stack programs with the stack's real certificates and SSH key)
+and hands the programs to the harness, which creates and deletes through boto3. The rest is
+fogiac's real up and down: preflight, the lock, outputs and applied plan, the sweep of what no
+state knows, the report of what is left, the exit status and the state files.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from typer.testing import CliRunner
 
 from fogiac.certs import new_bundle
 from fogiac.cli import app
-from fogiac.engine import OUTPUTS_FILE, PULUMI_CLI_VERSION
+from fogiac.engine import LAYERS, OUTPUTS_FILE, PULUMI_CLI_VERSION, SSH_KEY_FILE, Engine
 from fogiac.state import stack_dir, write_json_atomic
 
 from .harness import Harness, InjectedFailure
@@ -34,11 +36,16 @@ def engine_is_harness(aws_env: str, tmp_path: Path, monkeypatch: pytest.MonkeyPa
     (bin_dir / "pulumi").write_text(f"#!/bin/sh\necho v{PULUMI_CLI_VERSION}\n")
     (bin_dir / "pulumi").chmod(0o755)
     monkeypatch.setenv("PATH", f"{bin_dir}:/usr/bin:/bin")
+    monkeypatch.setenv("COLUMNS", "200")  # rich tables unabridged
     harness = Harness(ec2=ec2, acm=acm)
 
-    class HarnessEngine:
-        def __init__(self, plan: Any, *, on_event: Any = None) -> None:
-            self.plan = plan
+    class HarnessEngine(Engine):
+        def up(self, *, operator_cidrs: tuple[str, ...]) -> dict[str, Any]:
+            outputs: dict[str, Any] = {}
+            programs = self.programs(operator_cidrs=operator_cidrs, network_outputs=lambda: outputs["network"])
+            for layer in LAYERS:
+                outputs[layer] = harness.run_layer(self.plan, layer, programs[layer])
+            return outputs
 
         def destroy(self, *, layers: tuple[str, ...] = ("compute", "network")) -> list[str]:
             return harness.destroy(layers=layers)
@@ -61,6 +68,42 @@ def _tagged(ec2: Any, stack: str) -> dict[str, list[str]]:
 
 def down(*args: str) -> Any:
     return CliRunner().invoke(app, ["down", *args])
+
+
+def fogiac(*args: str) -> Any:
+    return CliRunner().invoke(app, list(args))
+
+
+def test_up_records_what_it_made_and_a_second_up_changes_nothing(engine_is_harness: Harness, ec2: Any,
+                                                                 tmp_path: Path) -> None:
+    import json
+    import stat
+
+    from fogiac.offline import APPLIED_FILE
+
+    path = write_manifest(tmp_path, "roundtrip", nodes=(("planner", "c5.large"),))
+    result = fogiac("up", str(path), "--yes")
+    assert result.exit_code == 0, result.output
+    folder = stack_dir("roundtrip-dev")
+    outputs = json.loads((folder / OUTPUTS_FILE).read_text())
+    instance = outputs["compute"]["hosts"]["planner"]["instance_id"]
+    assert outputs["zone"] == "us-west-2a" and outputs["network"]["vpc_id"].startswith("vpc-")
+    assert f"planner: {instance} c5.large" in result.stdout
+    assert "Client VPN endpoint's subnet association takes about 10 minutes" in result.stderr
+    assert stat.S_IMODE((folder / SSH_KEY_FILE).stat().st_mode) == 0o600
+    assert _tagged(ec2, "roundtrip-dev")["instances"] == [instance]
+    created = list(engine_is_harness.created)
+    assert fogiac("plan", str(path), "--detailed-exitcode").exit_code == 0, "applied.json is the plan document"
+
+    again = fogiac("up", str(path), "--yes")
+    assert again.exit_code == 0, again.output
+    assert engine_is_harness.created == [] and sorted(engine_is_harness.reused) == sorted(created)
+    assert json.loads((folder / OUTPUTS_FILE).read_text()) == outputs
+    assert instance in fogiac("status", str(path)).stdout
+
+    assert down(str(path), "--yes").exit_code == 0
+    assert not (folder / APPLIED_FILE).exists() and not (folder / OUTPUTS_FILE).exists()
+    assert _tagged(ec2, "roundtrip-dev") == {"vpcs": [], "instances": [], "keys": []}
 
 
 def test_down_after_a_failed_apply_leaves_nothing(engine_is_harness: Harness, ec2: Any, tmp_path: Path) -> None:

@@ -24,6 +24,6 @@ fi
 "$python" -m venv "$venv"
 "$venv/bin/python" -m pip install --quiet --upgrade pip
 "$venv/bin/python" -m pip install --quiet "${pins[@]}"
-"$venv/bin/python" -c "import localstack.runtime.main" 
+"$venv/bin/python" -c "import localstack.runtime.main"
 printf '%s\n' "${pins[@]}" > "$stamp"
 echo "localstack venv ready: $venv"

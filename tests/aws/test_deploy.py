@@ -82,7 +82,8 @@ def test_up_records_what_it_made_and_a_second_up_changes_nothing(engine_is_harne
     from fogiac.offline import APPLIED_FILE
 
     path = write_manifest(tmp_path, "roundtrip", nodes=(("planner", "c5.large"),))
-    result = fogiac("up", str(path), "--yes")
+    assert fogiac("plan", str(path), "--out", str(tmp_path / "reviewed.json")).exit_code == 0
+    result = fogiac("up", str(path), "--yes", "--plan", str(tmp_path / "reviewed.json"))
     assert result.exit_code == 0, result.output
     folder = stack_dir("roundtrip-dev")
     outputs = json.loads((folder / OUTPUTS_FILE).read_text())

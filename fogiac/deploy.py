@@ -32,6 +32,7 @@ class UpOptions:
     confirm: Callable[[str], bool] = lambda question: False
     announce: Callable[[str], None] = lambda line: None
     on_event: Callable[[Any], None] | None = None
+    extras: Mapping[str, Any] = field(default_factory=dict)  # target-specific flags
 
 
 @dataclass(frozen=True)
@@ -63,7 +64,7 @@ class DownResult:
 class Target:
     up: Callable[[Plan, UpOptions], UpResult]
     down: Callable[[Plan, DownOptions], DownResult]
-    notes: tuple[str, ...] = field(default=())
+    status: Callable[[Plan], dict[str, Any]]  # JSON-ready: {"stack", "target", "hosts": [{"host", ...}]}
 
 
 def target(name: str) -> Target:
@@ -153,8 +154,18 @@ def _aws_down(plan: Plan, opts: DownOptions) -> DownResult:
         )
 
 
+def _aws_status(plan: Plan) -> dict[str, Any]:
+    from fogiac import aws
+
+    rows = aws.status(plan.stack, region=plan.region)
+    return {"stack": plan.stack, "target": plan.target, "region": plan.region, "hosts": [
+        {"host": r.name, "instance_id": r.instance_id, "state": r.state, "machine": r.machine,
+         "public_ip": r.public_ip, "private_ip": r.private_ip, "launched": r.launched.isoformat(),
+         "uptime_s": round(r.uptime_s), "cost_usd": r.cost_usd} for r in rows]}
+
+
 TARGETS: dict[str, Target] = {
-    "aws": Target(up=_aws_up, down=_aws_down),
+    "aws": Target(up=_aws_up, down=_aws_down, status=_aws_status),
 }
 
 

@@ -170,22 +170,28 @@ def refresh(manifest: Path = _MANIFEST, env: str = _ENV) -> None:
         raise typer.Exit(1)
 
 
-def status(manifest: Path = _MANIFEST, env: str = _ENV) -> None:
-    """The stack's instances: state, type, addresses, uptime and cost so far."""
+def status(manifest: Path = _MANIFEST, env: str = _ENV, target: Optional[str] = _TARGET,
+           as_json: bool = typer.Option(False, "--json", help="Print the status document.")) -> None:
+    """The stack's hosts: state, type, addresses, uptime and cost so far."""
+    import json
+
     from rich.console import Console
     from rich.table import Table
 
-    from fogiac.aws import status as instances
+    from fogiac.deploy import target as target_of
 
-    plan = _compile(manifest, env, None)
-    rows = instances(plan.stack, region=plan.region)
+    plan = _compile(manifest, env, target)
+    doc = target_of(plan.target).status(plan)
+    if as_json:
+        typer.echo(json.dumps(doc, indent=2, sort_keys=True))
+        return
     table = Table(title=f"{plan.stack} ({plan.region})")
     for column in ("host", "instance", "state", "type", "public", "private", "uptime", "cost so far"):
         table.add_column(column)
-    for r in rows:
-        table.add_row(r.name, r.instance_id, r.state, r.machine, r.public_ip or "-", r.private_ip or "-",
-                      f"{r.uptime_s / 3600:.1f} h", f"${r.cost_usd:.2f}")
-    Console().print(table if rows else f"{plan.stack}: no instances")
+    for h in doc["hosts"]:
+        table.add_row(h["host"], h["instance_id"], h["state"], h["machine"], h["public_ip"] or "-",
+                      h["private_ip"] or "-", f"{h['uptime_s'] / 3600:.1f} h", f"${h['cost_usd']:.2f}")
+    Console().print(table if doc["hosts"] else f"{plan.stack}: no instances")
 
 
 def sweep(manifest: Path = _MANIFEST, env: str = _ENV, yes: bool = _YES,

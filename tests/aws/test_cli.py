@@ -7,6 +7,7 @@ CLI is absent here; where a test must get past that check, a fake ``pulumi`` tha
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 from typing import Any
@@ -158,6 +159,9 @@ def test_sweep_and_status_verbs(state: Path, tmp_path: Path, ec2: Any, acm: Any,
     made = leak(ec2, acm, "leaky-dev")
     shown = fogiac("status", str(path))
     assert shown.exit_code == 0 and made["instance"] in shown.stdout and "t3.small" in shown.stdout
+    doc = json.loads(fogiac("status", str(path), "--json").stdout)
+    assert [(h["host"], h["instance_id"], h["state"]) for h in doc["hosts"]] == [
+        (made["instance"], made["instance"], "running")]  # no fogiac:node tag: named by its id
     dry = fogiac("sweep", str(path), "--dry-run")
     assert dry.exit_code == 0
     assert f"would delete: vpc {made['vpc']}" in dry.stdout.splitlines()

@@ -48,12 +48,14 @@ class Solution:
     simplify_time_s: float
     winner: int | None  # index of the worker whose path won
     planner: str
+    collision_checks: int = 0  # the winner's checks up to its first path: work, unlike time, ignores load
 
     def as_dict(self) -> dict[str, Any]:
         return {
             "solved": self.solved, "status": self.status, "cores": self.cores,
             "solve_time_s": self.solve_time_s, "plan_time_s": self.plan_time_s,
             "simplify_time_s": self.simplify_time_s, "winner": self.winner, "planner": self.planner,
+            "collision_checks": self.collision_checks,
             "path": [p.as_dict() for p in self.path],
         }
 
@@ -135,7 +137,7 @@ def solve(problem: Problem, *, cores: int | None = None, time_limit: float | Non
         return Solution(False, statuses[0] if statuses else "no worker ran", (), n, elapsed, 0.0, 0.0, None, planner)
     path = tuple(Pose(*p) for p in winner["path"])
     return Solution(True, winner["status"], path, n, elapsed, winner["plan_time_s"], winner["simplify_time_s"],
-                    winner["index"], planner)
+                    winner["index"], planner, winner["checks"])
 
 
 def _next_message(results: Any, workers: list[Any], deadline: float) -> dict[str, Any] | None:
@@ -232,13 +234,13 @@ def _plan_one(problem: Problem, planner: str, seed: int, time_limit: float, simp
     if flag.value or not setup.haveExactSolutionPath():
         return {"solved": False, "status": "cancelled" if flag.value else status.lower(), "index": index}
     flag.value = 1  # stop the others now; simplification is ours alone
-    plan_time = setup.getLastPlanComputationTime()
+    plan_time, checks = setup.getLastPlanComputationTime(), checker.checks
     setup.simplifySolution(simplify_time)
     states = setup.getSolutionPath().getStates()
     path = [(s.getX(), s.getY(), s.getZ(), s.rotation().x, s.rotation().y, s.rotation().z, s.rotation().w)
             for s in states]
     return {"solved": True, "status": status.lower(), "index": index, "path": path,
-            "plan_time_s": plan_time, "simplify_time_s": setup.getLastSimplificationTime()}
+            "plan_time_s": plan_time, "simplify_time_s": setup.getLastSimplificationTime(), "checks": checks}
 
 
 def _alive(pid: int) -> bool:

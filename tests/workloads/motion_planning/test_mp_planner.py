@@ -36,6 +36,7 @@ def test_easy_path_is_collision_free(easy) -> None:
     solution = solve(easy, cores=1, time_limit=20, seed=1)
     assert solution.solved and solution.status == "exact solution"
     assert solution.cores == 1 and solution.winner == 0
+    assert solution.collision_checks > 0
     _ends_match(easy, solution.path)
     assert path_is_collision_free(easy, solution.path, resolution=0.01)
 

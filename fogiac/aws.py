@@ -322,7 +322,7 @@ def identity(*, region: str, sts: Any = None) -> str:
 
 
 def sweep(stack: str, *, region: str, dry_run: bool, ec2: Any = None, acm: Any = None,
-          kinds: Collection[str] | None = None, rounds: int = 6, first_delay_s: float = 1.0) -> Any:
+          kinds: Collection[str] | None = None, rounds: int = 8, first_delay_s: float = 1.0) -> Any:
     """Delete everything tagged ``fogiac:stack=<stack>`` (see :func:`fogiac.sweep.sweep`)."""
     from fogiac.sweep import sweep as _sweep
 

@@ -57,7 +57,8 @@ class DownResult:
 
     @property
     def clean(self) -> bool:
-        return not self.left and not self.engine_errors
+        """Nothing tagged with the stack is left (engine errors the sweep made good do not count)."""
+        return not self.left
 
 
 @dataclass(frozen=True)

@@ -168,6 +168,8 @@ class Engine:
         """The layer's stack if it was ever created (destroy and refresh skip the others)."""
         import pulumi.automation as auto
 
+        if not backend_dir(self.plan.stack, create=False).exists():
+            return None  # never applied: no state to open (and none to create)
         try:
             return auto.select_stack(stack_name=layer_stack(self.plan.stack, layer), project_name=PROJECT,
                                      program=lambda: None, opts=self._options())
@@ -209,7 +211,8 @@ class Engine:
         for layer in LAYERS:
             stack = self._stack(layer, programs[layer])
             try:
-                result = stack.up(on_event=self.on_event, color="never")
+                # refresh first: a sweep or a console click may have deleted what the state lists
+                result = stack.up(on_event=self.on_event, color="never", refresh=True)
             except auto.CommandError as err:
                 raise EngineError(f"{layer} stack failed: {_last_error(err)}; "
                                   f"`fogiac down` removes what was made") from None

@@ -21,6 +21,7 @@ ORDER = (
     "client-vpn-endpoint", "instance", "elastic-ip", "network-interface", "security-group",
     "key-pair", "subnet", "route-table", "internet-gateway", "vpc", "acm-certificate",
 )
+MAX_DELAY_S = 60.0  # 8 rounds wait about 3 minutes in all: ENIs of a deleted Client VPN take minutes to go
 _GONE = {"InvalidVpcID.NotFound", "InvalidSubnetID.NotFound", "InvalidGroup.NotFound",
          "InvalidRouteTableID.NotFound", "InvalidInternetGatewayID.NotFound", "InvalidKeyPair.NotFound",
          "InvalidNetworkInterfaceID.NotFound", "InvalidAllocationID.NotFound", "InvalidInstanceID.NotFound",
@@ -197,7 +198,7 @@ def _revoke_group_rules(groups: list[Found], *, ec2: Any) -> None:
 
 
 def sweep(stack: str, *, ec2: Any, acm: Any, dry_run: bool, kinds: Collection[str] | None = None,
-          rounds: int = 6, first_delay_s: float = 1.0, sleep: Callable[[float], None] | None = None) -> SweepResult:
+          rounds: int = 8, first_delay_s: float = 1.0, sleep: Callable[[float], None] | None = None) -> SweepResult:
     """Delete all of ``stack`` (or only ``kinds`` of it) in dependency order, retrying "in use"
     with bounded backoff."""
 
@@ -237,7 +238,7 @@ def sweep(stack: str, *, ec2: Any, acm: Any, dry_run: bool, kinds: Collection[st
             errors.pop(item, None)
         current, skipped = listing()
         if current and attempt + 1 < rounds:
-            (sleep or time.sleep)(first_delay_s * 2**attempt)
+            (sleep or time.sleep)(min(MAX_DELAY_S, first_delay_s * 2**attempt))
     left = tuple(current)
     return SweepResult(
         found=tuple(first), deleted=tuple(dict.fromkeys(d for d in deleted if d not in left)), left=left,

@@ -144,6 +144,9 @@ def down(manifest: Path = _MANIFEST, yes: bool = _YES, env: str = _ENV, target: 
         result = chosen.down(plan, DownOptions(keep_network=keep_network, on_event=progress))
     for line in result.engine_errors:
         typer.echo(f"engine: {line}", err=True)
+    if result.engine_errors and result.clean:
+        typer.echo("the sweep removed what the engine could not; its state may still list it: "
+                   "the next up refreshes first", err=True)
     for item in result.not_checked:
         typer.echo(f"not checked: {item}", err=True)
     for item in result.left:

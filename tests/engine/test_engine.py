@@ -193,3 +193,16 @@ def test_engine_failures_become_one_line() -> None:
     assert engine._last_error(err) == "error: creating EC2 Instance: InsufficientInstanceCapacity"
     assert engine._changes({"create": 12, "same": 0, "update": 1}) == "create 12, update 1"
     assert engine._changes({}) == "no changes"
+
+
+def test_destroy_and_refresh_of_a_never_applied_stack_write_nothing(tmp_path: Path,
+                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    from fogiac.compile import compile_plan
+    from fogiac.manifest import load_manifest
+
+    monkeypatch.setenv("PATH", str(tmp_path / "bin"))
+    fake_pulumi(tmp_path / "bin", f"v{engine.PULUMI_CLI_VERSION}")
+    plan = compile_plan(load_manifest(Path(__file__).parents[2] / "examples" / "minimal.yaml"))
+    assert engine.Engine(plan).destroy() == []
+    assert engine.Engine(plan).refresh() == []
+    assert not stack_dir(plan.stack, create=False).exists()

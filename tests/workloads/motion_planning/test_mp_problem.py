@@ -17,7 +17,8 @@ TETRA = [(0, 0, 0), (2, 0, 0), (0, 4, 0), (0, 0, 6)]
 TETRA_FACES = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
 
 
-def collada(vertices: list[tuple[float, float, float]], faces: list[tuple[int, int, int]], *, up: str) -> str:
+def collada(vertices: list[tuple[float, float, float]], faces: list[tuple[int, int, int]], *, up: str,
+            matrix: str = "") -> str:
     floats = " ".join(f"{c:g}" for v in vertices for c in v)
     idx = " ".join(str(i) for f in faces for i in f)
     return f"""<?xml version="1.0" encoding="utf-8"?>
@@ -31,7 +32,8 @@ def collada(vertices: list[tuple[float, float, float]], faces: list[tuple[int, i
     <vertices id="v"><input semantic="POSITION" source="#p"/></vertices>
     <triangles count="{len(faces)}"><input semantic="VERTEX" source="#v" offset="0"/><p>{idx}</p></triangles>
   </mesh></geometry></library_geometries>
-  <library_visual_scenes><visual_scene id="s"><node id="n"><instance_geometry url="#g"/></node></visual_scene>
+  <library_visual_scenes><visual_scene id="s"><node id="n">{f"<matrix>{matrix}</matrix>" if matrix else ""}
+    <instance_geometry url="#g"/></node></visual_scene>
   </library_visual_scenes>
   <scene><instance_visual_scene url="#s"/></scene>
 </COLLADA>
@@ -58,6 +60,17 @@ def test_z_up_collada_is_turned_y_up_and_robot_is_mean_centred(tmp_path: Path) -
     assert _rows(problem.world.vertices) == _rows(np.array([(0, 0, 0), (2, 0, 0), (0, 0, -4), (0, 6, 0)]))
     centred = [(-0.5, -1.5, 1), (1.5, -1.5, 1), (-0.5, -1.5, -3), (-0.5, 4.5, 1)]
     assert _rows(problem.robot.vertices) == _rows(np.array(centred))
+
+
+def test_node_matrix_applies_before_the_up_axis_turn(tmp_path: Path) -> None:
+    pytest.importorskip("collada", reason="trimesh reads .dae through pycollada (pip install pycollada)")
+    # 90 degrees about z, then +(10, 20, 30): (x, y, z) -> (10 - y, 20 + x, 30 + z); then Z_UP: (x, z, -y).
+    matrix = "0 -1 0 10  1 0 0 20  0 0 1 30  0 0 0 1"
+    (tmp_path / "world.dae").write_text(collada(TETRA, TETRA_FACES, up="Z_UP", matrix=matrix))
+    (tmp_path / "robot.obj").write_text(CUBE_OBJ)
+    problem = load_problem(write_cfg(tmp_path, world="world.dae"))
+    expected = [(10, 30, -20), (10, 30, -22), (6, 30, -20), (10, 36, -20)]
+    assert _rows(problem.world.vertices) == _rows(np.array(expected, dtype=float))
 
 
 def test_y_up_collada_is_left_alone(tmp_path: Path) -> None:

@@ -20,7 +20,8 @@ def test_default_recipe() -> None:
     assert "COPY workloads/motion_planning/ workloads/motion_planning/" in lines
     assert "\nWORKDIR /opt/fogiac\n" in text
     cmd = json.loads(lines[-1].removeprefix("CMD "))
-    assert cmd == ["/opt/venv/bin/python", "-m", "workloads.motion_planning", "node",
+    assert "    PATH=/opt/venv/bin:$PATH \\" in lines  # `python` is the venv's, for fogiac's docker run command
+    assert cmd == ["python", "-m", "workloads.motion_planning", "node",
                    "_cores:=0", "_time_limit:=0", "_planner:=rrtconnect"]
 
 

@@ -56,6 +56,7 @@ def train(
     val: int = typer.Option(200, help="held-out validation crops"),
     epochs: int = typer.Option(6),
     batch: int = typer.Option(16),
+    channels: int = typer.Option(32, help="width of the network's deeper layers"),
     seed: int = typer.Option(0),
     workers: int = typer.Option(2, help="processes generating data"),
     threads: int = typer.Option(0, help="torch threads (0: torch's default)"),
@@ -68,7 +69,9 @@ def train(
     if threads:
         torch.set_num_threads(threads)
     command = "python -m workloads.grasp_planning " + shlex.join(sys.argv[1:])
-    cfg = TrainConfig(examples=examples, val=val, epochs=epochs, batch=batch, seed=seed, workers=workers)
+    cfg = TrainConfig(
+        examples=examples, val=val, epochs=epochs, batch=batch, channels=channels, seed=seed, workers=workers
+    )
     run(cfg, out=out, command=command, log=typer.echo)
 
 

@@ -3,8 +3,9 @@
 After FC-GQ-CNN (Satish et al., RA-L 2019): one pass over a depth image gives a quality for
 every pixel and each of ``k`` jaw angles, instead of scoring sampled grasps one crop at a
 time. Ours is a small encoder with dilated convolutions (receptive field about 60 px, over
-twice the open gripper plus its fingers at the canonical 4 mm per pixel) and one skip
-connection so that quality edges stay sharp. It also regresses the jaw width per pixel and angle.
+twice the open gripper plus its fingers at the canonical 4 mm per pixel), batch norm after
+every convolution, and one skip connection so that quality edges stay sharp. It also
+regresses the jaw width per pixel and angle.
 """
 
 from __future__ import annotations
@@ -16,6 +17,16 @@ from torch.nn import functional as F
 DEPTH_SCALE = 0.05  # metres of relative depth mapped to one input unit
 
 
+def _block(cin: int, cout: int, size: int, *, stride: int = 1, dilation: int = 1) -> nn.Sequential:
+    """Convolution, batch norm, ReLU: the normalisation is what lets it train in minutes on a CPU."""
+    pad = dilation * (size - 1) // 2
+    return nn.Sequential(
+        nn.Conv2d(cin, cout, size, stride=stride, padding=pad, dilation=dilation, bias=False),
+        nn.BatchNorm2d(cout),
+        nn.ReLU(inplace=True),
+    )
+
+
 class GraspNet(nn.Module):
     """Depth (N, 1, H, W) in; quality logits and width fractions (N, k, H, W) each out."""
 
@@ -23,14 +34,10 @@ class GraspNet(nn.Module):
         super().__init__()
         self.k = k
         c = channels
-        self.stem = nn.Sequential(nn.Conv2d(1, 16, 5, padding=2), nn.ReLU(inplace=True))
-        self.down1 = nn.Sequential(nn.Conv2d(16, 32, 3, stride=2, padding=1), nn.ReLU(inplace=True))
-        self.down2 = nn.Sequential(
-            nn.Conv2d(32, c, 3, stride=2, padding=1), nn.ReLU(inplace=True),
-            nn.Conv2d(c, c, 3, padding=2, dilation=2), nn.ReLU(inplace=True),
-            nn.Conv2d(c, c, 3, padding=4, dilation=4), nn.ReLU(inplace=True),
-        )
-        self.up = nn.Sequential(nn.Conv2d(c + 32, 32, 3, padding=1), nn.ReLU(inplace=True))
+        self.stem = _block(1, 16, 5)
+        self.down1 = _block(16, 32, 3, stride=2)
+        self.down2 = nn.Sequential(_block(32, c, 3, stride=2), _block(c, c, 3, dilation=2), _block(c, c, 3, dilation=4))
+        self.up = _block(c + 32, 32, 3)
         self.head = nn.Conv2d(32, 2 * k, 1)
 
     def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

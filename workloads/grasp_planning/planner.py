@@ -14,6 +14,7 @@ import numpy as np
 import torch
 from torch.nn import functional as F
 
+from fogiac.errors import WorkloadError
 from workloads.grasp_planning.camera import Intrinsics, Pose, grasp_pose, to_original_pixel
 from workloads.grasp_planning.data import PIXEL_SIZE, resize_factor
 from workloads.grasp_planning.decode import decode_best, tip_depth
@@ -47,7 +48,15 @@ def pick_device(name: str = "auto") -> torch.device:
     """``auto`` takes CUDA when torch sees a GPU, else the CPU."""
     if name == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    return torch.device(name)
+    try:
+        device = torch.device(name)
+    except RuntimeError:
+        raise WorkloadError(f"unknown device {name!r}; use auto, cpu, cuda or cuda:N") from None
+    if device.type == "cuda" and not torch.cuda.is_available():
+        raise WorkloadError(f"device {name!r} asked for, but torch sees no CUDA GPU here")
+    if device.type not in ("cpu", "cuda"):
+        raise WorkloadError(f"unknown device {name!r}; use auto, cpu, cuda or cuda:N")
+    return device
 
 
 def save_model(path: Path, net: GraspNet, meta: dict[str, Any]) -> None:
@@ -57,12 +66,19 @@ def save_model(path: Path, net: GraspNet, meta: dict[str, Any]) -> None:
 
 
 def load_model(path: Path = MODEL_PATH) -> tuple[GraspNet, dict[str, Any]]:
-    blob = torch.load(path, map_location="cpu", weights_only=True)
-    if not isinstance(blob, dict) or blob.get("format") != FORMAT:
-        raise ValueError(f"{path}: not a grasp_planning model of format {FORMAT}")
-    meta = blob["meta"]
-    net = GraspNet(k=int(meta["k"]), channels=int(meta["channels"]))
-    net.load_state_dict(blob["state_dict"])
+    path = Path(path)
+    if not path.is_file():
+        raise WorkloadError(f"{path}: no such model file")
+    try:
+        blob = torch.load(path, map_location="cpu", weights_only=True)
+        if not isinstance(blob, dict) or blob.get("format") != FORMAT:
+            raise ValueError(f"not format {FORMAT}")
+        meta = blob["meta"]
+        net = GraspNet(k=int(meta["k"]), channels=int(meta["channels"]))
+        net.load_state_dict(blob["state_dict"])
+    except Exception as err:  # torch raises several unrelated types for a bad file
+        first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+        raise WorkloadError(f"{path}: not a grasp_planning model ({first})") from None
     return net.eval(), meta
 
 

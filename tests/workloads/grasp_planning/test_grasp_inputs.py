@@ -71,3 +71,28 @@ def test_dockerfile_renders_on_a_cuda_base_with_torch_pinned() -> None:
     assert '"_device:=cuda"' in pinned
     with pytest.raises(ValueError, match=r"unknown Dockerfile variables \['gpu'\]"):
         dockerfile(gpu=True)
+
+
+def test_devices_are_checked_before_use() -> None:
+    import torch
+
+    from workloads.grasp_planning.planner import pick_device
+
+    assert pick_device("cpu") == torch.device("cpu")
+    assert pick_device("auto").type == ("cuda" if torch.cuda.is_available() else "cpu")
+    with pytest.raises(WorkloadError, match=r"^unknown device 'tpu7'; use auto, cpu, cuda or cuda:N$"):
+        pick_device("tpu7")
+    if not torch.cuda.is_available():
+        with pytest.raises(WorkloadError, match=r"^device 'cuda' asked for, but torch sees no CUDA GPU here$"):
+            pick_device("cuda")
+
+
+def test_model_files_are_checked(tmp_path: Path) -> None:
+    from workloads.grasp_planning.planner import load_model
+
+    with pytest.raises(WorkloadError, match=r"none\.pt: no such model file$"):
+        load_model(tmp_path / "none.pt")
+    junk = tmp_path / "junk.pt"
+    junk.write_bytes(b"not a zip")
+    with pytest.raises(WorkloadError, match=r"junk\.pt: not a grasp_planning model \("):
+        load_model(junk)

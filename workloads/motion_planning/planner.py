@@ -101,7 +101,7 @@ def solve(problem: Problem, *, cores: int | None = None, time_limit: float | Non
     limit = problem.time_limit if time_limit is None else time_limit
     if limit <= 0:
         raise WorkloadError(f"time limit must be positive, got {limit:g}")
-    base_seed = seed if seed is not None else random.SystemRandom().randrange(1, 2**31 - n)
+    base_seed = seed if seed is not None else random.SystemRandom().randrange(2**31)
     warm_up()  # a one-off per calling process, kept out of solve_time_s
     ctx = _context()
     flag = ctx.RawValue("b", 0)
@@ -109,7 +109,8 @@ def solve(problem: Problem, *, cores: int | None = None, time_limit: float | Non
     t0 = time.perf_counter()
     workers = [
         ctx.Process(target=_worker, name=f"mp-planner-{i}", daemon=True,
-                    args=(problem, planner, base_seed + i, limit, simplify_time, flag, results, i, os.getpid()))
+                    args=(problem, planner, _ompl_seed(base_seed + i), limit, simplify_time, flag, results, i,
+                          os.getpid()))
         for i in range(n)
     ]
     winner: dict[str, Any] | None = None
@@ -138,6 +139,11 @@ def solve(problem: Problem, *, cores: int | None = None, time_limit: float | Non
     path = tuple(Pose(*p) for p in winner["path"])
     return Solution(True, winner["status"], path, n, elapsed, winner["plan_time_s"], winner["simplify_time_s"],
                     winner["index"], planner, winner["checks"])
+
+
+def _ompl_seed(seed: int) -> int:
+    """Any int to OMPL's seed range: OMPL ignores a seed of 0 and takes only unsigned 32-bit ones."""
+    return seed % (2**31 - 1) + 1
 
 
 def _next_message(results: Any, workers: list[Any], deadline: float) -> dict[str, Any] | None:

@@ -48,6 +48,12 @@ def test_small_twisty_path_is_collision_free(small_twisty) -> None:
     assert path_is_collision_free(small_twisty, solution.path, resolution=0.01)
 
 
+def test_a_seed_makes_one_core_repeatable(easy) -> None:
+    first, second = (solve(easy, cores=1, time_limit=20, seed=0) for _ in range(2))  # 0 is a seed too
+    assert first.solved and first.path == second.path
+    assert first.collision_checks == second.collision_checks
+
+
 def test_checker_catches_a_path_through_the_wall(easy) -> None:
     # Straight through the wall at x=0, beside the window (y=2): must be refused.
     through = [Pose(-2.0, 2.0, 0.0), Pose(2.0, 2.0, 0.0)]

@@ -9,13 +9,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
 from workloads.motion_planning.problem import Mesh, Pose, Problem
 
 
-def _bvh(mesh: Mesh):  # -> fcl.BVHModel
+def _bvh(mesh: Mesh) -> Any:
+    """An fcl.BVHModel of the mesh (typed Any: fcl ships no stubs)."""
     import fcl
 
     model = fcl.BVHModel()

@@ -14,6 +14,7 @@ OMPL.app's conventions are kept so its benchmark problems come out right:
 from __future__ import annotations
 
 import configparser
+import dataclasses
 import difflib
 import math
 import xml.etree.ElementTree as ET
@@ -99,8 +100,7 @@ class Problem:
 
     def with_endpoints(self, start: Pose, goal: Pose) -> Problem:
         """The same scene with other endpoints (a ROS request may bring its own)."""
-        return Problem(self.name, self.robot, self.world, start, goal, self.bounds_min, self.bounds_max,
-                       self.time_limit, self.segment_fraction, self.source)
+        return dataclasses.replace(self, start=start, goal=goal)
 
 
 def read_mesh(path: Path, *, cfg: Path, key: str) -> Mesh:

@@ -4,101 +4,18 @@ runs in its own session and its whole group is killed at teardown, pass or fail.
 
 from __future__ import annotations
 
-import os
-import shutil
-import signal
-import socket
-import subprocess
-import sys
-import threading
-import time
-import xmlrpc.client
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 from fogiac.certs import new_bundle, save_bundle
-
-NODE = Path(__file__).with_name("rosnode.py")
-
-
-def _ros_missing() -> str | None:
-    if shutil.which("roscore") is None:
-        return "roscore not installed (apt-get install ros-core)"
-    probe = subprocess.run([sys.executable, "-c", "import rospy, std_msgs.msg"], capture_output=True)
-    if probe.returncode:
-        return "rospy/std_msgs not importable (apt-get install python3-rospy python3-std-msgs)"
-    return None
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def kill_group(proc: subprocess.Popen, sig: int = signal.SIGINT) -> None:
-    if proc.poll() is None:
-        try:
-            os.killpg(proc.pid, sig)
-            proc.wait(timeout=5)
-        except (ProcessLookupError, subprocess.TimeoutExpired):
-            pass
-    try:
-        os.killpg(proc.pid, signal.SIGKILL)
-    except ProcessLookupError:
-        pass
-    proc.wait(timeout=5)
-
-
-def wait_for(predicate: Callable[[], object], timeout: float = 15.0, what: str = "condition") -> None:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return
-        time.sleep(0.05)
-    raise AssertionError(f"timed out after {timeout:g} s waiting for {what}")
-
-
-@dataclass
-class Proc:
-    """A child process whose stdout lines are collected as they come."""
-
-    popen: subprocess.Popen
-    lines: list[str] = field(default_factory=list)
-
-    def __post_init__(self) -> None:
-        threading.Thread(target=self._pump, daemon=True).start()
-
-    def _pump(self) -> None:
-        assert self.popen.stdout is not None
-        for line in self.popen.stdout:
-            self.lines.append(line.rstrip("\n"))
-
-    def data(self) -> list[bytes]:
-        return [bytes.fromhex(line) for line in self.lines if line and line != "ready"]
-
-
-@dataclass(frozen=True)
-class Master:
-    uri: str
-    env: dict[str, str]
-
-    def state(self) -> list:
-        return xmlrpc.client.ServerProxy(self.uri).getSystemState("/test")[2]
-
-    def publishers(self, topic: str) -> list[str]:
-        return next((nodes for t, nodes in self.state()[0] if t == topic), [])
-
-    def subscribers(self, topic: str) -> list[str]:
-        return next((nodes for t, nodes in self.state()[1] if t == topic), [])
+from relay_support import Master, Procs, ros_missing
 
 
 @pytest.fixture(scope="session")
 def ros_ready() -> None:
-    reason = _ros_missing()
+    reason = ros_missing()
     if reason:
         pytest.skip(reason)
 
@@ -108,52 +25,6 @@ def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
     directory = tmp_path_factory.mktemp("certs")
     save_bundle(new_bundle("relaytest"), directory)
     return directory
-
-
-class Procs:
-    """Starts processes in their own sessions and kills every group at teardown."""
-
-    def __init__(self, home: Path) -> None:
-        self.home = home
-        self.started: list[subprocess.Popen] = []
-
-    def spawn(self, argv: list[str], env: dict[str, str], *, capture: bool = True) -> Proc:
-        popen = subprocess.Popen(
-            argv, env=env, start_new_session=True, text=True,
-            stdout=subprocess.PIPE if capture else subprocess.DEVNULL, stderr=subprocess.DEVNULL if capture else None,
-        )
-        self.started.append(popen)
-        return Proc(popen)
-
-    def roscore(self) -> Master:
-        port = free_port()
-        uri = f"http://127.0.0.1:{port}/"
-        env = dict(os.environ, ROS_HOSTNAME="127.0.0.1", ROS_MASTER_URI=uri, ROS_HOME=str(self.home),
-                   ROS_LOG_DIR=str(self.home / "log"), PYTHONUNBUFFERED="1")
-        self.spawn(["roscore", "-p", str(port)], env)
-        master = Master(uri, env)
-
-        def up() -> bool:
-            try:
-                return "/rosout" in master.subscribers("/rosout")
-            except OSError:
-                return False
-
-        wait_for(up, 30, f"roscore on port {port}")
-        return master
-
-    def node(self, master: Master, *args: str) -> Proc:
-        proc = self.spawn([sys.executable, str(NODE), *args], master.env)
-        wait_for(lambda: "ready" in proc.lines or proc.popen.poll() is not None, 30, f"rospy node {args}")
-        assert proc.popen.poll() is None, f"rospy node {args} exited"
-        return proc
-
-    def kill(self, proc: Proc, sig: int = signal.SIGINT) -> None:
-        kill_group(proc.popen, sig)
-
-    def close(self) -> None:
-        for popen in reversed(self.started):
-            kill_group(popen)
 
 
 @pytest.fixture(scope="module")
@@ -173,18 +44,3 @@ def procs(tmp_path: Path) -> Iterator[Procs]:
         yield p
     finally:
         p.close()
-
-
-def string_msg(text: str) -> bytes:
-    data = text.encode()
-    return len(data).to_bytes(4, "little") + data
-
-
-def indices(data: list[bytes]) -> list[int]:
-    """The i of each "msg <i>xxx" String, checking the bytes are exactly what rospy sent."""
-    out = []
-    for raw in data:
-        text = raw[4:].decode()
-        assert raw == string_msg(text)
-        out.append(int(text.split()[1].rstrip("x")))
-    return out

@@ -9,15 +9,16 @@ import shutil
 import socket
 import ssl
 import struct
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-from conftest import Master, Procs, indices, string_msg, wait_for
 from fogiac.certs import new_bundle, save_bundle
-from fogiac.net.relay import CloudConfig, CloudRelay, EdgeConfig, EdgeRelay, TopicPolicy
+from fogiac.net.relay import CloudConfig, CloudRelay, EdgeConfig, EdgeRelay, TopicPolicy, read_stats
 from fogiac.net.relay.tls import client_context, expected_server_name
+from relay_support import Master, Procs, free_port, indices, string_msg, wait_for
 
 pytestmark = pytest.mark.ros
 
@@ -174,14 +175,10 @@ def test_edge_drops_a_peer_sending_an_absurd_length_and_redials(masters: tuple[M
 
 def test_cloud_restart_resumes_the_flow(masters: tuple[Master, Master], certs: Path, procs: Procs,
                                         tmp_path: Path) -> None:
-    from conftest import free_port
-
     edge_m, cloud_m = masters
     port = free_port()
     cloud_argv = ["-m", "fogiac", "relay", "cloud", "--listen", f"127.0.0.1:{port}", "--master", cloud_m.uri,
                   "--certs", str(certs), "--ros-host", "127.0.0.1"]
-    import sys
-
     first = procs.spawn([sys.executable, *cloud_argv], cloud_m.env)
     stats_file = tmp_path / "edge.json"
     edge = procs.spawn([sys.executable, "-m", "fogiac", "relay", "edge", "--connect", f"127.0.0.1:{port}",
@@ -194,8 +191,6 @@ def test_cloud_restart_resumes_the_flow(masters: tuple[Master, Master], certs: P
     procs.spawn([sys.executable, *cloud_argv], cloud_m.env)
     before = len(sub.data())
     wait_for(lambda: len(sub.data()) >= before + 20, 40, "flow through the restarted cloud end")
-    from fogiac.net.relay import read_stats
-
     wait_for(lambda: stats_file.exists() and read_stats(stats_file).reconnects >= 1, 10, "stats to show a reconnect")
     assert edge.popen.poll() is None
 

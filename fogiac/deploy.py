@@ -39,6 +39,7 @@ class UpOptions:
 class UpResult:
     outputs: Mapping[str, Mapping[str, Any]]
     applied: Path
+    report: Any = None  # the provisioning report, where the target provisions hosts
 
 
 @dataclass(frozen=True)
@@ -165,8 +166,33 @@ def _aws_status(plan: Plan) -> dict[str, Any]:
          "uptime_s": round(r.uptime_s), "cost_usd": r.cost_usd} for r in rows]}
 
 
+def _fleet_up(plan: Plan, opts: UpOptions) -> UpResult:
+    from fogiac.fleet import FleetOptions, fleet_up
+
+    done = fleet_up(plan, FleetOptions(
+        yes=opts.yes, confirm=opts.confirm,
+        start_edge_master=bool(opts.extras.get("start_edge_master")), edge_master=opts.extras.get("edge_master"),
+    ))
+    return UpResult(outputs={"relays": dict(done.relays)}, applied=done.deployment, report=done.report)
+
+
+def _fleet_down(plan: Plan, opts: DownOptions) -> DownResult:
+    from fogiac.fleet import fleet_down
+
+    errors, left = fleet_down(plan)
+    return DownResult(engine_errors=errors, left=left, not_checked=())
+
+
+def _fleet_status(plan: Plan) -> dict[str, Any]:
+    from fogiac.fleet import fleet_status
+
+    return {"stack": plan.stack, "target": plan.target, **fleet_status(plan)}
+
+
 TARGETS: dict[str, Target] = {
     "aws": Target(up=_aws_up, down=_aws_down, status=_aws_status),
+    "hosts": Target(up=_fleet_up, down=_fleet_down, status=_fleet_status),
+    "local": Target(up=_fleet_up, down=_fleet_down, status=_fleet_status),
 }
 
 

@@ -24,9 +24,9 @@ _YES = typer.Option(False, "--yes", "-y", help="Do not ask.")
 
 def _compile(manifest: Path, env: str, target: Optional[str]) -> Any:
     from fogiac.compile import compile_plan
-    from fogiac.manifest import load_manifest
+    from fogiac.fogros import load_any
 
-    return compile_plan(load_manifest(manifest), target=target, environment=env)
+    return compile_plan(load_any(manifest), target=target, environment=env)
 
 
 def _need_yes(yes: bool, what: str) -> None:
@@ -108,8 +108,11 @@ class _Progress:
 
 def up(manifest: Path = _MANIFEST, yes: bool = _YES, env: str = _ENV, target: Optional[str] = _TARGET,
        plan_file: Optional[Path] = typer.Option(None, "--plan", help="Apply only if this saved plan still holds."),
-       ssh_from: Optional[str] = typer.Option(None, "--ssh-from", help="Your CIDR for ssh_from: auto.")) -> None:
-    """Check, show the plan and its cost, ask, then create the network and compute stacks."""
+       ssh_from: Optional[str] = typer.Option(None, "--ssh-from", help="Your CIDR for ssh_from: auto."),
+       start_edge_master: bool = typer.Option(False, "--start-edge-master",
+                                              help="local/hosts: run the edge's roscore too if none answers (demos)."),
+       edge_master: Optional[str] = typer.Option(None, "--edge-master", help="Override edge.ros_master.")) -> None:
+    """Check, show the plan and its cost, ask, then create the machines and start the nodes."""
     from fogiac.deploy import UpOptions, target as target_of
     from fogiac.savedplan import check_saved_plan
 
@@ -122,7 +125,15 @@ def up(manifest: Path = _MANIFEST, yes: bool = _YES, env: str = _ENV, target: Op
         result = chosen.up(plan, UpOptions(
             manifest_path=manifest, yes=yes, ssh_from=ssh_from, show=_show,
             confirm=lambda q: typer.confirm(q, default=False), announce=lambda line: typer.echo(line, err=True),
-            on_event=progress))
+            on_event=progress, extras={"start_edge_master": start_edge_master, "edge_master": edge_master}))
+    if result.report is not None:
+        from rich.console import Console
+
+        from fogiac.provision.report import report_table
+
+        Console().print(report_table(result.report))
+        for host, connect in sorted(result.outputs.get("relays", {}).items()):
+            typer.echo(f"{host}: relay {connect} <-> edge {plan.edge_master if edge_master is None else edge_master}")
     hosts = result.outputs.get("compute", {}).get("hosts", {})
     for name, host in sorted(hosts.items()):
         typer.echo(f"{name}: {host.get('instance_id')} {host.get('machine')} public {host.get('public_ip')} "
@@ -188,6 +199,9 @@ def status(manifest: Path = _MANIFEST, env: str = _ENV, target: Optional[str] = 
     if as_json:
         typer.echo(json.dumps(doc, indent=2, sort_keys=True))
         return
+    if plan.target != "aws":
+        Console().print(*_fleet_tables(doc))
+        return
     table = Table(title=f"{plan.stack} ({plan.region})")
     for column in ("host", "instance", "state", "type", "public", "private", "uptime", "cost so far"):
         table.add_column(column)
@@ -195,6 +209,33 @@ def status(manifest: Path = _MANIFEST, env: str = _ENV, target: Optional[str] = 
         table.add_row(h["host"], h["instance_id"], h["state"], h["machine"], h["public_ip"] or "-",
                       h["private_ip"] or "-", f"{h['uptime_s'] / 3600:.1f} h", f"${h['cost_usd']:.2f}")
     Console().print(table if doc["hosts"] else f"{plan.stack}: no instances")
+
+
+def _fleet_tables(doc: Mapping[str, Any]) -> list[Any]:
+    """Nodes with their supervision state, then relayed topics with live figures."""
+    from rich.table import Table
+
+    if not doc.get("deployed"):
+        return [f"{doc['stack']}: not deployed"]
+    nodes = Table(title=f"{doc['stack']} ({doc['target']}), edge {doc.get('edge_master')}")
+    for column in ("host", "machine", "node", "state", "restarts"):
+        nodes.add_column(column)
+    for host in doc["hosts"]:
+        for node in host["nodes"]:
+            state = "-" if "running" not in node else "running" if node["running"] else "failed"
+            nodes.add_row(host["host"], host["machine"], node["node"], state, str(node.get("restarts", "-")))
+    relays = Table(title="relayed topics")
+    for column in ("host", "link", "topic", "dir", "msgs", "msgs/s", "KiB/s", "latency ms", "drops"):
+        relays.add_column(column, overflow="fold")
+    for relay in doc["relays"]:
+        link = ("up" if relay.get("connected") else "down") + (f" {relay['rtt_ms']:.2f} ms" if relay.get("rtt_ms") else "")
+        for t in relay.get("topics", []) or [{}]:
+            latency = "-" if t.get("latency_ms") is None else f"{t['latency_ms']:.2f}"
+            rate = t.get("bytes_per_s")
+            relays.add_row(relay["host"], link, t.get("topic", "-"), t.get("direction", "-"), str(t.get("msgs", "-")),
+                           str(t.get("msgs_per_s", "-")), "-" if rate is None else f"{rate / 1024:.1f}", latency,
+                           str(t.get("drops", "-")))
+    return [nodes, relays]
 
 
 def sweep(manifest: Path = _MANIFEST, env: str = _ENV, yes: bool = _YES,

@@ -230,7 +230,10 @@ def node_services(plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ..
 
 
 def relay_service(plan: Plan, spec: HostSpec, where: Where) -> Service:
-    command = (f"{_q(where.python)} -m fogiac relay cloud --listen 0.0.0.0:{where.relay_port} "
+    # A host reached over loopback (the local target) never listens beyond it; others listen on
+    # every interface and the security group (or the lab's network) decides who reaches the port.
+    listen = "127.0.0.1" if where.ros_address.startswith("127.") else "0.0.0.0"
+    command = (f"{_q(where.python)} -m fogiac relay cloud --listen {listen}:{where.relay_port} "
                f"--master {master_uri(where)} --certs {_q(where.layout.certs)}")
     return _service("relay-cloud", plan=plan, spec=spec, where=where, command=command, check="alive",
                     python_path=where.code_root, after="fogiac-ros-master.service")

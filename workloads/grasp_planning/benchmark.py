@@ -27,6 +27,7 @@ import torch
 from workloads.grasp_planning.camera import to_original_pixel
 from workloads.grasp_planning.data import TEST_SEED, BenchScene, bench_scene, resize_factor
 from workloads.grasp_planning.decode import decode_best
+from workloads.grasp_planning.network import prepare
 from workloads.grasp_planning.planner import MODEL_PATH, GraspPlanner
 from workloads.grasp_planning.quality import grasp_quality, quality_map
 from workloads.grasp_planning.scene import render
@@ -34,14 +35,31 @@ from workloads.grasp_planning.train import SUCCESS
 
 
 def latency(planner: GraspPlanner, s: BenchScene, *, reps: int, warmup: int = 3) -> dict[str, float]:
+    """Whole ``plan`` calls, and the network's forward pass alone on the same prepared input."""
     for _ in range(warmup):
         planner.plan(s.depth, s.intr)
-    times = []
+    plans = []
     for _ in range(reps):
         t = time.perf_counter()
         planner.plan(s.depth, s.intr)  # ends with a device-to-host copy, so CUDA work is finished
-        times.append(time.perf_counter() - t)
-    return {"median_ms": 1000 * float(np.median(times)), "p90_ms": 1000 * float(np.percentile(times, 90))}
+        plans.append(time.perf_counter() - t)
+    _, _, small, _ = planner.maps(s.depth, s.intr)
+    x = prepare(torch.from_numpy(small)[None, None].to(planner.device))
+    nets = []
+    with torch.inference_mode():
+        for i in range(warmup + reps):
+            t = time.perf_counter()
+            planner.net(x)
+            if planner.device.type == "cuda":
+                torch.cuda.synchronize(planner.device)
+            if i >= warmup:
+                nets.append(time.perf_counter() - t)
+    return {
+        "median_ms": 1000 * float(np.median(plans)),
+        "p90_ms": 1000 * float(np.percentile(plans, 90)),
+        "net_median_ms": 1000 * float(np.median(nets)),
+        "net_p90_ms": 1000 * float(np.percentile(nets, 90)),
+    }
 
 
 def random_grasp(s: BenchScene, rng: np.random.Generator) -> tuple[float, float, float]:
@@ -81,6 +99,7 @@ def success(planner: GraspPlanner, *, scenes: int, seed: int) -> dict[str, Any]:
 
 
 def run(*, out: Path, model: Path, scenes: int, reps: int, threads: list[int]) -> dict[str, Any]:
+    load_before = os.getloadavg()[0]  # other work on the machine skews the thread comparison
     s = bench_scene(TEST_SEED)
     rows: list[dict[str, Any]] = []
     cpu = GraspPlanner.load(model, device="cpu")
@@ -91,12 +110,15 @@ def run(*, out: Path, model: Path, scenes: int, reps: int, threads: list[int]) -
     if torch.cuda.is_available():
         gpu = GraspPlanner.load(model, device="cuda")
         rows.append({"device": f"cuda ({torch.cuda.get_device_name(0)})", "threads": max(threads), **latency(gpu, s, reps=reps)})
-    base = rows[0]["median_ms"]
+    base, net_base = rows[0]["median_ms"], rows[0]["net_median_ms"]
     for r in rows:
         r["speedup_vs_1_thread"] = base / r["median_ms"]
+        r["net_speedup_vs_1_thread"] = net_base / r["net_median_ms"]
     result = {
-        "input": f"{s.depth.shape[1]}x{s.depth.shape[0]} depth, TEST_SEED scene",
+        "input": f"{s.depth.shape[1]}x{s.depth.shape[0]} depth",
+        "net_input": "x".join(str(n) for n in cpu.maps(s.depth, s.intr)[2].shape[::-1]),
         "cpu_count": os.cpu_count(),
+        "load_average_1min_before": load_before,
         "torch": torch.__version__,
         "latency": rows,
         "held_out_scenes": scenes,
@@ -110,9 +132,19 @@ def run(*, out: Path, model: Path, scenes: int, reps: int, threads: list[int]) -
 
 
 def table(result: dict[str, Any]) -> str:
-    lines = ["| device | threads | median ms | p90 ms | speedup vs 1 thread |", "|---|---|---|---|---|"]
+    lines = [
+        f"plan() on {result['input']}; network alone on its {result['net_input']} canonical input;"
+        f" {result['cpu_count']} cores, 1-minute load average {result['load_average_1min_before']:.2f} before the run",
+        "",
+        "| device | threads | plan median ms | plan p90 ms | plan speedup | net median ms | net p90 ms | net speedup |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for r in result["latency"]:
-        lines.append(f"| {r['device']} | {r['threads']} | {r['median_ms']:.1f} | {r['p90_ms']:.1f} | {r['speedup_vs_1_thread']:.2f}x |")
+        lines.append(
+            f"| {r['device']} | {r['threads']} | {r['median_ms']:.1f} | {r['p90_ms']:.1f} | {r['speedup_vs_1_thread']:.2f}x"
+            f" | {r['net_median_ms']:.2f} | {r['net_p90_ms']:.2f} | {r['net_speedup_vs_1_thread']:.2f}x |"
+        )
+    lines.append("(speedups: against the 1-thread CPU median of the same run)")
     lines += ["", f"| grasp on {result['held_out_scenes']} held-out scenes | success rate | mean robust quality |", "|---|---|---|"]
     for name, r in result["success"].items():
         lines.append(f"| {name} | {r['success_rate']:.2f} | {r['mean_quality']:.3f} |")

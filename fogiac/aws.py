@@ -328,3 +328,33 @@ def sweep(stack: str, *, region: str, dry_run: bool, ec2: Any = None, acm: Any =
 
     return _sweep(stack, ec2=ec2 or client("ec2", region=region), acm=acm or client("acm", region=region),
                   dry_run=dry_run, kinds=kinds, rounds=rounds, first_delay_s=first_delay_s)
+
+
+def parse_host_fingerprints(console: str) -> tuple[str, ...]:
+    """The ``SHA256:`` fingerprints the instance printed between fogiac's markers (cloud-init)."""
+    from stacks.compute import HOST_KEYS_BEGIN, HOST_KEYS_END
+
+    start, end = console.rfind(HOST_KEYS_BEGIN), console.rfind(HOST_KEYS_END)
+    if start < 0 or end < start:
+        return ()
+    block = console[start + len(HOST_KEYS_BEGIN):end]
+    return tuple(dict.fromkeys(word for word in block.split() if word.startswith("SHA256:")))
+
+
+def host_fingerprints(instance_id: str, *, region: str, ec2: Any = None, timeout: float = 900.0,
+                      poll: float = 15.0, sleep: Any = None) -> tuple[str, ...]:
+    """Wait until the instance's console shows its SSH host keys; pin those, never trust on sight."""
+    import time
+
+    ec2 = ec2 or client("ec2", region=region)
+    sleep = sleep or time.sleep
+    deadline = time.monotonic() + timeout
+    while True:
+        out = _call(ec2.get_console_output, InstanceId=instance_id, Latest=True).get("Output") or ""
+        found = parse_host_fingerprints(out)
+        if found:
+            return found
+        if time.monotonic() >= deadline:
+            raise CloudError(f"{instance_id}: no SSH host keys on its console after {timeout:.0f} s; "
+                             "refusing to connect without pinning them (is cloud-init running?)")
+        sleep(poll)

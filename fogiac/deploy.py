@@ -115,12 +115,39 @@ def _aws_up(plan: Plan, opts: UpOptions) -> UpResult:
             opts.announce(engine.VPN_NOTICE)
         if not opts.yes and not opts.confirm(f"Create these resources in {plan.region} (${plan.hourly_usd:.4f}/h)?"):
             raise FogiacError("not applied: nothing was changed")
+        infra_only = bool(opts.extras.get("infra_only"))
+        master = opts.extras.get("edge_master") or plan.edge_master
+        if not infra_only:  # before money is spent: the robot's side must be there to connect
+            from fogiac.fleet import ensure_edge_master
+
+            ensure_edge_master(plan, master, start=bool(opts.extras.get("start_edge_master")))
         commit()
         outputs = engine.Engine(plan, on_event=opts.on_event).up(operator_cidrs=report.operator_cidrs)
         folder = stack_dir(plan.stack)
         write_json_atomic(folder / engine.OUTPUTS_FILE, {"zone": plan.zone, **outputs})
         write_json_atomic(folder / APPLIED_FILE, doc)
-        return UpResult(outputs=outputs, applied=folder / APPLIED_FILE)
+        if infra_only:
+            return UpResult(outputs=outputs, applied=folder / APPLIED_FILE)
+        return UpResult(outputs=outputs, applied=folder / APPLIED_FILE,
+                        report=_aws_connect(plan, outputs, master=master, announce=opts.announce))
+
+
+def _aws_connect(plan: Plan, outputs: Mapping[str, Any], *, master: str, announce: Callable[[str], None]) -> Any:
+    """After the stacks: the edge's VPN profile, then provisioning and relays as on every target."""
+    from fogiac import aws
+    from fogiac.fleet import aws_access, provision_and_connect
+
+    if plan.vpn is not None:
+        from fogiac.certs import load_or_create_bundle
+        from fogiac.net.vpn import write_client_profile
+
+        profile = write_client_profile(
+            endpoint_dns=outputs["network"]["vpn_dns_name"], stack=plan.stack,
+            bundle=load_or_create_bundle(plan.stack, stack_dir(plan.stack) / "certs"))
+        announce(f"VPN profile: {profile} (connect with: sudo fogiac vpn up; the relays retry until it is up)")
+    announce("waiting for each instance to print its SSH host keys on its console (pinned, never trusted on sight)")
+    access, connect = aws_access(plan, outputs, fingerprints=lambda iid: aws.host_fingerprints(iid, region=plan.region))
+    return provision_and_connect(plan, access=access, connect=connect, master=master).report
 
 
 def kept_network_usd_per_hour(plan: Plan) -> float:
@@ -137,6 +164,9 @@ def _aws_down(plan: Plan, opts: DownOptions) -> DownResult:
     engine.pulumi_cli()
     aws.identity(region=plan.region)  # missing credentials: one line, before anything is destroyed
     with untouched_on_failure(plan.stack), stack_lock(plan.stack, operation="down"):
+        from fogiac.fleet import stop_edge
+
+        stop_edge(plan)  # the edge relays first: their peers are about to go
         layers = ("compute",) if opts.keep_network else ("compute", "network")
         errors = engine.Engine(plan, on_event=opts.on_event).destroy(layers=layers)
         result = aws.sweep(plan.stack, region=plan.region, dry_run=False,

@@ -79,7 +79,8 @@ def _master_up(uri: str, *, timeout: float) -> bool:
         time.sleep(0.2)
 
 
-def _ensure_edge_master(plan: Plan, uri: str, *, start: bool) -> None:
+def ensure_edge_master(plan: Plan, uri: str, *, start: bool) -> None:
+    """The edge's ROS master must answer; for demos fogiac can run it (supervised, stopped by down)."""
     from fogiac.provision import supervise
 
     if _master_up(uri, timeout=0.5):
@@ -97,50 +98,98 @@ def _ensure_edge_master(plan: Plan, uri: str, *, start: bool) -> None:
 def _connect_address(plan: Plan, host: str, access: Any) -> str:
     if access.kind == "local":
         return f"127.0.0.1:{access.relay_port}"
-    return f"{access.address}:{plan.relay[[r.host for r in plan.relay].index(host)].port}"
+    return f"{access.address}:{next(r.port for r in plan.relay if r.host == host)}"
 
 
-def fleet_up(plan: Plan, opts: FleetOptions) -> FleetUp:
-    """Provision every host, then start the edge relays; a failed host fails the run, others stay up."""
+def provision_and_connect(plan: Plan, *, access: Mapping[str, Any], connect: Mapping[str, str], master: str,
+                          started_edge_master: bool = False,
+                          progress: Callable[[str, str, str], None] | None = None) -> FleetUp:
+    """Provision every host, start one edge relay per host that came up, record the deployment.
+
+    Every target ends here: ``local`` and ``hosts`` with their own access records, ``aws`` with
+    the instances' addresses and pinned host keys. A failed host fails the run; the others stay
+    up so ``fogiac down`` (or a fixed re-run) finds them.
+    """
     from fogiac.certs import load_or_create_bundle
     from fogiac.provision import supervise
     from fogiac.provision.runner import provision
-    from fogiac.provision.targets import access_for
 
     folder = stack_dir(plan.stack)
+    certs = folder / "certs"
+    load_or_create_bundle(plan.stack, certs)
+    report = provision(plan, hosts=access, state_dir=folder, certs_dir=certs, progress=progress)
+    relays: dict[str, str] = {}
+    for route in plan.relay:
+        if not next(o for o in report.hosts if o.host == route.host).ok:
+            continue
+        relays[route.host] = connect[route.host]
+        supervise.start(edge_dir(plan), f"relay-edge-{route.host}", _relay_argv(
+            route, connect=relays[route.host], master=master, certs=certs,
+            stats=edge_dir(plan) / f"relay-edge-{route.host}.stats.json"))
+    deployment = folder / DEPLOYMENT_FILE
+    write_json_atomic(deployment, {
+        "target": plan.target, "edge_master": master, "relays": relays,
+        "started_edge_master": started_edge_master, "nodes": {n.name: n.host for n in plan.nodes},
+    })
+    if not report.ok:
+        lines = [f"{o.host}: {o.error}" for o in report.failed]
+        raise ProvisionError("; ".join(lines) + " (the other hosts are up; `fogiac down` removes everything)")
+    return FleetUp(report=report, relays=relays, edge_master=master, deployment=deployment)
+
+
+def fleet_up(plan: Plan, opts: FleetOptions) -> FleetUp:
+    """``up`` for local sandboxes and lab hosts: nothing to create, everything to provision."""
+    from fogiac.provision.targets import access_for
+
     master = opts.edge_master or plan.edge_master
     if not opts.yes and not opts.confirm(f"Deploy {len(plan.nodes)} node(s) to {len(plan.hosts)} {plan.target} host(s)?"):
         raise FogiacError("not applied: nothing was changed")
     with stack_lock(plan.stack, operation="up"):
-        _ensure_edge_master(plan, master, start=opts.start_edge_master)
-        certs = folder / "certs"
-        load_or_create_bundle(plan.stack, certs)
-        access = access_for(plan, state_dir=folder)
-        report = provision(plan, hosts=access, state_dir=folder, certs_dir=certs, progress=opts.progress)
-        relays: dict[str, str] = {}
-        for route in plan.relay:
-            outcome = next(o for o in report.hosts if o.host == route.host)
-            if not outcome.ok:
-                continue
-            relays[route.host] = _connect_address(plan, route.host, access[route.host])
-            supervise.start(edge_dir(plan), f"relay-edge-{route.host}", _relay_argv(
-                route, connect=relays[route.host], master=master, certs=certs,
-                stats=edge_dir(plan) / f"relay-edge-{route.host}.stats.json"))
-        deployment = folder / DEPLOYMENT_FILE
-        write_json_atomic(deployment, {
-            "target": plan.target, "edge_master": master, "relays": relays,
-            "started_edge_master": opts.start_edge_master,
-            "nodes": {n.name: n.host for n in plan.nodes},
-        })
-        if not report.ok:
-            lines = [f"{o.host}: {o.error}" for o in report.failed]
-            raise ProvisionError("; ".join(lines) + " (the other hosts are up; `fogiac down` removes everything)")
-        return FleetUp(report=report, relays=relays, edge_master=master, deployment=deployment)
+        ensure_edge_master(plan, master, start=opts.start_edge_master)
+        access = access_for(plan, state_dir=stack_dir(plan.stack))
+        connect = {host: _connect_address(plan, host, a) for host, a in access.items()}
+        return provision_and_connect(plan, access=access, connect=connect, master=master,
+                                     started_edge_master=opts.start_edge_master, progress=opts.progress)
+
+
+def aws_access(plan: Plan, outputs: Mapping[str, Any], *, fingerprints: Callable[[str], tuple[str, ...]]
+               ) -> tuple[dict[str, Any], dict[str, str]]:
+    """SSH access (host keys pinned from each console) and relay addresses from the stack outputs.
+
+    In vpn mode the edge reaches a host's private address through the Client VPN; in proxy mode
+    its public address, which the security group opens to ``ssh_from`` only.
+    """
+    from fogiac.provision.host import SshAccess
+    from stacks.entry import SSH_KEY
+
+    key = stack_dir(plan.stack) / "ssh" / SSH_KEY
+    hosts = outputs.get("compute", {}).get("hosts", {})
+    access: dict[str, Any] = {}
+    connect: dict[str, str] = {}
+    for spec in plan.hosts:
+        out = hosts.get(spec.name)
+        if not out or not out.get("public_ip"):
+            raise ProvisionError(f"host {spec.name}: the compute stack reported no public address")
+        access[spec.name] = SshAccess(address=out["public_ip"], user="ubuntu", key=key,
+                                      fingerprints=fingerprints(out["instance_id"]))
+        route = next(r for r in plan.relay if r.host == spec.name)
+        via = out["private_ip"] if route.connect_via == "private" else out["public_ip"]
+        connect[spec.name] = f"{via}:{route.port}"
+    return access, connect
 
 
 def edge_services(plan: Plan) -> list[str]:
     folder = edge_dir(plan)
     return sorted(p.stem for p in folder.glob("*.pid")) if folder.exists() else []
+
+
+def stop_edge(plan: Plan, *, keep_master: bool = False) -> None:
+    """Stop this machine's edge processes of the stack: the relays, and the demo master unless kept."""
+    from fogiac.provision import supervise
+
+    names = [s for s in edge_services(plan) if not (keep_master and s == EDGE_MASTER)]
+    if names:
+        supervise.stop_many(edge_dir(plan), names)
 
 
 def fleet_down(plan: Plan) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -152,13 +201,13 @@ def fleet_down(plan: Plan) -> tuple[tuple[str, ...], tuple[str, ...]]:
     folder = stack_dir(plan.stack)
     errors: list[str] = []
     with stack_lock(plan.stack, operation="down"):
-        supervise.stop_many(edge_dir(plan), [s for s in edge_services(plan) if s != EDGE_MASTER])
+        stop_edge(plan, keep_master=True)
         try:
             report = teardown(plan, hosts=access_for(plan, state_dir=folder), state_dir=folder)
             errors += [f"{o.host}: {o.error}" for o in report.failed]
         except FogiacError as err:
             errors.append(str(err))
-        supervise.stop_many(edge_dir(plan), edge_services(plan))
+        stop_edge(plan)
         left = [f"process {name} (pid {supervise.status(edge_dir(plan), name)['pid']})"
                 for name in edge_services(plan) if supervise.status(edge_dir(plan), name)["running"]]
         if plan.target == "local":

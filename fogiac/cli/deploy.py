@@ -111,7 +111,8 @@ def up(manifest: Path = _MANIFEST, yes: bool = _YES, env: str = _ENV, target: Op
        ssh_from: Optional[str] = typer.Option(None, "--ssh-from", help="Your CIDR for ssh_from: auto."),
        start_edge_master: bool = typer.Option(False, "--start-edge-master",
                                               help="local/hosts: run the edge's roscore too if none answers (demos)."),
-       edge_master: Optional[str] = typer.Option(None, "--edge-master", help="Override edge.ros_master.")) -> None:
+       edge_master: Optional[str] = typer.Option(None, "--edge-master", help="Override edge.ros_master."),
+       infra_only: bool = typer.Option(False, "--infra-only", help="aws: create the stacks only; provision nothing.")) -> None:
     """Check, show the plan and its cost, ask, then create the machines and start the nodes."""
     from fogiac.deploy import UpOptions, target as target_of
     from fogiac.savedplan import check_saved_plan
@@ -125,7 +126,8 @@ def up(manifest: Path = _MANIFEST, yes: bool = _YES, env: str = _ENV, target: Op
         result = chosen.up(plan, UpOptions(
             manifest_path=manifest, yes=yes, ssh_from=ssh_from, show=_show,
             confirm=lambda q: typer.confirm(q, default=False), announce=lambda line: typer.echo(line, err=True),
-            on_event=progress, extras={"start_edge_master": start_edge_master, "edge_master": edge_master}))
+            on_event=progress, extras={"start_edge_master": start_edge_master, "edge_master": edge_master,
+                                         "infra_only": infra_only}))
     if result.report is not None:
         from rich.console import Console
 

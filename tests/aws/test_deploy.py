@@ -83,7 +83,7 @@ def test_up_records_what_it_made_and_a_second_up_changes_nothing(engine_is_harne
 
     path = write_manifest(tmp_path, "roundtrip", nodes=(("planner", "c5.large"),))
     assert fogiac("plan", str(path), "--out", str(tmp_path / "reviewed.json")).exit_code == 0
-    result = fogiac("up", str(path), "--yes", "--plan", str(tmp_path / "reviewed.json"))
+    result = fogiac("up", str(path), "--yes", "--infra-only", "--plan", str(tmp_path / "reviewed.json"))
     assert result.exit_code == 0, result.output
     folder = stack_dir("roundtrip-dev")
     outputs = json.loads((folder / OUTPUTS_FILE).read_text())
@@ -96,7 +96,7 @@ def test_up_records_what_it_made_and_a_second_up_changes_nothing(engine_is_harne
     created = list(engine_is_harness.created)
     assert fogiac("plan", str(path), "--detailed-exitcode").exit_code == 0, "applied.json is the plan document"
 
-    again = fogiac("up", str(path), "--yes")
+    again = fogiac("up", str(path), "--yes", "--infra-only")
     assert again.exit_code == 0, again.output
     assert engine_is_harness.created == [] and sorted(engine_is_harness.reused) == sorted(created)
     assert json.loads((folder / OUTPUTS_FILE).read_text()) == outputs
@@ -163,3 +163,18 @@ def test_down_exits_1_naming_what_it_could_not_delete(engine_is_harness: Harness
     assert down(str(path), "--yes").exit_code == 0
     assert _tagged(ec2, plan.stack) == {"vpcs": [], "instances": [], "keys": []}
     assert os.listdir(stack_dir(plan.stack)) == []
+
+
+def test_up_without_an_edge_master_stops_before_anything_is_created(engine_is_harness: Harness, ec2: Any,
+                                                                    tmp_path: Path) -> None:
+    from fogiac.provision.local import free_port
+
+    path = write_manifest(tmp_path, "noedge", nodes=(("planner", "c5.large"),))
+    port = free_port()
+    result = fogiac("up", str(path), "--yes", "--edge-master", f"http://127.0.0.1:{port}")
+    assert result.exit_code == 1
+    assert result.stderr.strip().splitlines()[-1] == (
+        f"error: no ROS master answers at http://127.0.0.1:{port} (edge.ros_master); start roscore, "
+        "or pass --start-edge-master to let fogiac run one")
+    assert list(engine_is_harness.created) == []
+    assert not stack_dir("noedge-dev", create=False).exists()

@@ -94,7 +94,13 @@ class RelayEnd:
     def local_graph(self) -> GraphState | None:
         assert self.node is not None
         try:
-            return from_system_state(self.node.master.system_state(), exclude={self.caller_id})
+            state = self.node.master.system_state()
+            if not any(self.caller_id in nodes for _, nodes in state[0]):
+                # Our monitor topics are always registered: the master forgot us (restarted).
+                log.warning("the ROS master at %s lost the relay's registrations; registering again",
+                            self.config.master_uri)
+                self.node.register_all()
+            return from_system_state(state, exclude={self.caller_id})
         except RelayError as err:
             log.warning("cannot read the local ROS graph: %s", err)
             return None

@@ -94,6 +94,13 @@ class RelayNode:
             del self._subscriptions[sub.topic]
         self._quietly(self.master.unregister_subscriber, sub.topic)
 
+    def register_all(self) -> None:
+        """Register every publication and subscription again (the master restarted empty)."""
+        for pub in list(self._publishers.values()):
+            self.master.register_publisher(pub.topic, pub.meta.type, self.uri)
+        for sub in list(self._subscriptions.values()):
+            sub.update(self.master.register_subscriber(sub.topic, "*", self.uri))
+
     def topic_type(self, topic: str) -> str:
         return self._types.get(topic, "*")
 

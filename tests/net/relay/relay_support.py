@@ -79,6 +79,7 @@ class Proc:
 class Master:
     uri: str
     env: dict[str, str]
+    proc: Proc | None = field(default=None, compare=False)
 
     def state(self) -> list:
         return xmlrpc.client.ServerProxy(self.uri).getSystemState("/test")[2]
@@ -105,13 +106,12 @@ class Procs:
         self.started.append(popen)
         return Proc(popen)
 
-    def roscore(self) -> Master:
-        port = free_port()
+    def roscore(self, port: int | None = None) -> Master:
+        port = port or free_port()
         uri = f"http://127.0.0.1:{port}/"
         env = dict(os.environ, ROS_HOSTNAME="127.0.0.1", ROS_MASTER_URI=uri, ROS_HOME=str(self.home),
                    ROS_LOG_DIR=str(self.home / "log"), PYTHONUNBUFFERED="1")
-        self.spawn(["roscore", "-p", str(port)], env)
-        master = Master(uri, env)
+        master = Master(uri, env, self.spawn(["roscore", "-p", str(port)], env))
 
         def up() -> bool:
             try:

@@ -238,3 +238,19 @@ def test_publishers_joining_later_are_followed(masters: tuple[Master, Master], c
         wait_for(lambda: len(edge_m.publishers("/multi")) == 1, 10, "the second publisher to leave")
         count = len(sub.data())
         wait_for(lambda: len(sub.data()) >= count + 5, 10, "the first publisher to keep flowing")
+
+
+def test_relay_registers_again_after_its_master_restarts(certs: Path, procs: Procs, ros_ready: None) -> None:
+    edge_m, cloud_m = procs.roscore(), procs.roscore()
+    with relay_pair((edge_m, cloud_m), certs, policy=TopicPolicy(topics=("/again",))):
+        procs.node(edge_m, "pub", "/again", "--forever", "--rate", "20")
+        sub = procs.node(cloud_m, "sub", "/again", "--count", "100000")
+        wait_for(lambda: len(sub.data()) >= 3, 20, "flow")
+        assert cloud_m.proc is not None
+        procs.kill(cloud_m.proc)
+        procs.kill(sub)
+        cloud_m = procs.roscore(int(cloud_m.uri.rsplit(":", 1)[1].strip("/")))
+        wait_for(lambda: "/fogiac_relay_cloud" in cloud_m.publishers("/again"), 20, "the relay to register again")
+        assert cloud_m.publishers("/fogros/latency") == ["/fogiac_relay_cloud"]
+        late = procs.node(cloud_m, "sub", "/again", "--count", "3")
+        wait_for(lambda: len(late.data()) >= 3, 20, "flow on the new master")

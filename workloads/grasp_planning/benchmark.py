@@ -89,7 +89,11 @@ def success(planner: GraspPlanner, *, scenes: int, seed: int) -> dict[str, Any]:
     for i in range(scenes):
         s = bench_scene(seed + i)
         g = planner.plan(s.depth, s.intr)
-        picks = {"model": (g.u, g.v, g.angle), "random": random_grasp(s, rng), "oracle": oracle_grasp(s, k=k, planner=planner)}
+        picks = {
+            "model": (g.u, g.v, g.angle),
+            "random": random_grasp(s, rng),
+            "oracle": oracle_grasp(s, k=k, planner=planner),
+        }
         for name, (u, v, a) in picks.items():
             quality[name].append(grasp_quality(s.scene, s.truth, s.intr, planner.gripper, u=u, v=v, angle=a))
     return {
@@ -109,7 +113,8 @@ def run(*, out: Path, model: Path, scenes: int, reps: int, threads: list[int]) -
     torch.set_num_threads(max(threads))
     if torch.cuda.is_available():
         gpu = GraspPlanner.load(model, device="cuda")
-        rows.append({"device": f"cuda ({torch.cuda.get_device_name(0)})", "threads": max(threads), **latency(gpu, s, reps=reps)})
+        name = f"cuda ({torch.cuda.get_device_name(0)})"
+        rows.append({"device": name, "threads": max(threads), **latency(gpu, s, reps=reps)})
     base, net_base = rows[0]["median_ms"], rows[0]["net_median_ms"]
     for r in rows:
         r["speedup_vs_1_thread"] = base / r["median_ms"]
@@ -145,7 +150,11 @@ def table(result: dict[str, Any]) -> str:
             f" | {r['net_median_ms']:.2f} | {r['net_p90_ms']:.2f} | {r['net_speedup_vs_1_thread']:.2f}x |"
         )
     lines.append("(speedups: against the 1-thread CPU median of the same run)")
-    lines += ["", f"| grasp on {result['held_out_scenes']} held-out scenes | success rate | mean robust quality |", "|---|---|---|"]
+    lines += [
+        "",
+        f"| grasp on {result['held_out_scenes']} held-out scenes | success rate | mean robust quality |",
+        "|---|---|---|",
+    ]
     for name, r in result["success"].items():
         lines.append(f"| {name} | {r['success_rate']:.2f} | {r['mean_quality']:.3f} |")
     return "\n".join(lines) + "\n"

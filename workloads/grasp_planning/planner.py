@@ -113,7 +113,10 @@ class GraspPlanner:
         quality, width, small, factor = self.maps(depth, intr)
         sh, sw = small.shape
         factor_u, factor_v = depth.shape[1] / sw, depth.shape[0] / sh
-        pick = decode_best(quality, width, mask=small > 0)
+        valid = small > 0
+        if not valid.any():
+            raise WorkloadError(f"no valid depth left after resizing {depth.shape[1]}x{depth.shape[0]} to {sw}x{sh}")
+        pick = decode_best(quality, width, mask=valid)
         g = self.gripper
         z = tip_depth(
             small, u=pick.u, v=pick.v, pixel_size=PIXEL_SIZE, grasp_depth=g.grasp_depth,

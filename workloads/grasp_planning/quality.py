@@ -78,7 +78,9 @@ def _box(p: Primitive, x: np.ndarray, y: np.ndarray, ax: np.ndarray, ay: np.ndar
     return s1, s2, np.where(in_x, np.abs(dx), np.abs(dy)), np.where(out_x, np.abs(dx), np.abs(dy))
 
 
-def _circle(px: np.ndarray, py: np.ndarray, ax: np.ndarray, ay: np.ndarray, rho: np.ndarray | float, r_normal: np.ndarray | float) -> Contacts:
+def _circle(
+    px: np.ndarray, py: np.ndarray, ax: np.ndarray, ay: np.ndarray, rho: np.ndarray | float, r_normal: np.ndarray | float
+) -> Contacts:
     """Chord of a circle of radius rho; cosines against 3-D normals of a solid of radius r_normal."""
     b = px * ax + py * ay
     disc = b * b - (px * px + py * py - rho * rho)

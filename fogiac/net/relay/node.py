@@ -62,12 +62,13 @@ class RelayNode:
         self._slave.stop()
 
     # --- registrations -------------------------------------------------------------------
-    def add_publisher(self, pub: LocalPublisher) -> None:
+    def add_publisher(self, pub: LocalPublisher) -> list[str]:
+        """Register ``pub``; returns the subscribers the master already knows (they will dial in)."""
         with self._lock:
             if pub.topic in self._publishers:
                 raise RelayError(f"{self.caller_id} already publishes {pub.topic}")
             self._publishers[pub.topic] = pub
-        self.master.register_publisher(pub.topic, pub.meta.type, self.uri)
+        return self.master.register_publisher(pub.topic, pub.meta.type, self.uri)
 
     def remove_publisher(self, pub: LocalPublisher) -> None:
         with self._lock:

@@ -130,6 +130,9 @@ class _Outlet:
         self.sock.close()
 
 
+_EARLY_WINDOW_S = 3.0  # how long known subscribers have to connect after the relay advertises
+
+
 class LocalPublisher:
     """The relay advertising ``topic`` on its master with the source's type, md5 and latching."""
 
@@ -139,9 +142,18 @@ class LocalPublisher:
         self._lock = threading.Lock()
         self._last: bytes | None = None
         self.drops = 0  # stale messages a slow subscriber never got (latest-wins)
+        # Subscribers the master knew when we advertised dial in a moment later; what arrives
+        # before they have is kept for them, so a topic's first message is not lost (ROS 1
+        # publishers drop messages for subscribers that have not connected yet).
+        self._expected = 0
+        self._ready_by = 0.0
+        self._early: deque[bytes] = deque(maxlen=depth)
 
     def start(self) -> None:
-        self.node.add_publisher(self)
+        waiting = self.node.add_publisher(self)
+        with self._lock:
+            self._expected = len(waiting)
+            self._ready_by = time.monotonic() + _EARLY_WINDOW_S
 
     @property
     def has_subscribers(self) -> bool:
@@ -164,7 +176,12 @@ class LocalPublisher:
             outlet = _Outlet(sock, self._depth, self._forget, self._dropped)
             if self.meta.latching and self._last is not None:
                 outlet.put(self._last)
+            elif self._early and time.monotonic() < self._ready_by:
+                for data in self._early:
+                    outlet.put(data)
             self._outlets.append(outlet)
+            if len(self._outlets) >= self._expected:
+                self._early.clear()
 
     def _dropped(self) -> None:
         self.drops += 1
@@ -178,6 +195,8 @@ class LocalPublisher:
         with self._lock:
             if self.meta.latching:
                 self._last = data
+            elif len(self._outlets) < self._expected and time.monotonic() < self._ready_by:
+                self._early.append(data)
             for outlet in self._outlets:
                 outlet.put(data)
 

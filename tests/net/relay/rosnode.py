@@ -24,6 +24,7 @@ def main() -> None:
     parser.add_argument("--size", type=int, default=0)
     parser.add_argument("--forever", action="store_true", help="pub: keep going after --count")
     parser.add_argument("--prefix", default="msg", help="pub: text before the index")
+    parser.add_argument("--wait-subs", action="store_true", help="pub: publish only once someone is connected")
     args = parser.parse_args()
 
     import rospy
@@ -33,6 +34,8 @@ def main() -> None:
     if args.role == "pub":
         pub = rospy.Publisher(args.topic, String, queue_size=100, latch=args.latch)
         print("ready", flush=True)
+        while args.wait_subs and pub.get_num_connections() == 0 and not rospy.is_shutdown():
+            time.sleep(0.01)
         i = 0
         while not rospy.is_shutdown() and (args.forever or i < args.count):
             pub.publish(String(data=f"{args.prefix} {i}".ljust(args.size, "x")))

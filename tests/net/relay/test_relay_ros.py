@@ -254,3 +254,16 @@ def test_relay_registers_again_after_its_master_restarts(certs: Path, procs: Pro
         assert cloud_m.publishers("/fogros/latency") == ["/fogiac_relay_cloud"]
         late = procs.node(cloud_m, "sub", "/again", "--count", "3")
         wait_for(lambda: len(late.data()) >= 3, 20, "flow on the new master")
+
+
+def test_first_message_reaches_a_subscriber_already_waiting_on_the_far_side(
+        masters: tuple[Master, Master], certs: Path, procs: Procs) -> None:
+    """One request, published the moment the relay connects: the cloud advertises the topic only
+    then, and its waiting subscriber dials in a moment later; the message must still arrive."""
+    edge_m, cloud_m = masters
+    with relay_pair(masters, certs, policy=TopicPolicy(out_topics=("/once",))):
+        sub = procs.node(cloud_m, "sub", "/once", "--count", "1")
+        wait_for(lambda: cloud_m.subscribers("/once"), 10, "the cloud subscriber")
+        procs.node(edge_m, "pub", "/once", "--count", "1", "--wait-subs", "--prefix", "only")
+        wait_for(lambda: len(sub.data()) >= 1, 20, "the single message")
+    assert indices(sub.data()) == [0]

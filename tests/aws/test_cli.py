@@ -125,10 +125,10 @@ def test_no_terminal_needs_yes(state: Path, tmp_path: Path, with_cli: None) -> N
     assert _files(state) == []
 
 
-def test_other_targets_are_not_wired_yet(state: Path, tmp_path: Path) -> None:
+def test_down_of_a_local_stack_never_deployed_is_clean(state: Path, tmp_path: Path) -> None:
     result = fogiac("down", str(write_manifest(tmp_path, "local")), "--target", "local", "--yes")
-    assert result.exit_code == 1
-    assert result.stderr.splitlines() == ["error: target local: not wired yet (wired: aws)"]
+    assert result.exit_code == 0, result.output
+    assert result.stdout.strip().splitlines()[-1] == "local-dev: nothing left"
 
 
 def test_stale_saved_plan(state: Path, tmp_path: Path, with_cli: None) -> None:

@@ -62,6 +62,6 @@ def test_not_a_plan_is_refused(tmp_path: Path) -> None:
         check_saved_plan(tmp_path / "none.json", manifest=MINIMAL, stack="minimal-dev", target="aws")
 
 
-def test_unwired_targets_say_so() -> None:
-    with pytest.raises(FogiacError, match=r"^target hosts: not wired yet \(wired: aws\)$"):
-        target("hosts")
+def test_unknown_targets_name_the_wired_ones() -> None:
+    with pytest.raises(FogiacError, match=r"^target gcp: not wired yet \(wired: aws, hosts, local\)$"):
+        target("gcp")

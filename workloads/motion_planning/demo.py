@@ -76,11 +76,11 @@ def cloud_runs(names: list[str], *, runs: int) -> dict[str, list]:
 
 def table(rows: list[Row], *, cloud_cores: int) -> str:
     head = (f"{'problem':<10} {'edge 1 core':>12} {'cloud ' + str(cloud_cores) + ' cores':>14} "
-            f"{'network+relay':>14} {'cloud total':>12} {'speedup':>8} {'solved e/c':>11}")
+            f"{'network+relay':>14} {'cloud total':>12} {'speedup':>8} {'solved e c':>11}")
     lines = [head, "-" * len(head)]
     for r in rows:
         lines.append(f"{r.problem:<10} {r.edge_s:>11.2f}s {r.cloud_compute_s:>13.2f}s {r.network_s:>13.3f}s "
-                     f"{r.cloud_round_trip_s:>11.2f}s {r.speedup:>7.2f}x {r.edge_solved:>4}/{r.runs}/{r.cloud_solved}/{r.runs}")
+                     f"{r.cloud_round_trip_s:>11.2f}s {r.speedup:>7.2f}x {f'{r.edge_solved}/{r.runs} {r.cloud_solved}/{r.runs}':>11}")
     lines.append("medians over runs; speedup = edge time / cloud total (compute + network + relay)")
     return "\n".join(lines)
 

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Annotated, Literal
 from urllib.parse import urlparse
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from fogiac.catalog import catalog
 from fogiac.errors import ManifestError
@@ -40,6 +40,15 @@ def _topic(value: str) -> str:
 Topic = Annotated[str, Field(description="An absolute ROS topic name, e.g. /camera/depth")]
 
 
+def _dns_name(value: str) -> str:
+    if not _DNS_NAME.match(value):
+        raise ValueError(f"{value!r} is not DNS-safe (lowercase letters, digits, '-', up to 40)")
+    return value
+
+
+DnsName = Annotated[str, AfterValidator(_dns_name)]
+
+
 class Ros(_Model):
     distro: Literal["noetic"] = Field("noetic", description="ROS distribution (ROS 1 noetic for now).")
 
@@ -47,19 +56,12 @@ class Ros(_Model):
 class HostMachine(_Model):
     """An existing machine for the ``hosts`` target (a lab GPU server is fog too)."""
 
-    name: str = Field(description="Short DNS-safe name for the machine.")
+    name: DnsName = Field(description="Short DNS-safe name for the machine.")
     address: str = Field(description="IP address or DNS name reachable over SSH.")
     user: str = Field("ubuntu", description="SSH user.")
     port: int = Field(22, ge=1, le=65535, description="SSH port.")
     key: Path = Field(description="Private key file for SSH, relative to the manifest.")
     gpus: int = Field(0, ge=0, description="GPUs the machine has.")
-
-    @field_validator("name")
-    @classmethod
-    def _dns(cls, value: str) -> str:
-        if not _DNS_NAME.match(value):
-            raise ValueError(f"{value!r} is not DNS-safe (lowercase letters, digits, '-')")
-        return value
 
 
 class Cloud(_Model):
@@ -173,7 +175,7 @@ Workload = Literal["motion_planning", "grasp_planning"]
 
 
 class Node(_Model):
-    name: str = Field(description="DNS-safe node name, unique in the manifest.")
+    name: DnsName = Field(description="DNS-safe node name, unique in the manifest.")
     machine: str = Field(description="EC2 instance type, e.g. c5.24xlarge or g4dn.xlarge.")
     image: str | None = Field(None, description="Container image to run (exactly one of image, launch, workload).")
     launch: Launch | None = Field(None, description="ROS package + launch file from a workspace.")
@@ -185,13 +187,6 @@ class Node(_Model):
     spot: bool = Field(False, description="Use a spot instance.")
     env: dict[str, str] = Field(default_factory=dict, description="Environment variables for the node.")
     host: str | None = Field(None, description="For the hosts target: which cloud.hosts entry runs it.")
-
-    @field_validator("name")
-    @classmethod
-    def _dns(cls, value: str) -> str:
-        if not _DNS_NAME.match(value):
-            raise ValueError(f"{value!r} is not DNS-safe (lowercase letters, digits, '-', up to 40)")
-        return value
 
     @field_validator("machine")
     @classmethod
@@ -254,7 +249,7 @@ class Relay(_Model):
 class Manifest(_Model):
     """A fogiac deployment: which ROS nodes run off the robot, where, over which network."""
 
-    name: str = Field(description="DNS-safe deployment name; tags every cloud resource.")
+    name: DnsName = Field(description="DNS-safe deployment name; tags every cloud resource.")
     ros: Ros = Field(default_factory=Ros, description="ROS settings.")
     cloud: Cloud = Field(default_factory=Cloud, description="Where the cloud nodes run.")
     network: Network = Field(default_factory=Network, description="How the edge reaches them.")
@@ -262,13 +257,6 @@ class Manifest(_Model):
     nodes: tuple[Node, ...] = Field(min_length=1, description="The nodes that run off the robot.")
     relay: Relay = Field(default_factory=Relay, description="How topics cross between edge and cloud.")
     tags: dict[str, str] = Field(default_factory=dict, description="Extra tags on every cloud resource.")
-
-    @field_validator("name")
-    @classmethod
-    def _dns(cls, value: str) -> str:
-        if not _DNS_NAME.match(value):
-            raise ValueError(f"{value!r} is not DNS-safe (lowercase letters, digits, '-', up to 40)")
-        return value
 
     @field_validator("tags")
     @classmethod

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any, Iterator
 
 from fogiac.errors import LockHeld, StateError
+from fogiac.procs import pid_alive
 
 
 def state_root() -> Path:
@@ -72,16 +73,6 @@ def read_json(path: Path) -> Any | None:
         raise StateError(f"{path}: unreadable state file ({err})") from None
 
 
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
 @contextmanager
 def stack_lock(stack: str, *, operation: str) -> Iterator[None]:
     """Hold the stack's lock for ``operation``; a second holder fails at once, naming the first.
@@ -98,7 +89,7 @@ def stack_lock(stack: str, *, operation: str) -> Iterator[None]:
         except FileExistsError:
             holder = read_json(path) or {}
             same_host = holder.get("host") == me["host"]
-            if same_host and isinstance(holder.get("pid"), int) and not _pid_alive(holder["pid"]):
+            if same_host and isinstance(holder.get("pid"), int) and not pid_alive(holder["pid"]):
                 path.unlink(missing_ok=True)
                 continue
             raise LockHeld(

@@ -33,7 +33,8 @@ _BACKOFF_MAX = 30.0
 _GOOD_RUN = 10.0
 
 
-def _alive(pid: int) -> bool:
+def pid_alive(pid: int) -> bool:
+    """The process exists and is not a zombie (fogiac.procs has the same check; this file stands alone)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -51,7 +52,7 @@ def _read_pid(path: Path) -> int | None:
         pid = int(path.read_text().strip())
     except (OSError, ValueError):
         return None
-    return pid if _alive(pid) else None
+    return pid if pid_alive(pid) else None
 
 
 def _ppid(pid: int) -> int | None:
@@ -94,9 +95,9 @@ def _kill_tree(pid: int, grace: float = _GRACE) -> None:
             except (ProcessLookupError, PermissionError):
                 pass
         deadline = time.monotonic() + grace
-        while time.monotonic() < deadline and any(_alive(p) for p in tree):
+        while time.monotonic() < deadline and any(pid_alive(p) for p in tree):
             time.sleep(0.05)
-        tree = [p for p in tree if _alive(p)]
+        tree = [p for p in tree if pid_alive(p)]
         if not tree:
             return
 
@@ -191,12 +192,12 @@ def stop_many(run_dir: Path, names: list[str], *, timeout: float = 15.0) -> dict
         if pid is not None:
             os.kill(pid, signal.SIGTERM)
     deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline and any(p is not None and _alive(p) for p in sups.values()):
+    while time.monotonic() < deadline and any(p is not None and pid_alive(p) for p in sups.values()):
         time.sleep(0.05)
     out = {}
     for name in names:
         files, pid = _Files(run_dir, name), sups[name]
-        if pid is not None and _alive(pid):
+        if pid is not None and pid_alive(pid):
             os.kill(pid, signal.SIGKILL)
         child = _read_pid(files.child)
         if child is not None:
@@ -252,7 +253,7 @@ def health(run_dir: Path, name: str, *, check: str, master: str, timeout: float,
     deadline = time.monotonic() + timeout
     why = "not checked"
     while True:
-        child = (pid if pid and _alive(pid) else None) if pid is not None else status(run_dir, name)["child"]
+        child = (pid if pid and pid_alive(pid) else None) if pid is not None else status(run_dir, name)["child"]
         if child is None:
             why = "process not running"
         elif check == "alive":

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from fogiac.errors import WorkloadError
+from fogiac.procs import pid_alive
 from workloads.motion_planning.problem import Pose, Problem
 
 # name accepted on the CLI / in ROS params -> class in ompl.geometric
@@ -232,7 +233,7 @@ def _plan_one(problem: Problem, planner: str, seed: int, time_limit: float, simp
         if flag.value:
             return True
         calls[0] += 1
-        return calls[0] % _PARENT_CHECK_EVERY == 0 and not _alive(parent_pid)  # orphaned: give up
+        return calls[0] % _PARENT_CHECK_EVERY == 0 and not pid_alive(parent_pid)  # orphaned: give up
 
     ptc = ob.plannerOrTerminationCondition(ob.timedPlannerTerminationCondition(time_limit),
                                            ob.PlannerTerminationCondition(cancelled))
@@ -249,11 +250,4 @@ def _plan_one(problem: Problem, planner: str, seed: int, time_limit: float, simp
             "plan_time_s": plan_time, "simplify_time_s": setup.getLastSimplificationTime(), "checks": checks}
 
 
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
+

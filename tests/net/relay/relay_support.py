@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 import os
-import shutil
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -15,36 +13,15 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from tests.support.ros import free_port, ros_missing, stop_group
+
+__all__ = ["free_port", "ros_missing", "kill_group", "wait_for"]
+
 NODE = Path(__file__).with_name("rosnode.py")
 
 
-def ros_missing() -> str | None:
-    if shutil.which("roscore") is None:
-        return "roscore not installed (apt-get install ros-core)"
-    probe = subprocess.run([sys.executable, "-c", "import rospy, std_msgs.msg"], capture_output=True)
-    if probe.returncode:
-        return "rospy/std_msgs not importable (apt-get install python3-rospy python3-std-msgs)"
-    return None
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def kill_group(proc: subprocess.Popen, sig: int = signal.SIGINT) -> None:
-    if proc.poll() is None:
-        try:
-            os.killpg(proc.pid, sig)
-            proc.wait(timeout=5)
-        except (ProcessLookupError, subprocess.TimeoutExpired):
-            pass
-    try:
-        os.killpg(proc.pid, signal.SIGKILL)
-    except ProcessLookupError:
-        pass
-    proc.wait(timeout=5)
+    stop_group(proc, sig, timeout=5)
 
 
 def wait_for(predicate: Callable[[], object], timeout: float = 15.0, what: str = "condition") -> None:

@@ -4,9 +4,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
-import signal
-import socket
 import subprocess
 import sys
 import time
@@ -17,6 +14,7 @@ from pathlib import Path
 import pytest
 from mp_support import PROBLEMS, REPO
 
+from tests.support.ros import free_port, ros_missing, stop_group
 from workloads.motion_planning import Pose, load_problem, path_is_collision_free
 
 pytestmark = pytest.mark.ros
@@ -31,43 +29,13 @@ print(json.dumps([t.as_dict() for t in request_paths(["easy"], timeout=60, endpo
 """
 
 
-def _ros_missing() -> str | None:
-    if shutil.which("roscore") is None:
-        return "roscore not installed (apt-get install ros-core)"
-    probe = subprocess.run([sys.executable, "-c", "import rospy, geometry_msgs.msg, std_msgs.msg"], capture_output=True)
-    if probe.returncode:
-        return "rospy or geometry_msgs/std_msgs not importable (apt-get install python3-rospy python3-geometry-msgs)"
-    return None
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _stop(proc: subprocess.Popen) -> None:
-    """SIGINT the process group, then SIGKILL whatever is left of it."""
-    for sig in (signal.SIGINT, signal.SIGKILL):
-        if proc.poll() is None:
-            try:
-                os.killpg(proc.pid, sig)
-                proc.wait(timeout=10)
-            except (ProcessLookupError, subprocess.TimeoutExpired):
-                pass
-    try:
-        os.killpg(proc.pid, signal.SIGKILL)
-    except ProcessLookupError:
-        pass
-
-
 @pytest.fixture
 def node_env(tmp_path: Path) -> Iterator[dict[str, str]]:
     """A roscore on a free port and the planner node (2 cores) attached to it."""
-    reason = _ros_missing()
+    reason = ros_missing("geometry_msgs.msg")
     if reason:
         pytest.skip(reason)
-    port = _free_port()
+    port = free_port()
     env = {**os.environ, "ROS_MASTER_URI": f"http://127.0.0.1:{port}", "ROS_HOSTNAME": "127.0.0.1",
            "ROS_HOME": str(tmp_path / "ros"), "ROS_LOG_DIR": str(tmp_path / "ros" / "log"),
            "PYTHONPATH": os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH", "")) if p)}
@@ -92,7 +60,7 @@ def node_env(tmp_path: Path) -> Iterator[dict[str, str]]:
         yield env
     finally:
         for proc in reversed(procs):
-            _stop(proc)
+            stop_group(proc)
 
 
 def _client(env: dict[str, str], *args: str) -> subprocess.CompletedProcess[str]:

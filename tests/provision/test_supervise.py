@@ -63,7 +63,7 @@ def test_stop_kills_the_whole_tree_and_removes_pid_files(run_dir: Path) -> None:
     status = _status(run_dir, "tree")
     assert _sup(run_dir, "stop", "tree") == "stopped"
     for pid in (status["pid"], status["child"], grandchild):
-        assert not supervise._alive(pid)
+        assert not supervise.pid_alive(pid)
     assert sorted(p.name for p in run_dir.iterdir()) == ["tree.log", "tree.state"]
     assert _sup(run_dir, "stop", "tree") == "not running"
 

@@ -45,12 +45,15 @@ def training_example(seed: int, *, size: int = 80, k: int = 8, gripper: Gripper 
     rng = np.random.default_rng(seed)
     table_z = float(rng.uniform(0.6, 0.8))
     f = table_z / PIXEL_SIZE * float(rng.uniform(0.9, 1.1))
+    # the crop is a window of a wider view: shifting the principal point shows the perspective
+    # lean of objects up to ~0.2 m off the optical axis, as at the edges of a full image
+    ox, oy = rng.uniform(-50, 50, size=2)
     c = (size - 1) / 2
-    intr = Intrinsics(fx=f, fy=f, cx=c, cy=c)
+    intr = Intrinsics(fx=f, fy=f, cx=c + float(ox), cy=c + float(oy))
     scene = sample_scene(
         rng,
         table_z=table_z,
-        center=(float(rng.uniform(-0.05, 0.05)), float(rng.uniform(-0.05, 0.05))),
+        center=(float(-ox * table_z / f + rng.uniform(-0.05, 0.05)), float(-oy * table_z / f + rng.uniform(-0.05, 0.05))),
         bin_half=(float(rng.uniform(0.1, 0.17)), float(rng.uniform(0.08, 0.15))),
         n_objects=int(rng.integers(3, 10)),
     )

@@ -35,5 +35,5 @@ def test_shipped_model_beats_random_grasps_on_held_out_scenes() -> None:
         random.append(grasp_quality(s.scene, s.truth, s.intr, planner.gripper, u=u, v=v, angle=a))
     model_rate = float(np.mean(np.array(model) >= SUCCESS))
     random_rate = float(np.mean(np.array(random) >= SUCCESS))
-    assert model_rate >= random_rate + 0.25, (model, random)  # shipped: 10/12 against 0/12
+    assert model_rate >= random_rate + 0.25, (model, random)  # shipped: 11/12 against 0/12
     assert float(np.mean(model)) > float(np.mean(random))

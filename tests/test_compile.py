@@ -101,8 +101,9 @@ def test_cost_counts_instances_and_client_vpn() -> None:
 def test_relay_routes_follow_node_topics_and_compression() -> None:
     plan = compile_plan(example("grasp-planning"))
     (route,) = plan.relay
-    assert route.to_cloud == ("/camera/depth/camera_info", "/camera/depth/image_raw")
-    assert route.compression == (("/camera/depth/image_raw", "zstd"),)
+    assert route.to_cloud == ("/depth/camera_info", "/depth/image")
+    assert route.to_edge == ("/grasp", "/grasp/compute_time", "/grasp/quality")
+    assert route.compression == (("/depth/image", "zstd"),)
     assert not route.auto and route.connect_via == "private"
 
 

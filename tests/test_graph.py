@@ -24,8 +24,8 @@ def test_layout_has_sites_machines_nodes_and_topic_arrows() -> None:
     assert machine.lines == ("g4dn.xlarge: 4 vCPU, 1 GPU, $0.53/h",)
     to_cloud, to_edge = shape.arrows
     assert to_cloud.x1 > to_cloud.x0 and to_edge.x1 < to_edge.x0
-    assert to_cloud.label.splitlines() == ["/camera/depth/camera_info", "/camera/depth/image_raw"]
-    assert "/grasp_planning/grasp" in to_edge.label
+    assert to_cloud.label.splitlines() == ["/depth/camera_info", "/depth/image"]
+    assert to_edge.label.splitlines() == ["/grasp", "/grasp/compute_time", "/grasp/quality"]
     assert shape.caption == "grasp-planning-dev: 1 host(s), AWS Client VPN + relay (mTLS), $0.68/h"
 
 

@@ -10,7 +10,7 @@ from pathlib import Path
 
 
 def pid_alive(pid: int) -> bool:
-    """The process exists and is not a zombie."""
+    """The process exists and is neither a zombie nor dead (states Z and X)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -18,6 +18,6 @@ def pid_alive(pid: int) -> bool:
     except PermissionError:
         return True
     try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] not in ("Z", "X")
     except (OSError, IndexError):
         return True

@@ -24,6 +24,7 @@ from pathlib import Path
 
 from fogiac import certs
 from fogiac.errors import VpnError
+from fogiac.procs import pid_alive
 from fogiac.render import render
 from fogiac.state import stack_dir
 
@@ -212,23 +213,22 @@ def runtime_paths(profile: Path) -> tuple[Path, Path]:
     return profile.parent / "openvpn.pid", profile.parent / "openvpn.log"
 
 
-def _alive(pid: int) -> bool:
-    """True while ``pid`` runs (a zombie waiting for its parent to reap it counts as gone)."""
+def _written_pid(pid_file: Path) -> int | None:
+    """The pid OpenVPN wrote, or None while the file is missing or still being written."""
     try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return False
-    return stat.rsplit(")", 1)[-1].split()[0] not in ("Z", "X")
+        return int(pid_file.read_text().split()[0])
+    except (OSError, ValueError, IndexError):
+        return None
 
 
 def _running_pid(pid_file: Path) -> int | None:
     """The pid in ``pid_file`` if that process is alive and is OpenVPN (not a reused pid)."""
+    pid = _written_pid(pid_file)
     try:
-        pid = int(pid_file.read_text().split()[0])
-        comm = Path(f"/proc/{pid}/comm").read_text().strip()
-    except (OSError, ValueError, IndexError):
+        comm = Path(f"/proc/{pid}/comm").read_text().strip() if pid is not None else ""
+    except OSError:
         return None
-    return pid if comm == "openvpn" and _alive(pid) else None
+    return pid if comm == "openvpn" and pid_alive(pid) else None
 
 
 def _read_log(log: Path) -> LogFacts:
@@ -297,7 +297,7 @@ def tunnel_up(*, profile: Path, timeout: float = 30.0, openvpn: str = "openvpn")
             raise VpnError(f"OpenVPN failed: {facts.failure}; see {log}")
         if facts.ready:
             return Outcome(tunnel_status(profile=profile), changed=True)
-        if pid_file.exists() and _running_pid(pid_file) is None:
+        if _written_pid(pid_file) is not None and _running_pid(pid_file) is None:
             raise VpnError(f"OpenVPN exited before the tunnel came up; see {log}")
         time.sleep(0.1)
     _stop(pid_file, settle=2.0)
@@ -321,9 +321,9 @@ def _stop(pid_file: Path, *, timeout: float = 10.0, settle: float = 0.0) -> bool
         except PermissionError:
             raise VpnError("`fogiac vpn down` needs root: OpenVPN runs as root (run it with sudo)") from None
         deadline = time.monotonic() + wait
-        while time.monotonic() < deadline and _alive(pid):
+        while time.monotonic() < deadline and pid_alive(pid):
             time.sleep(0.05)
-        if not _alive(pid):
+        if not pid_alive(pid):
             break
     pid_file.unlink(missing_ok=True)
     return True

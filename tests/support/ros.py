@@ -8,6 +8,11 @@ import signal
 import socket
 import subprocess
 import sys
+import time
+import xmlrpc.client
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
 
 
 def ros_missing(*modules: str) -> str | None:
@@ -39,3 +44,31 @@ def stop_group(proc: subprocess.Popen, sig: int = signal.SIGINT, *, timeout: flo
     except ProcessLookupError:
         pass
     proc.wait(timeout=timeout)
+
+
+@contextmanager
+def roscore(home: Path, *, pythonpath: str = "") -> Iterator[dict[str, str]]:
+    """A roscore on a free loopback port; yields the environment for nodes and clients of it.
+
+    Logs go under ``home``; the roscore's whole process group is stopped on the way out.
+    """
+    port = free_port()
+    env = {**os.environ, "ROS_MASTER_URI": f"http://127.0.0.1:{port}", "ROS_HOSTNAME": "127.0.0.1",
+           "ROS_HOME": str(home / "ros"), "ROS_LOG_DIR": str(home / "ros" / "log"),
+           "PYTHONPATH": os.pathsep.join(p for p in (pythonpath, os.environ.get("PYTHONPATH", "")) if p)}
+    core = subprocess.Popen(["roscore", "-p", str(port)], env=env, start_new_session=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        master = xmlrpc.client.ServerProxy(env["ROS_MASTER_URI"])
+        deadline = time.monotonic() + 30
+        while True:
+            try:
+                master.getSystemState("/test")
+                break
+            except OSError:
+                if time.monotonic() > deadline or core.poll() is not None:
+                    raise RuntimeError("roscore did not come up within 30 s") from None
+                time.sleep(0.1)
+        yield env
+    finally:
+        stop_group(core)

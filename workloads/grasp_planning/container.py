@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from workloads.recipe import render_dockerfile
+
 TEMPLATE = "workloads/grasp_planning/Dockerfile.j2"
 
 DEFAULTS: dict[str, Any] = {
@@ -19,9 +21,4 @@ DEFAULTS: dict[str, Any] = {
 
 def dockerfile(**overrides: Any) -> str:
     """The Dockerfile text; ``overrides`` replace DEFAULTS, unknown names are an error."""
-    from fogiac.render import render
-
-    unknown = sorted(set(overrides) - set(DEFAULTS))
-    if unknown:
-        raise ValueError(f"unknown Dockerfile variables {unknown}; valid: {sorted(DEFAULTS)}")
-    return render(TEMPLATE, **{**DEFAULTS, **overrides})
+    return render_dockerfile(TEMPLATE, DEFAULTS, overrides)

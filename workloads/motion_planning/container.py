@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from fogiac.errors import WorkloadError
+from workloads.recipe import render_dockerfile
 
 TEMPLATE = "workloads/motion_planning/Dockerfile.j2"
 
@@ -20,9 +20,4 @@ DEFAULTS: dict[str, Any] = {
 
 def dockerfile(**overrides: Any) -> str:
     """The Dockerfile text; ``overrides`` replace DEFAULTS, unknown names are an error."""
-    from fogiac.render import render
-
-    unknown = sorted(set(overrides) - set(DEFAULTS))
-    if unknown:
-        raise WorkloadError(f"unknown Dockerfile variables {', '.join(unknown)}; valid: {', '.join(sorted(DEFAULTS))}")
-    return render(TEMPLATE, **{**DEFAULTS, **overrides})
+    return render_dockerfile(TEMPLATE, DEFAULTS, overrides)

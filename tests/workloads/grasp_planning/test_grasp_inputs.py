@@ -69,7 +69,7 @@ def test_dockerfile_renders_on_a_cuda_base_with_torch_pinned() -> None:
     pinned = dockerfile(torch_index_url="https://download.pytorch.org/whl/cu128", device="cuda")
     assert "--index-url https://download.pytorch.org/whl/cu128 torch==2.13.0" in pinned
     assert '"_device:=cuda"' in pinned
-    with pytest.raises(ValueError, match=r"unknown Dockerfile variables \['gpu'\]"):
+    with pytest.raises(WorkloadError, match=r"^unknown Dockerfile variables gpu; valid: "):
         dockerfile(gpu=True)
 
 

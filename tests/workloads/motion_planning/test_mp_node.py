@@ -3,18 +3,15 @@
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
-import time
-import xmlrpc.client
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 from mp_support import PROBLEMS, REPO
 
-from tests.support.ros import free_port, ros_missing, stop_group
+from tests.support.ros import ros_missing, roscore, stop_group
 from workloads.motion_planning import Pose, load_problem, path_is_collision_free
 
 pytestmark = pytest.mark.ros
@@ -35,32 +32,17 @@ def node_env(tmp_path: Path) -> Iterator[dict[str, str]]:
     reason = ros_missing("geometry_msgs.msg")
     if reason:
         pytest.skip(reason)
-    port = free_port()
-    env = {**os.environ, "ROS_MASTER_URI": f"http://127.0.0.1:{port}", "ROS_HOSTNAME": "127.0.0.1",
-           "ROS_HOME": str(tmp_path / "ros"), "ROS_LOG_DIR": str(tmp_path / "ros" / "log"),
-           "PYTHONPATH": os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH", "")) if p)}
     procs: list[subprocess.Popen] = []
-    try:
-        procs.append(subprocess.Popen(["roscore", "-p", str(port)], env=env, start_new_session=True,
-                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-        master = xmlrpc.client.ServerProxy(env["ROS_MASTER_URI"])
-        deadline = time.monotonic() + 30
-        while True:
-            try:
-                master.getSystemState("/test")
-                break
-            except OSError:
-                if time.monotonic() > deadline:
-                    pytest.fail("roscore did not come up within 30 s")
-                time.sleep(0.2)
-        log = (tmp_path / "node.log").open("w")
-        procs.append(subprocess.Popen([sys.executable, "-m", "workloads.motion_planning", "node", "_cores:=2",
-                                       f"_problem_dir:={PROBLEMS}", "_time_limit:=30"], cwd=REPO, env=env,
-                                      start_new_session=True, stdout=log, stderr=subprocess.STDOUT))
-        yield env
-    finally:
-        for proc in reversed(procs):
-            stop_group(proc)
+    with roscore(tmp_path, pythonpath=str(REPO)) as env:
+        try:
+            log = (tmp_path / "node.log").open("w")
+            procs.append(subprocess.Popen([sys.executable, "-m", "workloads.motion_planning", "node", "_cores:=2",
+                                           f"_problem_dir:={PROBLEMS}", "_time_limit:=30"], cwd=REPO, env=env,
+                                          start_new_session=True, stdout=log, stderr=subprocess.STDOUT))
+            yield env
+        finally:
+            for proc in reversed(procs):
+                stop_group(proc)
 
 
 def _client(env: dict[str, str], *args: str) -> subprocess.CompletedProcess[str]:

@@ -13,13 +13,14 @@ import shutil
 import subprocess
 import sys
 import textwrap
+import time
 from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
 
 from fogiac.cli import app
-from fogiac.provision.local import free_port
+from fogiac.procs import free_port
 
 from .conftest import EXAMPLES, REPO
 
@@ -93,16 +94,22 @@ def test_local_up_request_status_down(tmp_path: Path, _state_dir: Path) -> None:
         assert answer["solved"] and answer["poses"] >= 2 and answer["free"], answer
         assert 0 < answer["compute_time_s"] < answer["round_trip_s"]
 
-        status = runner.invoke(app, ["status", str(manifest), "--target", "local", "--json"])
-        assert status.exit_code == 0, status.output
-        doc = json.loads(status.output)
+        def counts() -> tuple[dict, dict]:
+            status = runner.invoke(app, ["status", str(manifest), "--target", "local", "--json"])
+            assert status.exit_code == 0, status.output
+            doc = json.loads(status.output)
+            (relay,) = doc["relays"]
+            return doc, {t["topic"]: t["msgs"] for t in relay.get("topics", [])}
+
+        deadline = time.monotonic() + 15  # the relay rewrites its stats file once a second
+        doc, msgs = counts()
+        while not (msgs.get("/motion_planning/request") and msgs.get("/motion_planning/path")):
+            assert time.monotonic() < deadline, f"relay stats never counted the request: {doc}"
+            time.sleep(0.5)
+            doc, msgs = counts()
         (host,) = doc["hosts"]
         assert host["host"] == "planner" and host["nodes"][0]["running"] is True
-        (relay,) = doc["relays"]
-        assert relay["connected"] is True
-        topics = {t["topic"]: t for t in relay["topics"]}
-        assert topics["/motion_planning/request"]["msgs"] >= 1
-        assert topics["/motion_planning/path"]["msgs"] >= 1
+        assert doc["relays"][0]["connected"] is True
     finally:
         down = runner.invoke(app, ["down", str(manifest), "--target", "local", "--yes"])
     assert down.exit_code == 0, down.output

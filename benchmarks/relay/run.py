@@ -15,7 +15,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import socket
 import statistics
 import subprocess
 import sys
@@ -24,17 +23,13 @@ import time
 import xmlrpc.client
 from pathlib import Path
 
+from fogiac.procs import free_port
+
 ROOT = Path(__file__).resolve().parents[2]
 NODE = Path(__file__).with_name("node.py")
 SIZES = {"1 KiB": 1024, "48 KiB": 48 * 1024, "1 MiB": 1024 * 1024, "6 MiB": 6 * 1024 * 1024}
 LAT_RATE = {"1 KiB": 100.0, "48 KiB": 100.0, "1 MiB": 20.0, "6 MiB": 5.0}
 LAT_SECONDS, THR_SECONDS, WARMUP_S, THR_REPEATS, LAT_REPEATS = 3.0, 3.0, 0.5, 2, 2
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 class Bench:

@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import os
 import shutil
-import socket
 import subprocess
 from pathlib import Path
 from typing import Mapping
 
 from fogiac.errors import ProvisionError
+from fogiac.procs import free_port
 from fogiac.plan import Plan
 from fogiac.provision.host import LocalAccess, Result
 from fogiac.state import read_json, write_json_atomic
@@ -69,13 +69,6 @@ class LocalHost:
 
     def close(self) -> None:
         pass
-
-
-def free_port() -> int:
-    """A TCP port nothing listens on right now (the kernel picks it)."""
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
 
 
 def sandbox_root(state_dir: Path) -> Path:

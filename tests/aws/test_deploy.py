@@ -167,7 +167,7 @@ def test_down_exits_1_naming_what_it_could_not_delete(engine_is_harness: Harness
 
 def test_up_without_an_edge_master_stops_before_anything_is_created(engine_is_harness: Harness, ec2: Any,
                                                                     tmp_path: Path) -> None:
-    from fogiac.provision.local import free_port
+    from fogiac.procs import free_port
 
     path = write_manifest(tmp_path, "noedge", nodes=(("planner", "c5.large"),))
     port = free_port()

@@ -5,7 +5,6 @@ from __future__ import annotations
 import os
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -13,6 +12,10 @@ import xmlrpc.client
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+
+from fogiac.procs import free_port
+
+__all__ = ["free_port", "ros_missing", "roscore", "stop_group"]
 
 
 def ros_missing(*modules: str) -> str | None:
@@ -23,12 +26,6 @@ def ros_missing(*modules: str) -> str | None:
     if subprocess.run([sys.executable, "-c", f"import {', '.join(wanted)}"], capture_output=True).returncode:
         return f"{', '.join(wanted)} not importable (apt-get install python3-rospy python3-std-msgs ...)"
     return None
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
 
 
 def stop_group(proc: subprocess.Popen, sig: int = signal.SIGINT, *, timeout: float = 10.0) -> None:

@@ -97,7 +97,7 @@ def test_compressed_topics_round_trip(masters: tuple[Master, Master], certs: Pat
     topic = f"/img_{compression}"
     with relay_pair(masters, certs, policy=TopicPolicy(auto=True), topic_compression=((topic, compression),)) as (edge, _):
         procs.node(edge_m, "pub", topic, "--forever", "--rate", "50", "--size", "20000")
-        sub = procs.node(cloud_m, "sub", topic, "--count", "10")
+        sub = procs.node(cloud_m, "sub", topic, "--count", "100000")  # stays subscribed: the route stays up
         wait_for(lambda: len(sub.data()) >= 10, 20, "compressed messages")
         (stats,) = edge.stats().topics
         assert stats.compression == compression

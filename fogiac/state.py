@@ -35,33 +35,33 @@ def stack_dir(stack: str, *, create: bool = True) -> Path:
     return path
 
 
-def write_json_atomic(path: Path, data: Any, *, mode: int = 0o600) -> None:
-    """Write JSON so that a crash leaves either the old file or the new one, never half."""
+def write_atomic(path: Path, data: bytes, *, mode: int) -> None:
+    """Write ``data`` whole or not at all, with ``mode`` from the first byte.
+
+    A crash leaves either the old file or the new one; a 0600 file is never readable by others,
+    not even for a moment. Every state, key and user-facing file fogiac writes goes through here.
+    """
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, mode)
     try:
-        with os.fdopen(fd, "w") as fh:
-            json.dump(data, fh, indent=2, sort_keys=True)
-            fh.write("\n")
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.chmod(tmp, mode)
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+def write_json_atomic(path: Path, data: Any, *, mode: int = 0o600) -> None:
+    """State as JSON (sorted, indented), written atomically."""
+    write_atomic(path, (json.dumps(data, indent=2, sort_keys=True) + "\n").encode(), mode=mode)
 
 
 def write_text_atomic(path: Path, text: str, *, mode: int = 0o644) -> None:
-    """Write a user-facing file (a manifest, a plan) whole or not at all."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, mode)
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    """A user-facing file (a manifest, a plan) whole or not at all."""
+    write_atomic(path, text.encode(), mode=mode)
 
 
 def read_json(path: Path) -> Any | None:

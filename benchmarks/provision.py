@@ -22,10 +22,10 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-from fogiac.compile import compile_plan  # noqa: E402
-from fogiac.manifest import load_manifest  # noqa: E402
+from fogiac.plan.compile import compile_plan  # noqa: E402
+from fogiac.manifest.schema import load_manifest  # noqa: E402
 from fogiac.provision import ProvisionReport, provision, teardown  # noqa: E402
-from fogiac.provision.targets import hosts_access  # noqa: E402
+from fogiac.targets.hosts import HOSTS  # noqa: E402
 from tests.provision.conftest import hosts_manifest, make_workspace, ros_skip_reason  # noqa: E402
 from tests.provision.sshlab import LabHost, lab_skip_reason, ssh_lab  # noqa: E402
 
@@ -69,7 +69,7 @@ class Bench:
         plan = compile_plan(load_manifest(manifest))
         by_name = {h.name: h for h in hosts}
         access = {n: replace(a, base_dir=str(by_name[n].base_dir), ship_code=False)  # type: ignore[type-var]
-                  for n, a in hosts_access(plan, state_dir=self.state, python=sys.executable).items()}
+                  for n, a in HOSTS.access(plan, state_dir=self.state, python=sys.executable).items()}
         return plan, access
 
     def run(self, hosts: list[LabHost]) -> tuple[float, ProvisionReport]:

@@ -15,9 +15,10 @@ from pathlib import Path
 from cryptography import x509
 from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import rsa
+from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
-from fogiac.plan import server_name
+from fogiac.plan.model import server_name
 from fogiac.state import write_atomic
 
 _VALID_DAYS = 825
@@ -179,3 +180,21 @@ def load_or_create_bundle(stack: str, directory: Path) -> Bundle:
     bundle = new_bundle(stack)
     save_bundle(bundle, directory)
     return bundle
+
+
+SSH_KEY = "id_ed25519"  # under stack_dir(stack)/"ssh": private 0600, public beside it (.pub)
+
+
+def load_or_create_ssh_key(directory: Path) -> str:
+    """The stack's ed25519 public key (OpenSSH format), made on first use; private key 0600."""
+    public = directory / f"{SSH_KEY}.pub"
+    private = directory / SSH_KEY
+    if private.exists() and public.exists():
+        return public.read_text().strip()
+    key = Ed25519PrivateKey.generate()
+    pem = key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.OpenSSH,
+                            serialization.NoEncryption())
+    write_private(private, pem)
+    text = key.public_key().public_bytes(serialization.Encoding.OpenSSH, serialization.PublicFormat.OpenSSH).decode()
+    public.write_text(f"{text} fogiac\n")
+    return public.read_text().strip()

@@ -16,7 +16,8 @@ problem for a :class:`ManifestError`) and exits 1. Anything else escaping is a b
     │   └── HostKeyError       a host presented a key other than the recorded one
     ├── RelayError             the relay could not start or lost its peer for good
     ├── VpnError               OpenVPN could not be set up
-    └── WorkloadError          a workload's input is unusable
+    ├── WorkloadError          a workload's input is unusable
+    └── MissingExtra           an optional dependency (fogiac[aws], [ssh], [workloads]) is not installed
 """
 
 from __future__ import annotations
@@ -82,3 +83,7 @@ class VpnError(FogiacError):
 
 class WorkloadError(FogiacError):
     pass
+
+
+class MissingExtra(FogiacError):
+    """An optional dependency is not installed; the message names the extra to install."""

@@ -10,9 +10,10 @@ import json
 import os
 import socket
 import time
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 from fogiac.errors import LockHeld, StateError
 from fogiac.procs import pid_alive

@@ -14,12 +14,11 @@ from dataclasses import dataclass
 import pulumi
 import pulumi_aws as aws
 
-from fogiac.plan import HostSpec, ImageQuery
+from fogiac.plan.model import HostSpec, ImageQuery
 from fogiac.render import render
+from stacks import HOST_KEYS_BEGIN, HOST_KEYS_END
 from stacks.tags import tagged
 
-HOST_KEYS_BEGIN = "-----BEGIN FOGIAC SSH HOST KEYS-----"
-HOST_KEYS_END = "-----END FOGIAC SSH HOST KEYS-----"
 USER_DATA_TEMPLATE = "cloud-init/user-data.yaml.j2"
 AMI_ARCHITECTURE = "x86_64"  # every type in fogiac's catalogue is x86_64
 

@@ -10,16 +10,14 @@ from __future__ import annotations
 import ipaddress
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
+from typing import TypedDict
 
 import pulumi
 import pulumi_aws as aws
 
 from fogiac.errors import PlanError
-from fogiac.plan import OPERATOR, Rule, SecurityGroup
+from fogiac.plan.model import OPERATOR, OPERATOR_PLACEHOLDER, Rule, SecurityGroup, check_ingress
 from stacks.tags import tagged
-
-# What an offline plan shows for the operator's address (resolved only at ``up``).
-OPERATOR_PLACEHOLDER = "<operator>/32"
 
 
 @dataclass(frozen=True)
@@ -48,19 +46,6 @@ def expand(rules: tuple[Rule, ...], operator_cidrs: tuple[str, ...]) -> tuple[Ru
     return tuple(out)
 
 
-def check_ingress(group: str, rules: tuple[Rule, ...]) -> None:
-    """Refuse any ingress rule open to the whole internet (IPv4 or IPv6)."""
-    for rule in rules:
-        if rule.cidr == OPERATOR_PLACEHOLDER:
-            continue
-        try:
-            network = ipaddress.ip_network(rule.cidr, strict=False)
-        except ValueError:
-            raise PlanError(f"security group {group!r}: {rule.cidr!r} is not a CIDR") from None
-        if network.prefixlen == 0:
-            raise PlanError(f"security group {group!r} would accept {rule.cidr} on port {rule.from_port}")
-
-
 def rule_name(prefix: str, rule: Rule) -> str:
     """A stable logical name from the rule's content, so reordering rules replaces nothing."""
     ports = "all" if rule.protocol == "-1" else str(rule.from_port)
@@ -71,15 +56,32 @@ def rule_name(prefix: str, rule: Rule) -> str:
     return f"{prefix}-{proto}-{ports}-{cidr}"
 
 
-def _rule_args(rule: Rule, group_id: pulumi.Input[str], tags: Mapping[str, str]) -> dict[str, object]:
-    args: dict[str, object] = {
+class _RuleArgs(TypedDict, total=False):
+    """The keyword arguments SecurityGroupIngressRule and SecurityGroupEgressRule share, typed
+    so the type checker checks them against pulumi_aws's signatures."""
+
+    security_group_id: pulumi.Input[str]
+    ip_protocol: str
+    description: str
+    tags: dict[str, str]
+    cidr_ipv4: str
+    cidr_ipv6: str
+    from_port: int
+    to_port: int
+
+
+def _rule_args(rule: Rule, group_id: pulumi.Input[str], tags: Mapping[str, str]) -> _RuleArgs:
+    args: _RuleArgs = {
         "security_group_id": group_id,
         "ip_protocol": rule.protocol,
         "description": rule.description,
         "tags": dict(tags),
     }
     network = None if rule.cidr == OPERATOR_PLACEHOLDER else ipaddress.ip_network(rule.cidr, strict=False)
-    args["cidr_ipv6" if network is not None and network.version == 6 else "cidr_ipv4"] = rule.cidr
+    if network is not None and network.version == 6:
+        args["cidr_ipv6"] = rule.cidr
+    else:
+        args["cidr_ipv4"] = rule.cidr
     if rule.protocol != "-1":  # AWS takes no ports for "all protocols"
         args["from_port"] = rule.from_port
         args["to_port"] = rule.to_port

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import pulumi
 import pulumi_aws as aws
 
-from fogiac.plan import NetworkSpec
+from fogiac.plan.model import NetworkSpec
 from stacks.tags import tagged
 
 _ANYWHERE = "0.0.0.0/0"  # the public route table's default route (egress, not a firewall rule)

@@ -2,20 +2,20 @@
 
 Both are plain functions run inside a Pulumi program: by ``stacks/__main__.py`` under
 ``pulumi preview``/``up``, by the engine's Automation API, or under mocks for the offline plan
-(:mod:`fogiac.offline`). Compute takes network's outputs as plain values, so a second ``up``
+(:mod:`fogiac.targets.aws.offline`). Compute takes network's outputs as plain values, so a second ``up``
 after ``down --keep-network`` never waits for the slow VPN association again.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import pulumi
 
 from fogiac.certs import Bundle
 from fogiac.errors import PlanError
-from fogiac.plan import Plan
+from fogiac.plan.model import Plan
 from stacks.compute import Compute, ComputeArgs
 from stacks.firewall import Firewall, FirewallArgs
 from stacks.network import Network, NetworkArgs
@@ -27,8 +27,22 @@ VPN_GROUP = "vpn"  # the Client VPN endpoint's security group
 
 
 def _require_aws(plan: Plan) -> None:
-    if plan.target != "aws" or plan.network is None:
+    if plan.network is None:
         raise PlanError(f"target {plan.target!r} has no cloud stacks; only 'aws' does")
+
+
+def layer_programs(plan: Plan, *, certs: Bundle, operator_cidrs: tuple[str, ...], public_key_openssh: str,
+                   network_outputs: Callable[[], Mapping[str, Any]]) -> dict[str, Callable[[], None]]:
+    """The program of each layer, network then compute; compute reads the network's outputs when it runs.
+
+    The one place the two stacks are wired together: the engine (outputs of the applied network
+    stack), the offline plan (outputs the mocks resolved) and ``stacks/entry.py`` (a
+    StackReference) each pass their own ``network_outputs``.
+    """
+    return {
+        "network": lambda: network_program(plan, certs=certs, operator_cidrs=operator_cidrs),
+        "compute": lambda: compute_program(plan, network=network_outputs(), public_key_openssh=public_key_openssh),
+    }
 
 
 def network_program(plan: Plan, *, certs: Bundle, operator_cidrs: tuple[str, ...]) -> None:

@@ -10,8 +10,8 @@ from typer.testing import CliRunner
 
 from fogiac.cli import app
 from fogiac.errors import ManifestError
-from fogiac.fogros import import_launch, load_any
-from fogiac.manifest import load_manifest
+from fogiac.manifest.fogros import import_launch, load_any
+from fogiac.manifest.schema import load_manifest
 
 ROBOT_LAUNCH = """\
 <launch>

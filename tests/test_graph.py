@@ -2,15 +2,18 @@
 
 from __future__ import annotations
 
+import re
+import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+import pytest
 from typer.testing import CliRunner
 
 from fogiac.cli import app
-from fogiac.compile import compile_plan
-from fogiac.graph import layout
-from fogiac.manifest import load_manifest
+from fogiac.manifest.schema import load_manifest
+from fogiac.plan.compile import compile_plan
+from fogiac.plan.diagram import layout
 
 from .conftest import EXAMPLES
 
@@ -37,3 +40,14 @@ def test_cli_writes_svg_and_png(tmp_path: Path) -> None:
     assert png.startswith(b"\x89PNG\r\n\x1a\n") and len(png) > 5000
     svg = ET.parse(tmp_path / "deploy.svg").getroot()
     assert svg.tag.endswith("svg")
+
+
+def test_cli_without_matplotlib_says_so_in_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """matplotlib is an optional extra: missing, ``fogiac graph`` names the extra, no traceback."""
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib now raises ImportError
+    manifest = EXAMPLES / "motion-planning.yaml"
+    result = CliRunner().invoke(app, ["graph", str(manifest), "-o", str(tmp_path / "deploy"), "--target", "local"])
+    assert result.exit_code == 1
+    one_line = r"error: matplotlib is not installed \([^\n]+\); install it with: pip install 'fogiac\[workloads\]'\n"
+    assert re.fullmatch(one_line, result.output), result.output
+    assert not list(tmp_path.iterdir())

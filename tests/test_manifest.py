@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from fogiac.errors import ManifestError
-from fogiac.manifest import Manifest, json_schema, load_manifest, parse_manifest
+from fogiac.manifest.schema import Manifest, json_schema, load_manifest, parse_manifest
 
 from .conftest import EXAMPLES
 

@@ -10,7 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from fogiac.errors import ManifestError
-from fogiac.manifest import Manifest, parse_manifest
+from fogiac.manifest.schema import Manifest, parse_manifest
 
 from .conftest import EXAMPLES
 

@@ -7,7 +7,10 @@ import subprocess
 import sys
 from pathlib import Path
 
-from fogiac.procs import _ephemeral_low, free_port, pid_alive
+import signal
+import time
+
+from fogiac.procs import _ephemeral_low, descendants, free_port, pid_alive, poll, stop_tree
 
 
 def test_free_port_is_bindable_and_outside_the_ephemeral_range() -> None:
@@ -32,3 +35,36 @@ def test_a_zombie_is_not_alive_and_a_running_process_is() -> None:
     finally:
         sleeper.kill()
         sleeper.wait()
+
+
+def test_poll_returns_the_first_answer_and_backs_off_within_the_deadline() -> None:
+    clock = [0.0]
+    pauses: list[float] = []
+
+    def sleep(seconds: float) -> None:
+        pauses.append(seconds)
+        clock[0] += seconds
+
+    answers = iter([None, None, None, "up"])
+    assert poll(lambda: next(answers), timeout=10, interval=0.1, backoff=2.0, sleep=sleep) == "up"
+    assert pauses == [0.1, 0.2, 0.4]
+
+
+def test_poll_gives_up_at_the_deadline_after_a_last_look() -> None:
+    calls: list[float] = []
+    start = time.monotonic()
+    assert poll(lambda: calls.append(time.monotonic() - start), timeout=0.3, interval=0.05, max_interval=0.1) is None
+    assert calls[0] < 0.05 and calls[-1] >= 0.3  # at once, ..., and once more at the deadline
+
+
+def test_stop_tree_ends_a_process_and_its_children_even_one_that_ignores_term() -> None:
+    script = ("import signal, subprocess, sys, time; signal.signal(signal.SIGTERM, signal.SIG_IGN); "
+              "subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(60)']); time.sleep(60)")
+    parent = subprocess.Popen([sys.executable, "-c", script], start_new_session=True)
+    children: list[int] = []
+    while not children:
+        children = descendants(parent.pid)
+    stop_tree(parent.pid, grace=0.5)
+    parent.wait(timeout=10)
+    assert parent.returncode == -signal.SIGKILL  # TERM was ignored, so the grace ran out
+    assert all(not pid_alive(pid) for pid in children)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from fogiac.reference import BEGIN, END, manifest_reference
+from fogiac.manifest.reference import BEGIN, END, manifest_reference
 
 from .conftest import REPO
 
@@ -10,7 +10,7 @@ from .conftest import REPO
 def test_readme_reference_matches_the_model() -> None:
     text = (REPO / "README.md").read_text()
     block = text[text.index(BEGIN): text.index(END) + len(END)]
-    assert block == manifest_reference(), "run: python -m fogiac.reference --write README.md"
+    assert block == manifest_reference(), "run: python -m fogiac.manifest.reference --write README.md"
 
 
 def test_every_model_field_is_documented() -> None:

@@ -6,12 +6,11 @@ from collections.abc import Mapping
 from typing import Any
 
 from fogiac.errors import WorkloadError
+from fogiac.render import render
 
 
 def render_dockerfile(template: str, defaults: Mapping[str, Any], overrides: Mapping[str, Any]) -> str:
     """The Dockerfile text; ``overrides`` replace ``defaults`` and must name known variables."""
-    from fogiac.render import render
-
     unknown = sorted(set(overrides) - set(defaults))
     if unknown:
         raise WorkloadError(f"unknown Dockerfile variables {', '.join(unknown)}; valid: {', '.join(sorted(defaults))}")

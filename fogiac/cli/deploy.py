@@ -1,61 +1,49 @@
 """``fogiac up | down | refresh | status | sweep | doctor``: apply a manifest and undo it.
 
-Thin: each command compiles the manifest, calls :mod:`fogiac.deploy` (or :mod:`fogiac.aws`)
-and renders with rich. Applying and deleting ask first unless ``--yes``; with no terminal to
-ask on they refuse at once. Heavy imports stay inside the commands.
+Thin: each command compiles the manifest, asks the plan's target (:mod:`fogiac.targets`) and
+renders with rich. Applying and deleting ask first unless ``--yes``; with no terminal to ask on
+they refuse at once.
 """
 
 from __future__ import annotations
 
-import sys
+import json
+import time
 from collections import Counter
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any
 
 import typer
+from rich.live import Live
 
-_MANIFEST = typer.Argument(Path("fogiac.yaml"), help="The manifest (fogiac.yaml).", dir_okay=False)
-_ENV = typer.Option("dev", "--env", help="Environment: one stack per manifest and environment.")
-_TARGET = typer.Option(None, "--target", help="aws, hosts or local (default: the manifest's).")
-_YES = typer.Option(False, "--yes", "-y", help="Do not ask.")
-
-
-def _compile(manifest: Path, env: str, target: Optional[str]) -> Any:
-    from fogiac.compile import compile_plan
-    from fogiac.fogros import load_any
-
-    return compile_plan(load_any(manifest), target=target, environment=env)
-
-
-def _need_yes(yes: bool, what: str) -> None:
-    from fogiac.errors import FogiacError
-
-    if not yes and (sys.stdin is None or not sys.stdin.isatty()):
-        raise FogiacError(f"refusing to {what} without --yes: there is no terminal to ask on")
+from fogiac import targets
+from fogiac.cli._common import ENV, MANIFEST, TARGET, YES, compile_for, need_yes
+from fogiac.errors import PreflightError
+from fogiac.plan.saved import check_saved_plan
+from fogiac.provision.report import report_table
+from fogiac.tables import console, table
+from fogiac.targets.aws.engine import Timers
+from fogiac.targets.base import DownOptions, UpOptions
 
 
 def _show(doc: Mapping[str, Any], report: Any) -> None:
-    from rich.console import Console
-
-    console = Console()
-    console.print(f"[bold]{doc['stack']}[/]: {report.region} zone {report.zone}, account {report.account}, "
-                  f"SSH from {', '.join(report.operator_cidrs)}")
+    out = console()
+    out.print(f"[bold]{doc['stack']}[/]: {report.region} zone {report.zone}, account {report.account}, "
+              f"SSH from {', '.join(report.operator_cidrs)}")
     for stack in doc["stacks"]:
         counts = Counter(r["type"].rsplit(":", 1)[-1] for r in doc["resources"] if r["stack"] == stack)
-        console.print(f"  {stack}: " + ", ".join(f"{n} {kind}" for kind, n in sorted(counts.items())))
+        out.print(f"  {stack}: " + ", ".join(f"{n} {kind}" for kind, n in sorted(counts.items())))
     for line in doc["cost"]["lines"]:
-        console.print(f"  ${line['total']:.4f}/h  {line['item']}")
+        out.print(f"  ${line['total']:.4f}/h  {line['item']}")
     total = doc["cost"]["hourly_usd"]
-    console.print(f"[bold]cost: ${total:.4f} per hour[/] (about ${total * 730:.2f} per month if left running)")
+    out.print(f"[bold]cost: ${total:.4f} per hour[/] (about ${total * 730:.2f} per month if left running)")
 
 
 @contextmanager
 def _one_line_each() -> Iterator[None]:
     """Preflight reports every problem at once: print each as its own ``error:`` line."""
-    from fogiac.errors import PreflightError
-
     try:
         yield
     except PreflightError as err:
@@ -68,29 +56,19 @@ class _Progress:
     """A live table of resources being changed, each with its own timer."""
 
     def __init__(self) -> None:
-        import time
-
-        from rich.console import Console
-        from rich.live import Live
-
-        from fogiac.engine import Timers
-
         self.timers = Timers(clock=time.monotonic)
         self.clock = time.monotonic
-        self.live = Live(get_renderable=self._table, console=Console(stderr=True), refresh_per_second=2,
+        self.live = Live(get_renderable=self._table, console=console(stderr=True), refresh_per_second=2,
                          transient=False)
 
     def _table(self) -> Any:
-        from rich.table import Table
-
-        table = Table(show_header=True, box=None)
-        for column in ("", "resource", "type", "time"):
-            table.add_column(column)
+        out = table(None, "", "resource", "type", "time")
+        out.box = None
         now = self.clock()
         for row in list(self.timers.rows.values())[-25:]:
             mark = "[red]✗[/]" if row.failed else "[green]✓[/]" if row.finished is not None else "…"
-            table.add_row(mark, f"{row.op} {row.name}", row.type, f"{row.elapsed(now):5.0f}s")
-        return table
+            out.add_row(mark, f"{row.op} {row.name}", row.type, f"{row.elapsed(now):5.0f}s")
+        return out
 
     def __call__(self, event: Any) -> None:
         """The engine's on_event: the display starts with the first event, after any question."""
@@ -106,36 +84,29 @@ class _Progress:
             self.live.stop()
 
 
-def up(manifest: Path = _MANIFEST, yes: bool = _YES, env: str = _ENV, target: Optional[str] = _TARGET,
-       plan_file: Optional[Path] = typer.Option(None, "--plan", help="Apply only if this saved plan still holds."),
-       ssh_from: Optional[str] = typer.Option(None, "--ssh-from", help="Your CIDR for ssh_from: auto."),
+def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str | None = TARGET,
+       plan_file: Path | None = typer.Option(None, "--plan", help="Apply only if this saved plan still holds."),
+       ssh_from: str | None = typer.Option(None, "--ssh-from", help="Your CIDR for ssh_from: auto."),
        start_edge_master: bool = typer.Option(False, "--start-edge-master",
                                               help="local/hosts: run the edge's roscore too if none answers (demos)."),
-       edge_master: Optional[str] = typer.Option(None, "--edge-master", help="Override edge.ros_master."),
-       infra_only: bool = typer.Option(False, "--infra-only", help="aws: create the stacks only; provision nothing.")) -> None:
+       edge_master: str | None = typer.Option(None, "--edge-master", help="Override edge.ros_master."),
+       infra_only: bool = typer.Option(False, "--infra-only", help="aws: create the stacks only; provision nothing.")
+       ) -> None:
     """Check, show the plan and its cost, ask, then create the machines and start the nodes."""
-    from fogiac.deploy import UpOptions, target as target_of
-    from fogiac.savedplan import check_saved_plan
-
-    plan = _compile(manifest, env, target)
-    chosen = target_of(plan.target)
-    _need_yes(yes, "apply")
+    plan = compile_for(manifest, env, target)
+    chosen = targets.get(plan.target)
+    need_yes(yes, "apply")
     if plan_file is not None:
         check_saved_plan(plan_file, manifest=manifest, stack=plan.stack, target=plan.target)
     with _one_line_each(), _Progress() as progress:
         result = chosen.up(plan, UpOptions(
             manifest_path=manifest, yes=yes, ssh_from=ssh_from, show=_show,
             confirm=lambda q: typer.confirm(q, default=False), announce=lambda line: typer.echo(line, err=True),
-            on_event=progress, extras={"start_edge_master": start_edge_master, "edge_master": edge_master,
-                                         "infra_only": infra_only}))
+            on_event=progress, start_edge_master=start_edge_master, edge_master=edge_master, infra_only=infra_only))
     if result.report is not None:
-        from rich.console import Console
-
-        from fogiac.provision.report import report_table
-
-        Console().print(report_table(result.report))
-        for host, connect in sorted(result.outputs.get("relays", {}).items()):
-            typer.echo(f"{host}: relay {connect} <-> edge {plan.edge_master if edge_master is None else edge_master}")
+        console().print(report_table(result.report))
+    for host, connect in sorted(result.relays.items()):
+        typer.echo(f"{host}: relay {connect} <-> edge {result.edge_master}")
     hosts = result.outputs.get("compute", {}).get("hosts", {})
     for name, host in sorted(hosts.items()):
         typer.echo(f"{name}: {host.get('instance_id')} {host.get('machine')} public {host.get('public_ip')} "
@@ -143,14 +114,13 @@ def up(manifest: Path = _MANIFEST, yes: bool = _YES, env: str = _ENV, target: Op
     typer.echo(f"applied: {result.applied}")
 
 
-def down(manifest: Path = _MANIFEST, yes: bool = _YES, env: str = _ENV, target: Optional[str] = _TARGET,
-         keep_network: bool = typer.Option(False, "--keep-network", help="Keep the network stack for a fast next up.")) -> None:
+def down(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str | None = TARGET,
+         keep_network: bool = typer.Option(False, "--keep-network", help="Keep the network stack for a fast next up.")
+         ) -> None:
     """Destroy compute, then network (past errors), then sweep; exit 1 if anything is left."""
-    from fogiac.deploy import DownOptions, target as target_of
-
-    plan = _compile(manifest, env, target)
-    chosen = target_of(plan.target)
-    _need_yes(yes, "destroy")
+    plan = compile_for(manifest, env, target)
+    chosen = targets.get(plan.target)
+    need_yes(yes, "destroy")
     if not yes and not typer.confirm(f"Destroy everything of stack {plan.stack}?", default=False):
         raise typer.Exit(1)
     with _Progress() as progress:
@@ -172,85 +142,40 @@ def down(manifest: Path = _MANIFEST, yes: bool = _YES, env: str = _ENV, target: 
         raise typer.Exit(1)
 
 
-def refresh(manifest: Path = _MANIFEST, env: str = _ENV) -> None:
+def refresh(manifest: Path = MANIFEST, env: str = ENV, target: str | None = TARGET) -> None:
     """Update fogiac's state from what exists in the cloud."""
-    from fogiac.engine import Engine
-    from fogiac.state import stack_lock
-
-    plan = _compile(manifest, env, None)
-    with stack_lock(plan.stack, operation="refresh"):
-        results = Engine(plan).refresh()
+    plan = compile_for(manifest, env, target)
+    results = targets.get(plan.target).refresh(plan)
     for r in results:
-        typer.echo(f"{r.layer}: {r.summary}")
+        typer.echo(f"{r.what}: {r.summary}")
     if not all(r.ok for r in results):
         raise typer.Exit(1)
 
 
-def status(manifest: Path = _MANIFEST, env: str = _ENV, target: Optional[str] = _TARGET,
+def status(manifest: Path = MANIFEST, env: str = ENV, target: str | None = TARGET,
            as_json: bool = typer.Option(False, "--json", help="Print the status document.")) -> None:
     """The stack's hosts: state, type, addresses, uptime and cost so far."""
-    import json
-
-    from rich.console import Console
-    from rich.table import Table
-
-    from fogiac.deploy import target as target_of
-
-    plan = _compile(manifest, env, target)
-    doc = target_of(plan.target).status(plan)
+    plan = compile_for(manifest, env, target)
+    chosen = targets.get(plan.target)
+    doc = chosen.status(plan)
     if as_json:
         typer.echo(json.dumps(doc, indent=2, sort_keys=True))
         return
-    if plan.target != "aws":
-        Console().print(*_fleet_tables(doc))
-        return
-    table = Table(title=f"{plan.stack} ({plan.region})")
-    for column in ("host", "instance", "state", "type", "public", "private", "uptime", "cost so far"):
-        table.add_column(column)
-    for h in doc["hosts"]:
-        table.add_row(h["host"], h["instance_id"], h["state"], h["machine"], h["public_ip"] or "-",
-                      h["private_ip"] or "-", f"{h['uptime_s'] / 3600:.1f} h", f"${h['cost_usd']:.2f}")
-    Console().print(table if doc["hosts"] else f"{plan.stack}: no instances")
+    console().print(*chosen.render_status(doc))
 
 
-def _fleet_tables(doc: Mapping[str, Any]) -> list[Any]:
-    """Nodes with their supervision state, then relayed topics with live figures."""
-    from rich.table import Table
-
-    if not doc.get("deployed"):
-        return [f"{doc['stack']}: not deployed"]
-    nodes = Table(title=f"{doc['stack']} ({doc['target']}), edge {doc.get('edge_master')}")
-    for column in ("host", "machine", "node", "state", "restarts"):
-        nodes.add_column(column)
-    for host in doc["hosts"]:
-        for node in host["nodes"]:
-            state = "-" if "running" not in node else "running" if node["running"] else "failed"
-            nodes.add_row(host["host"], host["machine"], node["node"], state, str(node.get("restarts", "-")))
-    relays = Table(title="relayed topics")
-    for column in ("host", "link", "topic", "dir", "msgs", "msgs/s", "KiB/s", "latency ms", "drops"):
-        relays.add_column(column, overflow="fold")
-    for relay in doc["relays"]:
-        link = ("up" if relay.get("connected") else "down") + (f" {relay['rtt_ms']:.2f} ms" if relay.get("rtt_ms") else "")
-        for t in relay.get("topics", []) or [{}]:
-            latency = "-" if t.get("latency_ms") is None else f"{t['latency_ms']:.2f}"
-            rate = t.get("bytes_per_s")
-            relays.add_row(relay["host"], link, t.get("topic", "-"), t.get("direction", "-"), str(t.get("msgs", "-")),
-                           str(t.get("msgs_per_s", "-")), "-" if rate is None else f"{rate / 1024:.1f}", latency,
-                           str(t.get("drops", "-")))
-    return [nodes, relays]
-
-
-def sweep(manifest: Path = _MANIFEST, env: str = _ENV, yes: bool = _YES,
+def sweep(manifest: Path = MANIFEST, env: str = ENV, target: str | None = TARGET, yes: bool = YES,
           dry_run: bool = typer.Option(False, "--dry-run", help="Only list what would be deleted.")) -> None:
     """Delete every resource tagged with the stack, even ones outside fogiac's state."""
-    from fogiac.aws import sweep as run_sweep
-
-    plan = _compile(manifest, env, None)
-    if not dry_run:
-        _need_yes(yes, "sweep")
+    plan = compile_for(manifest, env, target)
+    chosen = targets.get(plan.target)
+    if not dry_run and chosen.makes_resources:
+        need_yes(yes, "sweep")
         if not yes and not typer.confirm(f"Delete everything tagged fogiac:stack={plan.stack}?", default=False):
             raise typer.Exit(1)
-    result = run_sweep(plan.stack, region=plan.region, dry_run=dry_run)
+    result = chosen.sweep(plan, dry_run=dry_run)
+    if result.note:
+        typer.echo(result.note)
     for item in result.found if dry_run else result.deleted:
         typer.echo(f"{'would delete' if dry_run else 'deleted'}: {item}")
     for item in result.not_checked:
@@ -261,17 +186,14 @@ def sweep(manifest: Path = _MANIFEST, env: str = _ENV, yes: bool = _YES,
         raise typer.Exit(1)
 
 
-def doctor(manifest: Path = _MANIFEST, env: str = _ENV, target: Optional[str] = _TARGET,
-           ssh_from: Optional[str] = typer.Option(None, "--ssh-from", help="Your CIDR for ssh_from: auto.")) -> None:
+def doctor(manifest: Path = MANIFEST, env: str = ENV, target: str | None = TARGET,
+           ssh_from: str | None = typer.Option(None, "--ssh-from", help="Your CIDR for ssh_from: auto.")) -> None:
     """Run every check `up` makes, create nothing, say what would fail."""
-    from fogiac.deploy import doctor as checks, target as target_of
-
-    plan = _compile(manifest, env, target)
-    target_of(plan.target)
-    results = checks(plan, ssh_from=ssh_from)
-    for what, ok, detail in results:
-        typer.echo(f"{'ok  ' if ok else 'FAIL'} {what}: {detail}")
-    if not all(ok for _, ok, _ in results):
+    plan = compile_for(manifest, env, target)
+    results = targets.get(plan.target).doctor(plan, ssh_from=ssh_from)
+    for check in results:
+        typer.echo(f"{'ok  ' if check.ok else 'FAIL'} {check.what}: {check.detail}")
+    if not all(check.ok for check in results):
         raise typer.Exit(1)
 
 

@@ -6,18 +6,17 @@ from pathlib import Path
 
 import typer
 
+from fogiac.cli._common import MANIFEST, TARGET, compile_for
+from fogiac.plan.diagram import draw
+
 
 def graph(
-    manifest: Path = typer.Argument(Path("fogiac.yaml"), help="The manifest or a FogROS launch file."),
+    manifest: Path = MANIFEST,
     out: Path = typer.Option(Path("fogiac-graph"), "--out", "-o", help="Output path without suffix."),
-    target: str = typer.Option(None, "--target", help="aws, hosts or local (default: the manifest's)."),
+    target: str | None = TARGET,
 ) -> None:
     """Draw edge and cloud sites, machines, nodes and the topics crossing the relay or VPN."""
-    from fogiac.compile import compile_plan
-    from fogiac.fogros import load_any
-    from fogiac.graph import draw
-
-    svg, png = draw(compile_plan(load_any(manifest), target=target), out)
+    svg, png = draw(compile_for(manifest, target=target), out)
     typer.echo(f"wrote {svg} and {png}")
 
 

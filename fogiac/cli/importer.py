@@ -6,6 +6,10 @@ from pathlib import Path
 
 import typer
 
+from fogiac.errors import FogiacError
+from fogiac.manifest.fogros import import_launch as convert
+from fogiac.state import write_text_atomic
+
 
 def import_launch(
     launch: Path = typer.Argument(..., help="A roslaunch file using FogROS's cloud nodes."),
@@ -13,10 +17,6 @@ def import_launch(
     force: bool = typer.Option(False, "--force", help="Overwrite an existing manifest."),
 ) -> None:
     """Write the fogiac.yaml equivalent of a FogROS launch file (other nodes stay on the robot)."""
-    from fogiac.errors import FogiacError
-    from fogiac.fogros import import_launch as convert
-    from fogiac.state import write_text_atomic
-
     if out.exists() and not force:
         raise FogiacError(f"{out} exists; pass --force to overwrite it")
     manifest, text = convert(launch, out=out)

@@ -7,18 +7,21 @@ from pathlib import Path
 
 import typer
 
-ManifestArg = typer.Argument(Path("fogiac.yaml"), help="The manifest (fogiac.yaml).")
+from fogiac.cli._common import MANIFEST, TARGET, load
+from fogiac.errors import FogiacError
+from fogiac.manifest.schema import json_schema, parse_manifest
+from fogiac.plan.catalog import catalog
+from fogiac.plan.compile import compile_plan
+from fogiac.state import write_text_atomic
+from fogiac.tables import console, table
 
 
 def validate(
-    manifest: Path = ManifestArg,
-    target: str = typer.Option(None, "--target", help="Check it compiles for this target too."),
+    manifest: Path = MANIFEST,
+    target: str | None = TARGET,
 ) -> None:
     """Check a manifest; print every problem as FILE:LINE: field: what is wrong."""
-    from fogiac.compile import compile_plan
-    from fogiac.manifest import load_manifest
-
-    loaded = load_manifest(manifest)
+    loaded = load(manifest)
     plan = compile_plan(loaded, target=target)
     typer.echo(
         f"{manifest}: valid ({len(loaded.nodes)} node{'s' if len(loaded.nodes) != 1 else ''}, "
@@ -28,8 +31,6 @@ def validate(
 
 def schema() -> None:
     """Print the manifest's JSON Schema, for editors to complete and check fogiac.yaml."""
-    from fogiac.manifest import json_schema
-
     typer.echo(json.dumps(json_schema(), indent=2, sort_keys=True))
 
 
@@ -57,10 +58,6 @@ def init(
     name: str = typer.Option("my-robot", "--name", help="Deployment name (DNS-safe)."),
 ) -> None:
     """Write a starter manifest (never over an existing one)."""
-    from fogiac.errors import FogiacError
-    from fogiac.manifest import parse_manifest
-    from fogiac.state import write_text_atomic
-
     if path.exists():
         raise FogiacError(f"{path} exists; edit it, or pick another path")
     text = STARTER.format(name=name)
@@ -69,29 +66,19 @@ def init(
     typer.echo(f"wrote {path}; next: fogiac validate {path} && fogiac plan {path}")
 
 
-def cost(
-    manifest: Path = ManifestArg,
-    target: str = typer.Option(None, "--target", help="aws, hosts or local (default: the manifest's)."),
-) -> None:
+def cost(manifest: Path = MANIFEST, target: str | None = TARGET) -> None:
     """What the deployment costs per hour, day and 30-day month, line by line (on-demand prices)."""
-    from rich.console import Console
-    from rich.table import Table
-
-    from fogiac.catalog import catalog
-    from fogiac.compile import compile_plan
-    from fogiac.manifest import load_manifest
-
-    plan = compile_plan(load_manifest(manifest), target=target)
-    table = Table(title=f"{plan.stack} ({plan.target}, {plan.region})")
-    for column in ("item", "$/hour", "$/day", "$/30 days"):
-        table.add_column(column, justify="left" if column == "item" else "right")
+    plan = compile_plan(load(manifest), target=target)
+    out = table(f"{plan.stack} ({plan.target}, {plan.region})", "item", "$/hour", "$/day", "$/30 days")
+    for column in out.columns[1:]:
+        column.justify = "right"
     for line in plan.cost:
-        table.add_row(line.item, f"{line.total:.4f}", f"{line.total * 24:.2f}", f"{line.total * 720:.2f}")
+        out.add_row(line.item, f"{line.total:.4f}", f"{line.total * 24:.2f}", f"{line.total * 720:.2f}")
     total = plan.hourly_usd
-    table.add_row("total", f"{total:.4f}", f"{total * 24:.2f}", f"{total * 720:.2f}", style="bold")
-    console = Console()
-    console.print(table)
-    console.print(f"prices: {catalog().source} ({catalog().as_of})", markup=False, style="dim")
+    out.add_row("total", f"{total:.4f}", f"{total * 24:.2f}", f"{total * 720:.2f}", style="bold")
+    screen = console()
+    screen.print(out)
+    screen.print(f"prices: {catalog().source} ({catalog().as_of})", markup=False, style="dim")
 
 
 def register(app: typer.Typer) -> None:

@@ -8,30 +8,30 @@ target (``aws``, ``hosts``, ``local``).
 from __future__ import annotations
 
 import os
+import shlex
 from pathlib import Path
-from typing import Optional
+from typing import Any
 
 import typer
 
-_MANIFEST = typer.Argument(Path("fogiac.yaml"), help="The manifest (default: ./fogiac.yaml).", dir_okay=False)
-_ENV = typer.Option("dev", "--env", help="Environment (stack = <name>-<env>).")
-_TARGET = typer.Option(None, "--target", help="Override the manifest's target: hosts or local.")
+from fogiac import targets
+from fogiac.certs import load_or_create_bundle
+from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_for
+from fogiac.errors import ProvisionError
+from fogiac.orchestrate import ExistingMachines
+from fogiac.plan.model import Plan
+from fogiac.provision import LocalAccess, provision, recorded_access
+from fogiac.provision import teardown as tear_down
+from fogiac.provision.managers import manager_for
+from fogiac.provision.report import report_table
+from fogiac.provision.services import Layout
+from fogiac.state import stack_dir, stack_lock
+from fogiac.tables import console
 
 
-def _plan(manifest: Path, target: Optional[str], env: str):  # type: ignore[no-untyped-def]
-    from fogiac.compile import compile_plan
-    from fogiac.manifest import load_manifest
-
-    return compile_plan(load_manifest(manifest), target=target, environment=env)
-
-
-def _host_of(node: str, manifest: Path, env: str):  # type: ignore[no-untyped-def]
-    """(host name, access, base, stack dir) of the host running ``node``, from the last provisioning."""
-    from fogiac.errors import ProvisionError
-    from fogiac.provision import recorded_access
-    from fogiac.state import stack_dir
-
-    plan = _plan(manifest, None, env)
+def _host_of(node: str, manifest: Path, env: str) -> tuple[str, Any, str, Path, Plan]:
+    """(host name, access, base, stack dir, plan) of the host running ``node``, from the last provisioning."""
+    plan = compile_for(manifest, env)
     state = stack_dir(plan.stack)
     for name, (access, base, nodes) in recorded_access(state).items():
         if node in nodes:
@@ -43,34 +43,30 @@ def _host_of(node: str, manifest: Path, env: str):  # type: ignore[no-untyped-de
 
 def register(app: typer.Typer) -> None:
     @app.command("provision")
-    def provision_cmd(manifest: Path = _MANIFEST, target: Optional[str] = _TARGET, env: str = _ENV,
+    def provision_cmd(manifest: Path = MANIFEST, target: str | None = TARGET, env: str = ENV,
                       health_timeout: float = typer.Option(30.0, help="Seconds to wait for each node."),
                       allow_install: bool = typer.Option(False, help="Install ROS from OS packages if missing."),
-                      teardown: bool = typer.Option(False, "--teardown", help="Stop everything and remove it.")) -> None:
+                      teardown: bool = typer.Option(False, "--teardown", help="Stop everything and remove it.")
+                      ) -> None:
         """Provision an existing set of hosts (no cloud resources): ROS, code, nodes, relay."""
-        from rich.console import Console
-
-        from fogiac.certs import load_or_create_bundle
-        from fogiac.errors import ProvisionError
-        from fogiac.provision import access_for, provision, teardown as down
-        from fogiac.provision.report import report_table
-        from fogiac.state import stack_dir, stack_lock
-
-        plan = _plan(manifest, target, env)
-        if plan.target == "aws":
-            raise ProvisionError("`fogiac provision` is for --target hosts or local; aws hosts are provisioned by `fogiac up`")
+        plan = compile_for(manifest, env, target)
+        chosen = targets.get(plan.target)
+        if not isinstance(chosen, ExistingMachines):
+            usable = ", ".join(n for n in targets.names() if isinstance(targets.get(n), ExistingMachines))
+            raise ProvisionError(f"`fogiac provision` is for targets whose machines exist ({usable}); "
+                                 f"{plan.target} hosts are provisioned by `fogiac up`")
         state = stack_dir(plan.stack)
-        console = Console()
+        screen = console()
         with stack_lock(plan.stack, operation="teardown" if teardown else "provision"):
-            hosts = access_for(plan, state_dir=state)
+            hosts = chosen.access(plan, state_dir=state)
             if teardown:
-                report = down(plan, hosts=hosts, state_dir=state)
+                report = tear_down(plan, hosts=hosts, state_dir=state)
             else:
                 load_or_create_bundle(plan.stack, state / "certs")
-                with console.status(f"provisioning {len(plan.hosts)} host(s)"):
+                with screen.status(f"provisioning {len(plan.hosts)} host(s)"):
                     report = provision(plan, hosts=hosts, state_dir=state, certs_dir=state / "certs",
                                        health_timeout=health_timeout, allow_install=allow_install)
-        console.print(report_table(report, title="teardown" if teardown else "provisioning"))
+        screen.print(report_table(report, title="teardown" if teardown else "provisioning"))
         for failed in report.failed:  # whole lines, whatever the terminal's width
             typer.echo(f"error: {failed.error}", err=True)
         typer.echo(report.summary())
@@ -78,29 +74,22 @@ def register(app: typer.Typer) -> None:
             raise typer.Exit(1)
 
     @app.command("logs")
-    def logs(node: str, manifest: Path = _MANIFEST, env: str = _ENV,
+    def logs(node: str, manifest: Path = MANIFEST, env: str = ENV,
              lines: int = typer.Option(100, "--lines", "-n", help="How many lines.")) -> None:
         """Print the last lines a node wrote on its host."""
-        from fogiac.provision.managers import manager_for
-        from fogiac.provision.services import Layout
-
         name, access, base, state, plan = _host_of(node, manifest, env)
         host = access.open(name=name, known_hosts=state / "known_hosts", stack=plan.stack)
         try:
-            host.connect()  # type: ignore[attr-defined]
+            host.connect()
             command = manager_for(host).logs_command(Layout(base or host.base), f"node-{node}", lines=lines)
             typer.echo(host.run(command).stdout, nl=False)
         finally:
             host.close()
 
     @app.command("ssh")
-    def ssh(node: str, manifest: Path = _MANIFEST, env: str = _ENV,
+    def ssh(node: str, manifest: Path = MANIFEST, env: str = ENV,
             print_only: bool = typer.Option(False, "--print", help="Print the command instead of running it.")) -> None:
         """Open a shell on the host running NODE (a local sandbox: a shell in its folder)."""
-        import shlex
-
-        from fogiac.provision.host import LocalAccess
-
         name, access, base, state, _ = _host_of(node, manifest, env)
         if isinstance(access, LocalAccess):
             argv = ["bash", "--rcfile", f"{base}/env/ros.sh", "-i"]

@@ -2,14 +2,24 @@
 
 from __future__ import annotations
 
+import logging
+import signal
+import threading
 from pathlib import Path
-from typing import Optional
 
 import typer
 
+from fogiac.certs import new_bundle, save_bundle, server_name
+from fogiac.errors import RelayError
+from fogiac.net.relay.cloud import CloudRelay
+from fogiac.net.relay.compression import parse_spec
+from fogiac.net.relay.config import CloudConfig, EdgeConfig, default_ros_host, parse_hostport, policy_from_spec
+from fogiac.net.relay.edge import EdgeRelay
+
 _MASTER = typer.Option("http://127.0.0.1:11311/", "--master", help="This side's ROS master URI.")
 _CERTS = typer.Option(..., "--certs", help="Directory from `fogiac certs` (ca.pem and this end's pair).")
-_ROS_HOST = typer.Option(None, "--ros-host", help="Address local nodes reach the relay at (default ROS_IP/ROS_HOSTNAME).")
+_ROS_HOST = typer.Option(None, "--ros-host",
+                         help="Address local nodes reach the relay at (default ROS_IP/ROS_HOSTNAME).")
 _STATS = typer.Option(None, "--stats-file", help="Write live figures as JSON here every second.")
 _DEPTH = typer.Option(4, "--queue-depth", help="Per-topic queue length (oldest dropped first).")
 _VERBOSE = typer.Option(False, "--verbose", "-v", help="Log debug detail.")
@@ -17,9 +27,6 @@ _VERBOSE = typer.Option(False, "--verbose", "-v", help="Log debug detail.")
 
 def _run(end: object, verbose: bool) -> None:
     """Run an end until SIGINT/SIGTERM, then withdraw its registrations."""
-    import logging
-    import signal
-    import threading
 
     logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO,
                         format="%(asctime)s %(levelname)s %(name)s: %(message)s")
@@ -33,8 +40,7 @@ def _run(end: object, verbose: bool) -> None:
         end.stop()  # type: ignore[attr-defined]
 
 
-def _common(master: str, certs: Path, ros_host: Optional[str], stats_file: Optional[Path], depth: int) -> dict:
-    from fogiac.net.relay.config import default_ros_host
+def _common(master: str, certs: Path, ros_host: str | None, stats_file: Path | None, depth: int) -> dict:
 
     return {"master_uri": master, "certs": certs, "ros_host": ros_host or default_ros_host(),
             "stats_file": stats_file, "queue_depth": depth}
@@ -46,11 +52,9 @@ def register(app: typer.Typer) -> None:
 
     @relay.command("cloud")
     def cloud(listen: str = typer.Option("0.0.0.0:11411", "--listen", help="HOST:PORT to accept the edge on."),
-              master: str = _MASTER, certs: Path = _CERTS, ros_host: Optional[str] = _ROS_HOST,
-              stats_file: Optional[Path] = _STATS, queue_depth: int = _DEPTH, verbose: bool = _VERBOSE) -> None:
+              master: str = _MASTER, certs: Path = _CERTS, ros_host: str | None = _ROS_HOST,
+              stats_file: Path | None = _STATS, queue_depth: int = _DEPTH, verbose: bool = _VERBOSE) -> None:
         """The cloud end: wait for the edge and relay what it asks for."""
-        from fogiac.net.relay.cloud import CloudRelay
-        from fogiac.net.relay.config import CloudConfig, parse_hostport
 
         config = CloudConfig(listen=parse_hostport(listen), **_common(master, certs, ros_host, stats_file, queue_depth))
         _run(CloudRelay(config), verbose)
@@ -62,17 +66,16 @@ def register(app: typer.Typer) -> None:
              out_topics: str = typer.Option("", "--out", help="/a,/b always sent edge -> cloud."),
              in_topics: str = typer.Option("", "--in", help="/a,/b always sent cloud -> edge."),
              compression: str = typer.Option("none", "--compression", help="none|zstd|lz4, or per topic /t=zstd,..."),
-             server_name: Optional[str] = typer.Option(None, "--server-name", help="Name in the cloud's certificate (default: server.pem's)."),
-             ros_host: Optional[str] = _ROS_HOST, stats_file: Optional[Path] = _STATS,
+             server_name: str | None = typer.Option(None, "--server-name",
+                                                   help="Name in the cloud's certificate (default: server.pem's)."),
+             ros_host: str | None = _ROS_HOST, stats_file: Path | None = _STATS,
              queue_depth: int = _DEPTH, verbose: bool = _VERBOSE) -> None:
         """The edge end: dial the cloud end, keep the link up, relay topics both ways."""
-        from fogiac.net.relay.compression import parse_spec
-        from fogiac.net.relay.config import EdgeConfig, parse_hostport, policy_from_spec
-        from fogiac.net.relay.edge import EdgeRelay
 
         default, per_topic = parse_spec(compression)
         config = EdgeConfig(
-            connect=parse_hostport(connect), policy=policy_from_spec(topics, out_topics=out_topics, in_topics=in_topics),
+            connect=parse_hostport(connect),
+            policy=policy_from_spec(topics, out_topics=out_topics, in_topics=in_topics),
             compression=default, topic_compression=tuple(sorted(per_topic.items())), server_name=server_name,
             **_common(master, certs, ros_host, stats_file, queue_depth),
         )
@@ -84,9 +87,6 @@ def register(app: typer.Typer) -> None:
     def certs_cmd(directory: Path = typer.Argument(..., help="Where to write ca/server/client .pem and .key."),
                   stack: str = typer.Option("relay", "--stack", help="Stack name in the certificates.")) -> None:
         """Create a CA with a cloud (server) and an edge (client) certificate; keys are 0600."""
-        from fogiac.certs import new_bundle, save_bundle, server_name
-        from fogiac.errors import RelayError
-
         if (directory / "ca.key").exists():
             raise RelayError(f"{directory} already holds a CA (ca.key); pick another directory")
         save_bundle(new_bundle(stack), directory)

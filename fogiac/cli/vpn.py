@@ -9,27 +9,25 @@ nothing to do; errors (not root, no openvpn, tunnel failed) exit 1 with one line
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
 
 import typer
 
-_MANIFEST = typer.Argument(Path("fogiac.yaml"), help="The manifest whose stack's profile to use.")
+from fogiac.cli._common import ENV, load
+from fogiac.net.vpn import TunnelStatus, default_profile_path, tunnel_down, tunnel_status, tunnel_up
+from fogiac.plan.compile import stack_name
+
+_MANIFEST = typer.Argument(Path("fogiac.yaml"), help="The manifest (or launch file) whose stack's profile to use.")
 _PROFILE = typer.Option(None, "--profile", help="Use this client.ovpn instead.", dir_okay=False)
-_ENV = typer.Option("dev", "--env", help="The manifest's environment (stack name-ENV).")
 
 
-def _profile(manifest: Path, profile: Optional[Path], env: str) -> Path:
+def _profile(manifest: Path, profile: Path | None, env: str) -> Path:
     if profile is not None:
         return profile.expanduser().resolve()
-    from fogiac.compile import stack_name
-    from fogiac.manifest import load_manifest
-    from fogiac.net.vpn import default_profile_path
 
-    return default_profile_path(stack_name(load_manifest(manifest), env), create=False)
+    return default_profile_path(stack_name(load(manifest), env), create=False)
 
 
 def _describe(status: object) -> str:
-    from fogiac.net.vpn import TunnelStatus
 
     assert isinstance(status, TunnelStatus)
     if not status.running:
@@ -44,28 +42,22 @@ def register(app: typer.Typer) -> None:
                       no_args_is_help=True)
 
     @vpn.command("up")
-    def up(manifest: Path = _MANIFEST, profile: Optional[Path] = _PROFILE, env: str = _ENV,
+    def up(manifest: Path = _MANIFEST, profile: Path | None = _PROFILE, env: str = ENV,
            timeout: float = typer.Option(30.0, help="Seconds to wait for the tunnel.")) -> None:
         """Start OpenVPN and wait until the tunnel is up."""
-        from fogiac.net.vpn import tunnel_up
-
         outcome = tunnel_up(profile=_profile(manifest, profile, env), timeout=timeout)
         prefix = "VPN up" if outcome.changed else "VPN already up"
         typer.echo(f"{prefix}: {_describe(outcome.status)}")
 
     @vpn.command("down")
-    def down(manifest: Path = _MANIFEST, profile: Optional[Path] = _PROFILE, env: str = _ENV) -> None:
+    def down(manifest: Path = _MANIFEST, profile: Path | None = _PROFILE, env: str = ENV) -> None:
         """Stop OpenVPN and wait for it to exit."""
-        from fogiac.net.vpn import tunnel_down
-
         outcome = tunnel_down(profile=_profile(manifest, profile, env))
         typer.echo("VPN down" if outcome.changed else "VPN not running")
 
     @vpn.command("status")
-    def status(manifest: Path = _MANIFEST, profile: Optional[Path] = _PROFILE, env: str = _ENV) -> None:
+    def status(manifest: Path = _MANIFEST, profile: Path | None = _PROFILE, env: str = ENV) -> None:
         """Say whether OpenVPN runs, on which tun device, with which address."""
-        from fogiac.net.vpn import tunnel_status
-
         typer.echo(f"VPN {_describe(tunnel_status(profile=_profile(manifest, profile, env)))}")
 
     app.add_typer(vpn, name="vpn")

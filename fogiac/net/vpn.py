@@ -16,15 +16,13 @@ import ipaddress
 import os
 import re
 import shutil
-import signal
 import subprocess
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
 from fogiac import certs
 from fogiac.errors import VpnError
-from fogiac.procs import pid_alive
+from fogiac.procs import pid_alive, poll, stop_tree
 from fogiac.render import render
 from fogiac.state import stack_dir
 
@@ -224,8 +222,10 @@ def _written_pid(pid_file: Path) -> int | None:
 def _running_pid(pid_file: Path) -> int | None:
     """The pid in ``pid_file`` if that process is alive and is OpenVPN (not a reused pid)."""
     pid = _written_pid(pid_file)
+    if pid is None:
+        return None
     try:
-        comm = Path(f"/proc/{pid}/comm").read_text().strip() if pid is not None else ""
+        comm = Path(f"/proc/{pid}/comm").read_text().strip()
     except OSError:
         return None
     return pid if comm == "openvpn" and pid_alive(pid) else None
@@ -289,42 +289,36 @@ def tunnel_up(*, profile: Path, timeout: float = 30.0, openvpn: str = "openvpn")
         stderr = started.stderr.strip().splitlines()
         reason = _read_log(log).failure or (stderr[-1] if stderr else "no reason given")
         raise VpnError(f"openvpn did not start: {reason}; see {log}")
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
+
+    def came_up() -> bool | None:
+        """True once the tunnel is up; raises once OpenVPN failed; None while it is still trying."""
         facts = _read_log(log)
         if facts.failure:
             _stop(pid_file, settle=2.0)
             raise VpnError(f"OpenVPN failed: {facts.failure}; see {log}")
         if facts.ready:
-            return Outcome(tunnel_status(profile=profile), changed=True)
+            return True
         if _written_pid(pid_file) is not None and _running_pid(pid_file) is None:
             raise VpnError(f"OpenVPN exited before the tunnel came up; see {log}")
-        time.sleep(0.1)
+        return None
+
+    if poll(came_up, timeout=timeout, interval=0.1, backoff=1.0):
+        return Outcome(tunnel_status(profile=profile), changed=True)
     _stop(pid_file, settle=2.0)
     raise VpnError(f"the tunnel did not come up within {timeout:g} s (stopped OpenVPN); see {log}")
 
 
 def _stop(pid_file: Path, *, timeout: float = 10.0, settle: float = 0.0) -> bool:
     """Stop the OpenVPN named in ``pid_file``; ``settle``: wait that long for a new daemon's pid."""
-    deadline = time.monotonic() + settle
-    while not pid_file.exists() and time.monotonic() < deadline:
-        time.sleep(0.05)
+    poll(lambda: True if pid_file.exists() else None, timeout=settle, interval=0.05, backoff=1.0)
     pid = _running_pid(pid_file)
     if pid is None:
         pid_file.unlink(missing_ok=True)
         return False
-    for sig, wait in ((signal.SIGTERM, timeout), (signal.SIGKILL, 2.0)):
-        try:
-            os.kill(pid, sig)
-        except ProcessLookupError:
-            break
-        except PermissionError:
-            raise VpnError("`fogiac vpn down` needs root: OpenVPN runs as root (run it with sudo)") from None
-        deadline = time.monotonic() + wait
-        while time.monotonic() < deadline and pid_alive(pid):
-            time.sleep(0.05)
-        if not pid_alive(pid):
-            break
+    try:
+        stop_tree(pid, grace=timeout)
+    except PermissionError:
+        raise VpnError("`fogiac vpn down` needs root: OpenVPN runs as root (run it with sudo)") from None
     pid_file.unlink(missing_ok=True)
     return True
 

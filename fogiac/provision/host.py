@@ -1,14 +1,16 @@
-"""The one interface every provisioning step talks to: run, sudo, put, get on a host.
+"""The two interfaces every provisioning step talks to: a :class:`Host` and the :class:`HostAccess` that opens it.
 
 Why: steps must not care whether a host is a lab machine over SSH (:mod:`.ssh`) or a sandbox
 directory on this machine (:mod:`.local`). Both implement :class:`Host`; how to reach a host is
-described by a frozen access record (:class:`SshAccess`, :class:`LocalAccess`) that opens it.
+described by a frozen access record (``SshAccess`` in :mod:`.ssh`, ``LocalAccess`` in
+:mod:`.local`) that satisfies :class:`HostAccess`. This module names neither kind, so the kinds
+import it and never the other way round.
 """
 
 from __future__ import annotations
 
 import shlex
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol, runtime_checkable
 
@@ -49,6 +51,15 @@ class Host(Protocol):
     base: str
     bytes_sent: int
 
+    @property
+    def manager_name(self) -> str | None:
+        """The service manager this host must use (``supervisor``, ``systemd``); None: probe the host."""
+        ...
+
+    def connect(self) -> int:
+        """Make the host reachable (and ``base`` known); returns the number of attempts it took."""
+        ...
+
     def run(self, command: str, *, check: bool = True, timeout: float | None = None) -> Result:
         """Run a shell command (bash) as the login user."""
         ...
@@ -69,101 +80,45 @@ class Host(Protocol):
         ...
 
 
-@dataclass(frozen=True)
-class SshAccess:
-    """How to reach a machine over SSH.
+@runtime_checkable
+class HostAccess(Protocol):
+    """How to reach one host, and what its services need to know about it; frozen, so it can be recorded.
 
-    ``fingerprints`` pins the host key (``SHA256:...`` as the instance's console prints them,
-    used on ``aws``); empty means trust on first contact and record it (``hosts``). ``base_dir``
-    is fogiac's folder on the host (default ``$HOME/.fogiac/<stack>/<host>``); ``python`` runs
-    fogiac's own code there (the relay, shipped workloads).
+    ``describe()`` is what ``provision.json`` keeps (``kind`` says which record reads it back);
+    ``location`` is the one line a report shows; ``ship_code`` says whether fogiac's own code is
+    pushed to the host or already there (a sandbox on this machine runs this checkout).
     """
 
-    address: str
-    user: str
-    key: Path
-    port: int = 22
-    fingerprints: tuple[str, ...] = ()
-    base_dir: str | None = None
-    python: str = "python3"
-    connect_timeout: float = 60.0
-    ship_code: bool = True
+    @property
+    def kind(self) -> str: ...
 
     @property
-    def kind(self) -> str:
-        return "ssh"
+    def python(self) -> str: ...
 
     @property
-    def ros_address(self) -> str:
-        return self.address
+    def fingerprints(self) -> tuple[str, ...]: ...
 
     @property
-    def master_port(self) -> int:
-        from fogiac.plan import ROS_MASTER_PORT
-
-        return ROS_MASTER_PORT
+    def user(self) -> str: ...
 
     @property
-    def relay_port(self) -> int:
-        from fogiac.plan import RELAY_PORT
-
-        return RELAY_PORT
-
-    def open(self, *, name: str, known_hosts: Path, stack: str) -> Host:
-        from fogiac.provision.ssh import SshHost
-
-        return SshHost(name=name, access=self, known_hosts=known_hosts, stack=stack)
-
-    def describe(self) -> dict[str, object]:
-        return {"kind": "ssh", "address": self.address, "user": self.user, "port": self.port,
-                "key": str(self.key), "base_dir": self.base_dir, "python": self.python}
-
-
-@dataclass(frozen=True)
-class LocalAccess:
-    """A sandbox folder on this machine standing in for a host (the ``local`` target).
-
-    Each sandbox has its own ROS master port and relay port so sandboxes never share a graph.
-    """
-
-    sandbox: Path
-    master_port: int
-    relay_port: int
-    python: str = field(default_factory=lambda: __import__("sys").executable)
-    ros_address: str = "127.0.0.1"
-    ship_code: bool = False
-    fingerprints: tuple[str, ...] = ()
+    def ros_address(self) -> str: ...
 
     @property
-    def kind(self) -> str:
-        return "local"
+    def master_port(self) -> int: ...
 
-    def open(self, *, name: str, known_hosts: Path, stack: str) -> Host:
-        from fogiac.provision.local import LocalHost
+    @property
+    def relay_port(self) -> int: ...
 
-        return LocalHost(name=name, base=str(self.sandbox))
+    @property
+    def ship_code(self) -> bool: ...
 
-    def describe(self) -> dict[str, object]:
-        return {"kind": "local", "sandbox": str(self.sandbox), "master_port": self.master_port,
-                "relay_port": self.relay_port, "python": self.python}
+    @property
+    def location(self) -> str: ...
 
+    def open(self, *, name: str, known_hosts: Path, stack: str) -> Host: ...
 
-HostAccess = SshAccess | LocalAccess
-
-
-def access_from_dict(data: dict[str, object]) -> HostAccess:
-    """Inverse of ``describe()``: how ``fogiac logs``/``ssh`` find a provisioned host again."""
-    kinds = {
-        "ssh": lambda d: SshAccess(address=str(d["address"]), user=str(d["user"]), port=int(d["port"]),  # type: ignore[arg-type]
-                                   key=Path(str(d["key"])), base_dir=d.get("base_dir"),  # type: ignore[arg-type]
-                                   python=str(d["python"])),
-        "local": lambda d: LocalAccess(sandbox=Path(str(d["sandbox"])), master_port=int(d["master_port"]),  # type: ignore[arg-type]
-                                       relay_port=int(d["relay_port"]), python=str(d["python"])),  # type: ignore[arg-type]
-    }
-    try:
-        return kinds[str(data["kind"])](data)
-    except KeyError:
-        raise ProvisionError(f"unknown host access kind {data.get('kind')!r}; valid: {', '.join(kinds)}") from None
+    def describe(self) -> dict[str, object]: ...
 
 
 def q(value: object) -> str:

@@ -3,7 +3,8 @@
 Why: a provisioner pushes certificates and runs code as root, so it must know it talks to the
 machine it means. Keys are recorded in the stack's own ``known_hosts`` (0600, in the state
 directory), never the user's ``~/.ssh``; a host whose key changed is refused until the user
-removes its line, and the refusal says which line.
+removes its line, and the refusal says which line. paramiko (the ``ssh`` extra) is imported when a
+key is first handled, so importing this module costs nothing.
 """
 
 from __future__ import annotations
@@ -12,11 +13,14 @@ import base64
 import hashlib
 import threading
 from pathlib import Path
-
-import paramiko
+from typing import TYPE_CHECKING
 
 from fogiac.certs import write_private
 from fogiac.errors import HostKeyError
+from fogiac.extras import need
+
+if TYPE_CHECKING:
+    import paramiko
 
 
 def fingerprint(key: paramiko.PKey) -> str:
@@ -48,7 +52,7 @@ class KnownHosts:
         self._lock = _lock_for(path)
 
     def _load(self) -> paramiko.HostKeys:
-        keys = paramiko.HostKeys()
+        keys = need("paramiko").HostKeys()
         if self.path.exists():
             keys.load(str(self.path))
         return keys
@@ -73,8 +77,12 @@ class KnownHosts:
         )
 
 
-class VerifyPolicy(paramiko.MissingHostKeyPolicy):
-    """Decides about a host whose key is not yet recorded: check the pins, then record it."""
+class VerifyPolicy:
+    """Decides about a host whose key is not yet recorded: check the pins, then record it.
+
+    paramiko's ``MissingHostKeyPolicy`` is only an interface (``missing_host_key``); not
+    subclassing it keeps paramiko out of this module's import.
+    """
 
     def __init__(self, known: KnownHosts, *, host: str, pinned: tuple[str, ...]) -> None:
         self.known = known

@@ -10,14 +10,52 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
+import sys
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Mapping
 
 from fogiac.errors import ProvisionError
+from fogiac.plan.model import Plan
 from fogiac.procs import free_port
-from fogiac.plan import Plan
-from fogiac.provision.host import LocalAccess, Result
+from fogiac.provision.host import Host, Result
 from fogiac.state import read_json, write_json_atomic
+
+
+@dataclass(frozen=True)
+class LocalAccess:
+    """A sandbox folder on this machine standing in for a host (the ``local`` target).
+
+    Each sandbox has its own ROS master port and relay port so sandboxes never share a graph.
+    """
+
+    sandbox: Path
+    master_port: int
+    relay_port: int
+    python: str = field(default_factory=lambda: sys.executable)
+    ros_address: str = "127.0.0.1"
+    ship_code: bool = False
+    fingerprints: tuple[str, ...] = ()
+
+    @property
+    def kind(self) -> str:
+        return "local"
+
+    @property
+    def user(self) -> str:
+        """The ``User=`` of rendered systemd units; never installed here (a sandbox uses the supervisor)."""
+        return "root"
+
+    @property
+    def location(self) -> str:
+        return str(self.sandbox)
+
+    def open(self, *, name: str, known_hosts: Path, stack: str) -> Host:
+        return LocalHost(name=name, base=str(self.sandbox))
+
+    def describe(self) -> dict[str, object]:
+        return {"kind": "local", "sandbox": str(self.sandbox), "master_port": self.master_port,
+                "relay_port": self.relay_port, "python": self.python}
 
 
 class LocalHost:

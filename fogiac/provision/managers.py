@@ -7,13 +7,12 @@ Why a registry: the steps say "make these services run"; how (unit files and ``s
 from __future__ import annotations
 
 import hashlib
-from typing import TYPE_CHECKING, Protocol, Sequence
+from collections.abc import Sequence
+from typing import Protocol
 
 from fogiac.provision.host import Host, q
+from fogiac.provision.probe import Facts
 from fogiac.provision.services import Layout, Service
-
-if TYPE_CHECKING:
-    from fogiac.provision.probe import Facts
 
 Health = list[tuple[str, bool, str]]  # (service, healthy, detail)
 
@@ -187,21 +186,16 @@ class Systemd:
 MANAGERS: dict[str, Manager] = {"systemd": Systemd(), "supervisor": Supervisor()}
 
 
-def manager_for(host: Host) -> Manager:
-    """systemd when it is PID 1 (``/run/systemd/system`` exists), else the supervisor; cached per host.
+def manager_for(host: Host, *, systemd: bool | None = None) -> Manager:
+    """systemd when it is PID 1 (``/run/systemd/system`` exists), else the supervisor.
 
     A host may force one by its ``manager_name`` (the local target always uses the supervisor,
-    so nothing lands outside the state directory).
+    so nothing lands outside the state directory). ``systemd`` is what a probe already saw
+    (the runtime step's); None asks the host. Callers keep the answer (``HostRun.manager``).
     """
-    cached = getattr(host, "_fogiac_manager", None)
-    if cached is not None:
-        return cached  # type: ignore[no-any-return]
-    forced = getattr(host, "manager_name", None)
+    forced = host.manager_name
     if forced is None:
-        systemd = getattr(host, "_fogiac_systemd", None)  # the runtime step's probe saw it
         if systemd is None:
             systemd = host.run("test -d /run/systemd/system", check=False).ok
         forced = "systemd" if systemd else "supervisor"
-    manager = MANAGERS[forced]
-    setattr(host, "_fogiac_manager", manager)
-    return manager
+    return MANAGERS[forced]

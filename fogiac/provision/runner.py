@@ -9,16 +9,19 @@ from __future__ import annotations
 
 import shutil
 import time
+from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Mapping
+from typing import Any
 
 from fogiac.errors import FogiacError, ProvisionError
-from fogiac.plan import HostSpec, Plan
-from fogiac.provision.host import HostAccess, LocalAccess, SshAccess, access_from_dict, q
+from fogiac.plan.model import HostSpec, Plan
+from fogiac.provision.host import HostAccess, q
+from fogiac.provision.local import LocalAccess
 from fogiac.provision.managers import manager_for
 from fogiac.provision.services import Layout
+from fogiac.provision.ssh import SshAccess
 from fogiac.provision.steps import CHANGED, HostRun, Options, step
 from fogiac.state import read_json, write_json_atomic
 
@@ -84,10 +87,6 @@ class ProvisionReport:
         return f"{changed} of {len(self.hosts)} host(s) changed"
 
 
-def _address(access: HostAccess) -> str:
-    return f"{access.address}:{access.port}" if isinstance(access, SshAccess) else str(access.sandbox)
-
-
 def _provision_one(plan: Plan, spec: HostSpec, access: HostAccess, *, known_hosts: Path, options: Options,
                    progress: Progress | None) -> HostOutcome:
     started = time.monotonic()
@@ -116,7 +115,7 @@ def _provision_one(plan: Plan, spec: HostSpec, access: HostAccess, *, known_host
                 progress(spec.name, name, status)
     finally:
         host.close()
-    return HostOutcome(host=spec.name, address=_address(access), steps=tuple(done), error=error,
+    return HostOutcome(host=spec.name, address=access.location, steps=tuple(done), error=error,
                        files_pushed=run.files_pushed, bytes_sent=host.bytes_sent,
                        seconds=time.monotonic() - started, base=host.base)
 
@@ -158,6 +157,31 @@ def record_access(state_dir: Path, plan: Plan, hosts: Mapping[str, HostAccess], 
     write_json_atomic(state_dir / RECORD, record)
 
 
+def _ssh_from_dict(d: Mapping[str, Any]) -> SshAccess:
+    return SshAccess(address=str(d["address"]), user=str(d["user"]), port=int(d["port"]), key=Path(str(d["key"])),
+                     base_dir=d.get("base_dir"), python=str(d["python"]))
+
+
+def _local_from_dict(d: Mapping[str, Any]) -> LocalAccess:
+    return LocalAccess(sandbox=Path(str(d["sandbox"])), master_port=int(d["master_port"]),
+                       relay_port=int(d["relay_port"]), python=str(d["python"]))
+
+
+# kind (``HostAccess.kind``) -> the record that reads ``describe()``'s output back
+ACCESS_KINDS: dict[str, Callable[[Mapping[str, Any]], HostAccess]] = {"ssh": _ssh_from_dict,
+                                                                       "local": _local_from_dict}
+
+
+def access_from_dict(data: Mapping[str, Any]) -> HostAccess:
+    """Inverse of ``describe()``: how ``fogiac logs``/``ssh`` find a provisioned host again."""
+    try:
+        return ACCESS_KINDS[str(data["kind"])](data)
+    except KeyError:
+        raise ProvisionError(
+            f"unknown host access kind {data.get('kind')!r}; valid: {', '.join(ACCESS_KINDS)}"
+        ) from None
+
+
 def recorded_access(state_dir: Path) -> dict[str, tuple[HostAccess, str, tuple[str, ...]]]:
     """{host: (access, base folder, nodes)} as the last provisioning recorded them."""
     record = read_json(state_dir / RECORD) or {"hosts": {}}
@@ -170,7 +194,7 @@ def _stop_one(plan: Plan, spec: HostSpec, access: HostAccess, *, known_hosts: Pa
     host = access.open(name=spec.name, known_hosts=known_hosts, stack=plan.stack)
     error, detail, status = None, "", "ok"
     try:
-        host.connect()  # type: ignore[attr-defined]
+        host.connect()
         stopped = manager_for(host).stop_all(host, Layout(host.base))
         detail = f"stopped {', '.join(stopped)}" if stopped else "nothing running"
         status = CHANGED if stopped else "ok"
@@ -184,7 +208,7 @@ def _stop_one(plan: Plan, spec: HostSpec, access: HostAccess, *, known_hosts: Pa
         error, status, detail = str(err), "failed", str(err)
     finally:
         host.close()
-    return HostOutcome(host=spec.name, address=_address(access), steps=(StepOutcome("stop", status, detail,
+    return HostOutcome(host=spec.name, address=access.location, steps=(StepOutcome("stop", status, detail,
                        time.monotonic() - started),), error=error, files_pushed=0, bytes_sent=0,
                        seconds=time.monotonic() - started, base=host.base)
 

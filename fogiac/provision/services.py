@@ -8,11 +8,13 @@ checks, and they must be testable on a machine without Docker or systemd. The st
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 from fogiac.errors import ProvisionError
-from fogiac.plan import HostSpec, NodeSpec, Plan
+from fogiac.net.rosenv import side_env
+from fogiac.plan.model import HostSpec, NodeSpec, Plan
+from fogiac.provision.host import q
 from fogiac.render import render
 
 CONTAINER = "container"
@@ -128,8 +130,6 @@ def workload_image(workload: str) -> str:
 
 def node_env(node: NodeSpec, where: Where) -> tuple[tuple[str, str], ...]:
     """ROS_MASTER_URI, ROS_IP (or ROS_HOSTNAME) first, then the node's own variables."""
-    from fogiac.net.rosenv import side_env
-
     ros = side_env(side="cloud", master_uri=master_uri(where), address=where.ros_address).env
     return tuple(ros.items()) + node.env
 
@@ -150,15 +150,27 @@ def docker_run(node: NodeSpec, *, plan: Plan, spec: HostSpec, where: Where) -> s
                   volumes=volumes, image=image, command=command).strip()
 
 
-def _container_node(node: NodeSpec, plan: Plan, spec: HostSpec, where: Where) -> dict[str, object]:
+@dataclass(frozen=True)
+class _NodeRun:
+    """How one node runs on a runtime: its command and what its service script sets up first."""
+
+    command: str
+    check: str
+    pre: tuple[str, ...] = ()
+    package_path: str = ""
+    python_path: str = ""
+    cwd: str = ""
+
+
+def _container_node(node: NodeSpec, plan: Plan, spec: HostSpec, where: Where) -> _NodeRun:
     name = container_name(node.name)
-    return {"command": docker_run(node, plan=plan, spec=spec, where=where),
-            "pre": (f"docker rm -f {name} >/dev/null 2>&1 || true",), "check": "any"}
+    return _NodeRun(command=docker_run(node, plan=plan, spec=spec, where=where),
+                    pre=(f"docker rm -f {name} >/dev/null 2>&1 || true",), check="any")
 
 
 # roslaunch --wait: without it, a roslaunch that starts before the host's master service would
 # start a master of its own on the same port and make the real one crash-loop.
-def _native_node(node: NodeSpec, plan: Plan, spec: HostSpec, where: Where) -> dict[str, object]:
+def _native_node(node: NodeSpec, plan: Plan, spec: HostSpec, where: Where) -> _NodeRun:
     if node.kind == "image":
         raise ProvisionError(
             f"{spec.name}: node {node.name} runs image {node.image} but the host has no working "
@@ -166,22 +178,16 @@ def _native_node(node: NodeSpec, plan: Plan, spec: HostSpec, where: Where) -> di
         )
     if node.kind == "launch" and node.launch is not None:
         ws = where.layout.workspace(node.launch.workspace)
-        return {"command": f"roslaunch --wait {_q(node.launch.package)} {_q(node.launch.file)}",
-                "package_path": f"{ws}/src:{ws}", "check": "node", "cwd": ws}
-    return {"command": f"{_q(where.python)} -m workloads.{node.workload} node",
-            "python_path": where.code_root, "check": "node"}
+        return _NodeRun(command=f"roslaunch --wait {q(node.launch.package)} {q(node.launch.file)}",
+                        package_path=f"{ws}/src:{ws}", check="node", cwd=ws)
+    return _NodeRun(command=f"{q(where.python)} -m workloads.{node.workload} node", python_path=where.code_root,
+                    check="node")
 
 
-_NODE_RUNTIMES: dict[str, Callable[[NodeSpec, Plan, HostSpec, Where], dict[str, object]]] = {
+_NODE_RUNTIMES: dict[str, Callable[[NodeSpec, Plan, HostSpec, Where], _NodeRun]] = {
     CONTAINER: _container_node,
     NATIVE: _native_node,
 }
-
-
-def _q(value: str) -> str:
-    import shlex
-
-    return shlex.quote(value)
 
 
 def _service(name: str, *, plan: Plan, spec: HostSpec, where: Where, command: str, check: str,
@@ -220,11 +226,9 @@ def node_services(plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ..
         if node.launch is not None:
             notes = (f"workspace {node.launch.workspace} digest {digests.get(node.launch.workspace, 'unknown')}",)
         out.append(_service(
-            f"node-{name}", plan=plan, spec=spec, where=where, command=str(parts["command"]),
-            check=str(parts["check"]), env=node.env if where.runtime == NATIVE else (),
-            pre=tuple(parts.get("pre", ())),  # type: ignore[arg-type]
-            package_path=str(parts.get("package_path", "")), python_path=str(parts.get("python_path", "")),
-            cwd=str(parts.get("cwd", "")), notes=notes, after="fogiac-ros-master.service",
+            f"node-{name}", plan=plan, spec=spec, where=where, command=parts.command, check=parts.check,
+            env=node.env if where.runtime == NATIVE else (), pre=parts.pre, package_path=parts.package_path,
+            python_path=parts.python_path, cwd=parts.cwd, notes=notes, after="fogiac-ros-master.service",
         ))
     return tuple(out)
 
@@ -233,7 +237,7 @@ def relay_service(plan: Plan, spec: HostSpec, where: Where) -> Service:
     # A host reached over loopback (the local target) never listens beyond it; others listen on
     # every interface and the security group (or the lab's network) decides who reaches the port.
     listen = "127.0.0.1" if where.ros_address.startswith("127.") else "0.0.0.0"
-    command = (f"{_q(where.python)} -m fogiac relay cloud --listen {listen}:{where.relay_port} "
-               f"--master {master_uri(where)} --certs {_q(where.layout.certs)}")
+    command = (f"{q(where.python)} -m fogiac relay cloud --listen {listen}:{where.relay_port} "
+               f"--master {master_uri(where)} --certs {q(where.layout.certs)}")
     return _service("relay-cloud", plan=plan, spec=spec, where=where, command=command, check="alive",
                     python_path=where.code_root, after="fogiac-ros-master.service")

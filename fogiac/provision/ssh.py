@@ -2,29 +2,85 @@
 
 Why Fabric: it wraps paramiko's channels, SFTP and command results in one small API, and its
 ``Connection`` is what a fleet of hosts is made of. fogiac replaces Fabric's default
-accept-any-key policy with :mod:`.hostkeys` and never reads ``~/.ssh/config``.
+accept-any-key policy with :mod:`.hostkeys` and never reads ``~/.ssh/config``. Fabric and
+paramiko are the ``ssh`` extra, imported when a connection opens, not when this module loads.
 """
 
 from __future__ import annotations
 
-import socket
 import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from fogiac.errors import HostKeyError, ProvisionError
+from fogiac.extras import need
+from fogiac.net.relay.config import RELAY_PORT
+from fogiac.plan.model import ROS_MASTER_PORT
+from fogiac.procs import poll
 from fogiac.provision import hostkeys
-from fogiac.provision.host import Result, q
+from fogiac.provision.host import Host, Result, q
 
 if TYPE_CHECKING:
-    from fogiac.provision.host import SshAccess
+    from fabric import Connection
 
-_BACKOFF = (0.25, 0.5, 1.0, 2.0, 4.0, 5.0)
+# Pauses between connection attempts: 0.25 s doubling to 5 s (a booting instance answers within a minute).
+_FIRST_PAUSE, _GROWTH, _LONGEST_PAUSE = 0.25, 2.0, 5.0
+
+
+@dataclass(frozen=True)
+class SshAccess:
+    """How to reach a machine over SSH.
+
+    ``fingerprints`` pins the host key (``SHA256:...`` as the instance's console prints them,
+    used on ``aws``); empty means trust on first contact and record it (``hosts``). ``base_dir``
+    is fogiac's folder on the host (default ``$HOME/.fogiac/<stack>/<host>``); ``python`` runs
+    fogiac's own code there (the relay, shipped workloads).
+    """
+
+    address: str
+    user: str
+    key: Path
+    port: int = 22
+    fingerprints: tuple[str, ...] = ()
+    base_dir: str | None = None
+    python: str = "python3"
+    connect_timeout: float = 60.0
+    ship_code: bool = True
+
+    @property
+    def kind(self) -> str:
+        return "ssh"
+
+    @property
+    def ros_address(self) -> str:
+        return self.address
+
+    @property
+    def master_port(self) -> int:
+        return ROS_MASTER_PORT
+
+    @property
+    def relay_port(self) -> int:
+        return RELAY_PORT
+
+    @property
+    def location(self) -> str:
+        return f"{self.address}:{self.port}"
+
+    def open(self, *, name: str, known_hosts: Path, stack: str) -> Host:
+        return SshHost(name=name, access=self, known_hosts=known_hosts, stack=stack)
+
+    def describe(self) -> dict[str, object]:
+        return {"kind": "ssh", "address": self.address, "user": self.user, "port": self.port,
+                "key": str(self.key), "base_dir": self.base_dir, "python": self.python}
 
 
 class SshHost:
     """One SSH connection; thread-confined (each provisioning thread opens its own)."""
+
+    manager_name: str | None = None  # systemd where the host runs it, else the supervisor: probed
 
     def __init__(self, *, name: str, access: SshAccess, known_hosts: Path, stack: str) -> None:
         self.name = name
@@ -33,7 +89,7 @@ class SshHost:
         self.stack = stack
         self.base = access.base_dir or ""
         self.bytes_sent = 0
-        self._conn: object | None = None
+        self._conn: Connection | None = None
         self._lock = threading.Lock()
 
     # -- connecting -----------------------------------------------------------------------
@@ -43,19 +99,20 @@ class SshHost:
 
         Returns the number of attempts. A refused host key or failed authentication is final.
         """
-        import paramiko
-        from fabric import Config, Connection
-
+        fabric = need("fabric")
+        paramiko = need("paramiko")
         access = self.access
         name = hostkeys.known_name(access.address, access.port)
         deadline = time.monotonic() + access.connect_timeout
-        attempt = 0
+        attempts = 0
         last = "no attempt made"
-        while True:
-            attempt += 1
-            conn = Connection(
+
+        def attempt() -> Connection | None:
+            nonlocal attempts, last
+            attempts += 1
+            conn = fabric.Connection(
                 access.address, user=access.user, port=access.port,
-                config=Config(overrides={"load_ssh_configs": False}),
+                config=fabric.Config(overrides={"load_ssh_configs": False}),
                 connect_timeout=max(1.0, min(10.0, deadline - time.monotonic())),
                 connect_kwargs={"key_filename": str(access.key), "look_for_keys": False,
                                 "allow_agent": False, "banner_timeout": 15, "auth_timeout": 15},
@@ -75,26 +132,27 @@ class SshHost:
                 raise ProvisionError(
                     f"{self.name}: {access.user}@{access.address}:{access.port} refused key {access.key} ({err})"
                 ) from None
-            except (OSError, socket.timeout, paramiko.SSHException, EOFError) as err:
+            except (OSError, paramiko.SSHException, EOFError) as err:
                 conn.close()
                 last = _reason(err)
-                pause = _BACKOFF[min(attempt - 1, len(_BACKOFF) - 1)]
-                if time.monotonic() + pause >= deadline:
-                    raise ProvisionError(
-                        f"{self.name}: cannot reach {access.address}:{access.port} over SSH after "
-                        f"{attempt} attempts in {access.connect_timeout:g}s ({last})"
-                    ) from None
-                time.sleep(pause)
-                continue
-            self._conn = conn
-            break
+                return None
+            return conn
+
+        conn = poll(attempt, timeout=access.connect_timeout, interval=_FIRST_PAUSE, backoff=_GROWTH,
+                    max_interval=_LONGEST_PAUSE)
+        if conn is None:
+            raise ProvisionError(
+                f"{self.name}: cannot reach {access.address}:{access.port} over SSH after "
+                f"{attempts} attempts in {access.connect_timeout:g}s ({last})"
+            )
+        self._conn = conn
         if not self.base:
             home = self.run("printf %s \"$HOME\"").stdout.strip()
             self.base = f"{home}/.fogiac/{self.stack}/{self.name}"
-        return attempt
+        return attempts
 
     @property
-    def conn(self):  # type: ignore[no-untyped-def]
+    def conn(self) -> Connection:
         if self._conn is None:
             self.connect()
         return self._conn
@@ -131,7 +189,7 @@ class SshHost:
 
     def close(self) -> None:
         if self._conn is not None:
-            self._conn.close()  # type: ignore[attr-defined]
+            self._conn.close()
             self._conn = None
 
 

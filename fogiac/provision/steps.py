@@ -8,15 +8,16 @@ report says "no changes".
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 from fogiac.errors import ProvisionError
-from fogiac.plan import HostSpec, Plan
+from fogiac.net.rosenv import side_env
+from fogiac.plan.model import HostSpec, Plan
 from fogiac.provision import services as svc
 from fogiac.provision.host import Host, HostAccess, q
-from fogiac.provision.managers import manager_for
+from fogiac.provision.managers import Manager, manager_for
 from fogiac.provision.probe import Facts, gather
 from fogiac.provision.sync import push_tree
 from fogiac.render import render
@@ -49,19 +50,27 @@ class HostRun:
     options: Options
     runtime: str = ""
     facts: Facts | None = None
+    systemd: bool | None = None  # whether the runtime step's probe saw systemd as PID 1; None: not probed
     files_pushed: int = 0
     digests: dict[str, str] = field(default_factory=dict)
+    _manager: Manager | None = field(default=None, init=False, repr=False)
 
     @property
     def layout(self) -> svc.Layout:
         return svc.Layout(self.host.base)
 
+    @property
+    def manager(self) -> Manager:
+        """Who keeps this host's services running, decided once per host."""
+        if self._manager is None:
+            self._manager = manager_for(self.host, systemd=self.systemd)
+        return self._manager
+
     def where(self) -> svc.Where:
         code_root = self.layout.lib if self.access.ship_code else str(package_dir("fogiac").parent)
-        user = getattr(self.access, "user", "root")
         return svc.Where(layout=self.layout, runtime=self.runtime or svc.NATIVE, master_port=self.access.master_port,
                          relay_port=self.access.relay_port, ros_address=self.access.ros_address,
-                         python=self.access.python, code_root=code_root, user=user,
+                         python=self.access.python, code_root=code_root, user=self.access.user,
                          workspace_digests=tuple(sorted(self.digests.items())))
 
     def services(self) -> tuple[svc.Service, ...]:
@@ -89,7 +98,7 @@ def ensure_file(run: HostRun, data: bytes, remote: str, *, mode: int = 0o644) ->
 
 
 def step_connect(run: HostRun) -> StepResult:
-    attempts = run.host.connect()  # type: ignore[attr-defined]
+    attempts = run.host.connect()
     return OK, f"reached in {attempts} attempt{'s' if attempts != 1 else ''}"
 
 
@@ -99,7 +108,7 @@ def step_runtime(run: HostRun) -> StepResult:
     if facts.missing:
         host.run(f"mkdir -p -m 700 {' '.join(q(f) for f in facts.missing)}")
         changes.append("folders")
-    setattr(host, "_fogiac_systemd", "systemd" in facts.flags)
+    run.systemd = "systemd" in facts.flags
     run.runtime = svc.CONTAINER if "engine" in facts.flags else svc.NATIVE
     changes += _RUNTIMES[run.runtime](run, facts)
     if ensure_file(run, Path(__file__).with_name("supervise.py").read_bytes(), layout.supervisor, mode=0o755):
@@ -205,11 +214,9 @@ def step_env_script(run: HostRun) -> StepResult:
 
 
 def step_services(run: HostRun) -> StepResult:
-    from fogiac.net.rosenv import side_env
-
     env = side_env(side="cloud", master_uri=svc.master_uri(run.where()), address=run.access.ros_address).text
     env_changed = ensure_file(run, env.encode(), run.layout.env_file)
-    manager = manager_for(run.host)
+    manager = run.manager
     wanted = run.services()
     started = manager.ensure(run.host, run.layout, wanted, restart_all=env_changed, facts=run.facts)
     stopped = manager.prune(run.host, run.layout, keep=[s.name for s in wanted] + ["relay-cloud"], facts=run.facts)
@@ -236,8 +243,7 @@ def step_relay(run: HostRun) -> StepResult:
     if not relay_available(run):
         ensure_file(run, service.script.encode(), f"{run.layout.services}/{service.name}.sh", mode=0o700)
         return SKIPPED, "relay CLI not installed on the host; service script rendered only"
-    started = manager_for(run.host).ensure(run.host, run.layout, (service,), restart_all=bool(changed),
-                                           facts=run.facts)
+    started = run.manager.ensure(run.host, run.layout, (service,), restart_all=bool(changed), facts=run.facts)
     return (CHANGED, "relay cloud end started") if started or changed else (OK, "relay cloud end running")
 
 
@@ -245,8 +251,8 @@ def step_health(run: HostRun) -> StepResult:
     checks = list(run.services())
     if run.options.certs_dir is not None and relay_available(run):
         checks.append(svc.relay_service(run.plan, run.spec, run.where()))
-    results = manager_for(run.host).health(run.host, run.layout, checks, master=svc.master_uri(run.where()),
-                                           timeout=run.options.health_timeout)
+    results = run.manager.health(run.host, run.layout, checks, master=svc.master_uri(run.where()),
+                                timeout=run.options.health_timeout)
     bad = [f"{name} unhealthy: {detail}" for name, ok, detail in results if not ok]
     if bad:
         raise ProvisionError(f"{run.spec.name}: {'; '.join(bad)}")

@@ -46,15 +46,27 @@ def plan(*args: str) -> tuple[int, str]:
     return result.exit_code, result.output
 
 
-def test_table_shows_resources_hosts_and_cost(minimal: Path) -> None:
+def test_plan_reads_like_terraform_in_a_ci_log(minimal: Path) -> None:
     code, out = plan(str(minimal))
     assert code == 0, out
-    assert "network stack: 24 to create" in out
-    assert "compute stack: 2 to create" in out
-    assert "ec2clientvpn:Endpoint" in out
+    lines = out.splitlines()
+    assert "network stack: 24 to create" in lines and "compute stack: 2 to create" in lines
+    # one line per resource, its full type token and name, key inputs indented below it
+    endpoint = lines.index("  + aws:ec2clientvpn/endpoint:Endpoint minimal-dev-endpoint")
+    assert lines[endpoint + 1] == "      clientCidrBlock: 10.200.0.0/22"
+    assert "  + aws:ec2/vpc:Vpc minimal-dev-vpc" in lines and "      cidrBlock: 10.10.0.0/16" in lines
     assert "Client VPN subnet association" in out and "Client VPN connection (the edge)" in out
     assert "cost: $0.1708 per hour" in out
-    assert "privateKey=[secret]" in out
+    assert "      privateKey: [secret]" in lines
+
+
+def test_into_a_pipe_no_value_is_cut(minimal: Path) -> None:
+    """CliRunner's stdout is no terminal: nothing is fitted to 80 columns, nothing ends in an ellipsis."""
+    code, out = plan(str(minimal))
+    assert code == 0, out
+    assert "…" not in out
+    ingress = [line for line in out.splitlines() if line.startswith("  + aws:vpc/securityGroupIngressRule")]
+    assert ingress and all(len(line) > 80 for line in ingress)
 
 
 def test_json_document(minimal: Path) -> None:

@@ -19,12 +19,11 @@ from typing import Iterator
 import pytest
 
 from fogiac.certs import load_or_create_bundle
-from fogiac.compile import compile_plan
-from fogiac.manifest import load_manifest
-from fogiac.plan import Plan
-from fogiac.provision import ProvisionReport, provision, teardown
-from fogiac.provision.host import SshAccess
-from fogiac.provision.targets import hosts_access
+from fogiac.plan.compile import compile_plan
+from fogiac.manifest.schema import load_manifest
+from fogiac.plan.model import Plan
+from fogiac.provision import ProvisionReport, SshAccess, provision, teardown
+from fogiac.targets.hosts import HOSTS
 from tests.provision.conftest import hosts_manifest, make_workspace, ros_skip_reason
 from tests.provision.sshlab import LabHost, fingerprint_of, ssh_lab, lab_skip_reason
 
@@ -59,10 +58,9 @@ class Deployment:
 
     def access(self, plan: Plan, *, timeout: float = 30.0) -> dict[str, SshAccess]:
         by_name = {h.name: h for h in self.hosts}
-        base = hosts_access(plan, state_dir=self.state, python=sys.executable, connect_timeout=timeout)
+        base = HOSTS.access(plan, state_dir=self.state, python=sys.executable, connect_timeout=timeout)
         # ship_code off: the namespaces share this checkout, and other work edits fogiac/ meanwhile
-        return {n: replace(a, base_dir=str(by_name[n].base_dir), ship_code=False)  # type: ignore[type-var]
-                for n, a in base.items()}
+        return {n: replace(a, base_dir=str(by_name[n].base_dir), ship_code=False) for n, a in base.items()}
 
     def provision(self, hosts: list[LabHost] | None = None, *, timeout: float = 30.0) -> ProvisionReport:
         plan = self.plan(hosts or self.hosts[:2])
@@ -169,9 +167,9 @@ def test_pinned_fingerprints_accept_the_right_key_and_refuse_others(lab: Deploym
 
     with pytest.raises(HostKeyError, match=r"^h0 \(10\.232\.\d+\.2\) presented host key SHA256:\S+, which is not "
                                            r"among the 1 pinned fingerprint\(s\) the instance reported"):
-        wrong.open(name="h0", known_hosts=tmp_path / "kh", stack="s").connect()  # type: ignore[attr-defined]
+        wrong.open(name="h0", known_hosts=tmp_path / "kh", stack="s").connect()
     host = right.open(name="h0", known_hosts=tmp_path / "kh", stack="s")
-    assert host.connect() == 1  # type: ignore[attr-defined]
+    assert host.connect() == 1
     host.close()
     assert (tmp_path / "kh").read_text().startswith(lab.hosts[0].address + " ssh-ed25519 ")
 

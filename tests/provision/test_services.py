@@ -6,10 +6,10 @@ from pathlib import Path
 
 import pytest
 
-from fogiac.compile import compile_plan
+from fogiac.plan.compile import compile_plan
 from fogiac.errors import ProvisionError
-from fogiac.manifest import parse_manifest
-from fogiac.plan import Plan
+from fogiac.manifest.schema import parse_manifest
+from fogiac.plan.model import Plan
 from fogiac.provision import services as svc
 
 MANIFEST = """

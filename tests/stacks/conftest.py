@@ -6,10 +6,10 @@ from pathlib import Path
 
 import pytest
 
-from fogiac.compile import compile_plan
-from fogiac.manifest import load_manifest
-from fogiac.offline import OfflinePlan, declare
-from fogiac.plan import Plan
+from fogiac.plan.compile import compile_plan
+from fogiac.manifest.schema import load_manifest
+from fogiac.targets.aws.offline import OfflinePlan, declare
+from fogiac.plan.model import Plan
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 

@@ -1,10 +1,11 @@
-"""fogiac.offline: declaration order, redaction, determinism, and nothing written for a plan."""
+"""fogiac.targets.aws.offline: declaration order, redaction, determinism, and nothing written for a plan."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from fogiac.offline import SECRET, OfflinePlan, declare, document, redact
+from fogiac.plan import document as plan_document
+from fogiac.targets.aws.offline import SECRET, OfflinePlan, declare, redact
 
 from .conftest import EXAMPLES, GPU, compiled, write_manifest
 
@@ -45,6 +46,12 @@ def test_other_targets_declare_nothing(tmp_path: Path) -> None:
 def test_a_plan_writes_nothing(_state_dir: Path) -> None:
     declare(compiled(EXAMPLES / "minimal.yaml"))
     assert list(_state_dir.iterdir()) == []
+
+
+def document(offline: OfflinePlan, **where: str) -> dict:
+    """The plan document of an offline declaration, as ``fogiac plan`` builds it."""
+    rows = [r.to_dict() for r in offline.resources if r.custom]
+    return plan_document.document(offline.plan, rows, **where)
 
 
 def test_same_manifest_same_digest_whatever_its_path(tmp_path: Path) -> None:

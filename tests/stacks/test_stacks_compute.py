@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from fogiac.compile import NVIDIA, UBUNTU
-from fogiac.offline import OfflinePlan, offline_public_key
+from fogiac.targets.aws.placement import NVIDIA, UBUNTU
+from fogiac.targets.aws.offline import OfflinePlan, offline_public_key
 from stacks.compute import HOST_KEYS_BEGIN, HOST_KEYS_END
 from stacks.program import compute_program
 

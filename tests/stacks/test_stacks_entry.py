@@ -14,7 +14,8 @@ import pulumi
 import pytest
 
 from fogiac.errors import PlanError
-from stacks.entry import StackConfig, load_or_create_ssh_key, main, operator_cidrs, read_config
+from fogiac.certs import load_or_create_ssh_key
+from stacks.entry import StackConfig, main, operator_cidrs, read_config
 
 from .conftest import EXAMPLES, compiled
 from .recorder import Recorder
@@ -108,7 +109,7 @@ def test_region_mismatch_is_refused(config: _Config) -> None:
 _RUN_MAIN = """
 import json, runpy, sys
 import pulumi
-from fogiac.offline import run_program
+from fogiac.targets.aws.offline import run_program
 
 class M(pulumi.runtime.Mocks):
     def new_resource(self, args):

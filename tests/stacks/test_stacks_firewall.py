@@ -7,9 +7,9 @@ import ipaddress
 import pytest
 
 from fogiac.errors import PlanError
-from fogiac.offline import OfflinePlan
-from fogiac.plan import OPERATOR, Rule
-from stacks.firewall import OPERATOR_PLACEHOLDER, check_ingress, expand, rule_name
+from fogiac.plan.model import OPERATOR, OPERATOR_PLACEHOLDER, Rule, check_ingress
+from fogiac.targets.aws.offline import OfflinePlan
+from stacks.firewall import expand, rule_name
 
 INGRESS = "aws:vpc/securityGroupIngressRule:SecurityGroupIngressRule"
 EGRESS = "aws:vpc/securityGroupEgressRule:SecurityGroupEgressRule"

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections import Counter
 
-from fogiac.offline import OfflinePlan
+from fogiac.targets.aws.offline import OfflinePlan
 
 VPC = "aws:ec2/vpc:Vpc"
 SUBNET = "aws:ec2/subnet:Subnet"

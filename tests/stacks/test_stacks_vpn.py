@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from fogiac.certs import Bundle, new_bundle
-from fogiac.offline import OfflinePlan
+from fogiac.targets.aws.offline import OfflinePlan
 from stacks.program import network_program
 
 from .conftest import EXAMPLES, compiled

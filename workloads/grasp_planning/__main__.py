@@ -1,6 +1,7 @@
 """``python -m workloads.grasp_planning``: predict, train, generate, scene, node.
 
-Thin: parse, call the library, print. Heavy imports (torch, rospy) happen inside commands.
+Thin: parse, call the library, print. torch and rospy are imported inside the commands that need
+them (torch alone takes seconds to load), so ``--help``, ``generate`` and ``scene`` stay quick.
 A :class:`fogiac.errors.FogiacError` ends the command with one line on stderr and exit 1.
 """
 
@@ -10,11 +11,14 @@ import json
 import shlex
 import sys
 from pathlib import Path
-from typing import Optional
 
+import numpy as np
 import typer
 
 from fogiac.errors import FogiacError, WorkloadError
+from workloads.grasp_planning.camera import Intrinsics
+from workloads.grasp_planning.data import TEST_SEED, TRAIN_SEED, bench_scene, build
+from workloads.grasp_planning.inputs import load_depth_file
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="Grasp planning with a fully convolutional grasp-quality network.")
@@ -27,14 +31,12 @@ def predict(
     fy: float = typer.Option(..., help="focal length y, pixels"),
     cx: float = typer.Option(..., help="principal point x, pixels"),
     cy: float = typer.Option(..., help="principal point y, pixels"),
-    model: Optional[Path] = typer.Option(None, help="weights (default: the shipped model.pt)"),
+    model: Path | None = typer.Option(None, help="weights (default: the shipped model.pt)"),
     device: str = typer.Option("auto", help="auto, cpu, cuda, cuda:N"),
     as_json: bool = typer.Option(False, "--json", help="print one JSON object"),
 ) -> None:
     """Plan the best grasp in a depth image; pose in the camera's optical frame."""
-    from workloads.grasp_planning.camera import Intrinsics
-    from workloads.grasp_planning.inputs import load_depth_file
-    from workloads.grasp_planning.planner import MODEL_PATH, GraspPlanner
+    from workloads.grasp_planning.planner import MODEL_PATH, GraspPlanner  # noqa: PLC0415 (loads torch)
 
     image = load_depth_file(depth)
     if min(fx, fy) <= 0:
@@ -46,7 +48,8 @@ def predict(
     d = grasp.to_dict()
     typer.echo(f"pixel ({d['u']:.1f}, {d['v']:.1f})  angle {d['angle']:.3f} rad  width {d['width'] * 1000:.1f} mm  "
                f"quality {d['quality']:.3f}")
-    typer.echo(f"position {[round(p, 4) for p in d['position']]}  orientation {[round(q, 4) for q in d['orientation']]}")
+    position, orientation = [round(p, 4) for p in d["position"]], [round(q, 4) for q in d["orientation"]]
+    typer.echo(f"position {position}  orientation {orientation}")
 
 
 @app.command()
@@ -62,9 +65,10 @@ def train(
     threads: int = typer.Option(0, help="torch threads (0: torch's default)"),
 ) -> None:
     """Generate labelled scenes and train the network; prints held-out figures."""
-    import torch
+    import torch  # noqa: PLC0415 (seconds to load: only train and predict need it)
 
-    from workloads.grasp_planning.train import TrainConfig, train as run
+    from workloads.grasp_planning.train import TrainConfig  # noqa: PLC0415 (loads torch)
+    from workloads.grasp_planning.train import train as run  # noqa: PLC0415 (loads torch)
 
     if threads:
         torch.set_num_threads(threads)
@@ -83,10 +87,6 @@ def generate(
     workers: int = typer.Option(2),
 ) -> None:
     """Write labelled training crops, for inspection or training elsewhere."""
-    import numpy as np
-
-    from workloads.grasp_planning.data import TRAIN_SEED, build
-
     depth, quality, width = build(TRAIN_SEED + seed, count, workers=workers)
     np.savez_compressed(out, depth=depth, quality=quality, width=width)
     typer.echo(f"wrote {count} crops to {out}")
@@ -98,10 +98,6 @@ def scene(
     seed: int = typer.Option(0),
 ) -> None:
     """Write one sensed 640 x 480 bin scene and print its intrinsics as predict options."""
-    import numpy as np
-
-    from workloads.grasp_planning.data import TEST_SEED, bench_scene
-
     s = bench_scene(TEST_SEED + seed)
     np.save(out, s.depth)
     i = s.intr
@@ -111,7 +107,7 @@ def scene(
 @app.command(context_settings={"allow_extra_args": True, "ignore_unknown_options": True})
 def node() -> None:
     """Run the ROS node; ROS arguments (_param:=value, topic:=remapped) pass through to rospy."""
-    from workloads.grasp_planning.node import main as node_main
+    from workloads.grasp_planning.node import main as node_main  # noqa: PLC0415 (rospy: on ROS hosts only)
 
     node_main()
 

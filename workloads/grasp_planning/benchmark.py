@@ -146,7 +146,8 @@ def table(result: dict[str, Any]) -> str:
     ]
     for r in result["latency"]:
         lines.append(
-            f"| {r['device']} | {r['threads']} | {r['median_ms']:.1f} | {r['p90_ms']:.1f} | {r['speedup_vs_1_thread']:.2f}x"
+            f"| {r['device']} | {r['threads']} | {r['median_ms']:.1f} | {r['p90_ms']:.1f}"
+            f" | {r['speedup_vs_1_thread']:.2f}x"
             f" | {r['net_median_ms']:.2f} | {r['net_p90_ms']:.2f} | {r['net_speedup_vs_1_thread']:.2f}x |"
         )
     lines.append("(speedups: against the 1-thread CPU median of the same run)")
@@ -161,7 +162,8 @@ def table(result: dict[str, Any]) -> str:
 
 
 def main(argv: list[str] | None = None) -> None:
-    p = argparse.ArgumentParser(prog="python -m workloads.grasp_planning.benchmark", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="python -m workloads.grasp_planning.benchmark",
+                                description=__doc__.splitlines()[0])
     p.add_argument("--out", type=Path, default=Path("benchmarks/out"))
     p.add_argument("--model", type=Path, default=MODEL_PATH)
     p.add_argument("--scenes", type=int, default=100, help="held-out scenes for the success rates")

@@ -9,6 +9,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, TypeVar
+
+if TYPE_CHECKING:
+    import numpy as np
+
+# One pixel (floats) or many at once (numpy arrays, elementwise): the same arithmetic serves both.
+Coord = TypeVar("Coord", float, "np.ndarray")
 
 
 @dataclass(frozen=True)
@@ -20,8 +27,8 @@ class Intrinsics:
     cx: float
     cy: float
 
-    def deproject(self, u: float, v: float, z: float) -> tuple[float, float, float]:
-        """The point at depth ``z`` seen at pixel (u, v)."""
+    def deproject(self, u: Coord, v: Coord, z: Coord) -> tuple[Coord, Coord, Coord]:
+        """The point at depth ``z`` seen at pixel (u, v); arrays give one point per element."""
         return ((u - self.cx) * z / self.fx, (v - self.cy) * z / self.fy, z)
 
     def project(self, x: float, y: float, z: float) -> tuple[float, float]:

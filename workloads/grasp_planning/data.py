@@ -53,7 +53,8 @@ def training_example(seed: int, *, size: int = 80, k: int = 8, gripper: Gripper 
     scene = sample_scene(
         rng,
         table_z=table_z,
-        center=(float(-ox * table_z / f + rng.uniform(-0.05, 0.05)), float(-oy * table_z / f + rng.uniform(-0.05, 0.05))),
+        center=(float(-ox * table_z / f + rng.uniform(-0.05, 0.05)),
+                float(-oy * table_z / f + rng.uniform(-0.05, 0.05))),
         bin_half=(float(rng.uniform(0.1, 0.17)), float(rng.uniform(0.08, 0.15))),
         n_objects=int(rng.integers(3, 10)),
     )

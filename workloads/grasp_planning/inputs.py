@@ -64,7 +64,9 @@ def depth_from_buffer(
     code, scale = ENCODINGS[encoding]
     dtype = np.dtype(code).newbyteorder(">" if big_endian else "<")
     if step < width * dtype.itemsize or len(data) < step * height:
-        raise WorkloadError(f"{source}: {len(data)} bytes do not hold {height} rows of step {step} for {width} x {encoding}")
+        raise WorkloadError(
+            f"{source}: {len(data)} bytes do not hold {height} rows of step {step} for {width} x {encoding}"
+        )
     rows = np.frombuffer(data, dtype=np.uint8, count=step * height).reshape(height, step)
     arr = rows[:, : width * dtype.itemsize].copy().view(dtype).reshape(height, width)
     depth = arr.astype(np.float32) * np.float32(scale)

@@ -12,6 +12,7 @@ import time
 from dataclasses import dataclass
 
 import rospy
+import torch
 from geometry_msgs.msg import PoseStamped
 from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import Float64
@@ -81,8 +82,6 @@ def main() -> None:
     rospy.init_node("grasp_planner")
     threads = int(rospy.get_param("~threads", 0))
     if threads:
-        import torch
-
         torch.set_num_threads(threads)
     planner = GraspPlanner.load(rospy.get_param("~model", str(MODEL_PATH)), device=rospy.get_param("~device", "auto"))
     node = GraspNode(planner)

@@ -79,7 +79,8 @@ def _box(p: Primitive, x: np.ndarray, y: np.ndarray, ax: np.ndarray, ay: np.ndar
 
 
 def _circle(
-    px: np.ndarray, py: np.ndarray, ax: np.ndarray, ay: np.ndarray, rho: np.ndarray | float, r_normal: np.ndarray | float
+    px: np.ndarray, py: np.ndarray, ax: np.ndarray, ay: np.ndarray, rho: np.ndarray | float,
+    r_normal: np.ndarray | float,
 ) -> Contacts:
     """Chord of a circle of radius rho; cosines against 3-D normals of a solid of radius r_normal."""
     b = px * ax + py * ay
@@ -95,7 +96,9 @@ def _cylinder(p: Primitive, x: np.ndarray, y: np.ndarray, ax: np.ndarray, ay: np
     return _circle(x - p.center[0], y - p.center[1], ax, ay, p.size[0], p.size[0])
 
 
-def _lying_cylinder(p: Primitive, x: np.ndarray, y: np.ndarray, ax: np.ndarray, ay: np.ndarray, zg: np.ndarray) -> Contacts:
+def _lying_cylinder(
+    p: Primitive, x: np.ndarray, y: np.ndarray, ax: np.ndarray, ay: np.ndarray, zg: np.ndarray
+) -> Contacts:
     r = p.size[0]
     hz = zg - p.center[2]
     half_w = np.sqrt(np.where(np.abs(hz) < r, r * r - hz * hz, np.nan))

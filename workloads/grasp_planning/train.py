@@ -123,7 +123,8 @@ def train(cfg: TrainConfig, *, out: Path, command: str, log: Callable[[str], Non
             sched.step()
             step += 1
             total += float(loss.detach())
-        log(f"epoch {epoch + 1}/{cfg.epochs}: loss {total / (cfg.examples // cfg.batch):.4f} ({time.monotonic() - t0:.0f} s)")
+        mean_loss = total / (cfg.examples // cfg.batch)
+        log(f"epoch {epoch + 1}/{cfg.epochs}: loss {mean_loss:.4f} ({time.monotonic() - t0:.0f} s)")
     figures = evaluate(net, vdepth, vquality, seed=cfg.seed)
     with torch.inference_mode():
         vx = prepare(torch.from_numpy(vdepth)[:, None])

@@ -12,11 +12,11 @@ import sys
 from collections.abc import Sequence
 
 from fogiac.errors import FogiacError
+from workloads.motion_planning import load_problem, solve
+from workloads.motion_planning.planner import DEFAULT_PLANNER, PLANNERS
 
 
 def _solve(args: argparse.Namespace) -> int:
-    from workloads.motion_planning import load_problem, solve
-
     problem = load_problem(args.problem)
     solution = solve(problem, cores=args.cores, time_limit=args.time_limit, seed=args.seed, planner=args.planner)
     if args.json:
@@ -28,22 +28,21 @@ def _solve(args: argparse.Namespace) -> int:
     return 0 if solution.solved else 1
 
 
+# node and client import rospy: only they need ROS, so `solve` runs where it is not installed.
 def _node(args: argparse.Namespace) -> int:
-    from workloads.motion_planning.node import main
+    from workloads.motion_planning.node import main  # noqa: PLC0415 (rospy, see above)
 
     main()
     return 0
 
 
 def _client(args: argparse.Namespace) -> int:
-    from workloads.motion_planning.client import main
+    from workloads.motion_planning.client import main  # noqa: PLC0415 (rospy, see above)
 
     return main(args.names, timeout=args.timeout)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from workloads.motion_planning.planner import DEFAULT_PLANNER, PLANNERS
-
     parser = argparse.ArgumentParser(prog="python -m workloads.motion_planning")
     verbs = parser.add_subparsers(dest="verb", required=True)
     s = verbs.add_parser("solve", help="plan one problem file")

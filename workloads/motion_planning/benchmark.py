@@ -23,9 +23,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from workloads.motion_planning.planner import Solution, solve, warm_up
-from workloads.motion_planning.problem import load_problem
-
-PROBLEMS_DIR = Path(__file__).resolve().parent / "problems"
+from workloads.motion_planning.problem import PROBLEMS_DIR, load_problem
 
 
 @dataclass(frozen=True)
@@ -72,10 +70,10 @@ def table(rows: Sequence[Row], cores: int) -> str:
 
 
 def plot(rows: Sequence[Row], cores: int, path: Path) -> None:
-    import matplotlib
+    import matplotlib  # noqa: PLC0415 (only --plot draws; the backend must be set before pyplot loads)
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # noqa: PLC0415
 
     names = list(dict.fromkeys(r.problem for r in rows))
     one = [next(r for r in rows if r.problem == n and r.cores == 1) for n in names]
@@ -84,7 +82,7 @@ def plot(rows: Sequence[Row], cores: int, path: Path) -> None:
     xs = range(len(names))
     ax.bar([x - 0.2 for x in xs], [r.median_solve_s for r in one], width=0.4, label="1 core")
     ax.bar([x + 0.2 for x in xs], [r.median_solve_s for r in many], width=0.4, label=f"{cores} cores")
-    for x, a, b in zip(xs, one, many):
+    for x, a, b in zip(xs, one, many, strict=True):
         label = f"time {a.median_solve_s / b.median_solve_s:.2f}x\nwork {a.median_checks / b.median_checks:.2f}x"
         ax.annotate(label, (x, max(a.median_solve_s, b.median_solve_s)), ha="center", va="bottom", fontsize=8)
     ax.set_xticks(list(xs), names)

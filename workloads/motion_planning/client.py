@@ -7,15 +7,22 @@
 from __future__ import annotations
 
 import json
+import operator
 import threading
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
+import rospy
+from geometry_msgs.msg import PoseArray
+from std_msgs.msg import Float64
+
 from fogiac.errors import WorkloadError
-from workloads.motion_planning.node import DEFAULT_PROBLEM_DIR, pose_from_msg, pose_to_msg
-from workloads.motion_planning.problem import Pose
+from fogiac.procs import poll
+from workloads.motion_planning.node import pose_from_msg, pose_to_msg
+from workloads.motion_planning.problem import PROBLEMS_DIR, Pose
 
 REQUEST_TOPIC = "/motion_planning/request"
 PATH_TOPIC = "/motion_planning/path"
@@ -38,16 +45,12 @@ class Timing:
 
 
 def shipped_problems() -> list[str]:
-    return sorted(p.stem for p in DEFAULT_PROBLEM_DIR.glob("*.cfg"))
+    return sorted(p.stem for p in PROBLEMS_DIR.glob("*.cfg"))
 
 
 def request_paths(names: Sequence[str], *, timeout: float = 120.0,
                   endpoints: dict[str, tuple[Pose, Pose]] | None = None, connect_timeout: float = 30.0) -> list[Timing]:
     """Send one request per problem name, in turn, and wait for each path. Needs rospy.init_node done."""
-    import rospy
-    from geometry_msgs.msg import PoseArray
-    from std_msgs.msg import Float64
-
     cond = threading.Condition()
     paths: dict[tuple[str, int], Any] = {}
     last_compute = [0.0]
@@ -77,7 +80,7 @@ def request_paths(names: Sequence[str], *, timeout: float = 120.0,
             sent = time.perf_counter()
             pub.publish(request)
             with cond:
-                if not cond.wait_for(lambda: key in paths, timeout=timeout):
+                if not cond.wait_for(partial(operator.contains, paths, key), timeout=timeout):
                     raise WorkloadError(f"no path for {name!r} on {PATH_TOPIC} within {timeout:g} s")
                 received, compute, msg = paths.pop(key)
             path = tuple(pose_from_msg(p) for p in msg.poses)
@@ -90,16 +93,14 @@ def request_paths(names: Sequence[str], *, timeout: float = 120.0,
 
 
 def _wait_connected(pub: Any, subs: Sequence[Any], timeout: float) -> None:
-    end = time.monotonic() + timeout
-    while pub.get_num_connections() == 0 or any(s.get_num_connections() == 0 for s in subs):
-        if time.monotonic() > end:
-            raise WorkloadError(f"no motion_planning node answered on {REQUEST_TOPIC} within {timeout:g} s")
-        time.sleep(0.05)
+    def connected() -> bool | None:
+        return True if pub.get_num_connections() and all(s.get_num_connections() for s in subs) else None
+
+    if poll(connected, timeout=timeout, interval=0.05, backoff=1.0) is None:
+        raise WorkloadError(f"no motion_planning node answered on {REQUEST_TOPIC} within {timeout:g} s")
 
 
 def main(names: Sequence[str], *, timeout: float) -> int:
-    import rospy
-
     rospy.init_node("motion_planning_client", anonymous=True, disable_signals=True)
     timings = request_paths(list(names) or shipped_problems(), timeout=timeout)
     print(json.dumps([t.as_dict() for t in timings]))

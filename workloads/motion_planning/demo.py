@@ -19,8 +19,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import urlparse
 
-from workloads.motion_planning.client import shipped_problems
-from workloads.motion_planning.node import DEFAULT_PROBLEM_DIR
+import rospy
+
+from fogiac.manifest.schema import load_manifest
+from workloads.motion_planning.client import request_paths, shipped_problems
+from workloads.motion_planning.planner import solve
+from workloads.motion_planning.problem import PROBLEMS_DIR, load_problem
 
 REPO_EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "motion-planning.yaml"
 
@@ -50,22 +54,15 @@ def _fogiac(*args: str) -> None:
 
 def edge_baseline(names: list[str], *, runs: int, time_limit: float | None) -> dict[str, list]:
     """Plan on the robot itself: one core, as a robot without a big computer would."""
-    from workloads.motion_planning.planner import solve
-    from workloads.motion_planning.problem import load_problem
-
     out: dict[str, list] = {}
     for name in names:
-        problem = load_problem(DEFAULT_PROBLEM_DIR / f"{name}.cfg")
+        problem = load_problem(PROBLEMS_DIR / f"{name}.cfg")
         out[name] = [solve(problem, cores=1, time_limit=time_limit, seed=run) for run in range(runs)]
     return out
 
 
 def cloud_runs(names: list[str], *, runs: int) -> dict[str, list]:
     """Ask the cloud node through the edge master, as the robot's own code would."""
-    import rospy
-
-    from workloads.motion_planning.client import request_paths
-
     rospy.init_node("fogiac_demo_client", anonymous=True, disable_signals=True)
     out: dict[str, list] = {name: [] for name in names}
     for _ in range(runs):
@@ -79,8 +76,9 @@ def table(rows: list[Row], *, cloud_cores: int) -> str:
             f"{'network+relay':>14} {'cloud total':>12} {'speedup':>8} {'solved e c':>11}")
     lines = [head, "-" * len(head)]
     for r in rows:
+        solved = f"{r.edge_solved}/{r.runs} {r.cloud_solved}/{r.runs}"
         lines.append(f"{r.problem:<10} {r.edge_s:>11.2f}s {r.cloud_compute_s:>13.2f}s {r.network_s:>13.3f}s "
-                     f"{r.cloud_round_trip_s:>11.2f}s {r.speedup:>7.2f}x {f'{r.edge_solved}/{r.runs} {r.cloud_solved}/{r.runs}':>11}")
+                     f"{r.cloud_round_trip_s:>11.2f}s {r.speedup:>7.2f}x {solved:>11}")
     lines.append("medians over runs; speedup = edge time / cloud total (compute + network + relay)")
     return "\n".join(lines)
 
@@ -121,8 +119,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _edge_master(manifest: Path) -> str:
-    from fogiac.manifest import load_manifest
-
     uri = load_manifest(manifest).edge.ros_master
     url = urlparse(uri)
     return f"http://{'127.0.0.1' if url.hostname == 'localhost' else url.hostname}:{url.port}"

@@ -21,7 +21,8 @@ from pathlib import Path
 
 import trimesh
 
-PROBLEMS_DIR = Path(__file__).resolve().parent / "problems"
+from workloads.motion_planning.problem import PROBLEMS_DIR
+
 Vec = Sequence[float]
 
 
@@ -32,7 +33,7 @@ def box(center: Vec, size: Vec) -> trimesh.Trimesh:
 
 def box_between(lo: Vec, hi: Vec) -> trimesh.Trimesh:
     """The axis-aligned box with corners ``lo`` and ``hi``."""
-    return box([(a + b) / 2 for a, b in zip(lo, hi)], [b - a for a, b in zip(lo, hi)])
+    return box([(a + b) / 2 for a, b in zip(lo, hi, strict=True)], [b - a for a, b in zip(lo, hi, strict=True)])
 
 
 def plate_with_slot(x: float, *, half: float, thick: float, slot: Vec, offset: Vec,
@@ -83,9 +84,11 @@ def write_cfg(path: Path, *, robot: str, world: str, start: Vec, goal: Vec, star
     """``*_rot`` are (axis.x, axis.y, axis.z, theta)."""
     lines = ["[problem]", f"name = {path.stem}", f"robot = {robot}", f"world = {world}"]
     for end, pos, rot in (("start", start, start_rot), ("goal", goal, goal_rot)):
-        lines += [f"{end}.{k} = {v:g}" for k, v in zip("xyz", pos)]
-        lines += [f"{end}.theta = {rot[3]:.6f}"] + [f"{end}.axis.{k} = {v:g}" for k, v in zip("xyz", rot[:3])]
-    lines += [f"volume.{m}.{k} = {v:g}" for m, vec in (("min", lo), ("max", hi)) for k, v in zip("xyz", vec)]
+        lines += [f"{end}.{k} = {v:g}" for k, v in zip("xyz", pos, strict=True)]
+        lines += [f"{end}.theta = {rot[3]:.6f}"]
+        lines += [f"{end}.axis.{k} = {v:g}" for k, v in zip("xyz", rot[:3], strict=True)]
+    lines += [f"volume.{m}.{k} = {v:g}"
+              for m, vec in (("min", lo), ("max", hi)) for k, v in zip("xyz", vec, strict=True)]
     lines += ["", "[solver]", f"time_limit = {time_limit:g}", f"longest_valid_segment_fraction = {fraction:g}",
               "", "[benchmark]", f"time_limit = {time_limit:g}", "run_count = 10", ""]
     path.write_text("\n".join(lines), encoding="utf-8")

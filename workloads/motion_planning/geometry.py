@@ -9,16 +9,19 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from itertools import pairwise
 from typing import Any
 
 import numpy as np
 
 from workloads.motion_planning.problem import Mesh, Pose, Problem
 
+Vector = Sequence[float] | np.ndarray  # OMPL hands over lists, interpolation numpy arrays
+
 
 def _bvh(mesh: Mesh) -> Any:
     """An fcl.BVHModel of the mesh (typed Any: fcl ships no stubs)."""
-    import fcl
+    import fcl  # noqa: PLC0415 (a workload extra: loaded when a problem is checked, not on import)
 
     model = fcl.BVHModel()
     model.beginModel(len(mesh.vertices), len(mesh.faces))
@@ -32,7 +35,7 @@ class CollisionChecker:
     """Holds fcl models of one problem; ``is_free`` answers for a robot pose in world frame."""
 
     def __init__(self, problem: Problem) -> None:
-        import fcl
+        import fcl  # noqa: PLC0415 (as in _bvh)
 
         self._fcl = fcl
         self._problem = problem
@@ -41,14 +44,14 @@ class CollisionChecker:
         self._request = fcl.CollisionRequest()
         self.checks = 0
 
-    def is_free(self, position: Sequence[float], quaternion_wxyz: Sequence[float]) -> bool:
+    def is_free(self, position: Vector, quaternion_wxyz: Vector) -> bool:
         self.checks += 1
         self._robot.setTransform(self._fcl.Transform(np.asarray(quaternion_wxyz, dtype=float),
                                                      np.asarray(position, dtype=float)))
         result = self._fcl.CollisionResult()
         return self._fcl.collide(self._robot, self._world, self._request, result) == 0
 
-    def in_bounds(self, position: Sequence[float]) -> bool:
+    def in_bounds(self, position: Vector) -> bool:
         lo, hi = self._problem.bounds_min, self._problem.bounds_max
         return all(lo[i] <= position[i] <= hi[i] for i in range(3))
 
@@ -90,7 +93,7 @@ def path_is_collision_free(problem: Problem, path: Sequence[Pose], *, resolution
         return False
     checker = CollisionChecker(problem)
     radius = problem.robot.radius()
-    segments = zip(path, path[1:]) if len(path) > 1 else [(path[0], path[0])]
+    segments = list(pairwise(path)) if len(path) > 1 else [(path[0], path[0])]
     for a, b in segments:
         for position, quat in interpolate(a, b, max_step=resolution, radius=radius):
             if not (checker.in_bounds(position) and checker.is_free(position, quat)):

@@ -21,12 +21,17 @@ import threading
 from pathlib import Path
 from typing import Any
 
+import rospy
+from geometry_msgs.msg import Point, PoseArray, Quaternion
+from geometry_msgs.msg import Pose as PoseMsg
+from std_msgs.msg import Float64
+
 from fogiac.errors import WorkloadError
 from workloads.motion_planning.planner import DEFAULT_PLANNER, solve, warm_up
-from workloads.motion_planning.problem import Pose, Problem, load_problem
+from workloads.motion_planning.problem import PROBLEMS_DIR, Pose, Problem, load_problem
 
 NODE_NAME = "motion_planning"
-DEFAULT_PROBLEM_DIR = Path(__file__).resolve().parent / "problems"
+DEFAULT_PROBLEM_DIR = PROBLEMS_DIR  # ~problem_dir when the parameter is unset: the shipped problems
 
 
 def pose_from_msg(msg: Any) -> Pose:
@@ -35,8 +40,6 @@ def pose_from_msg(msg: Any) -> Pose:
 
 
 def pose_to_msg(pose: Pose) -> Any:
-    from geometry_msgs.msg import Point, Pose as PoseMsg, Quaternion
-
     return PoseMsg(Point(pose.x, pose.y, pose.z), Quaternion(pose.qx, pose.qy, pose.qz, pose.qw))
 
 
@@ -59,8 +62,6 @@ class PlannerNode:
 
     def handle(self, request: Any) -> tuple[float, list[Pose]]:
         """(compute seconds, path) for one PoseArray request; an empty path on any failure."""
-        import rospy
-
         with self._lock:
             try:
                 problem = self.problem(request.header.frame_id)
@@ -81,10 +82,6 @@ class PlannerNode:
 
 
 def main() -> None:
-    import rospy
-    from geometry_msgs.msg import PoseArray
-    from std_msgs.msg import Float64
-
     rospy.init_node(NODE_NAME)
     time_limit = float(rospy.get_param("~time_limit", 0.0))
     cores = int(rospy.get_param("~cores", 0))

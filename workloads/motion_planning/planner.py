@@ -20,6 +20,7 @@ from typing import Any
 
 from fogiac.errors import WorkloadError
 from fogiac.procs import pid_alive
+from workloads.motion_planning.geometry import CollisionChecker
 from workloads.motion_planning.problem import Pose, Problem
 
 # name accepted on the CLI / in ROS params -> class in ompl.geometric
@@ -197,11 +198,10 @@ def _worker(problem: Problem, planner: str, seed: int, time_limit: float, simpli
 
 def _plan_one(problem: Problem, planner: str, seed: int, time_limit: float, simplify_time: float,
               flag: Any, index: int, parent_pid: int) -> dict[str, Any]:
-    import ompl.base as ob
-    import ompl.geometric as og
-    import ompl.util as ou
-
-    from workloads.motion_planning.geometry import CollisionChecker
+    # ompl loads in each racing worker only: importing this module (the node, `solve --help`) stays light.
+    import ompl.base as ob  # noqa: PLC0415
+    import ompl.geometric as og  # noqa: PLC0415
+    import ompl.util as ou  # noqa: PLC0415
 
     ou.setLogLevel(ou.LOG_ERROR)
     ou.RNG.setSeed(seed)

@@ -36,6 +36,7 @@ _PROBLEM_KEYS = (
     *(f"{end}.{k}" for end in ("start", "goal") for k in ("x", "y", "z", "theta", "axis.x", "axis.y", "axis.z")),
 )
 _VOLUME_KEYS = tuple(f"volume.{m}.{a}" for m in ("min", "max") for a in "xyz")
+PROBLEMS_DIR = Path(__file__).resolve().parent / "problems"  # the problems shipped with the workload
 DEFAULT_TIME_LIMIT = 10.0
 DEFAULT_SEGMENT_FRACTION = 0.01
 
@@ -105,7 +106,7 @@ class Problem:
 
 def read_mesh(path: Path, *, cfg: Path, key: str) -> Mesh:
     """Load a mesh like assimp does; errors name the cfg file and key that pointed here."""
-    import trimesh
+    import trimesh  # noqa: PLC0415 (a workload extra, slow to load: only reading a mesh needs it)
 
     if not path.is_file():
         raise WorkloadError(f"{cfg}: [problem] {key}: mesh file not found: {path}")
@@ -113,6 +114,8 @@ def read_mesh(path: Path, *, cfg: Path, key: str) -> Mesh:
         mesh = trimesh.load(str(path), force="mesh", process=True)
     except Exception as err:  # trimesh raises many types for unreadable files
         raise WorkloadError(f"{cfg}: [problem] {key}: cannot read mesh {path}: {err}".replace("\n", " ")) from err
+    if not isinstance(mesh, trimesh.Trimesh):  # force="mesh" merges a scene into one; anything else holds none
+        raise WorkloadError(f"{cfg}: [problem] {key}: {path} holds no triangle mesh ({type(mesh).__name__})")
     vertices = np.asarray(mesh.vertices, dtype=float)
     faces = np.asarray(mesh.faces, dtype=np.int64)
     if len(faces) == 0:
@@ -181,7 +184,7 @@ def _bounds(cfg: Path, section: configparser.SectionProxy, world: Mesh, start: P
     if given:
         v = [_number(cfg, "problem", k, section[k]) for k in _VOLUME_KEYS]
         lo, hi = v[:3], v[3:]
-        for axis, a, b in zip("xyz", lo, hi):
+        for axis, a, b in zip("xyz", lo, hi, strict=True):
             if a >= b:
                 raise WorkloadError(f"{cfg}: [problem] volume.min.{axis}: must be less than volume.max.{axis}")
     else:

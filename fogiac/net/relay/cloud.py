@@ -47,7 +47,8 @@ class CloudRelay(RelayEnd):
         try:
             self._listener = socket.create_server(self.cloud_config.listen, backlog=16, reuse_port=False)
         except OSError as err:
-            raise RelayError(f"cannot listen on {self.cloud_config.listen[0]}:{self.cloud_config.listen[1]}: {err}") from None
+            host, port = self.cloud_config.listen
+            raise RelayError(f"cannot listen on {host}:{port}: {err}") from None
         log.info("cloud relay listening on %s:%d", *self.address)
         self._spawn(self._accept_loop, "relay-accept")
 

@@ -1,7 +1,7 @@
 """Per-topic compression codecs, keyed by name (the manifest says ``zstd`` or ``lz4``).
 
-Codecs are imported lazily so ``none`` costs nothing; an unknown name raises an error that
-lists the valid ones.
+A codec's contexts are made when a topic asks for it, so ``none`` costs nothing; an unknown
+name raises an error that lists the valid ones.
 """
 
 from __future__ import annotations
@@ -9,17 +9,21 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import lz4.frame
+import zstandard
+
 from fogiac.errors import RelayError
+from fogiac.net.relay.framing import Payload
 
 
 @dataclass(frozen=True)
 class Codec:
     name: str
-    compress: Callable[[bytes], bytes]
-    decompress: Callable[[bytes], bytes]
+    compress: Callable[[Payload], Payload]
+    decompress: Callable[[Payload], Payload]
 
 
-def _same(data: bytes) -> bytes:
+def _same(data: Payload) -> Payload:
     return data
 
 
@@ -28,22 +32,18 @@ def _none() -> Codec:
 
 
 def _zstd() -> Codec:
-    import zstandard
-
     # zstd's default level 3: >= 2x on noisy 16-bit depth at < 5 ms CPU per 640x480 frame
     # (level 1 is ~2x faster but only 1.75x on that worst case; see benchmarks/relay).
     comp = zstandard.ZstdCompressor(level=3)
     dctx = zstandard.ZstdDecompressor()
 
-    def decompress(data: bytes) -> bytes:
+    def decompress(data: Payload) -> Payload:
         return dctx.decompress(data)
 
     return Codec("zstd", comp.compress, decompress)
 
 
 def _lz4() -> Codec:
-    import lz4.frame
-
     return Codec("lz4", lz4.frame.compress, lz4.frame.decompress)
 
 

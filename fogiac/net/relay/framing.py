@@ -27,6 +27,9 @@ MAX_FRAME = 64 * 1024 * 1024 + 64
 _STAMP = struct.Struct("!q")
 _PONG = struct.Struct("!qq")
 
+# A message's bytes as sockets hand them over and take them: passed along, never copied.
+Payload = bytes | bytearray | memoryview
+
 
 class FrameError(RelayError):
     """The peer sent bytes that are not a valid frame; drop its connection."""
@@ -48,7 +51,7 @@ class Kind(enum.IntEnum):
 class Frame:
     kind: Kind
     topic: int
-    payload: bytes
+    payload: bytes | bytearray  # bytearray when read straight off a socket
 
 
 def encode_header(kind: Kind, topic: int, payload_len: int) -> bytes:
@@ -109,7 +112,7 @@ def data_prefix(topic: int, stamp_ns: int, body_len: int) -> bytes:
     return encode_header(Kind.DATA, topic, _STAMP.size + body_len) + _STAMP.pack(stamp_ns)
 
 
-def split_data(payload: bytes | memoryview) -> tuple[int, memoryview]:
+def split_data(payload: Payload) -> tuple[int, memoryview]:
     if len(payload) < _STAMP.size:
         raise FrameError("DATA frame shorter than its timestamp")
     view = memoryview(payload)

@@ -145,7 +145,8 @@ class RelayNode:
             sock.settimeout(None)
             pub = self._publishers.get(request.get("topic", ""))
             if pub is None:
-                sock.sendall(tcpros.encode_header({"error": f"{self.caller_id} does not publish {request.get('topic')}"}))
+                why = f"{self.caller_id} does not publish {request.get('topic')}"
+                sock.sendall(tcpros.encode_header({"error": why}))
                 sock.close()
                 return
             pub.accept(sock, request)

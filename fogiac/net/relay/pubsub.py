@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 from fogiac.errors import RelayError
 from fogiac.net.relay import tcpros
+from fogiac.net.relay.framing import Payload
 from fogiac.net.relay.rosapi import request_topic
 
 if TYPE_CHECKING:
@@ -57,14 +58,14 @@ class _Outlet:
     def __init__(self, sock: socket.socket, depth: int, on_close: Callable[[_Outlet], None],
                  on_drop: Callable[[], None]) -> None:
         self.sock, self._depth, self._on_close, self._on_drop = sock, depth, on_close, on_drop
-        self._queue: deque[bytes] = deque()
-        self._rest: list[bytes | memoryview] = []  # unsent tail of a message already started
+        self._queue: deque[Payload] = deque()
+        self._rest: list[Payload] = []  # unsent tail of a message already started
         self._busy = False  # someone is writing to the socket right now
         self._cond = threading.Condition()
         self._closed = False
         threading.Thread(target=self._run, name="relay-outlet", daemon=True).start()
 
-    def put(self, data: bytes) -> None:
+    def put(self, data: Payload) -> None:
         with self._cond:
             if self._closed:
                 return
@@ -140,14 +141,14 @@ class LocalPublisher:
         self.node, self.topic, self.meta, self._depth = node, topic, meta, depth
         self._outlets: list[_Outlet] = []
         self._lock = threading.Lock()
-        self._last: bytes | None = None
+        self._last: Payload | None = None
         self.drops = 0  # stale messages a slow subscriber never got (latest-wins)
         # Subscribers the master knew when we advertised dial in a moment later; what arrives
         # before they have is kept for them, so a topic's first message is not lost (ROS 1
         # publishers drop messages for subscribers that have not connected yet).
         self._expected = 0
         self._ready_by = 0.0
-        self._early: deque[bytes] = deque(maxlen=depth)
+        self._early: deque[Payload] = deque(maxlen=depth)
 
     def start(self) -> None:
         waiting = self.node.add_publisher(self)
@@ -191,7 +192,7 @@ class LocalPublisher:
             if outlet in self._outlets:
                 self._outlets.remove(outlet)
 
-    def publish(self, data: bytes) -> None:
+    def publish(self, data: Payload) -> None:
         with self._lock:
             if self.meta.latching:
                 self._last = data
@@ -230,7 +231,7 @@ class LocalSubscription:
 
     def __init__(
         self, node: RelayNode, topic: str, *,
-        on_meta: Callable[[TopicMeta], None], on_message: Callable[[bytes], None],
+        on_meta: Callable[[TopicMeta], None], on_message: Callable[[Payload], None],
     ) -> None:
         self.node, self.topic = node, topic
         self._on_meta, self._on_message = on_meta, on_message
@@ -290,12 +291,3 @@ class LocalSubscription:
                     inlet.stop.wait(0.5)
             finally:
                 inlet.sock = None
-
-
-def wait_until(predicate: Callable[[], bool], timeout: float, step: float = 0.05) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(step)
-    return predicate()

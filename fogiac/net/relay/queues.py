@@ -12,7 +12,9 @@ import threading
 from collections import deque
 from collections.abc import Sequence
 
-Item = Sequence[bytes | bytearray | memoryview]
+from fogiac.net.relay.framing import Payload
+
+Item = Sequence[Payload]
 
 
 class Outbox:

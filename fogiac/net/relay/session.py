@@ -20,7 +20,7 @@ from fogiac.errors import RelayError
 from fogiac.net.relay import framing
 from fogiac.net.relay.compression import codec
 from fogiac.net.relay.config import EndConfig
-from fogiac.net.relay.framing import Frame, FrameError, Kind
+from fogiac.net.relay.framing import Frame, FrameError, Kind, Payload
 from fogiac.net.relay.node import RelayNode
 from fogiac.net.relay.pubsub import LocalPublisher, LocalSubscription, TopicMeta
 from fogiac.net.relay.queues import Item, Outbox
@@ -65,7 +65,7 @@ class _Source:
                 self.session.send(framing.json_frame(Kind.OPEN, body, topic=self.id))
                 self._opened = True
 
-    def _message(self, data: bytes) -> None:
+    def _message(self, data: Payload) -> None:
         stamp = time.time_ns()
         with self._lock:
             body = self._codec.compress(data)
@@ -94,7 +94,7 @@ class _Sink:
         data = self._codec.decompress(body)
         latency = time.time_ns() - (stamp - self.session.clock.offset_ns)
         self.counters.count(len(data), latency)
-        self.pub.publish(data)  # type: ignore[arg-type]
+        self.pub.publish(data)
 
 
 class Session:

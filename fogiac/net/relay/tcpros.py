@@ -11,6 +11,7 @@ import socket
 import struct
 
 from fogiac.errors import RelayError
+from fogiac.net.relay.framing import Payload
 
 _U32 = struct.Struct("<I")
 MAX_HEADER = 1024 * 1024
@@ -55,7 +56,7 @@ def decode_header(body: bytes) -> dict[str, str]:
     return fields
 
 
-def frame_message(data: bytes) -> bytes:
+def frame_message(data: Payload) -> bytes:
     return _U32.pack(len(data)) + data
 
 
@@ -111,7 +112,7 @@ def read_message(stream: Stream) -> bytes | bytearray:
     return stream.exact(size)
 
 
-def write_message(sock: socket.socket, data: bytes) -> None:
+def write_message(sock: socket.socket, data: Payload) -> None:
     if len(data) < 65536:
         sock.sendall(_U32.pack(len(data)) + data)
     else:  # two writes beat copying megabytes

@@ -16,7 +16,9 @@ def _need(directory: Path, *names: str) -> list[Path]:
     paths = [Path(directory) / n for n in names]
     missing = [p.name for p in paths if not p.is_file()]
     if missing:
-        raise RelayError(f"certificate directory {directory} lacks {', '.join(missing)} (run `fogiac certs {directory}`)")
+        raise RelayError(
+            f"certificate directory {directory} lacks {', '.join(missing)} (run `fogiac certs {directory}`)"
+        )
     return paths
 
 

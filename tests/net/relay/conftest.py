@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from fogiac.certs import new_bundle, save_bundle
-from relay_support import Master, Procs, ros_missing
+from tests.net.relay.relay_support import Master, Procs, ros_missing
 
 
 @pytest.fixture(scope="session")

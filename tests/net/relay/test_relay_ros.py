@@ -18,7 +18,7 @@ import pytest
 from fogiac.certs import new_bundle, save_bundle
 from fogiac.net.relay import CloudConfig, CloudRelay, EdgeConfig, EdgeRelay, TopicPolicy, read_stats
 from fogiac.net.relay.tls import client_context, expected_server_name
-from relay_support import Master, Procs, free_port, indices, string_msg, wait_for
+from tests.net.relay.relay_support import Master, Procs, free_port, indices, string_msg, wait_for
 
 pytestmark = pytest.mark.ros
 

@@ -8,7 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from mp_support import CUBE_OBJ, PROBLEMS, REPO, write_cfg
+from tests.workloads.motion_planning.mp_support import CUBE_OBJ, PROBLEMS, REPO, write_cfg
 
 from workloads.motion_planning import Pose, load_problem, path_is_collision_free
 

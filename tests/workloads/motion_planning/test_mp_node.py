@@ -9,7 +9,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from mp_support import PROBLEMS, REPO
+from tests.workloads.motion_planning.mp_support import PROBLEMS, REPO
 
 from tests.support.ros import ros_missing, roscore, stop_group
 from workloads.motion_planning import Pose, load_problem, path_is_collision_free

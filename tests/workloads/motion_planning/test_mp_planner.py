@@ -7,7 +7,7 @@ import os
 from pathlib import Path
 
 import pytest
-from mp_support import PROBLEMS, descendants
+from tests.workloads.motion_planning.mp_support import PROBLEMS, descendants
 
 from fogiac.errors import WorkloadError
 from workloads.motion_planning import Pose, load_problem, path_is_collision_free, solve

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from mp_support import CUBE_OBJ, PROBLEMS, write_cfg
+from tests.workloads.motion_planning.mp_support import CUBE_OBJ, PROBLEMS, write_cfg
 
 from fogiac.errors import WorkloadError
 from workloads.motion_planning import Pose, load_problem

@@ -1,0 +1,33 @@
+"""The heavy optional extras, imported in one place each, failing in one line that names the extra.
+
+fogiac's core (validate, plan's compile, the relay) needs none of these. A command that does
+calls :func:`need` where it starts its work, not at module import, so ``fogiac validate``
+stays fast and a missing extra is a one-line error, not a traceback::
+
+    boto3 = need("boto3", extra="aws")
+"""
+
+from __future__ import annotations
+
+import importlib
+from types import ModuleType
+
+from fogiac.errors import MissingExtra
+
+# module -> the fogiac extra that installs it (pyproject.toml's [project.optional-dependencies])
+EXTRAS: dict[str, str] = {
+    "boto3": "aws", "botocore": "aws", "pulumi": "aws", "pulumi_aws": "aws",
+    "fabric": "ssh", "paramiko": "ssh",
+    "torch": "workloads", "ompl": "workloads", "fcl": "workloads", "trimesh": "workloads",
+    "matplotlib": "workloads", "numpy": "workloads",
+}
+
+
+def need(module: str, *, extra: str | None = None) -> ModuleType:
+    """Import ``module`` (dotted names too); if it is missing, one line naming the extra to install."""
+    try:
+        return importlib.import_module(module)
+    except ImportError as err:
+        top = module.split(".")[0]
+        name = extra or EXTRAS.get(top, "all")
+        raise MissingExtra(f"{top} is not installed ({err}); install it with: pip install 'fogiac[{name}]'") from None

@@ -1,0 +1,1 @@
+"""The manifest side: the schema, YAML problems, FogROS import, the generated reference."""

@@ -1,0 +1,355 @@
+"""The manifest (``fogiac.yaml``): typed, frozen, validated.
+
+:func:`load_manifest` is the only code that sees raw YAML. Every problem it finds becomes one
+line ``PATH:LINE: field.path: what is wrong`` (with a "did you mean" where one is close), all
+of them at once, raised as :class:`~fogiac.errors.ManifestError`.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import re
+from pathlib import Path
+from typing import Annotated, Literal
+from urllib.parse import urlparse
+
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from fogiac.errors import ManifestError
+from fogiac.manifest.problems import FieldProblem, format_errors, line_index, parse_yaml
+from fogiac.plan.catalog import catalog
+
+_DNS_NAME = re.compile(r"^[a-z]([a-z0-9-]{0,38}[a-z0-9])?$")
+_TOPIC = re.compile(r"^/[A-Za-z][A-Za-z0-9_/]*$")
+_ENV_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_MIN_SUBNET_PREFIX = 27
+
+Compression = Literal["none", "zstd", "lz4"]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid", populate_by_name=True)
+
+
+def _topic(value: str) -> str:
+    if not _TOPIC.match(value) or "//" in value or value.endswith("/"):
+        raise ValueError(f"{value!r} is not a ROS topic name (absolute, like '/camera/depth')")
+    return value
+
+
+Topic = Annotated[str, Field(description="An absolute ROS topic name, e.g. /camera/depth")]
+
+
+def _dns_name(value: str) -> str:
+    if not _DNS_NAME.match(value):
+        raise ValueError(f"{value!r} is not DNS-safe (lowercase letters, digits, '-', up to 40)")
+    return value
+
+
+DnsName = Annotated[str, AfterValidator(_dns_name)]
+
+
+class Ros(_Model):
+    distro: Literal["noetic"] = Field(default="noetic", description="ROS distribution (ROS 1 noetic for now).")
+
+
+class HostMachine(_Model):
+    """An existing machine for the ``hosts`` target (a lab GPU server is fog too)."""
+
+    name: DnsName = Field(description="Short DNS-safe name for the machine.")
+    address: str = Field(description="IP address or DNS name reachable over SSH.")
+    user: str = Field(default="ubuntu", description="SSH user.")
+    port: int = Field(default=22, ge=1, le=65535, description="SSH port.")
+    key: Path = Field(description="Private key file for SSH, relative to the manifest.")
+    gpus: int = Field(default=0, ge=0, description="GPUs the machine has.")
+
+
+class Cloud(_Model):
+    provider: Literal["aws", "hosts", "local"] = Field(default="aws", description="Where cloud nodes run.")
+    region: str = Field(default="us-west-2", description="AWS region (one the price table covers).")
+    zone: str | None = Field(default=None, description="Availability zone; chosen by preflight if absent.")
+    hosts: tuple[HostMachine, ...] = Field(default=(), description="Machines for the hosts target.")
+
+    @field_validator("region")
+    @classmethod
+    def _region(cls, value: str) -> str:
+        regions = catalog().regions
+        if value not in regions:
+            raise FieldProblem(f"{value!r} is not a supported region", choices=regions)
+        return value
+
+    @model_validator(mode="after")
+    def _zone_in_region(self) -> Cloud:
+        if self.zone is not None and not (
+            self.zone.startswith(self.region) and len(self.zone) == len(self.region) + 1
+        ):
+            raise FieldProblem(f"{self.zone!r} is not a zone of {self.region}", field="zone")
+        names = [h.name for h in self.hosts]
+        for i, name in enumerate(names):
+            if name in names[:i]:
+                raise FieldProblem(f"duplicate host name {name!r}", field=f"hosts[{i}].name")
+        return self
+
+
+class Network(_Model):
+    mode: Literal["vpn", "proxy"] = Field(
+        default="vpn", description="vpn: AWS Client VPN; proxy: relay over TLS to the public address."
+    )
+    vpc_cidr: ipaddress.IPv4Network = Field(
+        default=ipaddress.IPv4Network("10.10.0.0/16"), description="VPC address range (/16 to /26)."
+    )
+    client_cidr: ipaddress.IPv4Network = Field(
+        default=ipaddress.IPv4Network("10.200.0.0/22"),
+        description="Client VPN address range for the edge (/12 to /22), outside the VPC.",
+    )
+    ssh_from: Literal["auto"] | tuple[ipaddress.IPv4Network, ...] = Field(
+        default="auto", description="CIDRs allowed to SSH (and, in proxy mode, reach the relay); auto: your address."
+    )
+
+    @field_validator("vpc_cidr")
+    @classmethod
+    def _vpc(cls, value: ipaddress.IPv4Network) -> ipaddress.IPv4Network:
+        if not 16 <= value.prefixlen <= _MIN_SUBNET_PREFIX - 1:
+            raise ValueError(
+                f"{value} must be between /16 and /{_MIN_SUBNET_PREFIX - 1} "
+                f"(it holds two subnets of at least /{_MIN_SUBNET_PREFIX})"
+            )
+        return value
+
+    @field_validator("client_cidr")
+    @classmethod
+    def _client(cls, value: ipaddress.IPv4Network) -> ipaddress.IPv4Network:
+        if not 12 <= value.prefixlen <= 22:
+            raise ValueError(f"{value} must be between /12 and /22 (AWS Client VPN's limits)")
+        return value
+
+    @field_validator("ssh_from")
+    @classmethod
+    def _no_world(cls, value: object) -> object:
+        if isinstance(value, tuple):
+            for net in value:
+                if net.prefixlen == 0:
+                    raise ValueError(f"{net} opens SSH to the whole internet; name your own network")
+        return value
+
+    @model_validator(mode="after")
+    def _no_overlap(self) -> Network:
+        if self.mode == "vpn" and self.client_cidr.overlaps(self.vpc_cidr):
+            raise FieldProblem(
+                f"{self.client_cidr} overlaps vpc_cidr {self.vpc_cidr}", field="client_cidr"
+            )
+        return self
+
+
+class Edge(_Model):
+    ros_master: str = Field(
+        default="http://localhost:11311", description="The robot's ROS master URI (ROS_MASTER_URI)."
+    )
+
+    @field_validator("ros_master")
+    @classmethod
+    def _uri(cls, value: str) -> str:
+        url = urlparse(value)
+        if url.scheme != "http" or not url.hostname or url.port is None:
+            raise ValueError(f"{value!r} is not a ROS master URI like 'http://localhost:11311'")
+        return value
+
+
+class Launch(_Model):
+    package: str = Field(description="ROS package holding the launch file.")
+    file: str = Field(description="Launch file name, e.g. planner.launch.")
+    workspace: Path = Field(description="Workspace folder to push, relative to the manifest.")
+    env_script: Path | None = Field(default=None, description="Script run once per change to set the host up.")
+
+
+class TopicLists(_Model):
+    inputs: tuple[Topic, ...] = Field(default=(), alias="in", description="Topics from the robot to this node.")
+    outputs: tuple[Topic, ...] = Field(default=(), alias="out", description="Topics from this node to the robot.")
+
+    _check = field_validator("inputs", "outputs")(
+        classmethod(lambda cls, v: tuple(_topic(t) for t in v))
+    )
+
+
+Workload = Literal["motion_planning", "grasp_planning"]
+NodeKind = Literal["image", "launch", "workload"]  # which of the three a node runs
+
+
+class Node(_Model):
+    name: DnsName = Field(description="DNS-safe node name, unique in the manifest.")
+    machine: str = Field(description="EC2 instance type, e.g. c5.24xlarge or g4dn.xlarge.")
+    image: str | None = Field(
+        default=None, description="Container image to run (exactly one of image, launch, workload)."
+    )
+    launch: Launch | None = Field(default=None, description="ROS package + launch file from a workspace.")
+    workload: Workload | None = Field(default=None, description="A workload that ships with fogiac.")
+    command: tuple[str, ...] = Field(default=(), description="Arguments after the image (containers only).")
+    gpu: bool = Field(default=False, description="The node needs a GPU.")
+    topics: Literal["auto"] | TopicLists = Field(default="auto", description="Topics relayed for this node.")
+    disk_gb: int = Field(default=30, ge=8, le=16384, description="Root volume size in GiB (gp3, encrypted).")
+    spot: bool = Field(default=False, description="Use a spot instance.")
+    env: dict[str, str] = Field(default_factory=dict, description="Environment variables for the node.")
+    host: str | None = Field(default=None, description="For the hosts target: which cloud.hosts entry runs it.")
+
+    @field_validator("machine")
+    @classmethod
+    def _machine(cls, value: str) -> str:
+        if value not in catalog().types:
+            raise FieldProblem(f"{value!r} is not a known instance type", choices=tuple(catalog().types))
+        return value
+
+    @field_validator("env")
+    @classmethod
+    def _env(cls, value: dict[str, str]) -> dict[str, str]:
+        for key in value:
+            if not _ENV_NAME.match(key):
+                raise ValueError(f"{key!r} is not an environment variable name")
+        return value
+
+    @model_validator(mode="after")
+    def _one_kind(self) -> Node:
+        given = [k for k in ("image", "launch", "workload") if getattr(self, k) is not None]
+        if len(given) != 1:
+            what = "none" if not given else " and ".join(given)
+            raise FieldProblem(f"needs exactly one of image, launch or workload (got {what})")
+        if self.command and self.image is None:
+            raise FieldProblem("command is only for image nodes", field="command")
+        if self.gpu and not catalog().types[self.machine].has_gpu:
+            raise FieldProblem(
+                f"{self.machine!r} has no GPU but the node sets gpu: true; pick a GPU type such as 'g4dn.xlarge'",
+                field="machine",
+            )
+        return self
+
+    @property
+    def kind(self) -> NodeKind:
+        return "image" if self.image else "launch" if self.launch else "workload"
+
+
+class Relay(_Model):
+    topics: Literal["auto"] | tuple[Topic, ...] = Field(
+        default="auto", description="auto: relay whatever has a publisher on one side and a subscriber on the other."
+    )
+    compression: Compression | dict[Topic, Compression] = Field(
+        default="none", description="One algorithm for all topics, or per topic."
+    )
+    queue_size: int = Field(default=2, ge=1, le=1000, description="Per-topic queue; the oldest message is dropped.")
+
+    @field_validator("topics")
+    @classmethod
+    def _topics(cls, value: object) -> object:
+        return tuple(_topic(t) for t in value) if isinstance(value, tuple) else value
+
+    @field_validator("compression")
+    @classmethod
+    def _per_topic(cls, value: object) -> object:
+        if isinstance(value, dict):
+            for topic in value:
+                _topic(topic)
+        return value
+
+
+class Manifest(_Model):
+    """A fogiac deployment: which ROS nodes run off the robot, where, over which network."""
+
+    name: DnsName = Field(description="DNS-safe deployment name; tags every cloud resource.")
+    ros: Ros = Field(default_factory=Ros, description="ROS settings.")
+    cloud: Cloud = Field(default_factory=Cloud, description="Where the cloud nodes run.")
+    network: Network = Field(default_factory=Network, description="How the edge reaches them.")
+    edge: Edge = Field(default_factory=Edge, description="The robot's side.")
+    nodes: tuple[Node, ...] = Field(min_length=1, description="The nodes that run off the robot.")
+    relay: Relay = Field(default_factory=Relay, description="How topics cross between edge and cloud.")
+    tags: dict[str, str] = Field(default_factory=dict, description="Extra tags on every cloud resource.")
+
+    @field_validator("tags")
+    @classmethod
+    def _tags(cls, value: dict[str, str]) -> dict[str, str]:
+        for key in value:
+            if key.startswith(("fogiac:", "aws:")):
+                raise ValueError(f"tag {key!r} uses a reserved prefix (fogiac:, aws:)")
+        return value
+
+    @model_validator(mode="after")
+    def _across(self) -> Manifest:
+        names = [n.name for n in self.nodes]
+        for i, name in enumerate(names):
+            if name in names[:i]:
+                raise FieldProblem(f"duplicate node name {name!r}", field=f"nodes[{i}].name")
+        host_names = [h.name for h in self.cloud.hosts]
+        for i, node in enumerate(self.nodes):
+            if node.host is not None and node.host not in host_names:
+                raise FieldProblem(
+                    f"{node.host!r} is not in cloud.hosts", field=f"nodes[{i}].host", choices=tuple(host_names)
+                )
+        return self
+
+
+def _resolve_paths(data: dict, base: Path) -> list[tuple[tuple, str]]:
+    """Make file paths absolute against the manifest's folder; report missing ones."""
+    missing: list[tuple[tuple, str]] = []
+
+    def fix(container: dict, key: str, loc: tuple, *, folder: bool) -> None:
+        value = container.get(key)
+        if not isinstance(value, str):
+            return
+        path = (base / value).resolve()
+        container[key] = str(path)
+        if not (path.is_dir() if folder else path.is_file()):
+            missing.append((loc + (key,), f"{value!r} does not exist (looked for {path})"))
+
+    nodes = data.get("nodes")
+    for i, node in enumerate(nodes if isinstance(nodes, list) else []):
+        if isinstance(node, dict) and isinstance(node.get("launch"), dict):
+            fix(node["launch"], "workspace", ("nodes", i, "launch"), folder=True)
+            fix(node["launch"], "env_script", ("nodes", i, "launch"), folder=False)
+    cloud = data.get("cloud")
+    if isinstance(cloud, dict):
+        hosts = cloud.get("hosts")
+        for i, host in enumerate(hosts if isinstance(hosts, list) else []):
+            if isinstance(host, dict):
+                fix(host, "key", ("cloud", "hosts", i), folder=False)
+    return missing
+
+
+def parse_manifest(text: str, *, source: str = "<manifest>", base: Path | None = None) -> Manifest:
+    """Validate manifest text; ``base`` is the folder relative paths are taken from."""
+    root, data = parse_yaml(text, source=source)
+    lines = line_index(root)
+    if not isinstance(data, dict):
+        raise ManifestError([f"{source}:1: the manifest must be a mapping (name:, nodes:, ...)"])
+    missing = _resolve_paths(data, base or Path.cwd())
+    try:
+        manifest = Manifest.model_validate(data)
+    except ValidationError as err:
+        raise ManifestError(
+            format_errors(err, lines=lines, source=source, model=Manifest, extra=missing, data=data)
+        ) from None
+    if missing:
+        raise ManifestError(format_errors(None, lines=lines, source=source, model=Manifest, extra=missing, data=data))
+    return manifest
+
+
+def load_manifest(path: str | Path) -> Manifest:
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise ManifestError([f"{path}: no such file"]) from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise ManifestError([f"{path}: cannot read: {err}"]) from None
+    return parse_manifest(text, source=str(path), base=path.resolve().parent)
+
+
+def json_schema() -> dict:
+    schema = Manifest.model_json_schema(by_alias=True)
+    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    schema["title"] = "fogiac manifest"
+    return schema
+
+
+def node_types() -> tuple[type[BaseModel], ...]:
+    """Every model of the manifest, for the README reference test."""
+    return (Manifest, Ros, Cloud, HostMachine, Network, Edge, Node, Launch, TopicLists, Relay)
+
+
+__all__ = ["Manifest", "Node", "load_manifest", "parse_manifest", "json_schema"]

@@ -1,0 +1,108 @@
+"""Manifest -> Plan: a pure, deterministic function. No network, no engine, no files.
+
+Everything later stages decide from the manifest is decided here once: the stack's name and
+tags, the nodes, the relay routes and the hourly cost. Where the hosts are, what network they
+sit in and what they cost is the target's part (:class:`fogiac.plan.placement.Placement`),
+asked of the target registry, so a new target never edits this module.
+"""
+
+from __future__ import annotations
+
+from fogiac import targets
+from fogiac.manifest.schema import Manifest, Node
+from fogiac.plan.model import (
+    RELAY_PORT,
+    ConnectVia,
+    HostSpec,
+    LaunchSpec,
+    NodeSpec,
+    Plan,
+    RelayRoute,
+    check_ingress,
+)
+from fogiac.plan.placement import ssh_sources
+
+
+def stack_name(manifest: Manifest, environment: str = "dev") -> str:
+    return f"{manifest.name}-{environment}"
+
+
+def compile_plan(manifest: Manifest, *, target: str | None = None, environment: str = "dev") -> Plan:
+    """Compile ``manifest`` for ``target`` (default: the manifest's own provider)."""
+    chosen = targets.get(target or manifest.cloud.provider)
+    stack = stack_name(manifest, environment)
+    tags = (("fogiac:stack", stack), ("fogiac:manifest", manifest.name)) + tuple(sorted(manifest.tags.items()))
+    placed = chosen.place(manifest, stack=stack, tags=tags)
+    for group in placed.security_groups:
+        check_ingress(group.name, group.ingress)
+    nodes = tuple(_node(node, placed.node_hosts[node.name]) for node in manifest.nodes)
+    return Plan(
+        stack=stack,
+        manifest_name=manifest.name,
+        environment=environment,
+        target=chosen.name,
+        region=manifest.cloud.region,
+        zone=manifest.cloud.zone or f"{manifest.cloud.region}a",
+        zone_chosen=manifest.cloud.zone is not None,
+        ros_distro=manifest.ros.distro,
+        mode=placed.mode,
+        edge_master=manifest.edge.ros_master,
+        ssh_from=ssh_sources(manifest),
+        network=placed.network,
+        security_groups=placed.security_groups,
+        vpn=placed.vpn,
+        hosts=placed.hosts,
+        nodes=nodes,
+        relay=tuple(_route(manifest, host, nodes, placed.connect_via) for host in placed.hosts),
+        tags=tags,
+        cost=placed.cost,
+    )
+
+
+def _node(node: Node, host: str) -> NodeSpec:
+    lists = node.topics if node.topics != "auto" else None
+    return NodeSpec(
+        name=node.name,
+        host=host,
+        kind=node.kind,
+        image=node.image,
+        command=node.command,
+        launch=(
+            LaunchSpec(
+                package=node.launch.package,
+                file=node.launch.file,
+                workspace=str(node.launch.workspace),
+                env_script=str(node.launch.env_script) if node.launch.env_script else None,
+            )
+            if node.launch
+            else None
+        ),
+        workload=node.workload,
+        gpu=node.gpu,
+        env=tuple(sorted(node.env.items())),
+        topics_auto=lists is None,
+        topics_in=lists.inputs if lists else (),
+        topics_out=lists.outputs if lists else (),
+    )
+
+
+def _route(manifest: Manifest, host: HostSpec, nodes: tuple[NodeSpec, ...], via: ConnectVia) -> RelayRoute:
+    mine = [n for n in nodes if n.host == host.name]
+    relay = manifest.relay
+    listed = relay.topics if relay.topics != "auto" else ()
+    to_cloud = tuple(sorted({t for n in mine for t in n.topics_in}))
+    to_edge = tuple(sorted({t for n in mine for t in n.topics_out}))
+    compression = (
+        (("*", relay.compression),) if isinstance(relay.compression, str) else tuple(sorted(relay.compression.items()))
+    )
+    return RelayRoute(
+        host=host.name,
+        connect_via=via,
+        port=RELAY_PORT,
+        auto=relay.topics == "auto" and any(n.topics_auto for n in mine),
+        to_cloud=to_cloud,
+        to_edge=to_edge,
+        listed=tuple(sorted(listed)),
+        compression=compression,
+        queue_size=relay.queue_size,
+    )

@@ -1,0 +1,55 @@
+"""What a plan costs and which machines it uses, as plain rows for tables and JSON.
+
+Pure: prices come from the compiled Plan (the checked-in catalogue), never from an API, so
+``fogiac plan`` shows them offline. Spot instances are priced at the on-demand rate, the most
+a spot instance can cost.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fogiac.plan.model import CostLine, HostSpec, NodeSpec, Plan
+
+
+def cost_line(line: CostLine) -> dict[str, Any]:
+    return {"item": line.item, "quantity": line.quantity, "usd_per_hour": line.usd_per_hour, "total": line.total}
+
+
+def cost(plan: Plan) -> dict[str, Any]:
+    """``{lines, hourly_usd}``: instances, Client VPN association-hours and connection-hours."""
+    return {"lines": [cost_line(line) for line in plan.cost], "hourly_usd": plan.hourly_usd}
+
+
+def host_row(host: HostSpec) -> dict[str, Any]:
+    return {
+        "name": host.name,
+        "machine": host.machine,
+        "vcpus": host.vcpus,
+        "gpus": host.gpus,
+        "memory_gib": host.memory_gib,
+        "usd_per_hour": host.usd_per_hour,
+        "spot": host.spot,
+        "disk_gb": host.disk_gb,
+        "image": host.image.description if host.image else None,
+        "address": host.address,
+        "nodes": list(host.nodes),
+    }
+
+
+def node_row(node: NodeSpec) -> dict[str, Any]:
+    if node.image is not None:
+        runs = node.image
+    elif node.launch is not None:
+        runs = f"{node.launch.package}/{node.launch.file}"
+    else:
+        runs = f"workload {node.workload}"
+    return {"name": node.name, "host": node.host, "kind": node.kind, "runs": runs, "gpu": node.gpu}
+
+
+def hosts(plan: Plan) -> list[dict[str, Any]]:
+    return [host_row(host) for host in plan.hosts]
+
+
+def nodes(plan: Plan) -> list[dict[str, Any]]:
+    return [node_row(node) for node in plan.nodes]

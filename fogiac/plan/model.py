@@ -1,0 +1,231 @@
+"""The Plan: everything later stages need, computed once from a Manifest by :mod:`fogiac.plan.compile`.
+
+Frozen dataclasses only (no pydantic, no Pulumi), so the Plan is cheap to build, compare and
+serialise. ``to_dict`` gives a stable, JSON-ready form: same manifest, same bytes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import ipaddress
+import json
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from fogiac.errors import PlanError
+from fogiac.net.relay.config import RELAY_PORT as RELAY_PORT  # re-exported: the ports a plan opens, in one place
+
+# Ports. ROS 1 masters listen on 11311; nodes on ephemeral ports, which Linux takes from
+# 32768-60999 by default; the relay's cloud end on RELAY_PORT.
+SSH_PORT = 22
+ROS_MASTER_PORT = 11311
+ROS_EPHEMERAL = (32768, 60999)
+OPERATOR = "operator"  # stands for the operator's address in ssh_from: auto until preflight resolves it
+OPERATOR_PLACEHOLDER = "<operator>/32"  # what an offline plan shows for the operator's address
+
+Protocol = Literal["tcp", "udp", "icmp", "-1"]  # "-1": every protocol (AWS's spelling)
+SubnetRole = Literal["instances", "vpn"]
+NodeKind = Literal["image", "launch", "workload"]
+NetworkMode = Literal["vpn", "proxy", "relay"]  # how the edge reaches the hosts
+ConnectVia = Literal["private", "public", "address", "loopback"]  # which host address the edge relay dials
+
+
+def server_name(stack: str) -> str:
+    """The DNS-style name every server certificate of ``stack`` carries (ACM needs a domain)."""
+    return f"server.{stack}.fogiac"
+
+
+@dataclass(frozen=True)
+class Rule:
+    """One security-group rule; ``cidr`` is a CIDR or the OPERATOR placeholder."""
+
+    protocol: Protocol
+    from_port: int
+    to_port: int
+    cidr: str
+    description: str
+
+
+def check_ingress(group: str, rules: tuple[Rule, ...]) -> None:
+    """The invariant every plan and every stack keeps: no ingress from 0.0.0.0/0 or ::/0.
+
+    The one implementation: ``compile_plan`` calls it on every group, and the firewall stack
+    again on the rules it is about to create, once the operator's address is filled in.
+    """
+    for rule in rules:
+        if rule.cidr in (OPERATOR, OPERATOR_PLACEHOLDER):
+            continue
+        try:
+            network = ipaddress.ip_network(rule.cidr, strict=False)
+        except ValueError:
+            raise PlanError(f"security group {group!r}: {rule.cidr!r} is not a CIDR") from None
+        if network.prefixlen == 0:
+            raise PlanError(f"security group {group!r} would accept {rule.cidr} on port {rule.from_port}")
+
+
+@dataclass(frozen=True)
+class SecurityGroup:
+    name: str
+    description: str
+    ingress: tuple[Rule, ...]
+    egress: tuple[Rule, ...]
+
+
+@dataclass(frozen=True)
+class Subnet:
+    name: str
+    cidr: str
+    role: SubnetRole  # "instances" (public, the hosts) or "vpn" (Client VPN target)
+    public: bool
+
+
+@dataclass(frozen=True)
+class NetworkSpec:
+    vpc_cidr: str
+    subnets: tuple[Subnet, ...]
+
+
+@dataclass(frozen=True)
+class VpnSpec:
+    client_cidr: str
+    server_name: str
+    target_subnet: str
+    authorize_cidr: str
+    split_tunnel: bool = True
+    transport: Literal["udp", "tcp"] = "udp"
+    port: int = 443
+
+
+@dataclass(frozen=True)
+class ImageQuery:
+    """How Compute finds its AMI: owner and name pattern, newest first."""
+
+    owners: tuple[str, ...]
+    name_pattern: str
+    description: str
+
+
+@dataclass(frozen=True)
+class LaunchSpec:
+    package: str
+    file: str
+    workspace: str
+    env_script: str | None
+
+
+@dataclass(frozen=True)
+class NodeSpec:
+    name: str
+    host: str
+    kind: NodeKind
+    image: str | None
+    command: tuple[str, ...]
+    launch: LaunchSpec | None
+    workload: str | None
+    gpu: bool
+    env: tuple[tuple[str, str], ...]
+    topics_auto: bool
+    topics_in: tuple[str, ...]
+    topics_out: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class HostSpec:
+    """One machine: an EC2 instance on ``aws``, a lab machine on ``hosts``, a sandbox on ``local``."""
+
+    name: str
+    machine: str
+    vcpus: int
+    gpus: int
+    memory_gib: float
+    usd_per_hour: float
+    spot: bool
+    disk_gb: int
+    nodes: tuple[str, ...]
+    steps: tuple[str, ...]
+    tags: tuple[tuple[str, str], ...]
+    image: ImageQuery | None = None
+    address: str | None = None
+    user: str | None = None
+    port: int | None = None
+    key: str | None = None
+
+    @property
+    def has_gpu(self) -> bool:
+        return self.gpus > 0
+
+
+@dataclass(frozen=True)
+class RelayRoute:
+    """The relay pair between the edge master and one host."""
+
+    host: str
+    connect_via: ConnectVia  # private (through the VPN), public (proxy mode), address (hosts), loopback (local)
+    port: int
+    auto: bool  # discover topics from both masters
+    to_cloud: tuple[str, ...]  # nodes' "in" topics: robot -> cloud
+    to_edge: tuple[str, ...]  # nodes' "out" topics: cloud -> robot
+    listed: tuple[str, ...]  # relay.topics: relayed in whichever direction has the publisher
+    compression: tuple[tuple[str, str], ...]  # ("*", alg) for all topics, or per topic
+    queue_size: int
+
+
+@dataclass(frozen=True)
+class CostLine:
+    item: str
+    quantity: float
+    usd_per_hour: float
+
+    @property
+    def total(self) -> float:
+        return round(self.quantity * self.usd_per_hour, 4)
+
+
+@dataclass(frozen=True)
+class Plan:
+    stack: str
+    manifest_name: str
+    environment: str
+    target: str
+    region: str
+    zone: str
+    zone_chosen: bool  # True when the manifest named the zone
+    ros_distro: str
+    mode: NetworkMode
+    edge_master: str
+    ssh_from: tuple[str, ...]
+    network: NetworkSpec | None
+    security_groups: tuple[SecurityGroup, ...]
+    vpn: VpnSpec | None
+    hosts: tuple[HostSpec, ...]
+    nodes: tuple[NodeSpec, ...]
+    relay: tuple[RelayRoute, ...]
+    tags: tuple[tuple[str, str], ...]
+    cost: tuple[CostLine, ...] = field(default=())
+
+    @property
+    def hourly_usd(self) -> float:
+        return round(sum(line.total for line in self.cost), 4)
+
+    def host(self, name: str) -> HostSpec:
+        for host in self.hosts:
+            if host.name == name:
+                return host
+        raise KeyError(name)
+
+    def node(self, name: str) -> NodeSpec:
+        for node in self.nodes:
+            if node.name == name:
+                return node
+        raise KeyError(name)
+
+    def to_dict(self) -> dict[str, Any]:
+        out = dataclasses.asdict(self)
+        out["hourly_usd"] = self.hourly_usd
+        return out
+
+    def digest(self) -> str:
+        """A fingerprint of the whole plan: equal plans, equal digests."""
+        text = json.dumps(self.to_dict(), sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(text.encode()).hexdigest()

@@ -1,0 +1,76 @@
+"""What a target decides when a manifest is compiled for it: hosts, node placement, network.
+
+:func:`fogiac.plan.compile.compile_plan` asks the target named by ``--target`` (or the
+manifest) for a :class:`Placement` and builds the rest of the Plan around it. The helpers here
+are shared by targets that give each node a machine of its own (``aws``, ``local``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+
+from fogiac.manifest.schema import Manifest, Node
+from fogiac.plan.catalog import InstanceType, catalog
+from fogiac.plan.model import (
+    OPERATOR,
+    ConnectVia,
+    CostLine,
+    HostSpec,
+    ImageQuery,
+    NetworkMode,
+    NetworkSpec,
+    SecurityGroup,
+    VpnSpec,
+)
+
+Tags = tuple[tuple[str, str], ...]
+
+
+@dataclass(frozen=True)
+class Placement:
+    """A target's part of the Plan."""
+
+    hosts: tuple[HostSpec, ...]
+    node_hosts: Mapping[str, str]  # node name -> host name
+    mode: NetworkMode
+    connect_via: ConnectVia  # which address of a host the edge relay dials
+    network: NetworkSpec | None = None
+    security_groups: tuple[SecurityGroup, ...] = ()
+    vpn: VpnSpec | None = None
+    cost: tuple[CostLine, ...] = ()
+
+
+def ssh_sources(manifest: Manifest) -> tuple[str, ...]:
+    """``network.ssh_from`` as CIDR strings; OPERATOR stands for ``auto`` until preflight resolves it."""
+    if manifest.network.ssh_from == "auto":
+        return (OPERATOR,)
+    return tuple(str(c) for c in manifest.network.ssh_from)
+
+
+def steps_for(nodes: Sequence[Node]) -> tuple[str, ...]:
+    """The provisioning steps a host runs for ``nodes``, in order."""
+    steps = ["connect", "runtime"]
+    if any(n.launch is not None for n in nodes):
+        steps += ["workspace", "env_script"]
+    steps += ["services", "relay", "health"]
+    return tuple(steps)
+
+
+def host_per_node(manifest: Manifest, *, stack: str, tags: Tags,
+                  usd_per_hour: Callable[[InstanceType], float] = lambda spec: 0.0,
+                  spot: bool = False,
+                  image: Callable[[InstanceType], ImageQuery | None] = lambda spec: None,
+                  address: str | None = None) -> tuple[tuple[HostSpec, ...], dict[str, str]]:
+    """One host per node, of the node's machine type: how ``aws`` and ``local`` place nodes."""
+    types = catalog().types
+    hosts = []
+    for node in manifest.nodes:
+        spec = types[node.machine]
+        hosts.append(HostSpec(
+            name=node.name, machine=node.machine, vcpus=spec.vcpus, gpus=spec.gpus, memory_gib=spec.memory_gib,
+            usd_per_hour=usd_per_hour(spec), spot=node.spot and spot, disk_gb=node.disk_gb, nodes=(node.name,),
+            steps=steps_for([node]), tags=tags + (("fogiac:node", node.name), ("Name", f"{stack}-{node.name}")),
+            image=image(spec), address=address,
+        ))
+    return tuple(hosts), {n.name: n.name for n in manifest.nodes}

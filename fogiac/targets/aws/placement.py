@@ -1,0 +1,120 @@
+"""The aws target's part of compile: VPC layout, security groups, Client VPN, images and prices."""
+
+from __future__ import annotations
+
+from fogiac.manifest.schema import Manifest
+from fogiac.plan.catalog import catalog
+from fogiac.plan.model import (
+    RELAY_PORT,
+    ROS_EPHEMERAL,
+    ROS_MASTER_PORT,
+    SSH_PORT,
+    CostLine,
+    HostSpec,
+    ImageQuery,
+    NetworkSpec,
+    Rule,
+    SecurityGroup,
+    Subnet,
+    VpnSpec,
+    server_name,
+)
+from fogiac.plan.placement import Placement, Tags, host_per_node, ssh_sources
+
+_WORLD = "0.0.0.0/0"
+
+# Ubuntu LTS from Canonical for CPU types; AWS's Deep Learning Base image (NVIDIA driver and
+# container toolkit preinstalled) for GPU types. ROS itself runs in containers on the hosts.
+UBUNTU = ImageQuery(
+    owners=("099720109477",),
+    name_pattern="ubuntu/images/hvm-ssd-gp3/ubuntu-noble-24.04-amd64-server-*",
+    description="Ubuntu 24.04 LTS (Canonical)",
+)
+NVIDIA = ImageQuery(
+    owners=("amazon",),
+    name_pattern="Deep Learning Base OSS Nvidia Driver GPU AMI (Ubuntu 22.04) *",
+    description="AWS Deep Learning Base, NVIDIA driver, Ubuntu 22.04",
+)
+
+
+def _network(manifest: Manifest) -> NetworkSpec:
+    vpc = manifest.network.vpc_cidr
+    prefix = max(vpc.prefixlen + 1, 24) if vpc.prefixlen < 24 else vpc.prefixlen + 1
+    first, second = list(vpc.subnets(new_prefix=prefix))[:2]
+    return NetworkSpec(
+        vpc_cidr=str(vpc),
+        subnets=(
+            Subnet(name="hosts", cidr=str(first), role="instances", public=True),
+            Subnet(name="vpn", cidr=str(second), role="vpn", public=False),
+        ),
+    )
+
+
+def _firewall(manifest: Manifest, ssh_from: tuple[str, ...], *, vpn_mode: bool) -> tuple[SecurityGroup, ...]:
+    """Least privilege: SSH from ssh_from only; ROS and relay ports from the VPC (and VPN clients)."""
+    inside = [str(manifest.network.vpc_cidr)]
+    if vpn_mode:
+        inside.append(str(manifest.network.client_cidr))
+    ingress = [Rule("tcp", SSH_PORT, SSH_PORT, cidr, "SSH from the operator") for cidr in ssh_from]
+    for cidr in inside:
+        ingress += [
+            Rule("tcp", ROS_MASTER_PORT, ROS_MASTER_PORT, cidr, "ROS master"),
+            Rule("tcp", ROS_EPHEMERAL[0], ROS_EPHEMERAL[1], cidr, "ROS node ports (TCPROS, XML-RPC)"),
+            Rule("tcp", RELAY_PORT, RELAY_PORT, cidr, "fogiac relay (mutual TLS)"),
+        ]
+    if not vpn_mode:
+        ingress += [Rule("tcp", RELAY_PORT, RELAY_PORT, cidr, "fogiac relay from the edge") for cidr in ssh_from]
+    hosts = SecurityGroup(
+        name="hosts",
+        description="fogiac hosts: SSH from the operator, ROS and relay from inside only",
+        ingress=tuple(ingress),
+        egress=(Rule("-1", 0, 0, _WORLD, "updates, images and packages"),),
+    )
+    groups = [hosts]
+    if vpn_mode:
+        groups.append(
+            SecurityGroup(
+                name="vpn",
+                description="fogiac Client VPN endpoint: no ingress, egress to the VPC only",
+                ingress=(),
+                egress=(Rule("-1", 0, 0, str(manifest.network.vpc_cidr), "VPN clients to the VPC"),),
+            )
+        )
+    return tuple(groups)
+
+
+def _vpn(manifest: Manifest, stack: str, network: NetworkSpec) -> VpnSpec:
+    return VpnSpec(
+        client_cidr=str(manifest.network.client_cidr),
+        server_name=server_name(stack),
+        target_subnet="vpn",
+        authorize_cidr=network.vpc_cidr,
+    )
+
+
+def _cost(hosts: tuple[HostSpec, ...], vpn: VpnSpec | None) -> tuple[CostLine, ...]:
+    lines = [
+        CostLine(f"instance {h.name} ({h.machine}{', spot: at most' if h.spot else ''})", 1, h.usd_per_hour)
+        for h in hosts
+    ]
+    if vpn is not None:
+        cat = catalog()
+        lines.append(CostLine("Client VPN subnet association", 1, cat.vpn_association_usd_per_hour))
+        lines.append(CostLine("Client VPN connection (the edge)", 1, cat.vpn_connection_usd_per_hour))
+    return tuple(lines)
+
+
+def place(manifest: Manifest, *, stack: str, tags: Tags) -> Placement:
+    """One EC2 instance per node, in a VPC of its own; the Client VPN in vpn mode."""
+    region = manifest.cloud.region
+    vpn_mode = manifest.network.mode == "vpn"
+    network = _network(manifest)
+    hosts, node_hosts = host_per_node(
+        manifest, stack=stack, tags=tags, usd_per_hour=lambda spec: spec.usd_per_hour[region], spot=True,
+        image=lambda spec: NVIDIA if spec.has_gpu else UBUNTU)
+    vpn = _vpn(manifest, stack, network) if vpn_mode else None
+    return Placement(
+        hosts=hosts, node_hosts=node_hosts, mode=manifest.network.mode,
+        connect_via="private" if vpn_mode else "public", network=network,
+        security_groups=_firewall(manifest, ssh_sources(manifest), vpn_mode=vpn_mode), vpn=vpn, cost=_cost(hosts, vpn),
+    )

@@ -1,0 +1,58 @@
+"""The ``local`` target: one sandbox folder and one ROS master per host, on this machine.
+
+Demos and CI deploy the same manifest without any machine: every planned host becomes a
+sandbox under the stack's state folder (:mod:`fogiac.provision.local`), reached on loopback.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import shutil
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from fogiac.manifest.schema import Manifest
+from fogiac.orchestrate import ExistingMachines
+from fogiac.plan.model import HostSpec, Plan
+from fogiac.plan.placement import Placement, Tags, host_per_node
+from fogiac.provision import LocalAccess, supervise
+from fogiac.provision.local import local_access, sandbox_root
+from fogiac.targets.base import Check
+
+
+class LocalTarget(ExistingMachines):
+    name = "local"
+    summary = "sandboxes on this machine, one ROS master each (demos, CI)"
+
+    def place(self, manifest: Manifest, *, stack: str, tags: Tags) -> Placement:
+        hosts, node_hosts = host_per_node(manifest, stack=stack, tags=tags, address="127.0.0.1")
+        return Placement(hosts=hosts, node_hosts=node_hosts, mode="relay", connect_via="loopback")
+
+    def access(self, plan: Plan, *, state_dir: Path) -> Mapping[str, LocalAccess]:
+        return local_access(plan, state_dir=state_dir)
+
+    def connect_address(self, plan: Plan, host: str, access: Any) -> str:
+        return f"127.0.0.1:{access.relay_port}"
+
+    def leftovers(self, plan: Plan, folder: Path) -> list[str]:
+        return [f"sandbox {p}" for p in sorted(sandbox_root(folder).glob("*")) if p.is_dir()]
+
+    def node_states(self, plan: Plan, spec: HostSpec, entry: Any) -> list[dict[str, Any]]:
+        if entry is None:
+            return super().node_states(plan, spec, entry)
+        run_dir = Path(entry[1]) / "run"
+        return [{"node": node, **supervise.status(run_dir, f"node-{node}")} for node in spec.nodes]
+
+    def doctor(self, plan: Plan, *, ssh_from: str | None = None) -> list[Check]:
+        """What the sandboxes need on this machine: ROS 1's roscore and rospy."""
+        roscore = shutil.which("roscore")
+        rospy = importlib.util.find_spec("rospy")
+        return [
+            Check("roscore", roscore is not None, roscore or "not on PATH (install ros-core)"),
+            Check("rospy", rospy is not None,
+                  (rospy.origin or "found") if rospy else "not importable (install python3-rospy)"),
+        ]
+
+
+LOCAL = LocalTarget()

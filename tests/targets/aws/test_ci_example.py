@@ -1,0 +1,22 @@
+"""examples/ci: the workflow that runs the real engine path (pulumi preview) in users' CI."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import yaml
+
+from fogiac.targets.aws.engine import PULUMI_CLI_VERSION
+
+WORKFLOW = Path(__file__).parents[3] / "examples" / "ci" / "fogiac-plan.yml"
+
+
+def test_workflow_plans_on_pull_requests_and_previews_with_the_pinned_cli() -> None:
+    doc = yaml.safe_load(WORKFLOW.read_text())
+    assert "pull_request" in doc[True]  # YAML 1.1 reads the key `on` as True
+    assert doc["env"]["PULUMI_VERSION"] == PULUMI_CLI_VERSION, "keep the workflow's pin equal to fogiac.targets.aws.engine's"
+    steps = doc["jobs"]["plan"]["steps"]
+    assert any("fogiac plan" in step.get("run", "") and "--json" in step.get("run", "") for step in steps)
+    preview = [s for s in steps if s.get("uses", "").startswith("pulumi/actions@")]
+    assert [s["with"]["command"] for s in preview] == ["preview"]
+    assert preview[0]["with"]["pulumi-version"] == "${{ env.PULUMI_VERSION }}"

@@ -1,0 +1,180 @@
+"""fogiac up and down end to end against LocalStack, the harness standing in for the Pulumi engine.
+
+The engine cannot run here (no Pulumi CLI): a subclass of fogiac's Engine keeps everything but
+the Automation API calls (the stack programs with the stack's real certificates and SSH key)
+and hands the programs to the harness, which creates and deletes through boto3. The rest is
+fogiac's real up and down: preflight, the lock, outputs and applied plan, the sweep of what no
+state knows, the report of what is left, the exit status and the state files.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import pytest
+from typer.testing import CliRunner
+
+from fogiac.certs import new_bundle
+from fogiac.cli import app
+from fogiac.targets.aws.engine import LAYERS, OUTPUTS_FILE, PULUMI_CLI_VERSION, SSH_KEY_FILE, Engine
+from fogiac.state import stack_dir, write_json_atomic
+
+from .harness import Harness, InjectedFailure
+from .plans import make_plan, write_manifest
+from .test_apply import PUBLIC_KEY
+
+pytestmark = pytest.mark.localstack
+
+
+@pytest.fixture
+def engine_is_harness(aws_env: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, ec2: Any, acm: Any) -> Harness:
+    """A fake ``pulumi`` for the version check, and the harness as the engine's destroy."""
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    (bin_dir / "pulumi").write_text(f"#!/bin/sh\necho v{PULUMI_CLI_VERSION}\n")
+    (bin_dir / "pulumi").chmod(0o755)
+    monkeypatch.setenv("PATH", f"{bin_dir}:/usr/bin:/bin")
+    monkeypatch.setenv("COLUMNS", "200")  # rich tables unabridged
+    harness = Harness(ec2=ec2, acm=acm)
+
+    class HarnessEngine(Engine):
+        def up(self, *, operator_cidrs: tuple[str, ...]) -> dict[str, Any]:
+            outputs: dict[str, Any] = {}
+            programs = self.programs(operator_cidrs=operator_cidrs, network_outputs=lambda: outputs["network"])
+            for layer in LAYERS:
+                outputs[layer] = harness.run_layer(self.plan, layer, programs[layer])
+            return outputs
+
+        def destroy(self, *, layers: tuple[str, ...] = ("compute", "network")) -> list[str]:
+            return harness.destroy(layers=layers)
+
+    monkeypatch.setattr("fogiac.targets.aws.engine.Engine", HarnessEngine)
+    monkeypatch.setattr("fogiac.targets.aws.sweep.time.sleep", lambda s: None)  # bounded retries, without the waiting
+    return harness
+
+
+def _tagged(ec2: Any, stack: str) -> dict[str, list[str]]:
+    flt = [{"Name": "tag:fogiac:stack", "Values": [stack]}]
+    return {
+        "vpcs": [v["VpcId"] for v in ec2.describe_vpcs(Filters=flt)["Vpcs"]],
+        "instances": [i["InstanceId"] for r in ec2.describe_instances(Filters=flt + [
+            {"Name": "instance-state-name", "Values": ["pending", "running", "stopped"]}])["Reservations"]
+            for i in r["Instances"]],
+        "keys": [k["KeyName"] for k in ec2.describe_key_pairs(Filters=flt)["KeyPairs"]],
+    }
+
+
+def down(*args: str) -> Any:
+    return CliRunner().invoke(app, ["down", *args])
+
+
+def fogiac(*args: str) -> Any:
+    return CliRunner().invoke(app, list(args))
+
+
+def test_up_records_what_it_made_and_a_second_up_changes_nothing(engine_is_harness: Harness, ec2: Any,
+                                                                 tmp_path: Path) -> None:
+    import json
+    import stat
+
+    from fogiac.plan.document import APPLIED_FILE
+
+    path = write_manifest(tmp_path, "roundtrip", nodes=(("planner", "c5.large"),))
+    assert fogiac("plan", str(path), "--out", str(tmp_path / "reviewed.json")).exit_code == 0
+    result = fogiac("up", str(path), "--yes", "--infra-only", "--plan", str(tmp_path / "reviewed.json"))
+    assert result.exit_code == 0, result.output
+    folder = stack_dir("roundtrip-dev")
+    outputs = json.loads((folder / OUTPUTS_FILE).read_text())
+    instance = outputs["compute"]["hosts"]["planner"]["instance_id"]
+    assert outputs["zone"] == "us-west-2a" and outputs["network"]["vpc_id"].startswith("vpc-")
+    assert f"planner: {instance} c5.large" in result.stdout
+    assert "Client VPN endpoint's subnet association takes about 10 minutes" in result.stderr
+    assert stat.S_IMODE((folder / SSH_KEY_FILE).stat().st_mode) == 0o600
+    assert _tagged(ec2, "roundtrip-dev")["instances"] == [instance]
+    created = list(engine_is_harness.created)
+    assert fogiac("plan", str(path), "--detailed-exitcode").exit_code == 0, "applied.json is the plan document"
+
+    again = fogiac("up", str(path), "--yes", "--infra-only")
+    assert again.exit_code == 0, again.output
+    assert engine_is_harness.created == [] and sorted(engine_is_harness.reused) == sorted(created)
+    assert json.loads((folder / OUTPUTS_FILE).read_text()) == outputs
+    assert instance in fogiac("status", str(path)).stdout
+
+    assert down(str(path), "--yes").exit_code == 0
+    assert not (folder / APPLIED_FILE).exists() and not (folder / OUTPUTS_FILE).exists()
+    assert _tagged(ec2, "roundtrip-dev") == {"vpcs": [], "instances": [], "keys": []}
+
+
+def test_down_after_a_failed_apply_leaves_nothing(engine_is_harness: Harness, ec2: Any, tmp_path: Path) -> None:
+    path = write_manifest(tmp_path, "halfway", nodes=(("planner", "c5.large"),))
+    plan = make_plan(tmp_path, "halfway", nodes=(("planner", "c5.large"),))
+    engine_is_harness.fail_at = 25
+    with pytest.raises(InjectedFailure):
+        engine_is_harness.apply(plan, certs=new_bundle(plan.stack), operator_cidrs=("203.0.113.7/32",),
+                                public_key_openssh=PUBLIC_KEY)
+    orphan = ec2.create_security_group(  # made outside any state, as a crash between create and record would
+        GroupName="orphan", Description="orphan", VpcId=_tagged(ec2, plan.stack)["vpcs"][0],
+        TagSpecifications=[{"ResourceType": "security-group", "Tags": [{"Key": "fogiac:stack", "Value": plan.stack}]}])
+    result = down(str(path), "--yes")
+    assert result.exit_code == 0, result.output
+    assert result.stdout.splitlines()[-1] == "halfway-dev: nothing left"
+    assert "could not delete" not in result.stderr
+    gone = ec2.describe_security_groups(Filters=[{"Name": "group-id", "Values": [orphan["GroupId"]]}])
+    assert gone["SecurityGroups"] == []
+    assert _tagged(ec2, plan.stack) == {"vpcs": [], "instances": [], "keys": []}
+
+
+def test_keep_network_removes_compute_and_says_what_the_network_costs(engine_is_harness: Harness, ec2: Any,
+                                                                      tmp_path: Path) -> None:
+    path = write_manifest(tmp_path, "kept")
+    plan = make_plan(tmp_path, "kept")
+    outputs = engine_is_harness.apply(plan, certs=new_bundle(plan.stack), operator_cidrs=("203.0.113.7/32",),
+                                      public_key_openssh=PUBLIC_KEY)
+    write_json_atomic(stack_dir(plan.stack) / OUTPUTS_FILE, {"zone": "us-west-2a", **outputs})
+    result = down(str(path), "--yes", "--keep-network")
+    assert result.exit_code == 0, result.output
+    assert "kept the network stack: $0.10/h while kept (Client VPN association; VPC, subnets and gateway are free)" \
+        in result.stdout
+    left = _tagged(ec2, plan.stack)
+    assert left["instances"] == [] and left["keys"] == [] and left["vpcs"] == [outputs["network"]["vpc_id"]]
+    from fogiac.state import read_json
+
+    assert set(read_json(stack_dir(plan.stack) / OUTPUTS_FILE)) == {"zone", "network"}
+    assert down(str(path), "--yes").exit_code == 0
+    assert _tagged(ec2, plan.stack) == {"vpcs": [], "instances": [], "keys": []}
+    assert not (stack_dir(plan.stack) / OUTPUTS_FILE).exists()
+
+
+def test_down_exits_1_naming_what_it_could_not_delete(engine_is_harness: Harness, ec2: Any, acm: Any,
+                                                      tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    path = write_manifest(tmp_path, "stuck")
+    plan = make_plan(tmp_path, "stuck")
+    engine_is_harness.apply(plan, certs=new_bundle(plan.stack), operator_cidrs=("203.0.113.7/32",),
+                            public_key_openssh=PUBLIC_KEY)
+    instance = _tagged(ec2, plan.stack)["instances"][0]
+    ec2.modify_instance_attribute(InstanceId=instance, DisableApiTermination={"Value": True})
+    result = down(str(path), "--yes")
+    assert result.exit_code == 1
+    assert f"could not delete: instance {instance}" in result.stderr.splitlines()
+    assert result.stdout.splitlines()[-1].startswith("stuck-dev: ") and "left" in result.stdout.splitlines()[-1]
+    ec2.modify_instance_attribute(InstanceId=instance, DisableApiTermination={"Value": False})
+    assert down(str(path), "--yes").exit_code == 0
+    assert _tagged(ec2, plan.stack) == {"vpcs": [], "instances": [], "keys": []}
+    assert os.listdir(stack_dir(plan.stack)) == []
+
+
+def test_up_without_an_edge_master_stops_before_anything_is_created(engine_is_harness: Harness, ec2: Any,
+                                                                    tmp_path: Path) -> None:
+    from fogiac.procs import free_port
+
+    path = write_manifest(tmp_path, "noedge", nodes=(("planner", "c5.large"),))
+    port = free_port()
+    result = fogiac("up", str(path), "--yes", "--edge-master", f"http://127.0.0.1:{port}")
+    assert result.exit_code == 1
+    assert result.stderr.strip().splitlines()[-1] == (
+        f"error: no ROS master answers at http://127.0.0.1:{port} (edge.ros_master); start roscore, "
+        "or pass --start-edge-master to let fogiac run one")
+    assert list(engine_is_harness.created) == []
+    assert not stack_dir("noedge-dev", create=False).exists()

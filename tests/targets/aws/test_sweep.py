@@ -1,0 +1,82 @@
+"""sweep removes resources leaked outside any state, in dependency order, and says what it could not check."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from fogiac.targets.aws.sweep import sweep
+from fogiac.certs import new_bundle
+
+from .conftest import NEWEST_UBUNTU, REGION
+
+pytestmark = pytest.mark.localstack
+
+
+def _tags(stack: str, kind: str) -> list[dict[str, Any]]:
+    return [{"ResourceType": kind, "Tags": [{"Key": "fogiac:stack", "Value": stack}]}]
+
+
+def leak(ec2: Any, acm: Any, stack: str) -> dict[str, str]:
+    """Make by hand what a crashed apply could leave: a VPC full of things, a key, an address, a certificate."""
+    vpc = ec2.create_vpc(CidrBlock="10.60.0.0/16", TagSpecifications=_tags(stack, "vpc"))["Vpc"]["VpcId"]
+    subnet = ec2.create_subnet(VpcId=vpc, CidrBlock="10.60.0.0/24",
+                               TagSpecifications=_tags(stack, "subnet"))["Subnet"]["SubnetId"]
+    igw = ec2.create_internet_gateway(TagSpecifications=_tags(stack, "internet-gateway"))["InternetGateway"][
+        "InternetGatewayId"]
+    ec2.attach_internet_gateway(InternetGatewayId=igw, VpcId=vpc)
+    table = ec2.create_route_table(VpcId=vpc, TagSpecifications=_tags(stack, "route-table"))["RouteTable"][
+        "RouteTableId"]
+    ec2.create_route(RouteTableId=table, DestinationCidrBlock="0.0.0.0/0", GatewayId=igw)
+    ec2.associate_route_table(RouteTableId=table, SubnetId=subnet)
+    groups = [ec2.create_security_group(GroupName=f"{stack}-{n}", Description=n, VpcId=vpc,
+                                        TagSpecifications=_tags(stack, "security-group"))["GroupId"]
+              for n in ("a", "b")]
+    for me, other in (groups, groups[::-1]):  # each group names the other: delete fails until revoked
+        ec2.authorize_security_group_ingress(GroupId=me, IpPermissions=[
+            {"IpProtocol": "tcp", "FromPort": 22, "ToPort": 22, "UserIdGroupPairs": [{"GroupId": other}]}])
+    key = ec2.create_key_pair(KeyName=f"{stack}-key", TagSpecifications=_tags(stack, "key-pair"))["KeyPairId"]
+    instance = ec2.run_instances(ImageId=NEWEST_UBUNTU, InstanceType="t3.small", MinCount=1, MaxCount=1,
+                                 SubnetId=subnet, SecurityGroupIds=groups,
+                                 TagSpecifications=_tags(stack, "instance"))["Instances"][0]["InstanceId"]
+    address = ec2.allocate_address(Domain="vpc", TagSpecifications=_tags(stack, "elastic-ip"))["AllocationId"]
+    bundle = new_bundle(stack)
+    cert = acm.import_certificate(Certificate=bundle.server.cert_pem, PrivateKey=bundle.server.key_pem,
+                                  CertificateChain=bundle.ca.cert_pem,
+                                  Tags=[{"Key": "fogiac:stack", "Value": stack}])["CertificateArn"]
+    return {"vpc": vpc, "subnet": subnet, "internet-gateway": igw, "route-table": table, "key-pair": key,
+            "instance": instance, "elastic-ip": address, "acm-certificate": cert,
+            "security-group": ",".join(groups)}
+
+
+def test_dry_run_lists_and_deletes_nothing(ec2: Any, acm: Any) -> None:
+    made = leak(ec2, acm, "sweep-dry-dev")
+    result = sweep("sweep-dry-dev", dry_run=True, ec2=ec2, acm=acm)
+    kinds = {f.kind for f in result.found}
+    assert kinds >= {"vpc", "subnet", "internet-gateway", "route-table", "security-group", "key-pair",
+                     "instance", "elastic-ip", "acm-certificate"}
+    assert result.deleted == () and result.left == result.found
+    assert ec2.describe_vpcs(VpcIds=[made["vpc"]])["Vpcs"]
+    assert sweep("sweep-dry-dev", dry_run=False, ec2=ec2, acm=acm, first_delay_s=0.1).clean
+
+
+def test_sweep_leaves_nothing_tagged(ec2: Any, acm: Any) -> None:
+    made = leak(ec2, acm, "sweep-all-dev")
+    other = ec2.create_vpc(CidrBlock="10.61.0.0/16", TagSpecifications=_tags("someone-else", "vpc"))["Vpc"]["VpcId"]
+    result = sweep("sweep-all-dev", dry_run=False, ec2=ec2, acm=acm, first_delay_s=0.1)
+    assert result.left == () and result.errors == ()
+    assert {f.id for f in result.deleted} >= {v for v in made.values() if "," not in v}
+    assert result.not_checked == (
+        "client-vpn-endpoint (not supported by this endpoint: InternalFailure)",)
+    flt = [{"Name": "tag:fogiac:stack", "Values": ["sweep-all-dev"]}]
+    assert ec2.describe_vpcs(Filters=flt)["Vpcs"] == []
+    assert ec2.describe_security_groups(Filters=flt)["SecurityGroups"] == []
+    assert ec2.describe_key_pairs(Filters=flt)["KeyPairs"] == []
+    assert ec2.describe_addresses(Filters=flt)["Addresses"] == []
+    states = [i["State"]["Name"] for r in ec2.describe_instances(InstanceIds=[made["instance"]])["Reservations"]
+              for i in r["Instances"]]
+    assert states in ([], ["terminated"])
+    assert made["acm-certificate"] not in {c["CertificateArn"] for c in acm.list_certificates()["CertificateSummaryList"]}
+    assert ec2.describe_vpcs(VpcIds=[other])["Vpcs"], "another stack's VPC must survive"
+    ec2.delete_vpc(VpcId=other)

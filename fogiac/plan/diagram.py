@@ -35,7 +35,7 @@ class Arrow:
 
 
 @dataclass(frozen=True)
-class Layout:
+class Drawing:
     width: float
     height: float
     boxes: tuple[Box, ...]
@@ -51,7 +51,7 @@ def _hardware(host: HostSpec) -> str:
     return f"{host.machine}: {host.vcpus} vCPU{gpu}{price}"
 
 
-def layout(plan: Plan) -> Layout:
+def layout(plan: Plan) -> Drawing:
     row_h, gap = 2.7, 0.9
     height = max(4.0, len(plan.hosts) * (row_h + gap) + 1.2)
     link = {"vpn": "AWS Client VPN + relay (mTLS)", "proxy": "relay over mutual TLS", "relay": "relay over mutual TLS"}
@@ -81,7 +81,7 @@ def layout(plan: Plan) -> Layout:
     caption = f"{plan.stack}: {len(plan.hosts)} host(s), {link.get(plan.mode, plan.mode)}"
     if plan.hourly_usd:
         caption += f", ${plan.hourly_usd:.2f}/h"
-    return Layout(18.0, height, tuple(boxes), tuple(arrows), caption)
+    return Drawing(18.0, height, tuple(boxes), tuple(arrows), caption)
 
 
 _COLOURS = {"site": ("#f4f6f8", "#5b6770"), "machine": ("#e3f0fb", "#2f6ea5"), "node": ("#fff4dc", "#b07a12")}

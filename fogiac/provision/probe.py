@@ -27,7 +27,7 @@ class Facts:
     def has_ros(self) -> bool:
         return {"ros", "roscore"} <= self.flags
     shas: dict[str, str] = field(default_factory=dict)
-    manifests: dict[str, list[str]] = field(default_factory=dict)
+    checksum_lists: dict[str, list[str]] = field(default_factory=dict)
     markers: dict[str, str] = field(default_factory=dict)
     status: dict[str, dict] = field(default_factory=dict)
 
@@ -42,8 +42,8 @@ class Facts:
             return None
         return self.shas.get(rel, "")
 
-    def manifest(self, path: str) -> str:
-        return "".join(f"{line}\n" for line in self.manifests.get(self._rel(path), []))
+    def sums(self, path: str) -> str:
+        return "".join(f"{line}\n" for line in self.checksum_lists.get(self._rel(path), []))
 
     def marker(self, path: str) -> str:
         return self.markers.get(self._rel(path), "")
@@ -64,9 +64,9 @@ def gather(host: Host, layout: Layout, *, relay_cli: str) -> Facts:
         elif key == "sha":
             digest, _, path = rest.partition(" ")
             facts.shas[path] = digest
-        elif key == "manifest":
+        elif key == "sums":
             path, _, entry = rest.partition(" ")
-            facts.manifests.setdefault(path, []).append(entry)
+            facts.checksum_lists.setdefault(path, []).append(entry)
         elif key == "marker":
             path, _, value = rest.partition(" ")
             facts.markers[path] = value.strip()

@@ -117,7 +117,7 @@ def step_runtime(run: HostRun) -> StepResult:
         for package in ("fogiac", "workloads"):
             dest = f"{layout.lib}/{package}"
             pushed = push_tree(host, package_dir(package), dest, tmp_dir=layout.tmp, extra_ignore=_CODE_IGNORE,
-                               remote_manifest=facts.manifest(f"{dest}.manifest"))
+                               remote_sums=facts.sums(f"{dest}.sha256sums"))
             run.files_pushed += pushed.files
             if pushed.changed:
                 changes.append(f"{package} code")
@@ -178,8 +178,8 @@ def step_workspace(run: HostRun) -> StepResult:
     sent, files, removed = 0, 0, 0
     for local in _workspaces(run):
         dest = run.layout.workspace(local)
-        known = run.facts.manifest(f"{dest}.manifest") if run.facts is not None else None
-        pushed = push_tree(run.host, Path(local), dest, tmp_dir=run.layout.tmp, remote_manifest=known)
+        known = run.facts.sums(f"{dest}.sha256sums") if run.facts is not None else None
+        pushed = push_tree(run.host, Path(local), dest, tmp_dir=run.layout.tmp, remote_sums=known)
         run.digests[local] = pushed.digest
         sent, files, removed = sent + pushed.bytes_sent, files + pushed.files, removed + pushed.removed
     run.files_pushed += files

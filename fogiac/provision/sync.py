@@ -1,9 +1,9 @@
 """Push a folder to a host sending only what changed, by content hash.
 
 Why: workspaces hold meshes, weights and build leftovers; a second ``up`` must not resend them.
-The host keeps ``<dest>.manifest`` (``sha256  path`` lines, the ``sha256sum`` format) of what
+The host keeps ``<dest>.sha256sums`` (``sha256  path`` lines, the ``sha256sum`` format) of what
 it received; a push compares it with the local folder and sends one gzip'd tar with the
-changed files and only the manifest lines that changed (the host merges them with ``awk``),
+changed files and only the checksum lines that changed (the host merges them with ``awk``),
 then deletes files that went away.
 """
 
@@ -79,11 +79,11 @@ def scan(root: Path, patterns: tuple[str, ...]) -> dict[str, str]:
     return out
 
 
-def manifest_text(hashes: dict[str, str]) -> str:
+def sums_text(hashes: dict[str, str]) -> str:
     return "".join(f"{digest}  {path}\n" for path, digest in sorted(hashes.items()))
 
 
-def parse_manifest(text: str) -> dict[str, str]:
+def parse_sums(text: str) -> dict[str, str]:
     out = {}
     for line in text.splitlines():
         digest, sep, path = line.partition("  ")
@@ -93,7 +93,7 @@ def parse_manifest(text: str) -> dict[str, str]:
 
 
 def digest_of(hashes: dict[str, str]) -> str:
-    return hashlib.sha256(manifest_text(hashes).encode()).hexdigest()
+    return hashlib.sha256(sums_text(hashes).encode()).hexdigest()
 
 
 def diff(local: dict[str, str], remote: dict[str, str]) -> tuple[list[str], list[str]]:
@@ -115,29 +115,29 @@ def _tarball(root: Path, send: list[str], drop: list[str], local: dict[str, str]
         for rel in send:
             src = root / rel
             _member(tar, f"{dest_name}/{rel}", src.read_bytes(), 0o755 if src.stat().st_mode & 0o111 else 0o644)
-        _member(tar, f"{dest_name}.delta", manifest_text({p: local[p] for p in send}).encode(), 0o600)
+        _member(tar, f"{dest_name}.delta", sums_text({p: local[p] for p in send}).encode(), 0o600)
         _member(tar, f"{dest_name}.drop", "".join(f"{p}\n" for p in drop).encode(), 0o600)
     return buf.getvalue()
 
 
-# Keep manifest lines whose path (from column 67: 64 hex digits, two spaces) is not dropped,
-# then add the new lines: the host's manifest now describes exactly what it holds.
-_MERGE = ("awk 'NR==FNR {{drop[$0]=1; next}} !(substr($0, 67) in drop)' {n}.drop {n}.manifest > {n}.merge "
-          "2>/dev/null; cat {n}.delta >> {n}.merge && mv {n}.merge {n}.manifest && rm -f {n}.drop {n}.delta")
+# Keep checksum lines whose path (from column 67: 64 hex digits, two spaces) is not dropped,
+# then add the new lines: the host's checksum list now describes exactly what it holds.
+_MERGE = ("awk 'NR==FNR {{drop[$0]=1; next}} !(substr($0, 67) in drop)' {n}.drop {n}.sha256sums > {n}.merge "
+          "2>/dev/null; cat {n}.delta >> {n}.merge && mv {n}.merge {n}.sha256sums && rm -f {n}.drop {n}.delta")
 
 
 def push_tree(host: Host, root: Path, dest: str, *, tmp_dir: str, extra_ignore: tuple[str, ...] = (),
-              remote_manifest: str | None = None) -> Pushed:
+              remote_sums: str | None = None) -> Pushed:
     """Make ``dest`` on ``host`` hold exactly ``root``'s non-ignored files; send only differences.
 
-    ``remote_manifest``: the host's manifest text when a probe already read it ('' if absent).
+    ``remote_sums``: the host's checksum list when a probe already read it ('' if absent).
     """
     local = scan(root, ignore_patterns(root, extra_ignore))
     digest = digest_of(local)
-    if remote_manifest is None:
-        found = host.run(f"cat {q(dest + '.manifest')} 2>/dev/null", check=False)
-        remote_manifest = found.stdout
-    remote = parse_manifest(remote_manifest)
+    if remote_sums is None:
+        found = host.run(f"cat {q(dest + '.sha256sums')} 2>/dev/null", check=False)
+        remote_sums = found.stdout
+    remote = parse_sums(remote_sums)
     send, delete = diff(local, remote)
     if not send and not delete:
         return Pushed(files=0, removed=0, bytes_sent=0, digest=digest)

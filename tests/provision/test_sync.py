@@ -38,4 +38,4 @@ def test_repush_sends_one_changed_file_and_removes_deleted_ones(tmp_path: Path) 
     assert Path(dest, "src/fogtest/config/params_003.yaml").read_text() == "gain: 2\n"
     assert not Path(dest, "src/fogtest/config/params_004.yaml").exists()
     assert Path(dest, "src/fogtest/scripts/talker.py").stat().st_mode & 0o111
-    assert Path(f"{dest}.manifest").read_text().count("\n") == 32
+    assert Path(f"{dest}.sha256sums").read_text().count("\n") == 32

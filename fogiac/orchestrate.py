@@ -19,6 +19,7 @@ from urllib.parse import urlparse
 
 from fogiac.certs import load_or_create_bundle
 from fogiac.errors import FogiacError, ProvisionError
+from fogiac.plan.document import APPLIED_FILE, plan_document
 from fogiac.plan.model import HostSpec, Plan, RelayRoute
 from fogiac.procs import poll
 from fogiac.provision import HostAccess, provision, recorded_access, supervise, teardown
@@ -172,6 +173,9 @@ class ExistingMachines:
             connect = {host: self.connect_address(plan, host, a) for host, a in access.items()}
             done = provision_and_connect(plan, access=access, connect=connect, master=master,
                                          started_edge_master=opts.start_edge_master)
+            # What `fogiac plan` compares with (the same document it builds), as the aws target records it.
+            write_json_atomic(stack_dir(plan.stack) / APPLIED_FILE,
+                              plan_document(plan, self.declare(plan), manifest=opts.manifest_path))
         return UpResult(outputs={"relays": dict(done.relays)}, applied=done.deployment, report=done.report,
                         relays=done.relays, edge_master=master)
 
@@ -192,6 +196,7 @@ class ExistingMachines:
             left += self.leftovers(plan, folder)
             if not left and not errors:
                 (folder / DEPLOYMENT_FILE).unlink(missing_ok=True)
+                (folder / APPLIED_FILE).unlink(missing_ok=True)
         return DownResult(engine_errors=tuple(errors), left=tuple(left), not_checked=())
 
     def status(self, plan: Plan) -> dict[str, Any]:

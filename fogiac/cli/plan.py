@@ -1,7 +1,9 @@
-"""``fogiac plan``: what a manifest would create and cost, offline (no credentials, no Pulumi CLI).
+"""``fogiac plan``: what a manifest would change and cost, offline (no credentials, no Pulumi CLI).
 
 Resources print the way ``terraform plan`` reads in a CI log: one line each
 (``+ aws:ec2/vpc:Vpc motion-dev-vpc``) with its key inputs indented below; every value whole.
+Against what was applied (or, with ``--against``, another version of the manifest) only what
+changes is shown, per resource and input, ending in Terraform's ``Plan: ...`` line.
 """
 
 from __future__ import annotations
@@ -15,7 +17,11 @@ from rich.markup import escape
 
 from fogiac import targets
 from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_for
-from fogiac.plan.document import APPLIED_FILE, plan_document
+from fogiac.manifest.revision import load_revision
+from fogiac.plan import review
+from fogiac.plan.compile import compile_plan
+from fogiac.plan.diff import PlanDiff, annotate, diff_documents
+from fogiac.plan.document import APPLIED_FILE, document, plan_document
 from fogiac.state import read_json, stack_dir, write_json_atomic
 from fogiac.tables import console, table
 
@@ -52,6 +58,24 @@ def _key_inputs(resource: dict[str, Any]) -> list[str]:
     return [f"{k}: {_short(inputs[k])}" for k in KEY_INPUTS.get(resource["type"], ()) if k in inputs]
 
 
+def _render_diff(doc: dict[str, Any], diff: PlanDiff, *, against: str) -> None:
+    out = console()
+    out.print(f"[bold]fogiac plan[/] {doc['stack']}: target {doc['target']}")
+    for line in review.terminal(diff, against=against):
+        out.print(escape(line), highlight=False)
+
+
+def _before(compiled: Any, *, against: str | None, target: str | None, env: str) -> tuple[dict[str, Any] | None, str]:
+    """The document to compare with, and what it is: another manifest, the applied plan, or none."""
+    if against is not None:
+        base = load_revision(against)
+        plan = compile_plan(base.manifest, target=target, environment=env)
+        return document(plan, targets.get(plan.target).declare(plan), manifest_path=against,
+                        manifest_sha256=base.sha256), against
+    applied = read_json(stack_dir(compiled.stack, create=False) / APPLIED_FILE)
+    return (applied, f"what was applied to {compiled.stack}") if isinstance(applied, dict) else (None, "nothing")
+
+
 def _render(doc: dict[str, Any]) -> None:
     out = console()
     where = f", region {doc['region']}, mode {doc['mode']}" if doc["resources"] else ""
@@ -85,6 +109,9 @@ def _render(doc: dict[str, Any]) -> None:
     cost.add_row("[bold]total[/]", "", "", f"[bold]{total:.4f}[/]")
     out.print(cost)
     out.print(f"cost: ${total:.4f} per hour (about ${total * 730:.2f} per month if left running)")
+    summary = doc.get("changes", {}).get("summary")
+    if summary:
+        out.print(f"\n{summary}")
 
 
 def plan(
@@ -94,22 +121,32 @@ def plan(
     as_json: bool = typer.Option(False, "--json", help="Print the versioned JSON document."),
     out: Path | None = typer.Option(None, "--out", help="Also save the JSON document to this file."),
     detailed_exitcode: bool = typer.Option(
-        False, "--detailed-exitcode", help="Exit 0 when nothing would change since the last up, 2 when something would."
+        False, "--detailed-exitcode", help="Exit 0 when the diff is empty, 2 when something would change."
     ),
+    against: str | None = typer.Option(
+        None, "--against", metavar="BASE",
+        help="Compare with another version of the manifest (a path, or git:REF:PATH) instead of what was applied.",
+    ),
+    markdown: bool = typer.Option(False, "--markdown", help="Print the diff as a pull-request comment."),
 ) -> None:
-    """Show every resource, host and hourly cost the manifest implies, without touching the cloud."""
+    """Show what the manifest would create, change or destroy, and what it costs, without touching the cloud."""
     compiled = compile_for(manifest, env, target)
-    doc = plan_document(compiled, targets.get(compiled.target).declare(compiled), manifest=manifest)
+    declared = plan_document(compiled, targets.get(compiled.target).declare(compiled), manifest=manifest)
+    before, label = _before(compiled, against=against, target=target, env=env)
+    diff = diff_documents(before, declared, against="manifest" if against else "applied")
+    doc = annotate(declared, diff)
     if out is not None:
         write_json_atomic(out, doc, mode=0o644)
     if as_json:
         typer.echo(json.dumps(doc, indent=2, sort_keys=True))
-    else:
+    elif markdown:
+        typer.echo(review.comment(diff, stack=compiled.stack, against=label), nl=False)
+    elif before is None:
         _render(doc)
+    else:
+        _render_diff(doc, diff, against=label)
     if detailed_exitcode:
-        applied = read_json(stack_dir(compiled.stack, create=False) / APPLIED_FILE)
-        unchanged = isinstance(applied, dict) and applied.get("plan_digest") == doc["plan_digest"]
-        raise typer.Exit(0 if unchanged else 2)
+        raise typer.Exit(0 if diff.empty else 2)
 
 
 def register(app: typer.Typer) -> None:

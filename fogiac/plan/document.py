@@ -4,6 +4,13 @@ Versioned (``format_version``). The resources come from the target (:meth:`Targe
 the aws target runs its stack programs under Pulumi's mocks; targets that create nothing
 declare nothing). ``plan_digest`` covers the compiled plan and every declared resource, and
 nothing that varies between runs (paths, versions), so equal digests mean nothing would change.
+
+Version 2 adds what a reviewer compares besides resources: ``edge_master``, ``topics`` crossing
+the edge, ``security_rules``, and each node's command, environment and topics; ``plan --json``
+adds each resource's ``action`` against what it was compared with, and a ``changes`` object
+(:mod:`fogiac.plan.diff`). Version 1 had the same top-level keys less those, every resource's
+``action`` was ``create``, and there was no ``changes``. A version 1 document (an ``applied.json``
+written before) is still read as the "before" side of a diff: its missing sections are skipped.
 """
 
 from __future__ import annotations
@@ -16,10 +23,41 @@ from typing import Any
 
 from fogiac import __version__
 from fogiac.plan import cost
-from fogiac.plan.model import Plan
+from fogiac.plan.model import NodeSpec, Plan, Rule
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 APPLIED_FILE = "applied.json"  # in stack_dir(stack): the document of the last successful up
+
+
+def _node(node: NodeSpec) -> dict[str, Any]:
+    return {**cost.node_row(node), "command": list(node.command), "env": dict(node.env),
+            "in": list(node.topics_in), "out": list(node.topics_out)}
+
+
+def topics(plan: Plan) -> list[dict[str, str]]:
+    """The topics the edge relay carries, per host: ``to_cloud`` (robot -> node), ``to_edge``
+    (node -> robot), ``either`` (relay.topics: whichever side publishes), ``*`` when discovered."""
+    rows: list[dict[str, str]] = []
+    for route in plan.relay:
+        for direction, names in (("to_cloud", route.to_cloud), ("to_edge", route.to_edge), ("either", route.listed)):
+            rows += [{"topic": name, "direction": direction, "host": route.host} for name in names]
+        if route.auto:
+            rows.append({"topic": "*", "direction": "either", "host": route.host})
+    return rows
+
+
+def _ports(rule: Rule) -> str:
+    if rule.protocol == "-1":
+        return "all"
+    return str(rule.from_port) if rule.from_port == rule.to_port else f"{rule.from_port}-{rule.to_port}"
+
+
+def security_rules(plan: Plan) -> list[dict[str, str]]:
+    """Every security-group rule the plan opens, one flat row each (what a reviewer compares)."""
+    return [{"group": group.name, "direction": direction, "protocol": "all" if rule.protocol == "-1" else rule.protocol,
+             "ports": _ports(rule), "cidr": rule.cidr, "description": rule.description}
+            for group in plan.security_groups
+            for direction, rules in (("ingress", group.ingress), ("egress", group.egress)) for rule in rules]
 
 
 def document(plan: Plan, resources: Sequence[Mapping[str, Any]], *, manifest_path: str,
@@ -31,10 +69,13 @@ def document(plan: Plan, resources: Sequence[Mapping[str, Any]], *, manifest_pat
         "region": plan.region,
         "zone": plan.zone,
         "mode": plan.mode,
+        "edge_master": plan.edge_master,
         "stacks": list(dict.fromkeys(str(r["stack"]) for r in resources)),  # in the order the target declares
         "resources": [dict(r) for r in resources],
         "hosts": cost.hosts(plan),
-        "nodes": cost.nodes(plan),
+        "nodes": [_node(node) for node in plan.nodes],
+        "topics": topics(plan),
+        "security_rules": security_rules(plan),
         "cost": cost.cost(plan),
     }
     canonical = json.dumps({"plan": plan.digest(), **body}, sort_keys=True, separators=(",", ":"))

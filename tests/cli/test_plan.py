@@ -73,7 +73,7 @@ def test_json_document(minimal: Path) -> None:
     code, out = plan(str(minimal), "--json")
     assert code == 0, out
     doc = json.loads(out)
-    assert doc["format_version"] == 1
+    assert doc["format_version"] == 2
     assert doc["stack"] == "minimal-dev" and doc["target"] == "aws"
     assert doc["manifest"] == {"path": str(minimal), "sha256": hashlib.sha256(minimal.read_bytes()).hexdigest()}
     assert doc["stacks"] == ["network", "compute"]

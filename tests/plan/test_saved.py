@@ -58,7 +58,7 @@ def test_other_environment_is_refused(saved: tuple[Path, Path]) -> None:
 
 def test_not_a_plan_is_refused(tmp_path: Path) -> None:
     (tmp_path / "p.json").write_text("{}")
-    with pytest.raises(PlanError, match=r"is not a fogiac plan document \(format_version 1\)$"):
+    with pytest.raises(PlanError, match=r"is not a fogiac plan document \(format_version 2\)$"):
         check_saved_plan(tmp_path / "p.json", manifest=MINIMAL, stack="minimal-dev", target="aws")
     with pytest.raises(PlanError, match=r"does not exist$"):
         check_saved_plan(tmp_path / "none.json", manifest=MINIMAL, stack="minimal-dev", target="aws")

@@ -68,7 +68,7 @@ def test_same_manifest_same_digest_whatever_its_path(tmp_path: Path) -> None:
 
 def test_document_shape(offline: dict[str, OfflinePlan]) -> None:
     doc = document(offline["minimal"], manifest_path="m.yaml", manifest_sha256="abc")
-    assert doc["format_version"] == 1
+    assert doc["format_version"] == 2
     assert doc["stacks"] == ["network", "compute"]
     assert doc["manifest"] == {"path": "m.yaml", "sha256": "abc"}
     assert {r["action"] for r in doc["resources"]} == {"create"}

@@ -17,6 +17,9 @@ def test_workflow_plans_on_pull_requests_and_previews_with_the_pinned_cli() -> N
     assert doc["env"]["PULUMI_VERSION"] == PULUMI_CLI_VERSION, "keep the workflow's pin equal to fogiac.targets.aws.engine's"
     steps = doc["jobs"]["plan"]["steps"]
     assert any("fogiac plan" in step.get("run", "") and "--json" in step.get("run", "") for step in steps)
+    # the comment is the diff against the pull request's base branch (rendered in tests/cli/test_plan_diff.py)
+    assert any('--against "git:origin/$BASE_REF:$MANIFEST" --markdown > comment.md' in step.get("run", "")
+               for step in steps)
     preview = [s for s in steps if s.get("uses", "").startswith("pulumi/actions@")]
     assert [s["with"]["command"] for s in preview] == ["preview"]
     assert preview[0]["with"]["pulumi-version"] == "${{ env.PULUMI_VERSION }}"

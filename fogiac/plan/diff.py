@@ -1,0 +1,262 @@
+"""What changes between two plan documents: per resource, and in what a reviewer reads around them.
+
+Pure: two documents in (:mod:`fogiac.plan.document`; the "before" one may be None, when nothing
+was applied, or of format version 1), a :class:`PlanDiff` out. No engine, no state, no
+credentials, so the same code answers ``plan`` against the applied document and ``plan
+--against`` another manifest.
+
+Resources are matched by (stack, type, name). A changed input replaces the resource when the
+provider's rules say so (:mod:`fogiac.plan.replace`); a replaced resource gets new ids, so every
+resource whose inputs name it (``<name.id>`` placeholders) sees that input change too, and may be
+replaced in turn: a new VPC CIDR replaces everything in the VPC. Secrets are compared and shown
+as the documents hold them, ``[secret]``.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import re
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from fogiac.plan.replace import forces_replacement
+
+Action = Literal["create", "update", "replace", "delete", "no-op"]
+KNOWN_AFTER_APPLY = "(known after apply)"
+SETTINGS = ("target", "region", "zone", "mode", "edge_master")
+_PLACEHOLDER = re.compile(r"<([^<>]+)\.[A-Za-z]+>")
+
+
+@dataclass(frozen=True)
+class InputChange:
+    path: str  # dotted input path, e.g. rootBlockDevice.volumeSize
+    before: Any
+    after: Any
+    forces_replacement: bool
+
+
+@dataclass(frozen=True)
+class ResourceChange:
+    stack: str
+    type: str
+    name: str
+    action: Action
+    changes: tuple[InputChange, ...] = ()
+    because: tuple[str, ...] = ()  # why a replacement: forcing inputs, replaced dependencies
+    inputs: Mapping[str, Any] = field(default_factory=dict)  # after (before, for a delete)
+
+
+@dataclass(frozen=True)
+class RowChange:
+    """A keyed row (host, node) present on both sides with some fields changed."""
+
+    key: str
+    fields: tuple[tuple[str, Any, Any], ...]  # (field, before, after)
+
+
+@dataclass(frozen=True)
+class Section:
+    added: tuple[Mapping[str, Any], ...] = ()
+    removed: tuple[Mapping[str, Any], ...] = ()
+    changed: tuple[RowChange, ...] = ()
+
+    @property
+    def empty(self) -> bool:
+        return not (self.added or self.removed or self.changed)
+
+
+@dataclass(frozen=True)
+class PlanDiff:
+    against: str  # "nothing", "applied" or "manifest"
+    resources: tuple[ResourceChange, ...]  # every resource of either side, after's order, deletes last
+    hosts: Section
+    nodes: Section
+    topics: Section
+    security_rules: Section
+    settings: tuple[tuple[str, Any, Any], ...]
+    cost_before: float
+    cost_after: float
+    exposure: tuple[str, ...]  # changes that open something up, each one line
+
+    def count(self, action: Action) -> int:
+        return sum(1 for r in self.resources if r.action == action)
+
+    @property
+    def changed_resources(self) -> tuple[ResourceChange, ...]:
+        return tuple(r for r in self.resources if r.action != "no-op")
+
+    @property
+    def empty(self) -> bool:
+        sections = (self.hosts, self.nodes, self.topics, self.security_rules)
+        return (not self.changed_resources and all(s.empty for s in sections) and not self.settings
+                and self.cost_before == self.cost_after)
+
+    def summary(self) -> str:
+        """Terraform's line: a replacement counts once to add and once to destroy."""
+        add = self.count("create") + self.count("replace")
+        destroy = self.count("delete") + self.count("replace")
+        return f"Plan: {add} to add, {self.count('update')} to change, {destroy} to destroy."
+
+    def to_dict(self) -> dict[str, Any]:
+        def section(s: Section) -> dict[str, Any]:
+            return {"added": [dict(r) for r in s.added], "removed": [dict(r) for r in s.removed],
+                    "changed": [{"key": c.key, "before": {f: b for f, b, _ in c.fields},
+                                 "after": {f: a for f, _, a in c.fields}} for c in s.changed]}
+
+        return {
+            "against": self.against, "empty": self.empty, "summary": self.summary(),
+            "add": self.count("create") + self.count("replace"), "change": self.count("update"),
+            "destroy": self.count("delete") + self.count("replace"),
+            "hosts": section(self.hosts), "nodes": section(self.nodes), "topics": section(self.topics),
+            "security_rules": section(self.security_rules),
+            "settings": [{"name": k, "before": b, "after": a} for k, b, a in self.settings],
+            "cost": {"hourly_usd_before": self.cost_before, "hourly_usd_after": self.cost_after},
+            "exposure": list(self.exposure),
+        }
+
+
+def leaves(value: Any, prefix: str = "") -> Iterator[tuple[str, Any]]:
+    """Nested mappings flattened to dotted paths; lists and scalars are leaves."""
+    if isinstance(value, Mapping) and value:
+        for key in sorted(value):
+            yield from leaves(value[key], f"{prefix}.{key}" if prefix else str(key))
+    else:
+        yield prefix, value
+
+
+def _names(value: Any) -> set[str]:
+    """The resources an input refers to through ``<name.attr>`` placeholders."""
+    return {m.group(1) for _, leaf in leaves(value) for m in _PLACEHOLDER.finditer(str(leaf))}
+
+
+def _input_changes(type_: str, before: Mapping[str, Any], after: Mapping[str, Any],
+                   replaced: set[str]) -> list[InputChange]:
+    old, new = dict(leaves(before)), dict(leaves(after))
+    out = []
+    for path in sorted(set(old) | set(new)):
+        was, now = old.get(path), new.get(path)
+        if was == now and _names(now) & replaced:
+            now = KNOWN_AFTER_APPLY
+        if was != now:
+            out.append(InputChange(path, was, now, forces_replacement(type_, path)))
+    return out
+
+
+def _resources(before: Sequence[Mapping[str, Any]], after: Sequence[Mapping[str, Any]]) -> tuple[ResourceChange, ...]:
+    def key(r: Mapping[str, Any]) -> tuple[str, str, str]:
+        return (str(r["stack"]), str(r["type"]), str(r["name"]))
+
+    old = {key(r): r for r in before}
+    replaced: set[str] = set()
+    result: dict[tuple[str, str, str], ResourceChange] = {}
+    for _ in range(len(after) + 1):  # until no more replacements propagate (declaration order: usually one pass)
+        grew = False
+        for row in after:
+            k = key(row)
+            if k not in old:
+                result[k] = ResourceChange(*k, action="create", inputs=row["inputs"])
+                continue
+            changes = _input_changes(k[1], old[k]["inputs"], row["inputs"], replaced)
+            because = tuple(f"{c.path} changed" if c.after != KNOWN_AFTER_APPLY else
+                            f"{c.path} refers to a replaced resource" for c in changes if c.forces_replacement)
+            action: Action = "replace" if because else "update" if changes else "no-op"
+            if action == "replace" and k[2] not in replaced:
+                replaced.add(k[2])
+                grew = True
+            result[k] = ResourceChange(*k, action=action, changes=tuple(changes), because=because, inputs=row["inputs"])
+        if not grew:
+            break
+    new = {key(r) for r in after}
+    deletes = [ResourceChange(*key(r), action="delete", inputs=r["inputs"]) for r in before if key(r) not in new]
+    return tuple(result[key(r)] for r in after) + tuple(deletes)
+
+
+def _section(before: Sequence[Mapping[str, Any]] | None, after: Sequence[Mapping[str, Any]] | None,
+             key: tuple[str, ...], *, compare: bool) -> Section:
+    """Rows keyed by ``key``; with ``compare``, rows on both sides report changed fields."""
+    if before is None or after is None:  # a version 1 document lacks this section: nothing to compare
+        return Section()
+
+    def k(row: Mapping[str, Any]) -> str:
+        return " ".join(str(row.get(f)) for f in key)
+
+    old, new = {k(r): r for r in before}, {k(r): r for r in after}
+    changed = []
+    if compare:
+        for name in (n for n in new if n in old):
+            fields = tuple((f, old[name].get(f), new[name].get(f)) for f in new[name]
+                           if old[name].get(f) != new[name].get(f))
+            if fields:
+                changed.append(RowChange(name, fields))
+    return Section(added=tuple(r for n, r in new.items() if n not in old),
+                   removed=tuple(r for n, r in old.items() if n not in new), changed=tuple(changed))
+
+
+def _network(cidr: str) -> ipaddress.IPv4Network | ipaddress.IPv6Network | None:
+    try:
+        return ipaddress.ip_network(cidr, strict=False)
+    except ValueError:
+        return None  # the operator placeholder of an offline plan
+
+
+def _exposure(rules: Section, topics: Section) -> tuple[str, ...]:
+    """Ingress rules added or widened, and topics that now reach the robot."""
+    lines = []
+    removed = [r for r in rules.removed if r["direction"] == "ingress"]
+    for rule in (r for r in rules.added if r["direction"] == "ingress"):
+        where = f"{rule['group']} {rule['protocol']} {rule['ports']}"
+        new = _network(str(rule["cidr"]))
+        wider = [old for old in removed if (old["group"], old["protocol"], old["ports"]) ==
+                 (rule["group"], rule["protocol"], rule["ports"]) and new is not None
+                 and (net := _network(str(old["cidr"]))) is not None and net.version == new.version
+                 and net != new and net.subnet_of(new)]  # type: ignore[arg-type]
+        if wider:
+            lines.append(f"CIDR widened: {where} from {wider[0]['cidr']} to {rule['cidr']} ({rule['description']})")
+        else:
+            lines.append(f"ingress added: {where} from {rule['cidr']} ({rule['description']})")
+    for topic in topics.added:
+        if topic["direction"] == "to_edge":
+            lines.append(f"topic added cloud -> edge: {topic['topic']} (from host {topic['host']} to the robot)")
+        elif topic["direction"] == "either":
+            lines.append(f"topic added in either direction: {topic['topic']} (host {topic['host']}; "
+                         "reaches the robot when the cloud side publishes it)")
+    return tuple(lines)
+
+
+def diff_documents(before: Mapping[str, Any] | None, after: Mapping[str, Any], *,
+                   against: str = "applied") -> PlanDiff:
+    """Everything that differs from ``before`` to ``after``; ``before`` None means nothing exists."""
+    if before is None:
+        before, against = {"resources": [], "hosts": [], "nodes": [], "topics": [], "security_rules": [],
+                           "cost": {"hourly_usd": 0.0}}, "nothing"
+    rules = _section(before.get("security_rules"), after.get("security_rules"),
+                     ("group", "direction", "protocol", "ports", "cidr"), compare=True)
+    topics = _section(before.get("topics"), after.get("topics"), ("topic", "direction", "host"), compare=False)
+    settings = tuple((name, before.get(name), after.get(name)) for name in SETTINGS
+                     if name in before and before.get(name) != after.get(name))
+    return PlanDiff(
+        against=against,
+        resources=_resources(before.get("resources", []), after.get("resources", [])),
+        hosts=_section(before.get("hosts"), after.get("hosts"), ("name",), compare=True),
+        nodes=_section(before.get("nodes"), after.get("nodes"), ("name",), compare=True),
+        topics=topics, security_rules=rules, settings=settings,
+        cost_before=float(before.get("cost", {}).get("hourly_usd", 0.0)),
+        cost_after=float(after.get("cost", {}).get("hourly_usd", 0.0)),
+        exposure=_exposure(rules, topics),
+    )
+
+
+def annotate(doc: Mapping[str, Any], diff: PlanDiff) -> dict[str, Any]:
+    """``doc`` as ``plan --json`` prints it: each resource's action, ``before``/``after`` of the
+    changed inputs for updates and replacements, deleted resources last, and ``changes``."""
+    rows = []
+    for change in diff.resources:
+        row: dict[str, Any] = {"stack": change.stack, "type": change.type, "name": change.name,
+                               "action": change.action, "inputs": dict(change.inputs)}
+        if change.action in ("update", "replace"):
+            row["before"] = {c.path: c.before for c in change.changes}
+            row["after"] = {c.path: c.after for c in change.changes}
+            row["replace_because"] = list(change.because)
+        rows.append(row)
+    return {**doc, "resources": rows, "changes": diff.to_dict()}

@@ -1,0 +1,158 @@
+"""``fogiac plan HEAD --against BASE``: table-driven over pairs of manifests, through the real CLI.
+
+Each pair is two versions of one manifest as a pull request would change it; the assertions are
+the lines a reviewer reads, the summary line and the exit code of ``--detailed-exitcode``.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from fogiac.cli import app
+
+runner = CliRunner()
+DATA = Path(__file__).parent / "data"
+
+BASE = """\
+name: review
+cloud: {provider: aws, region: us-west-2}
+network:
+  mode: vpn
+  vpc_cidr: 10.10.0.0/16
+  ssh_from: [203.0.113.7/32]
+nodes:
+  - name: planner
+    machine: c5.large
+    workload: motion_planning
+    topics: {in: [/req], out: [/path]}
+"""
+GRASP = """\
+  - name: grasp
+    machine: g4dn.xlarge
+    workload: grasp_planning
+    gpu: true
+"""
+
+
+@dataclass(frozen=True)
+class Pair:
+    name: str
+    base: str
+    head: str
+    code: int
+    summary: str
+    lines: tuple[str, ...]  # each must be a line of the output (stripped)
+    absent: tuple[str, ...] = ()
+
+
+PAIRS = (
+    Pair("instance type change is an in-place update", BASE, BASE.replace("c5.large", "c5.xlarge"), 2,
+         "Plan: 0 to add, 1 to change, 0 to destroy.",
+         ("~ aws:ec2/instance:Instance review-dev-host-planner", "instanceType: c5.large -> c5.xlarge",
+          "hourly cost: $0.2350 -> $0.3200 (+$0.0850)", "machine: c5.large -> c5.xlarge"),
+         ("exposure widened:",)),
+    Pair("node added", BASE, BASE + GRASP, 2, "Plan: 1 to add, 0 to change, 0 to destroy.",
+         ("+ aws:ec2/instance:Instance review-dev-host-grasp", "+ grasp (g4dn.xlarge, $0.5260/h)",
+          "+ grasp on grasp (workload: workload grasp_planning)")),
+    Pair("node removed", BASE + GRASP, BASE, 2, "Plan: 0 to add, 0 to change, 1 to destroy.",
+         ("- aws:ec2/instance:Instance review-dev-host-grasp", "- grasp (g4dn.xlarge, $0.5260/h)")),
+    Pair("topic added cloud -> edge is flagged", BASE, BASE.replace("out: [/path]", "out: [/path, /cmd_vel]"), 2,
+         "Plan: 0 to add, 0 to change, 0 to destroy.",
+         ("! topic added cloud -> edge: /cmd_vel (from host planner to the robot)",
+          "+ /cmd_vel (cloud -> robot, host planner)")),
+    Pair("ssh_from widened is flagged", BASE, BASE.replace("203.0.113.7/32", "203.0.113.0/24"), 2,
+         "Plan: 1 to add, 0 to change, 1 to destroy.",
+         ("! CIDR widened: hosts tcp 22 from 203.0.113.7/32 to 203.0.113.0/24 (SSH from the operator)",
+          "+ hosts ingress tcp 22 203.0.113.0/24 (SSH from the operator)",
+          "- hosts ingress tcp 22 203.0.113.7/32 (SSH from the operator)",
+          "+ aws:vpc/securityGroupIngressRule:SecurityGroupIngressRule review-dev-hosts-in-tcp-22-203.0.113.0-24")),
+    Pair("VPC CIDR change replaces the network and everything in it", BASE,
+         BASE.replace("10.10.0.0/16", "10.20.0.0/16"), 2, "Plan: 21 to add, 2 to change, 21 to destroy.",
+         ("-/+ aws:ec2/vpc:Vpc review-dev-vpc", "cidrBlock: 10.10.0.0/16 -> 10.20.0.0/16  # forces replacement",
+          "-/+ aws:ec2/subnet:Subnet review-dev-subnet-hosts",
+          "vpcId: <review-dev-vpc.id> -> (known after apply)  # forces replacement",
+          "-/+ aws:ec2/instance:Instance review-dev-host-planner",
+          "subnetId: <review-dev-subnet-hosts.id> -> (known after apply)  # forces replacement",
+          "~ aws:ec2/internetGateway:InternetGateway review-dev-igw")),
+    Pair("no change", BASE, BASE, 0, "", ("No changes. Your infrastructure matches the configuration.",),
+         ("Plan:",)),
+)
+
+
+@pytest.mark.parametrize("pair", PAIRS, ids=[p.name for p in PAIRS])
+def test_pair(pair: Pair, tmp_path: Path) -> None:
+    (tmp_path / "base.yaml").write_text(pair.base)
+    (tmp_path / "head.yaml").write_text(pair.head)
+    result = runner.invoke(app, ["plan", str(tmp_path / "head.yaml"), "--against", str(tmp_path / "base.yaml"),
+                                 "--detailed-exitcode"])
+    assert result.exit_code == pair.code, result.output
+    lines = [line.strip() for line in result.output.splitlines()]
+    if pair.summary:
+        assert lines[-1] == pair.summary
+    for line in pair.lines:
+        assert line in lines, f"{line!r} not in output:\n{result.output}"
+    for text in pair.absent:
+        assert text not in result.output
+
+
+def test_json_v2_carries_action_before_and_after(tmp_path: Path) -> None:
+    (tmp_path / "base.yaml").write_text(BASE)
+    (tmp_path / "head.yaml").write_text(BASE.replace("c5.large", "c5.xlarge"))
+    result = runner.invoke(app, ["plan", str(tmp_path / "head.yaml"), "--against", str(tmp_path / "base.yaml"),
+                                 "--json"])
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.output)
+    assert doc["format_version"] == 2
+    (instance,) = [r for r in doc["resources"] if r["action"] != "no-op"]
+    assert instance["action"] == "update" and instance["replace_because"] == []
+    assert instance["before"]["instanceType"] == "c5.large" and instance["after"]["instanceType"] == "c5.xlarge"
+    assert set(instance["before"]) == {"instanceType", "userData"}  # the cloud-init names the machine
+    changes = doc["changes"]
+    assert changes["summary"] == "Plan: 0 to add, 1 to change, 0 to destroy." and changes["against"] == "manifest"
+    assert (changes["add"], changes["change"], changes["destroy"]) == (0, 1, 0)
+    assert changes["cost"] == {"hourly_usd_before": 0.235, "hourly_usd_after": 0.32}
+    assert all("[secret]" == r["inputs"]["privateKey"] for r in doc["resources"] if "privateKey" in r["inputs"])
+
+
+def _repo(tmp_path: Path, base: str, head: str) -> Path:
+    repo = tmp_path / "repo"
+    repo.mkdir()
+    git = ["git", "-c", "user.name=t", "-c", "user.email=t@example.com", "-c", "commit.gpgsign=false"]
+    subprocess.run(["git", "init", "-q", "-b", "main", str(repo)], check=True)
+    (repo / "fogiac.yaml").write_text(base)
+    subprocess.run([*git, "-C", str(repo), "add", "fogiac.yaml"], check=True)
+    subprocess.run([*git, "-C", str(repo), "commit", "-q", "-m", "base"], check=True)
+    (repo / "fogiac.yaml").write_text(head)
+    return repo
+
+
+def test_against_a_git_revision_renders_the_pull_request_comment(tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """The CI example's comment for the ssh_from pair, checked in as tests/cli/data/comment-ssh-widened.md."""
+    repo = _repo(tmp_path, BASE, BASE.replace("203.0.113.7/32", "203.0.113.0/24").replace("c5.large", "c5.xlarge"))
+    monkeypatch.chdir(repo)
+    result = runner.invoke(app, ["plan", "fogiac.yaml", "--against", "git:main:fogiac.yaml", "--markdown",
+                                 "--detailed-exitcode"])
+    assert result.exit_code == 2, result.output
+    assert result.output == (DATA / "comment-ssh-widened.md").read_text()
+    same = runner.invoke(app, ["plan", "fogiac.yaml", "--against", "git:HEAD:fogiac.yaml", "--detailed-exitcode"])
+    assert same.exit_code == 2  # the working tree differs from the commit
+
+
+@pytest.mark.parametrize(("against", "error"), [
+    ("git:nosuchref:fogiac.yaml", "git:nosuchref:fogiac.yaml: fatal: invalid object name 'nosuchref'."),
+    ("git:main:missing.yaml", "git:main:missing.yaml: fatal: path 'missing.yaml' does not exist in 'main'"),
+    ("git:main", "git:main: expected git:REF:PATH, e.g. git:origin/main:fogiac.yaml"),
+    ("nowhere.yaml", "nowhere.yaml: no such file (--against takes a path or git:REF:PATH)"),
+])
+def test_bad_base_is_one_line(against: str, error: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(_repo(tmp_path, BASE, BASE))
+    result = runner.invoke(app, ["plan", "fogiac.yaml", "--against", against])
+    assert result.exit_code == 1
+    assert result.output.strip() == error

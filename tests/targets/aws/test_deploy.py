@@ -178,3 +178,22 @@ def test_up_without_an_edge_master_stops_before_anything_is_created(engine_is_ha
         "or pass --start-edge-master to let fogiac run one")
     assert list(engine_is_harness.created) == []
     assert not stack_dir("noedge-dev", create=False).exists()
+
+
+def test_plan_diffs_against_what_an_apply_recorded(engine_is_harness: Harness, ec2: Any, tmp_path: Path) -> None:
+    """After an apply against LocalStack, plan shows only what an edit changes, per resource."""
+    path = write_manifest(tmp_path, "diffed", nodes=(("planner", "c5.large"),))
+    result = fogiac("up", str(path), "--yes", "--infra-only")
+    assert result.exit_code == 0, result.output
+    unchanged = fogiac("plan", str(path), "--detailed-exitcode")
+    assert unchanged.exit_code == 0, unchanged.output
+    assert "No changes." in unchanged.stdout
+
+    path.write_text(path.read_text().replace("c5.large", "c5.xlarge"))
+    changed = fogiac("plan", str(path), "--detailed-exitcode")
+    assert changed.exit_code == 2, changed.output
+    lines = changed.stdout.splitlines()
+    assert "Plan: 0 to add, 1 to change, 0 to destroy." in lines
+    assert any(line.strip().startswith("~ aws:ec2/instance:Instance diffed-dev-host-planner") for line in lines), lines
+    assert "      instanceType: c5.large -> c5.xlarge" in lines  # changed in place, as AWS does (stop, modify, start)
+    assert down(str(path), "--yes").exit_code == 0

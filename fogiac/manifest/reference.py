@@ -28,6 +28,7 @@ SECTIONS: tuple[tuple[str, type[BaseModel]], ...] = (
     ("network", m.Network),
     ("edge", m.Edge),
     ("nodes[]", m.Node),
+    ("nodes[].machine (a mapping)", m.Machine),
     ("nodes[].launch", m.Launch),
     ("nodes[].topics", m.TopicLists),
     ("relay", m.Relay),

@@ -78,7 +78,7 @@ def _node(node: Node, host: str) -> NodeSpec:
             else None
         ),
         workload=node.workload,
-        gpu=node.gpu,
+        gpu=node.needs_gpu,
         env=tuple(sorted(node.env.items())),
         topics_auto=lists is None,
         topics_in=lists.inputs if lists else (),

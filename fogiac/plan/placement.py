@@ -66,9 +66,11 @@ def host_per_node(manifest: Manifest, *, stack: str, tags: Tags,
     types = catalog().types
     hosts = []
     for node in manifest.nodes:
-        spec = types[node.machine]
+        choice = node.machine_choice(manifest.cloud.region)
+        spec = types[choice.machine]
         hosts.append(HostSpec(
-            name=node.name, machine=node.machine, vcpus=spec.vcpus, gpus=spec.gpus, memory_gib=spec.memory_gib,
+            name=node.name, machine=choice.machine, alternatives=choice.alternatives,
+            chosen_for=choice.chosen_for, vcpus=spec.vcpus, gpus=spec.gpus, memory_gib=spec.memory_gib,
             usd_per_hour=usd_per_hour(spec), spot=node.spot and spot, disk_gb=node.disk_gb, nodes=(node.name,),
             steps=steps_for([node]), tags=tags + (("fogiac:node", node.name), ("Name", f"{stack}-{node.name}")),
             image=image(spec), address=address,

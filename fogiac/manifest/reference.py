@@ -24,6 +24,7 @@ SECTIONS: tuple[tuple[str, type[BaseModel]], ...] = (
     ("(top level)", m.Manifest),
     ("ros", m.Ros),
     ("cloud", m.Cloud),
+    ("cloud.autostop", m.Autostop),
     ("cloud.hosts[]", m.HostMachine),
     ("network", m.Network),
     ("edge", m.Edge),

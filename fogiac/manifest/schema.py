@@ -65,11 +65,23 @@ class HostMachine(_Model):
     gpus: int = Field(default=0, ge=0, description="GPUs the machine has.")
 
 
+class Autostop(_Model):
+    """Stop (or terminate) cloud hosts nobody uses: no edge connected and no message for idle_minutes."""
+
+    idle_minutes: float = Field(default=30, gt=0, description="Minutes without an edge and without traffic.")
+    action: Literal["stop", "terminate"] = Field(
+        default="stop", description="stop: keep the disk, `up` starts it again; terminate: delete the machine."
+    )
+
+
 class Cloud(_Model):
     provider: Literal["aws", "hosts", "local"] = Field(default="aws", description="Where cloud nodes run.")
     region: str = Field(default="us-west-2", description="AWS region (one the price table covers).")
     zone: str | None = Field(default=None, description="Availability zone; chosen by preflight if absent.")
     hosts: tuple[HostMachine, ...] = Field(default=(), description="Machines for the hosts target.")
+    autostop: Literal["off"] | Autostop | None = Field(
+        default=None, description="Idle shutdown; unset: the target's default (aws: 30 idle minutes, stop); off: never."
+    )
 
     @field_validator("region")
     @classmethod
@@ -412,7 +424,7 @@ def json_schema() -> dict:
 
 def node_types() -> tuple[type[BaseModel], ...]:
     """Every model of the manifest, for the README reference test."""
-    return (Manifest, Ros, Cloud, HostMachine, Network, Edge, Node, Machine, Launch, TopicLists, Relay)
+    return (Manifest, Ros, Cloud, Autostop, HostMachine, Network, Edge, Node, Machine, Launch, TopicLists, Relay)
 
 
 __all__ = ["Manifest", "Node", "load_manifest", "parse_manifest", "json_schema"]

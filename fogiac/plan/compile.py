@@ -56,6 +56,7 @@ def compile_plan(manifest: Manifest, *, target: str | None = None, environment: 
         relay=tuple(_route(manifest, host, nodes, placed.connect_via) for host in placed.hosts),
         tags=tags,
         cost=placed.cost,
+        autostop=placed.autostop,
     )
 
 

@@ -174,6 +174,18 @@ class RelayRoute:
     queue_size: int
 
 
+AutostopPower = Literal["machine", "services"]  # power the machine off, or stop fogiac's services on it
+
+
+@dataclass(frozen=True)
+class AutostopSpec:
+    """When a host stops itself, and how: decided by the target at compile time."""
+
+    idle_s: float
+    action: Literal["stop", "terminate"]  # what a powered-off machine becomes (the compute stack sets it)
+    power: AutostopPower
+
+
 @dataclass(frozen=True)
 class CostLine:
     item: str
@@ -206,6 +218,7 @@ class Plan:
     relay: tuple[RelayRoute, ...]
     tags: tuple[tuple[str, str], ...]
     cost: tuple[CostLine, ...] = field(default=())
+    autostop: AutostopSpec | None = None
 
     @property
     def hourly_usd(self) -> float:

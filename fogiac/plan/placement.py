@@ -14,6 +14,8 @@ from fogiac.manifest.schema import Manifest, Node
 from fogiac.plan.catalog import InstanceType, catalog
 from fogiac.plan.model import (
     OPERATOR,
+    AutostopPower,
+    AutostopSpec,
     ConnectVia,
     CostLine,
     HostSpec,
@@ -39,6 +41,17 @@ class Placement:
     security_groups: tuple[SecurityGroup, ...] = ()
     vpn: VpnSpec | None = None
     cost: tuple[CostLine, ...] = ()
+    autostop: AutostopSpec | None = None
+
+
+def autostop_for(manifest: Manifest, *, power: AutostopPower, default_minutes: float | None) -> AutostopSpec | None:
+    """``cloud.autostop`` for a target: unset means the target's default (None: off)."""
+    asked = manifest.cloud.autostop
+    if asked == "off" or (asked is None and default_minutes is None):
+        return None
+    if asked is None:
+        return AutostopSpec(idle_s=float(default_minutes or 0) * 60, action="stop", power=power)
+    return AutostopSpec(idle_s=asked.idle_minutes * 60, action=asked.action, power=power)
 
 
 def ssh_sources(manifest: Manifest) -> tuple[str, ...]:

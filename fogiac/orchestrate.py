@@ -10,6 +10,7 @@ alive, nothing of the target left. Everything lives in the stack's state folder.
 from __future__ import annotations
 
 import sys
+import time
 import xmlrpc.client
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -159,6 +160,10 @@ class ExistingMachines:
     def node_states(self, plan: Plan, spec: HostSpec, entry: Any) -> list[dict[str, Any]]:
         return [{"node": n} for n in spec.nodes]
 
+    def autostop_state(self, plan: Plan, spec: HostSpec, entry: Any) -> dict[str, Any] | None:
+        """The host's idle watchdog's last word (idle_since, stops_at, stopped_at), where the target can read it."""
+        return None
+
     def declare(self, plan: Plan) -> tuple[Mapping[str, Any], ...]:
         return ()  # nothing is created: the machines exist
 
@@ -208,7 +213,8 @@ class ExistingMachines:
             return {**head, "deployed": False, "hosts": [], "relays": []}
         recorded = recorded_access(folder)
         hosts = [{"host": spec.name, "machine": spec.machine,
-                  "nodes": self.node_states(plan, spec, recorded.get(spec.name))} for spec in plan.hosts]
+                  "nodes": self.node_states(plan, spec, recorded.get(spec.name)),
+                  "autostop": self.autostop_state(plan, spec, recorded.get(spec.name))} for spec in plan.hosts]
         relays = []
         for host, connect in sorted(deployment.get("relays", {}).items()):
             stats = read_json(edge_dir(plan) / f"relay-edge-{host}.stats.json") or {}
@@ -226,6 +232,7 @@ class ExistingMachines:
             for node in host["nodes"]:
                 state = "-" if "running" not in node else "running" if node["running"] else "failed"
                 nodes.add_row(host["host"], host["machine"], node["node"], state, str(node.get("restarts", "-")))
+        idle = [f"{host['host']}: {autostop_line(host['autostop'])}" for host in doc["hosts"] if host.get("autostop")]
         relays = table("relayed topics", "host", "link", "topic", "dir", "msgs", "msgs/s", "KiB/s", "latency ms",
                        "drops")
         for relay in doc["relays"]:
@@ -237,7 +244,7 @@ class ExistingMachines:
                 relays.add_row(relay["host"], link, t.get("topic", "-"), t.get("direction", "-"),
                                str(t.get("msgs", "-")), str(t.get("msgs_per_s", "-")),
                                "-" if rate is None else f"{rate / 1024:.1f}", latency, str(t.get("drops", "-")))
-        return [nodes, relays]
+        return [nodes, *idle, relays]
 
     def refresh(self, plan: Plan) -> list[Refreshed]:
         return [Refreshed(plan.target, True, self.no_cloud.format(verb="refresh") + f" (target {plan.target})")]
@@ -245,3 +252,19 @@ class ExistingMachines:
     def sweep(self, plan: Plan, *, dry_run: bool) -> SweepOutcome:
         return SweepOutcome(note=f"target {plan.target} " + self.no_cloud.format(verb="sweep")
                             + "; `fogiac down` stops and removes what fogiac started")
+
+
+def autostop_line(state: Mapping[str, Any], now: float | None = None) -> str:
+    """``stopped by autostop at 12:03:10 UTC`` or ``idle 4m 10s, stops at ...`` or ``in use``."""
+    now = time.time() if now is None else now
+
+    def clock(t: float) -> str:
+        return time.strftime("%H:%M:%S UTC", time.gmtime(t))
+
+    if state.get("stopped_at"):
+        verb = "terminated" if state.get("action") == "terminate" else "stopped"
+        return f"{verb} by autostop at {clock(state['stopped_at'])} (idle since {clock(state['idle_since'])})"
+    if state.get("idle_since") is None:
+        return f"in use (autostop {state.get('action', 'stop')} after idle)"
+    idle = int(now - state["idle_since"])
+    return f"idle {idle // 60}m {idle % 60}s, autostop at {clock(state['stops_at'])}"

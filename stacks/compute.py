@@ -30,6 +30,14 @@ class ComputeArgs:
     security_group_ids: tuple[pulumi.Input[str], ...]
     public_key_openssh: str
     tags: Mapping[str, str]
+    shutdown_behavior: str | None = None  # what the autostop watchdog's poweroff does: stop or terminate
+
+
+def shutdown_behavior(host: HostSpec, asked: str | None) -> str | None:
+    """A one-time spot instance cannot stop (AWS refuses it), so it terminates."""
+    if asked is None:
+        return None
+    return "terminate" if host.spot else asked
 
 
 def user_data(stack: str, host: HostSpec) -> str:
@@ -108,6 +116,7 @@ class Compute(pulumi.ComponentResource):
                     volume_type="gp3", volume_size=host.disk_gb, encrypted=True, delete_on_termination=True
                 ),
                 instance_market_options=_spot() if host.spot else None,
+                instance_initiated_shutdown_behavior=shutdown_behavior(host, args.shutdown_behavior),
                 user_data=user_data(name, host),
                 tags=tagged(tags, f"{name}-{host.name}"),
                 volume_tags=tagged(tags, f"{name}-{host.name}"),

@@ -95,6 +95,7 @@ def compute_program(plan: Plan, *, network: Mapping[str, Any], public_key_openss
             security_group_ids=(group_id,),
             public_key_openssh=public_key_openssh,
             tags=dict(plan.tags),
+            shutdown_behavior=plan.autostop.action if plan.autostop and plan.autostop.power == "machine" else None,
         ),
     )
     pulumi.export(

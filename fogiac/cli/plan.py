@@ -97,6 +97,11 @@ def _render(doc: dict[str, Any]) -> None:
                       f"{h['memory_gib']:g}", str(h["disk_gb"]), "yes" if h["spot"] else "no",
                       f"{h['usd_per_hour']:.4f}", ", ".join(h["nodes"]))
     out.print(hosts)
+    for h in doc["hosts"]:
+        if h["chosen_for"]:
+            others = ", ".join(f"{o['machine']} (${o['usd_per_hour']:.4f}/h)" for o in h["alternatives"]) or "none"
+            out.print(f"{h['name']}: {h['machine']} (${h['usd_per_hour']:.4f}/h) is the cheapest with "
+                      f"{escape(h['chosen_for'])}; next: {others}", highlight=False)
     nodes = table("nodes", "node", "host", "kind", "runs", "GPU")
     for n in doc["nodes"]:
         nodes.add_row(n["name"], n["host"], n["kind"], escape(n["runs"]), "yes" if n["gpu"] else "no")

@@ -231,7 +231,8 @@ def format_errors(
     deeper = {p[:i] for p in found for i in range(len(p))}
     out: list[tuple[int, str]] = []
     for path, items in found.items():
-        kept = [m for t, m in items if not (t in _MISMATCH and path in deeper)]
+        specific = path in deeper or any(t not in _MISMATCH for t, _ in items)
+        kept = [m for t, m in items if not (t in _MISMATCH and specific)]
         if not kept:
             continue
         messages = list(dict.fromkeys(kept))

@@ -18,6 +18,7 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationErr
 from fogiac.errors import ManifestError
 from fogiac.manifest.problems import FieldProblem, format_errors, line_index, parse_yaml
 from fogiac.plan.catalog import catalog
+from fogiac.plan.machines import Choice, NoMachine, Requirement, choose, parse_bound
 
 _DNS_NAME = re.compile(r"^[a-z]([a-z0-9-]{0,38}[a-z0-9])?$")
 _TOPIC = re.compile(r"^/[A-Za-z][A-Za-z0-9_/]*$")
@@ -64,11 +65,23 @@ class HostMachine(_Model):
     gpus: int = Field(default=0, ge=0, description="GPUs the machine has.")
 
 
+class Autostop(_Model):
+    """Stop (or terminate) cloud hosts nobody uses: no edge connected and no message for idle_minutes."""
+
+    idle_minutes: float = Field(default=30, gt=0, description="Minutes without an edge and without traffic.")
+    action: Literal["stop", "terminate"] = Field(
+        default="stop", description="stop: keep the disk, `up` starts it again; terminate: delete the machine."
+    )
+
+
 class Cloud(_Model):
     provider: Literal["aws", "hosts", "local"] = Field(default="aws", description="Where cloud nodes run.")
     region: str = Field(default="us-west-2", description="AWS region (one the price table covers).")
     zone: str | None = Field(default=None, description="Availability zone; chosen by preflight if absent.")
     hosts: tuple[HostMachine, ...] = Field(default=(), description="Machines for the hosts target.")
+    autostop: Literal["off"] | Autostop | None = Field(
+        default=None, description="Idle shutdown; unset: the target's default (aws: 30 idle minutes, stop); off: never."
+    )
 
     @field_validator("region")
     @classmethod
@@ -171,13 +184,55 @@ class TopicLists(_Model):
     )
 
 
+class Machine(_Model):
+    """What a node needs instead of a type name: compile picks the cheapest catalogue type that fits."""
+
+    type: str | None = Field(default=None, description="An EC2 instance type; or leave it out and say what you need.")
+    gpu: bool | str | None = Field(default=None, description="true (any GPU) or a model such as T4, A10G, V100.")
+    vcpus: int | str | None = Field(default=None, description="vCPUs: a number (at least) or a bound like '>=8'.")
+    memory_gib: float | str | None = Field(default=None, description="Memory in GiB: a number (at least) or '>=16'.")
+
+    @field_validator("vcpus", "memory_gib")
+    @classmethod
+    def _bound(cls, value: int | float | str | None) -> int | float | str | None:
+        if value is not None:
+            parse_bound(value)
+        return value
+
+    @field_validator("type")
+    @classmethod
+    def _type(cls, value: str | None) -> str | None:
+        if value is not None and value not in catalog().types:
+            raise FieldProblem(f"{value!r} is not a known instance type", choices=tuple(catalog().types))
+        return value
+
+    @model_validator(mode="after")
+    def _type_or_needs(self) -> Machine:
+        needs = [k for k in ("gpu", "vcpus", "memory_gib") if getattr(self, k) is not None]
+        if self.type is not None and needs:
+            raise FieldProblem(f"give either type or requirements ({', '.join(needs)}), not both")
+        if self.type is None and not needs:
+            raise FieldProblem("needs a type or at least one of gpu, vcpus, memory_gib")
+        return self
+
+    def requirement(self, *, gpu: bool = False) -> Requirement:
+        """The requirement; ``gpu`` (the node's own flag) asks for any GPU when none is named."""
+        return Requirement(
+            gpu=self.gpu if self.gpu not in (None, False) else (True if gpu else None),
+            vcpus=parse_bound(self.vcpus) if self.vcpus is not None else None,
+            memory_gib=parse_bound(self.memory_gib) if self.memory_gib is not None else None,
+        )
+
+
 Workload = Literal["motion_planning", "grasp_planning"]
 NodeKind = Literal["image", "launch", "workload"]  # which of the three a node runs
 
 
 class Node(_Model):
     name: DnsName = Field(description="DNS-safe node name, unique in the manifest.")
-    machine: str = Field(description="EC2 instance type, e.g. c5.24xlarge or g4dn.xlarge.")
+    machine: str | Machine = Field(
+        description="EC2 instance type (c5.24xlarge), or what the node needs ({gpu: T4, vcpus: '>=8'})."
+    )
     image: str | None = Field(
         default=None, description="Container image to run (exactly one of image, launch, workload)."
     )
@@ -193,8 +248,8 @@ class Node(_Model):
 
     @field_validator("machine")
     @classmethod
-    def _machine(cls, value: str) -> str:
-        if value not in catalog().types:
+    def _machine(cls, value: str | Machine) -> str | Machine:
+        if isinstance(value, str) and value not in catalog().types:
             raise FieldProblem(f"{value!r} is not a known instance type", choices=tuple(catalog().types))
         return value
 
@@ -214,12 +269,27 @@ class Node(_Model):
             raise FieldProblem(f"needs exactly one of image, launch or workload (got {what})")
         if self.command and self.image is None:
             raise FieldProblem("command is only for image nodes", field="command")
-        if self.gpu and not catalog().types[self.machine].has_gpu:
+        named = self.machine if isinstance(self.machine, str) else self.machine.type
+        if self.gpu and named is not None and not catalog().types[named].has_gpu:
             raise FieldProblem(
-                f"{self.machine!r} has no GPU but the node sets gpu: true; pick a GPU type such as 'g4dn.xlarge'",
+                f"{named!r} has no GPU but the node sets gpu: true; pick a GPU type such as 'g4dn.xlarge'",
                 field="machine",
             )
         return self
+
+    def machine_choice(self, region: str) -> Choice:
+        """The instance type this node runs on in ``region``: the named one, or the cheapest that fits."""
+        named = self.machine if isinstance(self.machine, str) else self.machine.type
+        if named is not None:
+            return Choice(machine=named, usd_per_hour=catalog().types[named].usd_per_hour.get(region, 0.0),
+                          alternatives=())
+        assert isinstance(self.machine, Machine)
+        return choose(self.machine.requirement(gpu=self.gpu), region)
+
+    @property
+    def needs_gpu(self) -> bool:
+        """``gpu: true``, or a machine requirement that asks for one."""
+        return self.gpu or (isinstance(self.machine, Machine) and self.machine.gpu not in (None, False))
 
     @property
     def kind(self) -> NodeKind:
@@ -275,6 +345,11 @@ class Manifest(_Model):
         for i, name in enumerate(names):
             if name in names[:i]:
                 raise FieldProblem(f"duplicate node name {name!r}", field=f"nodes[{i}].name")
+        for i, node in enumerate(self.nodes):
+            try:
+                node.machine_choice(self.cloud.region)
+            except NoMachine as err:
+                raise FieldProblem(str(err), field=f"nodes[{i}].machine") from None
         host_names = [h.name for h in self.cloud.hosts]
         for i, node in enumerate(self.nodes):
             if node.host is not None and node.host not in host_names:
@@ -349,7 +424,7 @@ def json_schema() -> dict:
 
 def node_types() -> tuple[type[BaseModel], ...]:
     """Every model of the manifest, for the README reference test."""
-    return (Manifest, Ros, Cloud, HostMachine, Network, Edge, Node, Launch, TopicLists, Relay)
+    return (Manifest, Ros, Cloud, Autostop, HostMachine, Network, Edge, Node, Machine, Launch, TopicLists, Relay)
 
 
 __all__ = ["Manifest", "Node", "load_manifest", "parse_manifest", "json_schema"]

@@ -56,6 +56,7 @@ def compile_plan(manifest: Manifest, *, target: str | None = None, environment: 
         relay=tuple(_route(manifest, host, nodes, placed.connect_via) for host in placed.hosts),
         tags=tags,
         cost=placed.cost,
+        autostop=placed.autostop,
     )
 
 
@@ -78,7 +79,7 @@ def _node(node: Node, host: str) -> NodeSpec:
             else None
         ),
         workload=node.workload,
-        gpu=node.gpu,
+        gpu=node.needs_gpu,
         env=tuple(sorted(node.env.items())),
         topics_auto=lists is None,
         topics_in=lists.inputs if lists else (),

@@ -25,6 +25,8 @@ def host_row(host: HostSpec) -> dict[str, Any]:
     return {
         "name": host.name,
         "machine": host.machine,
+        "chosen_for": host.chosen_for,
+        "alternatives": [{"machine": o.name, "usd_per_hour": o.usd_per_hour} for o in host.alternatives],
         "vcpus": host.vcpus,
         "gpus": host.gpus,
         "memory_gib": host.memory_gib,

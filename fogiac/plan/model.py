@@ -15,6 +15,7 @@ from typing import Any, Literal
 
 from fogiac.errors import PlanError
 from fogiac.net.relay.config import RELAY_PORT as RELAY_PORT  # re-exported: the ports a plan opens, in one place
+from fogiac.plan.machines import Option
 
 # Ports. ROS 1 masters listen on 11311; nodes on ephemeral ports, which Linux takes from
 # 32768-60999 by default; the relay's cloud end on RELAY_PORT.
@@ -146,6 +147,8 @@ class HostSpec:
     steps: tuple[str, ...]
     tags: tuple[tuple[str, str], ...]
     image: ImageQuery | None = None
+    chosen_for: str | None = None  # the node's requirement in words, when compile chose the machine
+    alternatives: tuple[Option, ...] = ()  # the next cheapest types that also fit
     address: str | None = None
     user: str | None = None
     port: int | None = None
@@ -169,6 +172,18 @@ class RelayRoute:
     listed: tuple[str, ...]  # relay.topics: relayed in whichever direction has the publisher
     compression: tuple[tuple[str, str], ...]  # ("*", alg) for all topics, or per topic
     queue_size: int
+
+
+AutostopPower = Literal["machine", "services"]  # power the machine off, or stop fogiac's services on it
+
+
+@dataclass(frozen=True)
+class AutostopSpec:
+    """When a host stops itself, and how: decided by the target at compile time."""
+
+    idle_s: float
+    action: Literal["stop", "terminate"]  # what a powered-off machine becomes (the compute stack sets it)
+    power: AutostopPower
 
 
 @dataclass(frozen=True)
@@ -203,6 +218,7 @@ class Plan:
     relay: tuple[RelayRoute, ...]
     tags: tuple[tuple[str, str], ...]
     cost: tuple[CostLine, ...] = field(default=())
+    autostop: AutostopSpec | None = None
 
     @property
     def hourly_usd(self) -> float:

@@ -14,6 +14,8 @@ from fogiac.manifest.schema import Manifest, Node
 from fogiac.plan.catalog import InstanceType, catalog
 from fogiac.plan.model import (
     OPERATOR,
+    AutostopPower,
+    AutostopSpec,
     ConnectVia,
     CostLine,
     HostSpec,
@@ -39,6 +41,17 @@ class Placement:
     security_groups: tuple[SecurityGroup, ...] = ()
     vpn: VpnSpec | None = None
     cost: tuple[CostLine, ...] = ()
+    autostop: AutostopSpec | None = None
+
+
+def autostop_for(manifest: Manifest, *, power: AutostopPower, default_minutes: float | None) -> AutostopSpec | None:
+    """``cloud.autostop`` for a target: unset means the target's default (None: off)."""
+    asked = manifest.cloud.autostop
+    if asked == "off" or (asked is None and default_minutes is None):
+        return None
+    if asked is None:
+        return AutostopSpec(idle_s=float(default_minutes or 0) * 60, action="stop", power=power)
+    return AutostopSpec(idle_s=asked.idle_minutes * 60, action=asked.action, power=power)
 
 
 def ssh_sources(manifest: Manifest) -> tuple[str, ...]:
@@ -66,9 +79,11 @@ def host_per_node(manifest: Manifest, *, stack: str, tags: Tags,
     types = catalog().types
     hosts = []
     for node in manifest.nodes:
-        spec = types[node.machine]
+        choice = node.machine_choice(manifest.cloud.region)
+        spec = types[choice.machine]
         hosts.append(HostSpec(
-            name=node.name, machine=node.machine, vcpus=spec.vcpus, gpus=spec.gpus, memory_gib=spec.memory_gib,
+            name=node.name, machine=choice.machine, alternatives=choice.alternatives,
+            chosen_for=choice.chosen_for, vcpus=spec.vcpus, gpus=spec.gpus, memory_gib=spec.memory_gib,
             usd_per_hour=usd_per_hour(spec), spot=node.spot and spot, disk_gb=node.disk_gb, nodes=(node.name,),
             steps=steps_for([node]), tags=tags + (("fogiac:node", node.name), ("Name", f"{stack}-{node.name}")),
             image=image(spec), address=address,

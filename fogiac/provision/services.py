@@ -238,6 +238,22 @@ def relay_service(plan: Plan, spec: HostSpec, where: Where) -> Service:
     # every interface and the security group (or the lab's network) decides who reaches the port.
     listen = "127.0.0.1" if where.ros_address.startswith("127.") else "0.0.0.0"
     command = (f"{q(where.python)} -m fogiac relay cloud --listen {listen}:{where.relay_port} "
-               f"--master {master_uri(where)} --certs {q(where.layout.certs)}")
+               f"--master {master_uri(where)} --certs {q(where.layout.certs)} --stats-file {q(relay_stats(where))}")
     return _service("relay-cloud", plan=plan, spec=spec, where=where, command=command, check="alive",
                     python_path=where.code_root, after="fogiac-ros-master.service")
+
+
+def relay_stats(where: Where) -> str:
+    """Where the relay's cloud end writes its live figures, which the autostop watchdog reads."""
+    return f"{where.layout.run}/relay-cloud.stats.json"
+
+
+def autostop_service(plan: Plan, spec: HostSpec, where: Where) -> Service | None:
+    """The idle watchdog (:mod:`fogiac.provision.autostop`), when the plan has autostop on."""
+    if plan.autostop is None:
+        return None
+    stop = plan.autostop
+    command = (f"{q(where.python)} -m fogiac.provision.autostop --stats {q(relay_stats(where))} "
+               f"--run {q(where.layout.run)} --idle-s {stop.idle_s:g} --action {stop.action} --power {stop.power}")
+    return _service("autostop", plan=plan, spec=spec, where=where, command=command, check="alive",
+                    python_path=where.code_root, after="fogiac-relay-cloud.service")

@@ -26,6 +26,7 @@ from fogiac.resources import package_dir
 CHANGED, OK, SKIPPED = "changed", "ok", "skipped"
 _CODE_IGNORE = ("tests/", "*.pt", "*.npz", "problems/", "*.ipynb")
 _ROS_PACKAGES = ("ros-core", "python3-rospy", "python3-std-msgs")
+_ALWAYS_KEPT = ["relay-cloud"]  # started by the relay step, not the services step
 _RELAY_CERTS = (("ca.pem", 0o644), ("server.pem", 0o644), ("server.key", 0o600))
 
 
@@ -219,7 +220,8 @@ def step_services(run: HostRun) -> StepResult:
     manager = run.manager
     wanted = run.services()
     started = manager.ensure(run.host, run.layout, wanted, restart_all=env_changed, facts=run.facts)
-    stopped = manager.prune(run.host, run.layout, keep=[s.name for s in wanted] + ["relay-cloud"], facts=run.facts)
+    kept = [s.name for s in wanted] + _ALWAYS_KEPT + (["autostop"] if run.plan.autostop else [])
+    stopped = manager.prune(run.host, run.layout, keep=kept, facts=run.facts)
     if not started and not stopped and not env_changed:
         return OK, f"{len(wanted)} service(s) running ({manager.name})"
     parts = [f"started {', '.join(started)}"] if started else []
@@ -243,14 +245,19 @@ def step_relay(run: HostRun) -> StepResult:
     if not relay_available(run):
         ensure_file(run, service.script.encode(), f"{run.layout.services}/{service.name}.sh", mode=0o700)
         return SKIPPED, "relay CLI not installed on the host; service script rendered only"
-    started = run.manager.ensure(run.host, run.layout, (service,), restart_all=bool(changed), facts=run.facts)
-    return (CHANGED, "relay cloud end started") if started or changed else (OK, "relay cloud end running")
+    watchdog = svc.autostop_service(run.plan, run.spec, run.where())
+    wanted = (service,) if watchdog is None else (service, watchdog)
+    started = run.manager.ensure(run.host, run.layout, wanted, restart_all=bool(changed), facts=run.facts)
+    what = "relay cloud end" + (" and autostop watchdog" if watchdog is not None else "")
+    return (CHANGED, f"{what} started") if started or changed else (OK, f"{what} running")
 
 
 def step_health(run: HostRun) -> StepResult:
     checks = list(run.services())
     if run.options.certs_dir is not None and relay_available(run):
         checks.append(svc.relay_service(run.plan, run.spec, run.where()))
+        watchdog = svc.autostop_service(run.plan, run.spec, run.where())
+        checks += [watchdog] if watchdog is not None else []
     results = run.manager.health(run.host, run.layout, checks, master=svc.master_uri(run.where()),
                                 timeout=run.options.health_timeout)
     bad = [f"{name} unhealthy: {detail}" for name, ok, detail in results if not ok]

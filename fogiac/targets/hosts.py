@@ -15,7 +15,7 @@ from fogiac.errors import PlanError, ProvisionError
 from fogiac.manifest.schema import Manifest
 from fogiac.orchestrate import ExistingMachines
 from fogiac.plan.model import HostSpec, Plan
-from fogiac.plan.placement import Placement, Tags, steps_for
+from fogiac.plan.placement import Placement, Tags, autostop_for, steps_for
 from fogiac.provision import SshAccess
 from fogiac.targets.base import Check
 
@@ -46,7 +46,8 @@ class HostsTarget(ExistingMachines):
                 tags=tags + (("fogiac:node", ",".join(n.name for n in placed)),),
                 address=machine.address, user=machine.user, port=machine.port, key=str(machine.key),
             ))
-        return Placement(hosts=tuple(hosts), node_hosts=node_hosts, mode="relay", connect_via="address")
+        return Placement(hosts=tuple(hosts), node_hosts=node_hosts, mode="relay", connect_via="address",
+                         autostop=autostop_for(manifest, power="services", default_minutes=None))
 
     def access(self, plan: Plan, *, state_dir: Path, python: str = "python3",
                connect_timeout: float = 60.0) -> Mapping[str, SshAccess]:

@@ -9,14 +9,15 @@ from __future__ import annotations
 import importlib.util
 import shutil
 from collections.abc import Mapping
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
 from fogiac.manifest.schema import Manifest
 from fogiac.orchestrate import ExistingMachines
 from fogiac.plan.model import HostSpec, Plan
-from fogiac.plan.placement import Placement, Tags, host_per_node
-from fogiac.provision import LocalAccess, supervise
+from fogiac.plan.placement import Placement, Tags, autostop_for, host_per_node
+from fogiac.provision import LocalAccess, autostop, supervise
 from fogiac.provision.local import local_access, sandbox_root
 from fogiac.targets.base import Check
 
@@ -27,7 +28,8 @@ class LocalTarget(ExistingMachines):
 
     def place(self, manifest: Manifest, *, stack: str, tags: Tags) -> Placement:
         hosts, node_hosts = host_per_node(manifest, stack=stack, tags=tags, address="127.0.0.1")
-        return Placement(hosts=hosts, node_hosts=node_hosts, mode="relay", connect_via="loopback")
+        return Placement(hosts=hosts, node_hosts=node_hosts, mode="relay", connect_via="loopback",
+                         autostop=autostop_for(manifest, power="services", default_minutes=None))
 
     def access(self, plan: Plan, *, state_dir: Path) -> Mapping[str, LocalAccess]:
         return local_access(plan, state_dir=state_dir)
@@ -43,6 +45,12 @@ class LocalTarget(ExistingMachines):
             return super().node_states(plan, spec, entry)
         run_dir = Path(entry[1]) / "run"
         return [{"node": node, **supervise.status(run_dir, f"node-{node}")} for node in spec.nodes]
+
+    def autostop_state(self, plan: Plan, spec: HostSpec, entry: Any) -> dict[str, Any] | None:
+        if entry is None or plan.autostop is None:
+            return None
+        state = autostop.read_state(Path(entry[1]) / "run")
+        return asdict(state) if state is not None else None
 
     def doctor(self, plan: Plan, *, ssh_from: str | None = None) -> list[Check]:
         """What the sandboxes need on this machine: ROS 1's roscore and rospy."""

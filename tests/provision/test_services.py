@@ -136,5 +136,16 @@ def test_relay_cloud_end_command(plan: Plan) -> None:
     relay = svc.relay_service(plan, plan.host("talker"), where)
     assert relay.script.splitlines()[-1] == (
         "exec python3 -m fogiac relay cloud --listen 0.0.0.0:11411 --master http://127.0.0.1:11311 "
-        f"--certs {where.layout.certs}"
+        f"--certs {where.layout.certs} --stats-file {where.layout.run}/relay-cloud.stats.json"
+    )
+
+
+def test_autostop_watchdog_reads_the_relay_stats(plan: Plan) -> None:
+    where = _where(svc.NATIVE)
+    watchdog = svc.autostop_service(plan, plan.host("talker"), where)
+    assert plan.autostop is not None and watchdog is not None
+    assert watchdog.script.splitlines()[-1] == (
+        f"exec python3 -m fogiac.provision.autostop --stats {where.layout.run}/relay-cloud.stats.json "
+        f"--run {where.layout.run} --idle-s {plan.autostop.idle_s:g} --action {plan.autostop.action} "
+        f"--power {plan.autostop.power}"
     )

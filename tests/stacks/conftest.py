@@ -36,6 +36,7 @@ name: grasp
 cloud:
   provider: aws
   region: us-west-2
+  autostop: {idle_minutes: 15, action: terminate}
 network:
   ssh_from: [203.0.113.7/32]
 tags:

@@ -7,8 +7,12 @@ import pytest
 from fogiac.targets.aws.placement import NVIDIA, UBUNTU
 from fogiac.targets.aws.offline import OfflinePlan, offline_public_key
 from stacks.compute import HOST_KEYS_BEGIN, HOST_KEYS_END
+from fogiac.manifest.schema import load_manifest
+from fogiac.plan.compile import compile_plan
+from fogiac.targets.aws.offline import declare
 from stacks.program import compute_program
 
+from .conftest import EXAMPLES
 from .recorder import Recorder
 
 INSTANCE = "aws:ec2/instance:Instance"
@@ -91,3 +95,16 @@ def test_offline_key_pair_is_a_placeholder(offline: dict[str, OfflinePlan]) -> N
     (key,) = offline["minimal"].of_type("aws:ec2/keyPair:KeyPair")
     assert key.inputs["publicKey"] == offline_public_key("minimal-dev")
     assert offline["minimal"].outputs["compute"]["hosts"]["talker"]["machine"] == "t3.small"
+
+
+def test_autostop_sets_what_a_poweroff_does(offline: dict[str, OfflinePlan], tmp_path) -> None:
+    """Default on aws: stop; terminate when asked; a one-time spot instance cannot stop, so it terminates."""
+    assert [i["instanceInitiatedShutdownBehavior"] for i in instances(offline["minimal"]).values()] == ["stop"]
+    assert {i["instanceInitiatedShutdownBehavior"] for i in instances(offline["gpu"]).values()} == {"terminate"}
+    assert [i["instanceInitiatedShutdownBehavior"] for i in instances(offline["proxy"]).values()] == ["terminate"]
+    off = tmp_path / "off.yaml"
+    off.write_text((EXAMPLES / "minimal.yaml").read_text().replace("  region: us-west-2\n",
+                                                                  "  region: us-west-2\n  autostop: \"off\"\n"))
+    plan = compile_plan(load_manifest(off))
+    assert plan.autostop is None
+    assert all("instanceInitiatedShutdownBehavior" not in i for i in instances(declare(plan)).values())

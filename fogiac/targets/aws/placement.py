@@ -19,9 +19,10 @@ from fogiac.plan.model import (
     VpnSpec,
     server_name,
 )
-from fogiac.plan.placement import Placement, Tags, host_per_node, ssh_sources
+from fogiac.plan.placement import Placement, Tags, autostop_for, host_per_node, ssh_sources
 
 _WORLD = "0.0.0.0/0"
+AUTOSTOP_MINUTES = 30  # unless the manifest says otherwise, an EC2 host idle this long powers itself off
 
 # Ubuntu LTS from Canonical for CPU types; AWS's Deep Learning Base image (NVIDIA driver and
 # container toolkit preinstalled) for GPU types. ROS itself runs in containers on the hosts.
@@ -117,4 +118,5 @@ def place(manifest: Manifest, *, stack: str, tags: Tags) -> Placement:
         hosts=hosts, node_hosts=node_hosts, mode=manifest.network.mode,
         connect_via="private" if vpn_mode else "public", network=network,
         security_groups=_firewall(manifest, ssh_sources(manifest), vpn_mode=vpn_mode), vpn=vpn, cost=_cost(hosts, vpn),
+        autostop=autostop_for(manifest, power="machine", default_minutes=AUTOSTOP_MINUTES),
     )

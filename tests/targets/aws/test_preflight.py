@@ -33,6 +33,15 @@ def test_chosen_zone_must_offer_every_type(ec2, tmp_path: Path) -> None:
         preflight(plan, ec2=ec2)
 
 
+def test_zone_offers_the_type_a_requirement_resolved_to(ec2, tmp_path: Path) -> None:
+    plan = make_plan(tmp_path, "pf-req", nodes=(("gpu", "{gpu: A10G, vcpus: 4}"),), zone="us-west-2d")
+    assert plan.host("gpu").machine == "g5.xlarge"
+    with pytest.raises(PreflightError, match=r"^zone us-west-2d does not offer g5.xlarge "):
+        preflight(plan, ec2=ec2)
+    report = preflight(make_plan(tmp_path, "pf-req2", nodes=(("gpu", "{gpu: A10G, vcpus: 4}"),)), ec2=ec2)
+    assert report.zone == "us-west-2a"
+
+
 def test_type_not_offered_in_region(ec2, tmp_path: Path) -> None:
     plan = make_plan(tmp_path, "pf-p3", nodes=(("gpu", "p3.2xlarge"),))
     with pytest.raises(PreflightError, match=r"^machine type p3.2xlarge is not offered in us-west-2$"):

@@ -1,0 +1,137 @@
+"""The autostop watchdog: a host with no edge and no traffic for N minutes stops itself.
+
+Why on the host: a forgotten stack must stop without the operator's laptop. The watchdog runs
+as one more supervised service beside the relay's cloud end and judges "idle" only from what
+fogiac already knows, the relay's stats file: no edge connected and no message crossing (the
+message counters did not move). A host with no stats file yet counts as idle from the
+watchdog's start, so a host whose edge never came stops too.
+
+How it stops is the target's choice (``--power``): ``machine`` powers the host off (on EC2 the
+instance's shutdown behaviour, stop or terminate, is set by the compute stack); ``services``
+stops every fogiac service in the run folder, itself last (the local target's sandboxes, lab
+machines that must stay on). Before stopping it writes ``autostop.json`` in the run folder, the
+file ``fogiac status`` reads: idle since when, when it will stop, and whether it has.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from fogiac.net.relay.stats import RelayStats, read_stats
+from fogiac.provision import supervise
+
+STATE_FILE = "autostop.json"
+SERVICE = "autostop"
+_POLL_S = 1.0
+
+
+@dataclass(frozen=True)
+class IdleState:
+    """What the watchdog last concluded (wall-clock seconds since the epoch)."""
+
+    idle_since: float | None  # None: the edge is connected or traffic is crossing
+    stops_at: float | None
+    stopped_at: float | None = None
+    action: str = "stop"
+
+    def to_json(self) -> str:
+        return json.dumps(asdict(self), separators=(",", ":"))
+
+
+class IdleClock:
+    """Pure: feeds on relay snapshots and says since when the host has been idle."""
+
+    def __init__(self, idle_s: float, now: float) -> None:
+        self.idle_s = idle_s
+        self.last_active = now
+        self._msgs: int | None = None
+
+    def observe(self, stats: RelayStats | None, now: float) -> None:
+        msgs = sum(t.msgs for t in stats.topics) if stats is not None else None
+        moved = msgs is not None and self._msgs is not None and msgs != self._msgs
+        if (stats is not None and stats.connected) or moved:
+            self.last_active = now
+        self._msgs = msgs
+
+    def idle_since(self, now: float) -> float | None:
+        return self.last_active if now > self.last_active else None
+
+    def due(self, now: float) -> bool:
+        return now - self.last_active >= self.idle_s
+
+
+def _snapshot(path: Path) -> RelayStats | None:
+    try:
+        return read_stats(path)
+    except (OSError, ValueError, TypeError, KeyError):
+        return None
+
+
+def _write_state(run_dir: Path, state: IdleState) -> None:
+    tmp = run_dir / f".{STATE_FILE}.tmp"
+    tmp.write_text(state.to_json() + "\n")
+    os.replace(tmp, run_dir / STATE_FILE)
+
+
+def read_state(run_dir: Path) -> IdleState | None:
+    """The watchdog's last word for this run folder, or None if it never ran there."""
+    try:
+        return IdleState(**json.loads((run_dir / STATE_FILE).read_text()))
+    except (OSError, ValueError, TypeError):
+        return None
+
+
+def _stop_services(run_dir: Path, state: IdleState) -> None:
+    others = sorted(p.name.removesuffix(".pid") for p in run_dir.glob("*.pid") if p.name != f"{SERVICE}.pid")
+    supervise.stop_many(run_dir, others)
+    _write_state(run_dir, state)  # only once the services are down, so status never says stopped too early
+    supervise.stop(run_dir, SERVICE)  # our own supervisor last: this ends the process
+
+
+def _power_off(run_dir: Path, state: IdleState) -> None:
+    _write_state(run_dir, state)
+    command = ["shutdown", "-h", "now"]
+    subprocess.run(command if os.geteuid() == 0 else ["sudo", "-n", *command], check=False)
+
+
+POWER: dict[str, Callable[[Path, IdleState], None]] = {"services": _stop_services, "machine": _power_off}
+
+
+def watch(*, stats_file: Path, run_dir: Path, idle_s: float, action: str, power: str,
+          clock: Callable[[], float] = time.time, sleep: Callable[[float], None] = time.sleep) -> IdleState:
+    """Poll until idle for ``idle_s``, record it, then stop the way ``power`` says."""
+    stop = POWER[power]
+    idle = IdleClock(idle_s, clock())
+    while True:
+        now = clock()
+        idle.observe(_snapshot(stats_file), now)
+        since = idle.idle_since(now)
+        if idle.due(now):
+            state = IdleState(idle_since=since, stops_at=now, stopped_at=now, action=action)
+            stop(run_dir, state)
+            return state
+        _write_state(run_dir, IdleState(idle_since=since, stops_at=idle.last_active + idle_s, action=action))
+        sleep(_POLL_S)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m fogiac.provision.autostop", description=__doc__.splitlines()[0])
+    parser.add_argument("--stats", type=Path, required=True, help="the relay cloud end's --stats-file")
+    parser.add_argument("--run", type=Path, required=True, help="the supervisor's run folder")
+    parser.add_argument("--idle-s", type=float, required=True)
+    parser.add_argument("--action", choices=("stop", "terminate"), default="stop")
+    parser.add_argument("--power", choices=tuple(POWER), required=True)
+    args = parser.parse_args(argv)
+    watch(stats_file=args.stats, run_dir=args.run, idle_s=args.idle_s, action=args.action, power=args.power)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,128 @@
+"""Machines by requirement: the cheapest catalogue type that fits, ties, and 'nothing fits' in one line."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+
+from fogiac.errors import ManifestError
+from fogiac.manifest.schema import parse_manifest
+from fogiac.plan.compile import compile_plan
+from fogiac.plan.machines import Bound, NoMachine, Requirement, choose, parse_bound
+
+
+def req(gpu: bool | str | None = None, vcpus: str | None = None, memory: str | None = None) -> Requirement:
+    return Requirement(gpu=gpu, vcpus=parse_bound(vcpus) if vcpus else None,
+                       memory_gib=parse_bound(memory) if memory else None)
+
+
+# (requirement, region, chosen, the two alternatives) -- prices from the checked-in catalogue
+CHEAPEST = [
+    (req(gpu="T4", vcpus=">=8", memory=">=16"), "us-west-2", "g4dn.2xlarge", ("g4dn.4xlarge", "g4dn.8xlarge")),
+    (req(gpu="t4"), "us-east-1", "g4dn.xlarge", ("g4dn.2xlarge", "g4dn.4xlarge")),
+    (req(gpu=True), "us-west-2", "g4dn.xlarge", ("g4dn.2xlarge", "g5.xlarge")),
+    (req(gpu="NVIDIA A10G", memory="32"), "us-west-2", "g5.2xlarge", ("g5.4xlarge", "g5.8xlarge")),
+    (req(gpu="V100"), "us-west-2", "p3.2xlarge", ("p3.8xlarge",)),
+    (req(vcpus="2", memory=">=1"), "us-west-2", "t3.micro", ("t3.small", "t3.medium")),
+    (req(vcpus=">=64"), "us-west-2", "c6i.16xlarge", ("c5.18xlarge", "m5.16xlarge")),
+    (req(vcpus="==4", memory="<=8"), "us-west-2", "c5.xlarge", ("c6i.xlarge",)),
+    (req(vcpus=">2", memory="<16"), "us-west-2", "c5.xlarge", ("c6i.xlarge",)),
+]
+
+
+@pytest.mark.parametrize(("requirement", "region", "chosen", "alternatives"), CHEAPEST)
+def test_cheapest_match_and_next_two(requirement: Requirement, region: str, chosen: str,
+                                     alternatives: tuple[str, ...]) -> None:
+    choice = choose(requirement, region)
+    assert choice.machine == chosen
+    assert tuple(o.name for o in choice.alternatives) == alternatives
+    prices = [choice.usd_per_hour] + [o.usd_per_hour for o in choice.alternatives]
+    assert prices == sorted(prices)
+
+
+# Equal prices: the smaller machine first, then the name (c5.2xlarge and c6i.2xlarge are both $0.34, 8 vCPU, 16 GiB).
+TIES = [
+    (req(vcpus="==8", memory="==16"), "c5.2xlarge", ("c6i.2xlarge",)),
+    (req(vcpus=">=48", memory="<=96"), "c5.12xlarge", ("c6i.12xlarge",)),
+    (req(vcpus="==96", memory="192"), "c5.24xlarge", ("c6i.24xlarge", "m5.24xlarge")),
+]
+
+
+@pytest.mark.parametrize(("requirement", "chosen", "alternatives"), TIES)
+def test_ties_go_to_the_smaller_then_the_name(requirement: Requirement, chosen: str,
+                                              alternatives: tuple[str, ...]) -> None:
+    choice = choose(requirement, "us-west-2")
+    assert (choice.machine, tuple(o.name for o in choice.alternatives)) == (chosen, alternatives)
+
+
+NOTHING = [
+    (req(gpu="A100"), r"^no instance type in us-west-2 has gpu A100; closest: g4dn\.xlarge \(1x NVIDIA T4, "
+                      r"4 vCPU, 16 GiB, \$0\.526/h\), g4dn\.2xlarge .*, g5\.xlarge \(1x NVIDIA A10G, .*\)$"),
+    (req(gpu="T4", vcpus=">=200"), r"^no instance type in us-west-2 has gpu T4, vcpus >= 200; "
+                                   r"closest: g4dn\.16xlarge .*, g4dn\.12xlarge .*, g4dn\.8xlarge .*$"),
+    (req(vcpus=">=8", memory="<2"), r"^no instance type in us-west-2 has vcpus >= 8, memory_gib < 2; closest: "),
+]
+
+
+@pytest.mark.parametrize(("requirement", "message"), NOTHING)
+def test_nothing_matches_names_the_closest_in_one_line(requirement: Requirement, message: str) -> None:
+    with pytest.raises(NoMachine, match=message) as info:
+        choose(requirement, "us-west-2")
+    assert "\n" not in str(info.value)
+    assert str(info.value).count("$") == 3
+
+
+@pytest.mark.parametrize(("text", "bound"), [
+    ("8", Bound(">=", 8)), (">=8", Bound(">=", 8)), ("< 64", Bound("<", 64)), ("==16", Bound("==", 16)),
+    (16, Bound(">=", 16)), (7.5, Bound(">=", 7.5)), (" <= 0.5 ", Bound("<=", 0.5)),
+])
+def test_bounds(text: str | int | float, bound: Bound) -> None:
+    assert parse_bound(text) == bound
+
+
+@pytest.mark.parametrize("text", ["about 8", "=>8", "", ">=", True, "8 GiB"])
+def test_bad_bounds_say_the_forms(text: str | bool) -> None:
+    with pytest.raises(ValueError, match=r"is not a bound; write a number or e\.g\. '>=8', '<=64', '==16'$"):
+        parse_bound(text)
+
+
+def manifest(machine: str, *, extra: str = "") -> str:
+    return f"name: req\nnodes:\n  - name: planner\n    machine: {machine}\n    image: ros:noetic\n{extra}"
+
+
+def test_compile_resolves_and_the_plan_shows_the_menu() -> None:
+    plan = compile_plan(parse_manifest(manifest('{gpu: T4, vcpus: ">=8", memory_gib: ">=16"}')))
+    host = plan.host("planner")
+    assert (host.machine, host.vcpus, host.gpus, host.usd_per_hour) == ("g4dn.2xlarge", 8, 1, 0.752)
+    assert host.chosen_for == "gpu T4, vcpus >= 8, memory_gib >= 16"
+    assert [(o.name, o.usd_per_hour) for o in host.alternatives] == [("g4dn.4xlarge", 1.204), ("g4dn.8xlarge", 2.176)]
+    assert plan.node("planner").gpu  # a GPU requirement means the node runs with the GPU
+    assert plan.cost[0].item == "instance planner (g4dn.2xlarge)"
+
+
+def test_node_gpu_flag_asks_for_any_gpu() -> None:
+    plan = compile_plan(parse_manifest(manifest("{vcpus: 8}", extra="    gpu: true\n")))
+    assert plan.host("planner").machine == "g4dn.2xlarge"
+
+
+def test_plain_type_name_keeps_working_and_has_no_menu() -> None:
+    for spelling in ("g5.xlarge", "{type: g5.xlarge}"):
+        host = compile_plan(parse_manifest(manifest(spelling))).host("planner")
+        assert (host.machine, host.chosen_for, host.alternatives) == ("g5.xlarge", None, ())
+
+
+@pytest.mark.parametrize(("machine", "message"), [
+    ("{gpu: A100}", "nodes[0].machine: no instance type in us-west-2 has gpu A100; closest: g4dn.xlarge"),
+    ("{type: c5.large, vcpus: 4}", "nodes[0].machine: give either type or requirements (vcpus), not both"),
+    ("{}", "nodes[0].machine: needs a type or at least one of gpu, vcpus, memory_gib"),
+    ("{vcpu: 8}", "nodes[0].machine.vcpu: unknown key; did you mean 'vcpus'?"),
+    ('{vcpus: "about 8"}', "nodes[0].machine.vcpus: 'about 8' is not a bound"),
+    ("{type: c5.lrge}", "nodes[0].machine.type: 'c5.lrge' is not a known instance type; did you mean 'c5.large'?"),
+])
+def test_manifest_errors_are_one_line_at_the_machine(machine: str, message: str) -> None:
+    with pytest.raises(ManifestError) as info:
+        parse_manifest(manifest(machine), source="m.yaml")
+    lines = str(info.value).splitlines()
+    assert len(lines) == 1
+    assert re.match(r"^m\.yaml:4: " + re.escape(message), lines[0]), lines[0]

@@ -15,11 +15,19 @@ from pathlib import Path
 from typing import Any
 
 from fogiac import __version__
+from fogiac.net import middleware
 from fogiac.plan import cost
 from fogiac.plan.model import Plan
 
 FORMAT_VERSION = 1
 APPLIED_FILE = "applied.json"  # in stack_dir(stack): the document of the last successful up
+
+
+def middleware_doc(plan: Plan) -> dict[str, Any]:
+    """Which middleware carries the topics, and what it runs on each side."""
+    carrier = middleware.get(plan.middleware)
+    return {"name": carrier.name, "ros_distro": plan.ros_distro, "port": carrier.port, "label": carrier.label,
+            "edge": carrier.edge_side, "cloud": carrier.cloud_side}
 
 
 def document(plan: Plan, resources: Sequence[Mapping[str, Any]], *, manifest_path: str,
@@ -31,6 +39,7 @@ def document(plan: Plan, resources: Sequence[Mapping[str, Any]], *, manifest_pat
         "region": plan.region,
         "zone": plan.zone,
         "mode": plan.mode,
+        "middleware": middleware_doc(plan),
         "stacks": list(dict.fromkeys(str(r["stack"]) for r in resources)),  # in the order the target declares
         "resources": [dict(r) for r in resources],
         "hosts": cost.hosts(plan),

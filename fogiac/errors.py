@@ -15,9 +15,10 @@ problem for a :class:`ManifestError`) and exits 1. Anything else escaping is a b
     ├── ProvisionError         a host could not be provisioned
     │   └── HostKeyError       a host presented a key other than the recorded one
     ├── RelayError             the relay could not start or lost its peer for good
+    ├── ZenohError             a Zenoh router could not open (bad config, certificate, port)
     ├── VpnError               OpenVPN could not be set up
     ├── WorkloadError          a workload's input is unusable
-    └── MissingExtra           an optional dependency (fogiac[aws], [ssh], [workloads]) is not installed
+    └── MissingExtra           an optional dependency (fogiac[aws], [ssh], [ros2], [workloads]) is not installed
 """
 
 from __future__ import annotations
@@ -74,6 +75,10 @@ class HostKeyError(ProvisionError):
 
 
 class RelayError(FogiacError):
+    pass
+
+
+class ZenohError(FogiacError):
     pass
 
 

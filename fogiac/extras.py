@@ -18,6 +18,7 @@ from fogiac.errors import MissingExtra
 EXTRAS: dict[str, str] = {
     "boto3": "aws", "botocore": "aws", "pulumi": "aws", "pulumi_aws": "aws",
     "fabric": "ssh", "paramiko": "ssh",
+    "zenoh": "ros2", "zenoh_ros2_sdk": "ros2",
     "torch": "workloads", "ompl": "workloads", "fcl": "workloads", "trimesh": "workloads",
     "matplotlib": "workloads", "numpy": "workloads",
 }

@@ -29,7 +29,7 @@ def test_layout_has_sites_machines_nodes_and_topic_arrows() -> None:
     assert to_cloud.x1 > to_cloud.x0 and to_edge.x1 < to_edge.x0
     assert to_cloud.label.splitlines() == ["/depth/camera_info", "/depth/image"]
     assert to_edge.label.splitlines() == ["/grasp", "/grasp/compute_time", "/grasp/quality"]
-    assert shape.caption == "grasp-planning-dev: 1 host(s), AWS Client VPN + relay (mTLS), $0.68/h"
+    assert shape.caption == "grasp-planning-dev: 1 host(s), fogiac relay through AWS Client VPN, $0.68/h"
 
 
 def test_cli_writes_svg_and_png(tmp_path: Path) -> None:

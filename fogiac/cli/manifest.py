@@ -10,6 +10,7 @@ import typer
 from fogiac.cli._common import MANIFEST, TARGET, load
 from fogiac.errors import FogiacError
 from fogiac.manifest.schema import json_schema, parse_manifest
+from fogiac.net import middleware
 from fogiac.plan.catalog import catalog
 from fogiac.plan.compile import compile_plan
 from fogiac.state import write_text_atomic
@@ -78,6 +79,9 @@ def cost(manifest: Path = MANIFEST, target: str | None = TARGET) -> None:
     out.add_row("total", f"{total:.4f}", f"{total * 24:.2f}", f"{total * 720:.2f}", style="bold")
     screen = console()
     screen.print(out)
+    carrier = middleware.get(plan.middleware)
+    screen.print(f"ROS {plan.ros_distro} via {carrier.label}; edge: {carrier.edge_side}; "
+                 f"each host: {carrier.cloud_side} (no charge beyond the hosts)", markup=False)
     screen.print(f"prices: {catalog().source} ({catalog().as_of})", markup=False, style="dim")
 
 

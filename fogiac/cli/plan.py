@@ -80,6 +80,9 @@ def _render(doc: dict[str, Any]) -> None:
     out = console()
     where = f", region {doc['region']}, mode {doc['mode']}" if doc["resources"] else ""
     out.print(f"[bold]fogiac plan[/] {doc['stack']}: target {doc['target']}{where}")
+    carrier = doc["middleware"]
+    out.print(f"ROS {carrier['ros_distro']} via {escape(carrier['label'])}\n  edge: {escape(carrier['edge'])}\n"
+              f"  each host: {escape(carrier['cloud'])}, port {carrier['port']}", highlight=False)
     if not doc["resources"]:
         out.print(f"no cloud resources (target {doc['target']})")
     for stack in doc["stacks"]:

@@ -17,6 +17,7 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationErr
 
 from fogiac.errors import ManifestError
 from fogiac.manifest.problems import FieldProblem, format_errors, line_index, parse_yaml
+from fogiac.net import middleware
 from fogiac.plan.catalog import catalog
 from fogiac.plan.machines import Choice, NoMachine, Requirement, choose, parse_bound
 
@@ -50,8 +51,14 @@ def _dns_name(value: str) -> str:
 DnsName = Annotated[str, AfterValidator(_dns_name)]
 
 
+Distro = Literal["noetic", "humble", "jazzy", "kilted"]  # each served by one middleware (fogiac.net.middleware)
+
+
 class Ros(_Model):
-    distro: Literal["noetic"] = Field(default="noetic", description="ROS distribution (ROS 1 noetic for now).")
+    distro: Distro = Field(
+        default="noetic",
+        description="ROS distribution: noetic (ROS 1, fogiac's relay) or humble, jazzy, kilted (ROS 2, Zenoh).",
+    )
 
 
 class HostMachine(_Model):
@@ -355,6 +362,14 @@ class Manifest(_Model):
             if node.host is not None and node.host not in host_names:
                 raise FieldProblem(
                     f"{node.host!r} is not in cloud.hosts", field=f"nodes[{i}].host", choices=tuple(host_names)
+                )
+        chosen = middleware.for_distro(self.ros.distro)
+        for i, node in enumerate(self.nodes):
+            if chosen.needs_listed_topics and node.topics == "auto":
+                raise FieldProblem(
+                    f"ROS {self.ros.distro} crosses through {chosen.name}, whose access control allows only listed "
+                    "topics: give this node topics: {in: [...], out: [...]}",
+                    field=f"nodes[{i}].topics",
                 )
         return self
 

@@ -1,17 +1,18 @@
 """Manifest -> Plan: a pure, deterministic function. No network, no engine, no files.
 
 Everything later stages decide from the manifest is decided here once: the stack's name and
-tags, the nodes, the relay routes and the hourly cost. Where the hosts are, what network they
-sit in and what they cost is the target's part (:class:`fogiac.plan.placement.Placement`),
-asked of the target registry, so a new target never edits this module.
+tags, the nodes, the middleware (from the ROS distribution), the routes and the hourly cost.
+Where the hosts are, what network they sit in and what they cost is the target's part
+(:class:`fogiac.plan.placement.Placement`), asked of the target registry, so a new target never
+edits this module.
 """
 
 from __future__ import annotations
 
 from fogiac import targets
 from fogiac.manifest.schema import Manifest, Node
+from fogiac.net import middleware
 from fogiac.plan.model import (
-    RELAY_PORT,
     ConnectVia,
     HostSpec,
     LaunchSpec,
@@ -30,6 +31,7 @@ def stack_name(manifest: Manifest, environment: str = "dev") -> str:
 def compile_plan(manifest: Manifest, *, target: str | None = None, environment: str = "dev") -> Plan:
     """Compile ``manifest`` for ``target`` (default: the manifest's own provider)."""
     chosen = targets.get(target or manifest.cloud.provider)
+    carrier = middleware.for_distro(manifest.ros.distro)
     stack = stack_name(manifest, environment)
     tags = (("fogiac:stack", stack), ("fogiac:manifest", manifest.name)) + tuple(sorted(manifest.tags.items()))
     placed = chosen.place(manifest, stack=stack, tags=tags)
@@ -45,6 +47,7 @@ def compile_plan(manifest: Manifest, *, target: str | None = None, environment: 
         zone=manifest.cloud.zone or f"{manifest.cloud.region}a",
         zone_chosen=manifest.cloud.zone is not None,
         ros_distro=manifest.ros.distro,
+        middleware=carrier.name,
         mode=placed.mode,
         edge_master=manifest.edge.ros_master,
         ssh_from=ssh_sources(manifest),
@@ -53,7 +56,7 @@ def compile_plan(manifest: Manifest, *, target: str | None = None, environment: 
         vpn=placed.vpn,
         hosts=placed.hosts,
         nodes=nodes,
-        relay=tuple(_route(manifest, host, nodes, placed.connect_via) for host in placed.hosts),
+        relay=tuple(_route(manifest, host, nodes, placed.connect_via, carrier.port) for host in placed.hosts),
         tags=tags,
         cost=placed.cost,
         autostop=placed.autostop,
@@ -87,7 +90,8 @@ def _node(node: Node, host: str) -> NodeSpec:
     )
 
 
-def _route(manifest: Manifest, host: HostSpec, nodes: tuple[NodeSpec, ...], via: ConnectVia) -> RelayRoute:
+def _route(manifest: Manifest, host: HostSpec, nodes: tuple[NodeSpec, ...], via: ConnectVia,
+           port: int) -> RelayRoute:
     mine = [n for n in nodes if n.host == host.name]
     relay = manifest.relay
     listed = relay.topics if relay.topics != "auto" else ()
@@ -99,7 +103,7 @@ def _route(manifest: Manifest, host: HostSpec, nodes: tuple[NodeSpec, ...], via:
     return RelayRoute(
         host=host.name,
         connect_via=via,
-        port=RELAY_PORT,
+        port=port,
         auto=relay.topics == "auto" and any(n.topics_auto for n in mine),
         to_cloud=to_cloud,
         to_edge=to_edge,

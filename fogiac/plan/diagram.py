@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from fogiac.extras import need
+from fogiac.net import middleware
 from fogiac.plan.model import HostSpec, Plan
 
 
@@ -54,9 +55,10 @@ def _hardware(host: HostSpec) -> str:
 def layout(plan: Plan) -> Drawing:
     row_h, gap = 2.7, 0.9
     height = max(4.0, len(plan.hosts) * (row_h + gap) + 1.2)
-    link = {"vpn": "AWS Client VPN + relay (mTLS)", "proxy": "relay over mutual TLS", "relay": "relay over mutual TLS"}
+    carrier = middleware.get(plan.middleware)
+    link = carrier.label.split(":")[0] + (" through AWS Client VPN" if plan.vpn is not None else "")
     boxes = [
-        Box(0.3, 0.3, 3.8, height - 0.6, "edge (robot)", (plan.edge_master, "fogiac relay: edge end"), "site"),
+        Box(0.3, 0.3, 3.8, height - 0.6, "edge (robot)", (f"ROS {plan.ros_distro}", carrier.edge_side[:40]), "site"),
         Box(9.6, 0.3, 8.2, height - 0.6, f"cloud: {plan.target}",
             (plan.region if plan.network is not None else "",), "site"),
     ]
@@ -78,7 +80,7 @@ def layout(plan: Plan) -> Drawing:
         outs = "\n".join(route.to_edge + auto)
         arrows.append(Arrow(4.1, y + 0.4, 9.9, y + 0.4, ins))
         arrows.append(Arrow(9.9, y - 0.4, 4.1, y - 0.4, outs))
-    caption = f"{plan.stack}: {len(plan.hosts)} host(s), {link.get(plan.mode, plan.mode)}"
+    caption = f"{plan.stack}: {len(plan.hosts)} host(s), {link}"
     if plan.hourly_usd:
         caption += f", ${plan.hourly_usd:.2f}/h"
     return Drawing(18.0, height, tuple(boxes), tuple(arrows), caption)

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from fogiac import __version__
+from fogiac.net import middleware
 from fogiac.plan import cost
 from fogiac.plan.model import NodeSpec, Plan, Rule
 
@@ -60,6 +61,13 @@ def security_rules(plan: Plan) -> list[dict[str, str]]:
             for direction, rules in (("ingress", group.ingress), ("egress", group.egress)) for rule in rules]
 
 
+def middleware_doc(plan: Plan) -> dict[str, Any]:
+    """Which middleware carries the topics, and what it runs on each side."""
+    carrier = middleware.get(plan.middleware)
+    return {"name": carrier.name, "ros_distro": plan.ros_distro, "port": carrier.port, "label": carrier.label,
+            "edge": carrier.edge_side, "cloud": carrier.cloud_side}
+
+
 def document(plan: Plan, resources: Sequence[Mapping[str, Any]], *, manifest_path: str,
              manifest_sha256: str) -> dict[str, Any]:
     body = {
@@ -70,6 +78,7 @@ def document(plan: Plan, resources: Sequence[Mapping[str, Any]], *, manifest_pat
         "zone": plan.zone,
         "mode": plan.mode,
         "edge_master": plan.edge_master,
+        "middleware": middleware_doc(plan),
         "stacks": list(dict.fromkeys(str(r["stack"]) for r in resources)),  # in the order the target declares
         "resources": [dict(r) for r in resources],
         "hosts": cost.hosts(plan),

@@ -161,7 +161,7 @@ class HostSpec:
 
 @dataclass(frozen=True)
 class RelayRoute:
-    """The relay pair between the edge master and one host."""
+    """What crosses between the edge and one host, and where the edge dials it (relay or Zenoh router)."""
 
     host: str
     connect_via: ConnectVia  # private (through the VPN), public (proxy mode), address (hosts), loopback (local)
@@ -207,6 +207,7 @@ class Plan:
     zone: str
     zone_chosen: bool  # True when the manifest named the zone
     ros_distro: str
+    middleware: str  # fogiac.net.middleware's name for what carries topics across (relay, zenoh)
     mode: NetworkMode
     edge_master: str
     ssh_from: tuple[str, ...]

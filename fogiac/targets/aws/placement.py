@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 from fogiac.manifest.schema import Manifest
+from fogiac.net import middleware
 from fogiac.plan.catalog import catalog
 from fogiac.plan.model import (
-    RELAY_PORT,
     ROS_EPHEMERAL,
     ROS_MASTER_PORT,
     SSH_PORT,
@@ -52,7 +52,10 @@ def _network(manifest: Manifest) -> NetworkSpec:
 
 
 def _firewall(manifest: Manifest, ssh_from: tuple[str, ...], *, vpn_mode: bool) -> tuple[SecurityGroup, ...]:
-    """Least privilege: SSH from ssh_from only; ROS and relay ports from the VPC (and VPN clients)."""
+    """Least privilege: SSH from ssh_from only; ROS and the middleware's port from the VPC (and VPN
+    clients); in proxy mode the middleware's port also from ssh_from, never from the world."""
+    carrier = middleware.for_distro(manifest.ros.distro)
+    port, what = carrier.port, carrier.rule_description
     inside = [str(manifest.network.vpc_cidr)]
     if vpn_mode:
         inside.append(str(manifest.network.client_cidr))
@@ -61,13 +64,13 @@ def _firewall(manifest: Manifest, ssh_from: tuple[str, ...], *, vpn_mode: bool) 
         ingress += [
             Rule("tcp", ROS_MASTER_PORT, ROS_MASTER_PORT, cidr, "ROS master"),
             Rule("tcp", ROS_EPHEMERAL[0], ROS_EPHEMERAL[1], cidr, "ROS node ports (TCPROS, XML-RPC)"),
-            Rule("tcp", RELAY_PORT, RELAY_PORT, cidr, "fogiac relay (mutual TLS)"),
+            Rule("tcp", port, port, cidr, what),
         ]
     if not vpn_mode:
-        ingress += [Rule("tcp", RELAY_PORT, RELAY_PORT, cidr, "fogiac relay from the edge") for cidr in ssh_from]
+        ingress += [Rule("tcp", port, port, cidr, f"{what} from the edge") for cidr in ssh_from]
     hosts = SecurityGroup(
         name="hosts",
-        description="fogiac hosts: SSH from the operator, ROS and relay from inside only",
+        description=f"fogiac hosts: SSH from the operator, ROS and {carrier.name} from inside only",
         ingress=tuple(ingress),
         egress=(Rule("-1", 0, 0, _WORLD, "updates, images and packages"),),
     )

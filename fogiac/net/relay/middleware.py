@@ -1,0 +1,22 @@
+"""The relay as a :class:`fogiac.net.middleware.Middleware`: ROS 1's way across."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from fogiac.net.relay.config import RELAY_PORT
+
+
+@dataclass(frozen=True)
+class RelayMiddleware:
+    name: str = "relay"
+    distros: tuple[str, ...] = ("noetic",)
+    port: int = RELAY_PORT
+    label: str = "fogiac relay: ROS 1 topics over one mutual-TLS link the edge opens"
+    edge_side: str = "fogiac relay, edge end (dials out)"
+    cloud_side: str = "fogiac relay, cloud end"
+    rule_description: str = "fogiac relay (mutual TLS)"
+    needs_listed_topics: bool = False  # the relay discovers topics from both masters
+
+
+RELAY = RelayMiddleware()

@@ -1,0 +1,48 @@
+"""A Zenoh router in a Python process, for machines without ``zenohd`` (the robot, tests).
+
+``python -m fogiac.net.zenoh.router CONFIG.json`` opens a session in router mode with a config
+that :mod:`fogiac.net.zenoh.config` rendered and serves until SIGTERM or SIGINT. eclipse-zenoh
+is an optional extra (``fogiac[ros2]``), imported through :func:`fogiac.extras.need`.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import sys
+import threading
+from pathlib import Path
+from typing import Any
+
+from fogiac.errors import ZenohError
+from fogiac.extras import need
+
+
+def open_router(config: dict[str, Any]) -> Any:
+    """An open zenoh ``Session`` in router mode; close it to stop routing."""
+    zenoh = need("zenoh", extra="ros2")
+    try:
+        return zenoh.open(zenoh.Config.from_json5(json.dumps(config)))
+    except zenoh.ZError as err:
+        raise ZenohError(f"zenoh router: {err}") from None
+
+
+def serve(config_path: Path) -> None:
+    config = json.loads(config_path.read_text())
+    stop = threading.Event()
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(sig, lambda *_: stop.set())
+    session = open_router(config)
+    print("ready", flush=True)
+    try:
+        stop.wait()
+    finally:
+        session.close()
+
+
+if __name__ == "__main__":
+    try:
+        serve(Path(sys.argv[1]))
+    except (ZenohError, OSError, ValueError, IndexError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        sys.exit(1)

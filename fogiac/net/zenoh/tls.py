@@ -1,0 +1,52 @@
+"""Certificates for Zenoh routers: one per cloud host and one for the edge, all from fogiac's CA.
+
+A cloud router's certificate names the address the edge dials (the edge checks it:
+``verify_name_on_connect``); the edge's carries the common name the cloud routers' access
+control recognises. Keys are written 0600 (:func:`fogiac.certs.write_private`).
+"""
+
+from __future__ import annotations
+
+import ipaddress
+from pathlib import Path
+
+from fogiac.certs import KeyPair, issue, write_private
+from fogiac.net.zenoh.config import TlsFiles
+
+
+def host_name(stack: str, host: str) -> str:
+    return f"{host}.router.{stack}.fogiac"
+
+
+def edge_name(stack: str) -> str:
+    return f"edge.router.{stack}.fogiac"
+
+
+def _is_ip(address: str) -> bool:
+    try:
+        ipaddress.ip_address(address)
+    except ValueError:
+        return False
+    return True
+
+
+def host_pair(ca: KeyPair, *, stack: str, host: str, address: str) -> KeyPair:
+    """The cloud router's certificate for ``host``, valid for ``address`` (an IP or a DNS name)."""
+    name = host_name(stack, host)
+    ips = (address,) if _is_ip(address) else ()
+    dns = (name,) if ips else (name, address)
+    return issue(ca, name, server=True, dns_names=dns, ip_addresses=ips)
+
+
+def edge_pair(ca: KeyPair, *, stack: str) -> KeyPair:
+    return issue(ca, edge_name(stack), server=False)
+
+
+def write_files(directory: Path, name: str, pair: KeyPair, ca: KeyPair) -> TlsFiles:
+    """Write ``name``.pem/.key and ca.pem under ``directory``; the paths a router config names."""
+    directory.mkdir(parents=True, exist_ok=True)
+    cert, key, ca_file = directory / f"{name}.pem", directory / f"{name}.key", directory / "ca.pem"
+    write_private(key, pair.key_pem)
+    cert.write_bytes(pair.cert_pem)
+    ca_file.write_bytes(ca.cert_pem)
+    return TlsFiles(ca=str(ca_file), cert=str(cert), key=str(key))

@@ -1,0 +1,100 @@
+"""Zenoh's part of the plan and its rendered router configs: pure, no router needed."""
+
+from __future__ import annotations
+
+import ipaddress
+from pathlib import Path
+
+import pytest
+from cryptography import x509
+
+from fogiac.certs import new_ca
+from fogiac.errors import ManifestError, PlanError
+from fogiac.manifest.schema import load_manifest, parse_manifest
+from fogiac.net import middleware
+from fogiac.net.zenoh import tls
+from fogiac.net.zenoh.config import TlsFiles, access_control, cloud_router, edge_router, topic_key
+from fogiac.net.zenoh.middleware import ROUTER_PORT
+from fogiac.plan.compile import compile_plan
+from fogiac.plan.model import OPERATOR
+from tests.conftest import EXAMPLES
+from tests.net.zenoh.lab import route
+
+FILES = TlsFiles(ca="/etc/fogiac/ca.pem", cert="/etc/fogiac/router.pem", key="/etc/fogiac/router.key")
+
+
+def test_each_distro_has_one_middleware() -> None:
+    assert middleware.for_distro("noetic").name == "relay"
+    assert {middleware.for_distro(d).name for d in ("humble", "jazzy", "kilted")} == {"zenoh"}
+    assert set(middleware.distros()) == {"noetic", "humble", "jazzy", "kilted"}
+    with pytest.raises(PlanError, match="no middleware serves ROS 'iron'; served: humble, jazzy, kilted, noetic"):
+        middleware.for_distro("iron")
+
+
+def test_a_topic_key_matches_exactly_that_topic() -> None:
+    assert topic_key("/camera/image") == "*/camera/image/*/*"  # domain / topic / type / type hash
+
+
+def test_access_control_denies_by_default_and_allows_each_topic_in_its_direction_only() -> None:
+    acl = access_control(route(7448, to_cloud=("/scan",), to_edge=("/plan",)), edge_name="edge.x")
+    assert acl["enabled"] and acl["default_permission"] == "deny"
+    rules = {r["id"]: r for r in acl["rules"]}
+    assert rules["to-cloud-data"] == {"id": "to-cloud-data", "permission": "allow", "flows": ["ingress"],
+                                      "messages": ["put", "delete"], "key_exprs": ["*/scan/*/*"]}
+    assert rules["to-edge-data"]["flows"] == ["egress"] and rules["to-edge-data"]["key_exprs"] == ["*/plan/*/*"]
+    assert rules["to-cloud-interest"]["messages"] == ["declare_subscriber"]
+    edge = next(p for p in acl["policies"] if p["subjects"] == ["edge"])
+    data_keys = {k for r in acl["rules"] if r["id"] in edge["rules"] for k in r["key_exprs"]}
+    assert data_keys == {"*/scan/*/*", "*/plan/*/*", "@ros2_lv/**"}  # nothing else, no wildcard for data
+    subjects = {s["id"]: s for s in acl["subjects"]}
+    assert subjects["edge"] == {"id": "edge", "link_protocols": ["tls"], "cert_common_names": ["edge.x"]}
+
+
+def test_the_cloud_router_listens_with_mutual_tls_and_the_edge_router_only_dials_out() -> None:
+    cloud = cloud_router(route(7448), listen_host="10.10.0.5", tls=FILES, edge_name="edge.x", local_port=7447)
+    assert cloud["mode"] == "router"
+    assert cloud["listen"]["endpoints"] == ["tls/10.10.0.5:7448", "tcp/127.0.0.1:7447"]
+    assert cloud["transport"]["link"]["tls"] == {
+        "root_ca_certificate": FILES.ca, "listen_private_key": FILES.key, "listen_certificate": FILES.cert,
+        "enable_mtls": True, "verify_name_on_connect": True,
+    }
+    edge = edge_router([("10.10.0.5", 7448), ("10.10.0.6", 7448)], tls=FILES, local_port=7447)
+    assert edge["connect"]["endpoints"] == ["tls/10.10.0.5:7448", "tls/10.10.0.6:7448"]
+    assert edge["listen"]["endpoints"] == ["tcp/127.0.0.1:7447"]  # for the robot's nodes, nothing else
+    assert edge["transport"]["link"]["tls"]["connect_certificate"] == FILES.cert
+    assert "access_control" not in edge
+    for config in (cloud, edge):
+        assert config["scouting"]["multicast"]["enabled"] is False
+        assert config["scouting"]["gossip"]["autoconnect"]["router"] == []  # routers dial only what they are told
+
+
+def test_one_certificate_per_host_naming_the_address_the_edge_dials(tmp_path: Path) -> None:
+    ca = new_ca("fogiac CA s")
+    pair = tls.host_pair(ca, stack="s", host="gpu", address="203.0.113.7")
+    cert = x509.load_pem_x509_certificate(pair.cert_pem)
+    san = cert.extensions.get_extension_for_class(x509.SubjectAlternativeName).value
+    assert san.get_values_for_type(x509.IPAddress) == [ipaddress.ip_address("203.0.113.7")]
+    assert pair.common_name == "gpu.router.s.fogiac" != tls.host_pair(ca, stack="s", host="b", address="h").common_name
+    files = tls.write_files(tmp_path, "gpu", pair, ca)
+    assert Path(files.key).stat().st_mode & 0o777 == 0o600
+
+
+def test_a_ros2_plan_says_zenoh_and_opens_the_router_port_to_ssh_from_or_the_vpn_only() -> None:
+    manifest = load_manifest(EXAMPLES / "ros2-zenoh.yaml")
+    plan = compile_plan(manifest)
+    assert plan.middleware == "zenoh" and plan.ros_distro == "jazzy"
+    assert [(r.port, r.to_cloud, r.to_edge) for r in plan.relay] == [
+        (ROUTER_PORT, ("/camera/image_raw",), ("/detections", "/overlay"))]
+    rules = [r for g in plan.security_groups for r in g.ingress if r.from_port <= ROUTER_PORT <= r.to_port]
+    assert {r.cidr for r in rules} == {"10.10.0.0/16", "198.51.100.0/24"}  # proxy: the VPC and ssh_from
+    vpn = compile_plan(manifest.model_copy(update={"network": manifest.network.model_copy(
+        update={"mode": "vpn", "ssh_from": "auto"})}))
+    rules = [r for g in vpn.security_groups for r in g.ingress if r.from_port <= ROUTER_PORT <= r.to_port]
+    assert {r.cidr for r in rules} == {"10.10.0.0/16", "10.200.0.0/22"}  # the VPC and the VPN's clients
+    assert OPERATOR not in {r.cidr for r in rules}
+
+
+def test_ros2_nodes_must_list_their_topics(tmp_path: Path) -> None:
+    text = "name: r\nros:\n  distro: humble\nnodes:\n  - name: a\n    machine: c5.large\n    image: x\n"
+    with pytest.raises(ManifestError, match=r"<manifest>:5: nodes\[0\].topics: ROS humble crosses through zenoh"):
+        parse_manifest(text)

@@ -7,16 +7,18 @@ Resources print the way ``terraform plan`` reads in a CI log: one line each
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import typer
 from rich.markup import escape
 
-from fogiac import targets
-from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_for
-from fogiac.plan.document import APPLIED_FILE, plan_document
-from fogiac.state import read_json, stack_dir, write_json_atomic
+from fogiac import deployment, targets
+from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_deployed, compile_for
+from fogiac.plan.cost import MONTH, per_month
+from fogiac.plan.document import plan_document
+from fogiac.state import write_json_atomic
 from fogiac.tables import console, table
 
 _RULE = ("ipProtocol", "fromPort", "toPort", "cidrIpv4", "cidrIpv6")
@@ -47,12 +49,12 @@ def _short(value: Any) -> str:
     return str(value)
 
 
-def _key_inputs(resource: dict[str, Any]) -> list[str]:
+def _key_inputs(resource: Mapping[str, Any]) -> list[str]:
     inputs = resource["inputs"]
     return [f"{k}: {_short(inputs[k])}" for k in KEY_INPUTS.get(resource["type"], ()) if k in inputs]
 
 
-def _render(doc: dict[str, Any]) -> None:
+def render(doc: Mapping[str, Any]) -> None:
     out = console()
     where = f", region {doc['region']}, mode {doc['mode']}" if doc["resources"] else ""
     out.print(f"[bold]fogiac plan[/] {doc['stack']}: target {doc['target']}{where}")
@@ -84,7 +86,7 @@ def _render(doc: dict[str, Any]) -> None:
     total = doc["cost"]["hourly_usd"]
     cost.add_row("[bold]total[/]", "", "", f"[bold]{total:.4f}[/]")
     out.print(cost)
-    out.print(f"cost: ${total:.4f} per hour (about ${total * 730:.2f} per month if left running)")
+    out.print(f"cost: ${total:.4f} per hour (about ${per_month(total):.2f} per {MONTH} if left running)")
 
 
 def plan(
@@ -98,17 +100,19 @@ def plan(
     ),
 ) -> None:
     """Show every resource, host and hourly cost the manifest implies, without touching the cloud."""
-    compiled = compile_for(manifest, env, target)
+    # Compared with what is deployed, the plan is for the target the deployment went to.
+    compiled = compile_deployed(manifest, env, target) if detailed_exitcode else compile_for(manifest, env, target)
     doc = plan_document(compiled, targets.get(compiled.target).declare(compiled), manifest=manifest)
     if out is not None:
         write_json_atomic(out, doc, mode=0o644)
     if as_json:
         typer.echo(json.dumps(doc, indent=2, sort_keys=True))
     else:
-        _render(doc)
+        render(doc)
     if detailed_exitcode:
-        applied = read_json(stack_dir(compiled.stack, create=False) / APPLIED_FILE)
-        unchanged = isinstance(applied, dict) and applied.get("plan_digest") == doc["plan_digest"]
+        record = deployment.read(compiled.stack)
+        unchanged = (record is not None and record.state == deployment.COMPLETE
+                     and record.plan_digest == doc["plan_digest"])
         raise typer.Exit(0 if unchanged else 2)
 
 

@@ -129,7 +129,7 @@ def _duration(seconds: float) -> str:
 
 
 def edge_services(plan: Plan) -> list[str]:
-    folder = edge_dir(plan)
+    folder = stack_dir(plan.stack, create=False) / EDGE_DIR  # asking creates nothing
     return sorted(p.stem for p in folder.glob("*.pid")) if folder.exists() else []
 
 

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import urlparse
 
+from fogiac import deployment
 from fogiac.certs import load_or_create_bundle
 from fogiac.errors import FogiacError, ProvisionError
 from fogiac.plan.document import APPLIED_FILE, plan_document
@@ -31,6 +32,9 @@ from fogiac.targets.base import DownOptions, DownResult, Refreshed, SweepOutcome
 DEPLOYMENT_FILE = "deployment.json"
 EDGE_DIR = "edge"
 EDGE_MASTER = "edge-master"
+# The edge relay counts directions as the edge sees them (it sends "out" what the manifest calls "in");
+# status shows them as the manifest says.
+MANIFEST_DIRECTION = {"out": "in", "in": "out", "-": "-"}
 
 
 @dataclass(frozen=True)
@@ -119,8 +123,13 @@ def provision_and_connect(plan: Plan, *, access: Mapping[str, Any], connect: Map
     return FleetUp(report=report, relays=relays, edge_master=master, deployment=deployment)
 
 
+def _duration(seconds: float) -> str:
+    minutes = int(seconds // 60)
+    return f"{minutes // 60}h{minutes % 60:02d}m" if minutes >= 60 else f"{minutes}m{int(seconds % 60):02d}s"
+
+
 def edge_services(plan: Plan) -> list[str]:
-    folder = edge_dir(plan)
+    folder = stack_dir(plan.stack, create=False) / EDGE_DIR  # asking creates nothing
     return sorted(p.stem for p in folder.glob("*.pid")) if folder.exists() else []
 
 
@@ -129,8 +138,6 @@ def stop_edge(plan: Plan, *, keep_master: bool = False) -> None:
     names = [s for s in edge_services(plan) if not (keep_master and s == EDGE_MASTER)]
     if names:
         supervise.stop_many(edge_dir(plan), names)
-
-
 
 
 class ExistingMachines:
@@ -169,30 +176,48 @@ class ExistingMachines:
 
     def up(self, plan: Plan, opts: UpOptions) -> UpResult:
         master = opts.edge_master or plan.edge_master
+        opts.show(plan_document(plan, self.declare(plan), manifest=opts.manifest_path), None)
         question = f"Deploy {len(plan.nodes)} node(s) to {len(plan.hosts)} {plan.target} host(s)?"
         if not opts.yes and not opts.confirm(question):
             raise FogiacError("not applied: nothing was changed")
         with stack_lock(plan.stack, operation="up"):
-            ensure_edge_master(plan, master, start=opts.start_edge_master)
+            before = deployment.read(plan.stack)
+            fresh = before is not None and not before.exists
+            deployment.begin(plan, opts.manifest_path)  # before anything exists, so down always finds it
+            try:
+                ensure_edge_master(plan, master, start=opts.start_edge_master)
+            except FogiacError:
+                if before is None:
+                    deployment.forget(plan.stack)
+                elif fresh:
+                    deployment.removed(plan.stack)
+                raise
             access = self.access(plan, state_dir=stack_dir(plan.stack))
             connect = {host: self.connect_address(plan, host, a) for host, a in access.items()}
             done = provision_and_connect(plan, access=access, connect=connect, master=master,
                                          started_edge_master=opts.start_edge_master)
             # What `fogiac plan` compares with (the same document it builds), as the aws target records it.
-            write_json_atomic(stack_dir(plan.stack) / APPLIED_FILE,
-                              plan_document(plan, self.declare(plan), manifest=opts.manifest_path))
+            applied = plan_document(plan, self.declare(plan), manifest=opts.manifest_path)
+            write_json_atomic(stack_dir(plan.stack) / APPLIED_FILE, applied)
+            deployment.finish(plan, opts.manifest_path, plan_digest=applied["plan_digest"])
         return UpResult(outputs={"relays": dict(done.relays)}, applied=done.deployment, report=done.report,
                         relays=done.relays, edge_master=master)
 
     def down(self, plan: Plan, opts: DownOptions) -> DownResult:
         """Stop the edge relays, tear every host down, then prove nothing is left."""
-        folder = stack_dir(plan.stack)
+        folder = stack_dir(plan.stack, create=False)
+        record = deployment.read(plan.stack)
+        if (record is None or not record.exists) and not recorded_access(folder) and not edge_services(plan):
+            return DownResult(engine_errors=(), left=(), not_checked=(), existed=False)  # and nothing created
         errors: list[str] = []
+        deleted = [f"edge process {name}" for name in edge_services(plan)
+                   if supervise.status(edge_dir(plan), name)["running"]]
         with stack_lock(plan.stack, operation="down"):
             stop_edge(plan, keep_master=True)
             try:
                 report = teardown(plan, hosts=self.access(plan, state_dir=folder), state_dir=folder)
                 errors += [f"{o.host}: {o.error}" for o in report.failed]
+                deleted += [f"{o.host} process {name}" for o in report.hosts for name in o.stopped]
             except FogiacError as err:
                 errors.append(str(err))
             stop_edge(plan)
@@ -202,39 +227,62 @@ class ExistingMachines:
             if not left and not errors:
                 (folder / DEPLOYMENT_FILE).unlink(missing_ok=True)
                 (folder / APPLIED_FILE).unlink(missing_ok=True)
-        return DownResult(engine_errors=tuple(errors), left=tuple(left), not_checked=())
+                deployment.removed(plan.stack)
+        return DownResult(engine_errors=tuple(errors), left=tuple(left), not_checked=(), deleted=tuple(deleted))
+
+    def host_address(self, plan: Plan, spec: HostSpec, entry: Any) -> str:
+        """Where a host is reached, for ``status`` (a relay's HOST:PORT on targets without SSH)."""
+        return spec.address or "-"
 
     def status(self, plan: Plan) -> dict[str, Any]:
-        """Hosts, nodes (running, restarts) and relayed topics with live figures, from the state folder."""
+        """Hosts (address, uptime, cost so far), nodes, edge processes and relayed topics, from the state folder."""
         head = {"stack": plan.stack, "target": plan.target}
         folder = stack_dir(plan.stack, create=False)
-        deployment = read_json(folder / DEPLOYMENT_FILE) if folder.exists() else None
-        if not deployment:
-            return {**head, "deployed": False, "hosts": [], "relays": []}
+        record = deployment.read(plan.stack)
+        record = record if record is not None and record.exists else None
         recorded = recorded_access(folder)
+        if record is None and not recorded:
+            return {**head, "deployed": False, "hosts": [], "relays": [], "edge": []}
+        uptime = max(0.0, time.time() - record.since_epoch) if record else 0.0
         hosts = [{"host": spec.name, "machine": spec.machine,
+                  "address": self.host_address(plan, spec, recorded.get(spec.name)),
+                  "uptime_s": round(uptime), "cost_usd": round(spec.usd_per_hour * uptime / 3600, 4),
                   "nodes": self.node_states(plan, spec, recorded.get(spec.name)),
                   "autostop": self.autostop_state(plan, spec, recorded.get(spec.name))} for spec in plan.hosts]
+        saved = (read_json(folder / DEPLOYMENT_FILE) or {}) if folder.exists() else {}
         relays = []
-        for host, connect in sorted(deployment.get("relays", {}).items()):
+        for host, connect in sorted(saved.get("relays", {}).items()):
             stats = read_json(edge_dir(plan) / f"relay-edge-{host}.stats.json") or {}
-            relays.append({"host": host, "connect": connect, **stats})
-        return {**head, "deployed": True, "edge_master": deployment.get("edge_master"), "hosts": hosts,
-                "relays": relays}
+            topics = [{**t, "direction": MANIFEST_DIRECTION.get(t.get("direction", "-"), "-")}
+                      for t in stats.get("topics", [])]
+            relays.append({"host": host, "connect": connect, **stats, "topics": topics})
+        edge = [supervise.status(edge_dir(plan), name) for name in edge_services(plan)]
+        return {**head, "deployed": True, "partial": record is None or record.partial,
+                "edge_master": saved.get("edge_master", plan.edge_master), "hosts": hosts, "relays": relays,
+                "edge": edge}
 
     def render_status(self, doc: Mapping[str, Any]) -> list[Any]:
         """Nodes with their supervision state, then relayed topics with live figures."""
         if not doc.get("deployed"):
             return [f"{doc['stack']}: not deployed"]
+        out: list[Any] = []
+        if doc.get("partial"):
+            out.append(f"{doc['stack']}: partial: the last up did not finish; `fogiac up` completes it, "
+                       "`fogiac down` removes what it started")
         nodes = table(f"{doc['stack']} ({doc['target']}), edge {doc.get('edge_master')}",
-                      "host", "machine", "node", "state", "restarts")
+                      "host", "machine", "address", "uptime", "cost so far", "node", "state", "restarts")
         for host in doc["hosts"]:
             for node in host["nodes"]:
-                state = "-" if "running" not in node else "running" if node["running"] else "failed"
-                nodes.add_row(host["host"], host["machine"], node["node"], state, str(node.get("restarts", "-")))
-        idle = [f"{host['host']}: {autostop_line(host['autostop'])}" for host in doc["hosts"] if host.get("autostop")]
-        relays = table("relayed topics", "host", "link", "topic", "dir", "msgs", "msgs/s", "KiB/s", "latency ms",
-                       "drops")
+                state = "-" if "running" not in node else "running" if node["running"] else "stopped"
+                nodes.add_row(host["host"], host["machine"], host["address"], _duration(host["uptime_s"]),
+                              f"${host['cost_usd']:.2f}", node["node"], state, str(node.get("restarts", "-")))
+        out.append(nodes)
+        out += [f"{host['host']}: {autostop_line(host['autostop'])}" for host in doc["hosts"] if host.get("autostop")]
+        running = [e for e in doc.get("edge", []) if e["running"]]
+        if running:
+            out.append("edge processes: " + ", ".join(f"{e['name']} (pid {e['pid']})" for e in running))
+        relays = table("relayed topics (direction as in the manifest: in = robot to node)", "host", "link", "topic",
+                       "dir", "msgs", "msgs/s", "KiB/s", "latency ms", "drops")
         for relay in doc["relays"]:
             rtt = f" {relay['rtt_ms']:.2f} ms" if relay.get("rtt_ms") else ""
             link = ("up" if relay.get("connected") else "down") + rtt
@@ -244,7 +292,9 @@ class ExistingMachines:
                 relays.add_row(relay["host"], link, t.get("topic", "-"), t.get("direction", "-"),
                                str(t.get("msgs", "-")), str(t.get("msgs_per_s", "-")),
                                "-" if rate is None else f"{rate / 1024:.1f}", latency, str(t.get("drops", "-")))
-        return [nodes, *idle, relays]
+        if doc["relays"]:
+            out.append(relays)
+        return out
 
     def refresh(self, plan: Plan) -> list[Refreshed]:
         return [Refreshed(plan.target, True, self.no_cloud.format(verb="refresh") + f" (target {plan.target})")]

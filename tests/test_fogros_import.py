@@ -49,7 +49,7 @@ def make_workspace(root: Path, launch_text: str = ROBOT_LAUNCH) -> Path:
 
 def test_both_kinds_of_fogros_node_import(tmp_path: Path) -> None:
     robot = make_workspace(tmp_path)
-    manifest, text = import_launch(robot)
+    manifest, text, _ = import_launch(robot)
     assert [(n.name, n.machine, n.kind) for n in manifest.nodes] == [
         ("cloud-planner", "c5.4xlarge", "launch"),
         ("dexnet", "g4dn.xlarge", "image"),

@@ -15,14 +15,36 @@ from typing import TYPE_CHECKING, Any
 import typer
 from typer.core import TyperGroup
 
+from fogiac import __version__
 from fogiac.errors import FogiacError, ManifestError
 
 if TYPE_CHECKING:
     import click
 
 
+def _flags_without_type(params: list[click.Parameter]) -> list[click.Parameter]:
+    """Rich help in typer >= 0.2x prints a type (``<bool>``) beside every option, flags included.
+
+    A flag takes no value, so it has no type to show: typer prints an option's metavar instead
+    of its type when one is set, and an empty one prints nothing.
+    """
+    for param in params:
+        if getattr(param, "is_flag", False):
+            param.metavar = ""
+    return params
+
+
+def _with_subcommands(command: click.Command | None) -> list[click.Command]:
+    if command is None:
+        return []
+    return [command, *(c for sub in getattr(command, "commands", {}).values() for c in _with_subcommands(sub))]
+
+
 class _FogiacGroup(TyperGroup):
     """Turns a FogiacError from any command into clean output and exit status 1."""
+
+    def get_params(self, ctx: click.Context) -> list[click.Parameter]:
+        return _flags_without_type(super().get_params(ctx))
 
     def invoke(self, ctx: click.Context) -> Any:
         try:
@@ -42,7 +64,10 @@ class _FogiacGroup(TyperGroup):
         module = VERBS.get(cmd_name)
         if module is None:
             return None
-        return verbs_of(module).get(cmd_name)
+        command = verbs_of(module).get(cmd_name)
+        for each in _with_subcommands(command):
+            _flags_without_type(each.get_params(ctx))
+        return command
 
 
 VERBS: dict[str, str] = {
@@ -56,7 +81,7 @@ VERBS: dict[str, str] = {
 
 def verbs_of(module: str) -> dict[str, click.Command]:
     """The click commands ``fogiac.cli.<module>`` registers, by name (imports the module)."""
-    group = typer.Typer()
+    group = typer.Typer(context_settings={"help_option_names": ["-h", "--help"]})
     importlib.import_module(f"{__name__}.{module}").register(group)
 
     @group.callback()
@@ -73,11 +98,19 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
     help="Deploy parts of a robot's ROS graph to cloud or lab machines from one manifest.",
+    context_settings={"help_option_names": ["-h", "--help"]},
 )
 
 
+def _version(shown: bool) -> None:
+    if shown:
+        typer.echo(f"fogiac {__version__}")
+        raise typer.Exit()
+
+
 @app.callback()
-def _root() -> None:
+def _root(version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                       help="Print fogiac's version and exit.")) -> None:
     """fogiac: plan before apply, undo everything on down."""
 
 

@@ -8,10 +8,11 @@ from pathlib import Path
 
 import typer
 
+from fogiac import deployment
 from fogiac.errors import FogiacError
 from fogiac.manifest.fogros import load_any
 from fogiac.manifest.schema import Manifest
-from fogiac.plan.compile import compile_plan
+from fogiac.plan.compile import compile_plan, stack_name
 from fogiac.plan.model import Plan
 
 MANIFEST = typer.Argument(Path("fogiac.yaml"), help="The manifest (fogiac.yaml) or a FogROS launch file.",
@@ -19,6 +20,7 @@ MANIFEST = typer.Argument(Path("fogiac.yaml"), help="The manifest (fogiac.yaml) 
 ENV = typer.Option("dev", "--env", help="Environment: one stack per manifest and environment.")
 TARGET = typer.Option(None, "--target", help="Where cloud nodes run: aws, hosts or local (default: the manifest's).")
 YES = typer.Option(False, "--yes", "-y", help="Do not ask.")
+FORCE = typer.Option(False, "--force", help="Take over a stack another manifest file made (same name and env).")
 
 
 def load(manifest: Path) -> Manifest:
@@ -28,6 +30,19 @@ def load(manifest: Path) -> Manifest:
 
 def compile_for(manifest: Path, env: str = "dev", target: str | None = None) -> Plan:
     return compile_plan(load(manifest), target=target, environment=env)
+
+
+def compile_deployed(manifest: Path, env: str = "dev", target: str | None = None, *, force: bool = False,
+                     has_force: bool = False, creating: bool = False) -> Plan:
+    """The plan for the target the stack was deployed to (see :mod:`fogiac.deployment`).
+
+    A ``--target`` that disagrees with the deployment, or another manifest file with the same
+    stack name, is refused in one line; nothing deployed: ``target`` or the manifest's own.
+    """
+    loaded = load(manifest)
+    chosen = deployment.choose_target(stack_name(loaded, env), manifest, target, force=force, force_hint=has_force,
+                                    creating=creating)
+    return compile_plan(loaded, target=chosen, environment=env)
 
 
 def need_yes(yes: bool, what: str) -> None:

@@ -18,17 +18,26 @@ from typing import Any
 import typer
 from rich.live import Live
 
-from fogiac import targets
-from fogiac.cli._common import ENV, MANIFEST, TARGET, YES, compile_for, need_yes
-from fogiac.errors import PreflightError
+from fogiac import deployment, targets
+from fogiac.cli._common import ENV, FORCE, MANIFEST, TARGET, YES, compile_deployed, compile_for, need_yes
+from fogiac.cli.plan import render
+from fogiac.errors import FogiacError, PreflightError
+from fogiac.plan.cost import MONTH, per_month
+from fogiac.plan.model import Plan
 from fogiac.plan.saved import check_saved_plan
 from fogiac.provision.report import report_table
 from fogiac.tables import console, table
 from fogiac.targets.aws.engine import Timers
-from fogiac.targets.base import DownOptions, UpOptions
+from fogiac.targets.base import DownOptions, Target, UpOptions
+
+INTERRUPTED = 130  # 128 + SIGINT, as a shell reports it
 
 
 def _show(doc: Mapping[str, Any], report: Any) -> None:
+    """The plan before the question: the cloud's preflight summary, or (no preflight) the plan itself."""
+    if report is None:
+        render(doc)
+        return
     out = console()
     out.print(f"[bold]{doc['stack']}[/]: {report.region} zone {report.zone}, account {report.account}, "
               f"SSH from {', '.join(report.operator_cidrs)}")
@@ -38,7 +47,7 @@ def _show(doc: Mapping[str, Any], report: Any) -> None:
     for line in doc["cost"]["lines"]:
         out.print(f"  ${line['total']:.4f}/h  {line['item']}")
     total = doc["cost"]["hourly_usd"]
-    out.print(f"[bold]cost: ${total:.4f} per hour[/] (about ${total * 730:.2f} per month if left running)")
+    out.print(f"[bold]cost: ${total:.4f} per hour[/] (about ${per_month(total):.2f} per {MONTH} if left running)")
 
 
 @contextmanager
@@ -90,19 +99,23 @@ def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str |
        start_edge_master: bool = typer.Option(False, "--start-edge-master",
                                               help="local/hosts: run the edge's roscore too if none answers (demos)."),
        edge_master: str | None = typer.Option(None, "--edge-master", help="Override edge.ros_master."),
-       infra_only: bool = typer.Option(False, "--infra-only", help="aws: create the stacks only; provision nothing.")
-       ) -> None:
+       infra_only: bool = typer.Option(False, "--infra-only", help="aws: create the stacks only; provision nothing."),
+       force: bool = FORCE) -> None:
     """Check, show the plan and its cost, ask, then create the machines and start the nodes."""
-    plan = compile_for(manifest, env, target)
+    plan = compile_deployed(manifest, env, target, force=force, has_force=True, creating=True)
     chosen = targets.get(plan.target)
     need_yes(yes, "apply")
     if plan_file is not None:
         check_saved_plan(plan_file, manifest=manifest, stack=plan.stack, target=plan.target)
-    with _one_line_each(), _Progress() as progress:
-        result = chosen.up(plan, UpOptions(
-            manifest_path=manifest, yes=yes, ssh_from=ssh_from, show=_show,
-            confirm=lambda q: typer.confirm(q, default=False), announce=lambda line: typer.echo(line, err=True),
-            on_event=progress, start_edge_master=start_edge_master, edge_master=edge_master, infra_only=infra_only))
+    try:
+        with _one_line_each(), _Progress() as progress:
+            result = chosen.up(plan, UpOptions(
+                manifest_path=manifest, yes=yes, ssh_from=ssh_from, show=_show,
+                confirm=lambda q: typer.confirm(q, default=False), announce=lambda line: typer.echo(line, err=True),
+                on_event=progress, start_edge_master=start_edge_master, edge_master=edge_master,
+                infra_only=infra_only))
+    except KeyboardInterrupt:
+        _interrupted(manifest, plan, chosen)
     if result.report is not None:
         console().print(report_table(result.report))
     for host, connect in sorted(result.relays.items()):
@@ -114,17 +127,35 @@ def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str |
     typer.echo(f"applied: {result.applied}")
 
 
+def _interrupted(manifest: Path, plan: Plan, chosen: Target) -> None:
+    """Ctrl-C during up: say what exists now and how to remove it; exit 130."""
+    record = deployment.read(plan.stack)
+    if record is None or not record.exists:
+        typer.echo("interrupted: nothing was created", err=True)
+        raise typer.Exit(INTERRUPTED)
+    typer.echo(f"interrupted: up of {plan.stack} stopped part-way; this is what it left:", err=True)
+    try:
+        console(stderr=True).print(*chosen.render_status(chosen.status(plan)))
+    except FogiacError as err:
+        typer.echo(f"(cannot list it: {err})", err=True)
+    typer.echo(f"`fogiac down {manifest}` removes it; `fogiac up {manifest}` completes it", err=True)
+    raise typer.Exit(INTERRUPTED)
+
+
 def down(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str | None = TARGET,
-         keep_network: bool = typer.Option(False, "--keep-network", help="Keep the network stack for a fast next up.")
-         ) -> None:
+         keep_network: bool = typer.Option(False, "--keep-network", help="Keep the network stack for a fast next up."),
+         force: bool = FORCE) -> None:
     """Destroy compute, then network (past errors), then sweep; exit 1 if anything is left."""
-    plan = compile_for(manifest, env, target)
+    plan = compile_deployed(manifest, env, target, force=force, has_force=True)
     chosen = targets.get(plan.target)
     need_yes(yes, "destroy")
     if not yes and not typer.confirm(f"Destroy everything of stack {plan.stack}?", default=False):
         raise typer.Exit(1)
     with _Progress() as progress:
         result = chosen.down(plan, DownOptions(keep_network=keep_network, on_event=progress))
+    if not result.existed:
+        typer.echo(f"{plan.stack}: not deployed; nothing to remove")
+        return
     for line in result.engine_errors:
         typer.echo(f"engine: {line}", err=True)
     if result.engine_errors and result.clean:
@@ -137,7 +168,8 @@ def down(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str
     if result.kept_usd_per_hour is not None:
         typer.echo(f"kept the network stack: ${result.kept_usd_per_hour:.2f}/h while kept "
                    f"(Client VPN association; VPC, subnets and gateway are free)")
-    typer.echo(f"{plan.stack}: {'nothing left' if result.clean else f'{len(result.left)} resource(s) left'}")
+    removed = f"removed {len(result.deleted)} ({', '.join(result.deleted)}); " if result.deleted else ""
+    typer.echo(f"{plan.stack}: {removed}{'nothing left' if result.clean else f'{len(result.left)} left'}")
     if not result.clean:
         raise typer.Exit(1)
 
@@ -155,7 +187,7 @@ def refresh(manifest: Path = MANIFEST, env: str = ENV, target: str | None = TARG
 def status(manifest: Path = MANIFEST, env: str = ENV, target: str | None = TARGET,
            as_json: bool = typer.Option(False, "--json", help="Print the status document.")) -> None:
     """The stack's hosts: state, type, addresses, uptime and cost so far."""
-    plan = compile_for(manifest, env, target)
+    plan = compile_deployed(manifest, env, target)
     chosen = targets.get(plan.target)
     doc = chosen.status(plan)
     if as_json:

@@ -19,9 +19,12 @@ def import_launch(
     """Write the fogiac.yaml equivalent of a FogROS launch file (other nodes stay on the robot)."""
     if out.exists() and not force:
         raise FogiacError(f"{out} exists; pass --force to overwrite it")
-    manifest, text = convert(launch, out=out)
+    manifest, text, notes = convert(launch, out=out)
     write_text_atomic(out, text)
     typer.echo(f"wrote {out}: {len(manifest.nodes)} cloud node(s) from {launch}")
+    for note in notes:
+        typer.echo(f"inferred {note}")
+    typer.echo(f"next: fogiac validate {out} && fogiac plan {out}")
 
 
 def register(app: typer.Typer) -> None:

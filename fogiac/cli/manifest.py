@@ -13,6 +13,7 @@ from fogiac.manifest.schema import json_schema, parse_manifest
 from fogiac.net import middleware
 from fogiac.plan.catalog import catalog
 from fogiac.plan.compile import compile_plan
+from fogiac.plan.cost import MONTH, per_month
 from fogiac.state import write_text_atomic
 from fogiac.tables import console, table
 
@@ -68,15 +69,15 @@ def init(
 
 
 def cost(manifest: Path = MANIFEST, target: str | None = TARGET) -> None:
-    """What the deployment costs per hour, day and 30-day month, line by line (on-demand prices)."""
+    """What the deployment costs per hour, day and month (730 h, as AWS counts), line by line (on-demand prices)."""
     plan = compile_plan(load(manifest), target=target)
-    out = table(f"{plan.stack} ({plan.target}, {plan.region})", "item", "$/hour", "$/day", "$/30 days")
+    out = table(f"{plan.stack} ({plan.target}, {plan.region})", "item", "$/hour", "$/day", f"$/{MONTH}")
     for column in out.columns[1:]:
         column.justify = "right"
     for line in plan.cost:
-        out.add_row(line.item, f"{line.total:.4f}", f"{line.total * 24:.2f}", f"{line.total * 720:.2f}")
+        out.add_row(line.item, f"{line.total:.4f}", f"{line.total * 24:.2f}", f"{per_month(line.total):.2f}")
     total = plan.hourly_usd
-    out.add_row("total", f"{total:.4f}", f"{total * 24:.2f}", f"{total * 720:.2f}", style="bold")
+    out.add_row("total", f"{total:.4f}", f"{total * 24:.2f}", f"{per_month(total):.2f}", style="bold")
     screen = console()
     screen.print(out)
     carrier = middleware.get(plan.middleware)

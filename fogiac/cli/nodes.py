@@ -16,7 +16,7 @@ import typer
 
 from fogiac import targets
 from fogiac.certs import load_or_create_bundle
-from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_for
+from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_deployed, compile_for
 from fogiac.errors import ProvisionError
 from fogiac.orchestrate import ExistingMachines
 from fogiac.plan.model import Plan
@@ -31,14 +31,16 @@ from fogiac.tables import console
 
 def _host_of(node: str, manifest: Path, env: str) -> tuple[str, Any, str, Path, Plan]:
     """(host name, access, base, stack dir, plan) of the host running ``node``, from the last provisioning."""
-    plan = compile_for(manifest, env)
-    state = stack_dir(plan.stack)
+    plan = compile_deployed(manifest, env)
+    known = sorted(n.name for n in plan.nodes)
+    if node not in known:
+        raise ProvisionError(f"{manifest} has no node {node!r}; its nodes: {', '.join(known)}")
+    state = stack_dir(plan.stack, create=False)
     for name, (access, base, nodes) in recorded_access(state).items():
         if node in nodes:
             return name, access, base, state, plan
-    known = sorted(n.name for n in plan.nodes)
-    raise ProvisionError(f"node {node!r} is not on any provisioned host of {plan.stack}"
-                         f" (nodes: {', '.join(known)}); run `fogiac up` or `fogiac provision` first")
+    raise ProvisionError(f"node {node!r} is not deployed: stack {plan.stack} is not up; "
+                         f"run `fogiac up {manifest}` first")
 
 
 def register(app: typer.Typer) -> None:

@@ -9,6 +9,7 @@ changes is shown, per resource and input, ending in Terraform's ``Plan: ...`` li
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -16,10 +17,11 @@ import typer
 from rich.markup import escape
 
 from fogiac import targets
-from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_for
+from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_deployed, compile_for
 from fogiac.manifest.revision import load_revision
 from fogiac.plan import review
 from fogiac.plan.compile import compile_plan
+from fogiac.plan.cost import MONTH, per_month
 from fogiac.plan.diff import PlanDiff, annotate, diff_documents
 from fogiac.plan.document import APPLIED_FILE, document, plan_document
 from fogiac.state import read_json, stack_dir, write_json_atomic
@@ -53,7 +55,7 @@ def _short(value: Any) -> str:
     return str(value)
 
 
-def _key_inputs(resource: dict[str, Any]) -> list[str]:
+def _key_inputs(resource: Mapping[str, Any]) -> list[str]:
     inputs = resource["inputs"]
     return [f"{k}: {_short(inputs[k])}" for k in KEY_INPUTS.get(resource["type"], ()) if k in inputs]
 
@@ -76,7 +78,7 @@ def _before(compiled: Any, *, against: str | None, target: str | None, env: str)
     return (applied, f"what was applied to {compiled.stack}") if isinstance(applied, dict) else (None, "nothing")
 
 
-def _render(doc: dict[str, Any]) -> None:
+def render(doc: Mapping[str, Any]) -> None:
     out = console()
     where = f", region {doc['region']}, mode {doc['mode']}" if doc["resources"] else ""
     out.print(f"[bold]fogiac plan[/] {doc['stack']}: target {doc['target']}{where}")
@@ -116,7 +118,7 @@ def _render(doc: dict[str, Any]) -> None:
     total = doc["cost"]["hourly_usd"]
     cost.add_row("[bold]total[/]", "", "", f"[bold]{total:.4f}[/]")
     out.print(cost)
-    out.print(f"cost: ${total:.4f} per hour (about ${total * 730:.2f} per month if left running)")
+    out.print(f"cost: ${total:.4f} per hour (about ${per_month(total):.2f} per {MONTH} if left running)")
     summary = doc.get("changes", {}).get("summary")
     if summary:
         out.print(f"\n{summary}")
@@ -138,7 +140,9 @@ def plan(
     markdown: bool = typer.Option(False, "--markdown", help="Print the diff as a pull-request comment."),
 ) -> None:
     """Show what the manifest would create, change or destroy, and what it costs, without touching the cloud."""
-    compiled = compile_for(manifest, env, target)
+    # Compared with what is deployed, the plan is for the target the deployment went to.
+    compiled = compile_deployed(manifest, env, target) if detailed_exitcode and against is None \
+        else compile_for(manifest, env, target)
     declared = plan_document(compiled, targets.get(compiled.target).declare(compiled), manifest=manifest)
     before, label = _before(compiled, against=against, target=target, env=env)
     diff = diff_documents(before, declared, against="manifest" if against else "applied")
@@ -150,7 +154,7 @@ def plan(
     elif markdown:
         typer.echo(review.comment(diff, stack=compiled.stack, against=label), nl=False)
     elif before is None:
-        _render(doc)
+        render(doc)
     else:
         _render_diff(doc, diff, against=label)
     if detailed_exitcode:

@@ -14,11 +14,13 @@ import re
 import xml.parsers.expat
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import yaml
 
 from fogiac.errors import ManifestError
 from fogiac.manifest.schema import Manifest, load_manifest, parse_manifest
+from fogiac.plan.catalog import catalog
 
 LAUNCH_SUFFIXES = (".launch", ".xml")
 _FIND = re.compile(r"\$\(find ([A-Za-z0-9_]+)\)")
@@ -112,6 +114,25 @@ class Imported:
     data: dict
     local_nodes: tuple[str, ...]
     base: Path
+    notes: tuple[str, ...] = ()  # what the import decided that the launch file did not say
+
+
+class Converted(NamedTuple):
+    manifest: Manifest
+    text: str
+    notes: tuple[str, ...]
+
+
+def _infer_gpu(nodes: list[dict]) -> list[str]:
+    """FogROS says nothing of GPUs: a node on a GPU machine type gets ``gpu: true`` (and a note why)."""
+    notes = []
+    for node in nodes:
+        spec = catalog().types.get(node["machine"])
+        if spec is not None and spec.has_gpu:
+            node["gpu"] = True
+            notes.append(f"{node['name']}: gpu: true, because {node['machine']} has {spec.gpus} GPU(s)"
+                         + (f" ({spec.gpu_model})" if spec.gpu_model else ""))
+    return notes
 
 
 def convert(path: Path) -> Imported:
@@ -163,8 +184,9 @@ def convert(path: Path) -> Imported:
         raise ManifestError(problems)
     if not nodes:
         raise ManifestError([f"{source}:{root.line}: no FogROS cloud nodes (pkg=\"fogros\") in this launch file"])
+    notes = _infer_gpu(nodes)
     data = {"name": _dns(path.stem), "cloud": {"provider": "aws", "region": "us-west-2"}, "nodes": nodes}
-    return Imported(data=data, local_nodes=tuple(local), base=base)
+    return Imported(data=data, local_nodes=tuple(local), base=base, notes=tuple(notes))
 
 
 def _launch_spec(launch_file: str, base: Path, where: str, problems: list[str]) -> dict | None:
@@ -197,10 +219,11 @@ def _relative(path: Path, base: Path) -> str:
 def to_yaml(imported: Imported, *, source: Path) -> str:
     header = [f"# Imported from {source.name} by `fogiac import`.", "# Kept on the robot (not deployed by fogiac):"]
     header += [f"#   - {n}" for n in imported.local_nodes] or ["#   (none)"]
+    header += [f"# Inferred: {note}" for note in imported.notes]
     return "\n".join(header) + "\n" + yaml.safe_dump(imported.data, sort_keys=False)
 
 
-def import_launch(path: Path, *, out: Path | None = None) -> tuple[Manifest, str]:
+def import_launch(path: Path, *, out: Path | None = None) -> Converted:
     """Convert, validate, and return the manifest with its YAML text; nothing is written here."""
     imported = convert(path)
     base = out.resolve().parent if out else imported.base
@@ -213,7 +236,7 @@ def import_launch(path: Path, *, out: Path | None = None) -> tuple[Manifest, str
                     script = (imported.base / node["launch"]["env_script"]).resolve()
                     node["launch"]["env_script"] = _relative(script, base)
     text = to_yaml(imported, source=path)
-    return parse_manifest(text, source=str(out or path), base=base), text
+    return Converted(parse_manifest(text, source=str(out or path), base=base), text, imported.notes)
 
 
 def load_any(path: str | Path) -> Manifest:

@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import difflib
+import ipaddress
 import re
 import typing
 from collections.abc import Iterable, Sequence
@@ -25,6 +26,20 @@ _TYPE_TAGS = {"str", "int", "float", "bool", "list", "dict", "tuple", "set", "no
 _MISMATCH = {"literal_error", "model_type", "tuple_type", "list_type", "dict_type", "string_type",
              "model_attributes_type", "ip_v4_network", "bool_parsing", "int_parsing", "int_type",
              "too_short"}
+
+
+# pydantic's messages name Python types ("a valid tuple"); a manifest author writes YAML.
+_YAML_SHAPES = {"tuple_type": "a list", "list_type": "a list", "dict_type": "a mapping (key: value lines)",
+                "model_type": "a mapping (key: value lines)", "model_attributes_type": "a mapping (key: value lines)"}
+
+
+def _network_problem(value: object) -> str:
+    """An IPv4 CIDR that does not parse: host bits set (and the network meant), or not a CIDR at all."""
+    try:
+        meant = ipaddress.IPv4Network(str(value), strict=False)
+    except ValueError:
+        return f"{value!r} is not an IPv4 network in CIDR form, like 10.10.0.0/16"
+    return f"{value!r} has host bits set; did you mean {meant}?"
 
 
 class FieldProblem(ValueError):
@@ -202,6 +217,13 @@ def _describe(error: ErrorDetails, data_path: Loc, model: type[BaseModel]) -> tu
         return data_path, f"{value!r} is not one of {', '.join(repr(e) for e in expected)}" + (
             suggest(value, expected) if isinstance(value, str) and suggest(value, expected).startswith("; did") else ""
         )
+    if kind == "ip_v4_network":
+        return data_path, _network_problem(value)
+    if kind in _YAML_SHAPES:
+        example = f"; write [{value}]" if isinstance(value, (str, int, float)) and kind in ("tuple_type", "list_type") \
+            else ""
+        shown = "" if isinstance(value, (dict, list)) else f"{value!r}: "
+        return data_path, f"{shown}should be {_YAML_SHAPES[kind]}{example}"
     message = error["msg"]
     for prefix in ("Value error, ", "Assertion failed, "):
         message = message.removeprefix(prefix)

@@ -16,6 +16,7 @@ from urllib.parse import urlparse
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from fogiac.errors import ManifestError
+from fogiac.manifest.crossfield import cross_field_problems
 from fogiac.manifest.problems import FieldProblem, format_errors, line_index, parse_yaml
 from fogiac.net import middleware
 from fogiac.plan.catalog import catalog
@@ -411,8 +412,10 @@ def parse_manifest(text: str, *, source: str = "<manifest>", base: Path | None =
     try:
         manifest = Manifest.model_validate(data)
     except ValidationError as err:
+        # Field errors and the rules across fields together: one run shows every problem.
+        extra = missing + cross_field_problems(Manifest, data)
         raise ManifestError(
-            format_errors(err, lines=lines, source=source, model=Manifest, extra=missing, data=data)
+            format_errors(err, lines=lines, source=source, model=Manifest, extra=extra, data=data)
         ) from None
     if missing:
         raise ManifestError(format_errors(None, lines=lines, source=source, model=Manifest, extra=missing, data=data))

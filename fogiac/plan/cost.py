@@ -11,6 +11,14 @@ from typing import Any
 
 from fogiac.plan.model import CostLine, HostSpec, NodeSpec, Plan
 
+# A month, wherever fogiac prints one: AWS's pricing pages use 730 hours (365 days * 24 / 12).
+HOURS_PER_MONTH = 730
+MONTH = f"month ({HOURS_PER_MONTH} h)"
+
+
+def per_month(usd_per_hour: float) -> float:
+    return usd_per_hour * HOURS_PER_MONTH
+
 
 def cost_line(line: CostLine) -> dict[str, Any]:
     return {"item": line.item, "quantity": line.quantity, "usd_per_hour": line.usd_per_hour, "total": line.total}

@@ -48,7 +48,8 @@ class LocalAccess:
 
     @property
     def location(self) -> str:
-        return str(self.sandbox)
+        """What the edge dials (the sandbox's folder is in ``describe()`` and ``fogiac ssh``)."""
+        return f"{self.ros_address}:{self.relay_port}"
 
     def open(self, *, name: str, known_hosts: Path, stack: str) -> Host:
         return LocalHost(name=name, base=str(self.sandbox))

@@ -47,6 +47,7 @@ class HostOutcome:
     bytes_sent: int
     seconds: float
     base: str = ""
+    stopped: tuple[str, ...] = ()  # teardown: the services it stopped
 
     @property
     def ok(self) -> bool:
@@ -141,6 +142,7 @@ def provision(plan: Plan, *, hosts: Mapping[str, HostAccess], state_dir: Path, c
     started = time.monotonic()
     options = Options(certs_dir=certs_dir, health_timeout=health_timeout, allow_install=allow_install)
     known_hosts = state_dir / "known_hosts"
+    record_access(state_dir, plan, hosts, {})  # first: an interrupted run's hosts are found again
     outcomes = _for_each(plan, hosts, lambda spec, access: _provision_one(
         plan, spec, access, known_hosts=known_hosts, options=options, progress=progress))
     record_access(state_dir, plan, hosts, {o.host: o.base for o in outcomes if o.base})
@@ -193,6 +195,7 @@ def _stop_one(plan: Plan, spec: HostSpec, access: HostAccess, *, known_hosts: Pa
     started = time.monotonic()
     host = access.open(name=spec.name, known_hosts=known_hosts, stack=plan.stack)
     error, detail, status = None, "", "ok"
+    stopped: list[str] = []
     try:
         host.connect()
         stopped = manager_for(host).stop_all(host, Layout(host.base))
@@ -210,7 +213,7 @@ def _stop_one(plan: Plan, spec: HostSpec, access: HostAccess, *, known_hosts: Pa
         host.close()
     return HostOutcome(host=spec.name, address=access.location, steps=(StepOutcome("stop", status, detail,
                        time.monotonic() - started),), error=error, files_pushed=0, bytes_sent=0,
-                       seconds=time.monotonic() - started, base=host.base)
+                       seconds=time.monotonic() - started, base=host.base, stopped=tuple(stopped))
 
 
 def stop_all(plan: Plan, *, hosts: Mapping[str, HostAccess], state_dir: Path) -> ProvisionReport:

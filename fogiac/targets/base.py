@@ -57,6 +57,7 @@ class DownResult:
     not_checked: tuple[str, ...]
     deleted: tuple[str, ...] = ()
     kept_usd_per_hour: float | None = None  # with --keep-network: what the kept network costs
+    existed: bool = True  # False: nothing of the stack was there (and down created nothing)
 
     @property
     def clean(self) -> bool:

@@ -40,10 +40,13 @@ class LocalTarget(ExistingMachines):
     def leftovers(self, plan: Plan, folder: Path) -> list[str]:
         return [f"sandbox {p}" for p in sorted(sandbox_root(folder).glob("*")) if p.is_dir()]
 
+    def host_address(self, plan: Plan, spec: HostSpec, entry: Any) -> str:
+        return entry[0].location if entry is not None else "-"
+
     def node_states(self, plan: Plan, spec: HostSpec, entry: Any) -> list[dict[str, Any]]:
         if entry is None:
             return super().node_states(plan, spec, entry)
-        run_dir = Path(entry[1]) / "run"
+        run_dir = Path(entry[1] or entry[0].sandbox) / "run"
         return [{"node": node, **supervise.status(run_dir, f"node-{node}")} for node in spec.nodes]
 
     def autostop_state(self, plan: Plan, spec: HostSpec, entry: Any) -> dict[str, Any] | None:

@@ -12,8 +12,12 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
+from fogiac import deployment
 from fogiac.cli import app
-from fogiac.state import write_json_atomic
+from fogiac.manifest.schema import load_manifest
+from fogiac.plan.compile import compile_plan
+from fogiac.plan.document import APPLIED_FILE
+from fogiac.state import stack_dir, write_json_atomic
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 runner = CliRunner()
@@ -105,16 +109,18 @@ def test_detailed_exitcode_against_the_applied_plan(minimal: Path, _state_dir: P
     assert plan(str(minimal), "--detailed-exitcode")[0] == 2  # never applied
     code, out = plan(str(minimal), "--json", "--detailed-exitcode")
     assert code == 2
-    write_json_atomic(_state_dir / "minimal-dev" / "applied.json", json.loads(out))
+    # what every target's up records when it completes: the plan document and the deployment record
+    write_json_atomic(stack_dir("minimal-dev") / APPLIED_FILE, json.loads(out))
+    deployment.finish(compile_plan(load_manifest(minimal)), minimal, plan_digest=json.loads(out)["plan_digest"])
     assert plan(str(minimal), "--detailed-exitcode")[0] == 0
     assert plan(str(minimal), "--detailed-exitcode", "--env", "prod")[0] == 2
     minimal.write_text(minimal.read_text().replace("t3.small", "t3.medium"))
     assert plan(str(minimal), "--detailed-exitcode")[0] == 2
 
 
-def test_corrupt_applied_plan_is_an_error(minimal: Path, _state_dir: Path) -> None:
+def test_corrupt_deployment_record_is_an_error(minimal: Path, _state_dir: Path) -> None:
     (_state_dir / "minimal-dev").mkdir()
-    (_state_dir / "minimal-dev" / "applied.json").write_text("{not json")
+    (_state_dir / "minimal-dev" / deployment.RECORD_FILE).write_text("{not json")
     code, out = plan(str(minimal), "--detailed-exitcode")
     assert code == 1
     assert "unreadable state file" in out

@@ -30,6 +30,7 @@ def test_validate_reports_each_problem_on_one_line_exit_1(tmp_path: Path) -> Non
     assert result.output.splitlines() == [
         f"{bad}:4: nodes[0].machine: 'g4dn.xlrge' is not a known instance type; did you mean 'g4dn.xlarge'?",
         f"{bad}:6: nodes[1]: needs exactly one of image, launch or workload (got none)",
+        f"{bad}:6: nodes[1].name: duplicate node name 'a'",  # a rule across nodes, in the same run
     ]
     assert "Traceback" not in result.output
 
@@ -74,4 +75,4 @@ def test_cost_lists_instances_and_client_vpn_per_hour_day_month() -> None:
     assert result.exit_code == 0, result.output
     assert "instance planner (c5.24xlarge)" in result.output
     assert "Client VPN subnet association" in result.output
-    assert "4.2300" in result.output and "101.52" in result.output and "3045.60" in result.output
+    assert "4.2300" in result.output and "101.52" in result.output and "3087.90" in result.output  # 730 h

@@ -123,6 +123,7 @@ def test_plain_type_name_keeps_working_and_has_no_menu() -> None:
 def test_manifest_errors_are_one_line_at_the_machine(machine: str, message: str) -> None:
     with pytest.raises(ManifestError) as info:
         parse_manifest(manifest(machine), source="m.yaml")
-    lines = str(info.value).splitlines()
+    # one problem line; the cross-field rules that need the broken machine say they were skipped
+    lines = [line for line in str(info.value).splitlines() if "checks across fields skipped" not in line]
     assert len(lines) == 1
     assert re.match(r"^m\.yaml:4: " + re.escape(message), lines[0]), lines[0]

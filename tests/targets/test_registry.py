@@ -127,7 +127,7 @@ def test_up_status_down_through_the_real_cli(fake: FakeTarget, tmp_path: Path) -
 
     code, out = run("down", str(manifest), "--target", "fake", "--yes")
     assert code == 0, out
-    assert out.splitlines()[-1] == f"{stack}: nothing left"
+    assert out.splitlines()[-1] == f"{stack}: removed 1 (planner); nothing left"
     assert not (stack_dir(stack) / "fake.json").exists()
 
 

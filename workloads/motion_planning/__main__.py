@@ -39,7 +39,7 @@ def _node(args: argparse.Namespace) -> int:
 def _client(args: argparse.Namespace) -> int:
     from workloads.motion_planning.client import main  # noqa: PLC0415 (rospy, see above)
 
-    return main(args.names, timeout=args.timeout)
+    return main(args.names, timeout=args.timeout, as_json=args.json)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -55,9 +55,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(run=_solve)
     n = verbs.add_parser("node", help="run the ROS node (rospy args such as __name:= pass through)")
     n.set_defaults(run=_node)
-    c = verbs.add_parser("client", help="send problems to a running node, print timings as JSON")
+    c = verbs.add_parser("client", help="send problems to a running node, print one line of timings each")
     c.add_argument("names", nargs="*", help="problem names (default: every shipped problem)")
     c.add_argument("--timeout", type=float, default=120.0, help="seconds to wait for each path")
+    c.add_argument("--json", action="store_true", help="print the timings and paths as one JSON array (for machines)")
     c.set_defaults(run=_client)
     return parser
 

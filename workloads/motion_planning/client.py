@@ -1,7 +1,8 @@
 """Robot-side client: send plan requests to the node and time each answer.
 
 ``request_paths`` is what an end-to-end demo calls from its own rospy node; ``main`` (behind
-``python -m workloads.motion_planning client``) makes an anonymous node and prints JSON.
+``python -m workloads.motion_planning client``) makes an anonymous node and prints one line per
+problem (``--json``: the whole timings, for programs).
 """
 
 from __future__ import annotations
@@ -100,8 +101,14 @@ def _wait_connected(pub: Any, subs: Sequence[Any], timeout: float) -> None:
         raise WorkloadError(f"no motion_planning node answered on {REQUEST_TOPIC} within {timeout:g} s")
 
 
-def main(names: Sequence[str], *, timeout: float) -> int:
+def main(names: Sequence[str], *, timeout: float, as_json: bool = False) -> int:
+    """One line per problem for a person; with ``as_json`` every timing and pose, for a program."""
     rospy.init_node("motion_planning_client", anonymous=True, disable_signals=True)
     timings = request_paths(list(names) or shipped_problems(), timeout=timeout)
-    print(json.dumps([t.as_dict() for t in timings]))
+    if as_json:
+        print(json.dumps([t.as_dict() for t in timings]))
+    else:
+        for t in timings:
+            state = f"solved, {len(t.path)} poses" if t.solved else "not solved"
+            print(f"{t.name}: {state}; {t.round_trip_s:.3f} s round trip, {t.compute_time_s:.3f} s planning")
     return 0 if all(t.solved for t in timings) else 1

@@ -49,7 +49,7 @@ class TopicStats:
     msgs: int
     bytes: int
     drops: int
-    latency_ms: float | None  # median one-way over the last second's messages ("in" only)
+    latency_ms: float | None  # median one-way over the last second that carried messages ("in" only)
     latency_p99_ms: float | None
     compression: str
 
@@ -105,11 +105,9 @@ class TopicCounters:
             self._last = (now, self.msgs, self.bytes)
             taken, self._latencies = self._latencies, deque(maxlen=1000)
             lat = sorted(taken)
-            if lat:
+            if lat:  # kept through quiet seconds: a request every few seconds still shows its latency
                 p99 = lat[min(len(lat) - 1, int(len(lat) * 0.99))]
                 self._lat = (statistics.median(lat) / 1e6, p99 / 1e6)
-            elif not self._rates[0]:
-                self._lat = (None, None)
 
     def snapshot(self) -> TopicStats:
         return TopicStats(

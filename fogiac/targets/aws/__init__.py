@@ -13,6 +13,7 @@ import dataclasses
 from collections.abc import Callable, Mapping
 from typing import Any
 
+from fogiac import deployment
 from fogiac.certs import SSH_KEY, load_or_create_bundle
 from fogiac.errors import CloudError, FogiacError, ProvisionError
 from fogiac.manifest.schema import Manifest
@@ -76,10 +77,12 @@ class AwsTarget:
             if not opts.infra_only:  # before money is spent: the robot's side must be there to connect
                 ensure_edge_master(plan, master, start=opts.start_edge_master)
             commit()
+            deployment.begin(plan, opts.manifest_path)  # before the engine creates anything
             outputs = engine.Engine(plan, on_event=opts.on_event).up(operator_cidrs=report.operator_cidrs)
             folder = stack_dir(plan.stack)
             write_json_atomic(folder / engine.OUTPUTS_FILE, {"zone": plan.zone, **outputs})
             write_json_atomic(folder / APPLIED_FILE, doc)
+            deployment.finish(plan, opts.manifest_path, plan_digest=doc["plan_digest"])
             if opts.infra_only:
                 return UpResult(outputs=outputs, applied=folder / APPLIED_FILE)
             done = self._connect(plan, outputs, master=master, announce=opts.announce)
@@ -116,8 +119,10 @@ class AwsTarget:
                 if opts.keep_network and outputs:
                     kept = {k: v for k, v in outputs.items() if k != "compute"}
                     write_json_atomic(folder / engine.OUTPUTS_FILE, kept)
+                    deployment.cut_back(plan.stack)
                 else:
                     (folder / engine.OUTPUTS_FILE).unlink(missing_ok=True)
+                    deployment.removed(plan.stack)
             return DownResult(
                 engine_errors=tuple(errors), left=tuple(str(f) for f in result.left),
                 not_checked=result.not_checked, deleted=tuple(str(f) for f in result.deleted),

@@ -129,7 +129,7 @@ def test_no_terminal_needs_yes(state: Path, tmp_path: Path, with_cli: None) -> N
 def test_down_of_a_local_stack_never_deployed_is_clean(state: Path, tmp_path: Path) -> None:
     result = fogiac("down", str(write_manifest(tmp_path, "local")), "--target", "local", "--yes")
     assert result.exit_code == 0, result.output
-    assert result.stdout.strip().splitlines()[-1] == "local-dev: nothing left"
+    assert result.stdout.strip().splitlines() == ["local-dev: not deployed; nothing to remove"]
 
 
 def test_stale_saved_plan(state: Path, tmp_path: Path, with_cli: None) -> None:

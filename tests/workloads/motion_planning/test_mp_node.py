@@ -50,7 +50,8 @@ def _client(env: dict[str, str], *args: str) -> subprocess.CompletedProcess[str]
 
 
 def test_node_answers_with_a_collision_free_path(node_env: dict[str, str]) -> None:
-    result = _client(node_env, "-m", "workloads.motion_planning", "client", "easy", "nosuchproblem", "--timeout", "60")
+    result = _client(node_env, "-m", "workloads.motion_planning", "client", "easy", "nosuchproblem", "--timeout", "60",
+                     "--json")
     assert result.returncode == 1, result.stderr  # the unknown problem gets an empty path
     easy, unknown = json.loads(result.stdout)
     assert (easy["name"], easy["solved"], unknown["name"], unknown["solved"]) == ("easy", True, "nosuchproblem", False)

@@ -18,9 +18,9 @@ from pathlib import Path
 import yaml
 
 from fogiac.errors import ManifestError
-from fogiac.manifest.schema import Manifest, load_manifest, parse_manifest
+from fogiac.manifest import importers
+from fogiac.manifest.schema import Manifest, parse_manifest
 
-LAUNCH_SUFFIXES = (".launch", ".xml")
 _FIND = re.compile(r"\$\(find ([A-Za-z0-9_]+)\)")
 
 
@@ -217,8 +217,5 @@ def import_launch(path: Path, *, out: Path | None = None) -> tuple[Manifest, str
 
 
 def load_any(path: str | Path) -> Manifest:
-    """A fogiac manifest, or a FogROS launch file converted on the fly (``fogiac up robot.launch``)."""
-    path = Path(path)
-    if path.suffix in LAUNCH_SUFFIXES:
-        return import_launch(path)[0]
-    return load_manifest(path)
+    """A fogiac manifest, or a launch file of a kind :mod:`fogiac.manifest.importers` reads."""
+    return importers.load_any(path)

@@ -1,4 +1,4 @@
-"""``fogiac import``: a FogROS launch file becomes the equivalent fogiac.yaml."""
+"""``fogiac import``: a FogROS or FogROS2 launch file becomes the equivalent fogiac.yaml."""
 
 from __future__ import annotations
 
@@ -7,16 +7,16 @@ from pathlib import Path
 import typer
 
 from fogiac.errors import FogiacError
-from fogiac.manifest.fogros import import_launch as convert
+from fogiac.manifest.importers import import_file as convert
 from fogiac.state import write_text_atomic
 
 
 def import_launch(
-    launch: Path = typer.Argument(..., help="A roslaunch file using FogROS's cloud nodes."),
+    launch: Path = typer.Argument(..., help="A FogROS .launch or FogROS2 .py launch file."),
     out: Path = typer.Option(Path("fogiac.yaml"), "--out", "-o", help="Where to write the manifest."),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing manifest."),
 ) -> None:
-    """Write the fogiac.yaml equivalent of a FogROS launch file (other nodes stay on the robot)."""
+    """Write the fogiac.yaml equivalent of a FogROS or FogROS2 launch file (other nodes stay on the robot)."""
     if out.exists() and not force:
         raise FogiacError(f"{out} exists; pass --force to overwrite it")
     manifest, text, notes = convert(launch, out=out)

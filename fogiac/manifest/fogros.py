@@ -14,15 +14,15 @@ import re
 import xml.parsers.expat
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import NamedTuple
 
 import yaml
 
 from fogiac.errors import ManifestError
-from fogiac.manifest.schema import Manifest, load_manifest, parse_manifest
+from fogiac.manifest import importers
+from fogiac.manifest.importers import Converted
+from fogiac.manifest.schema import Manifest, parse_manifest
 from fogiac.plan.catalog import catalog
 
-LAUNCH_SUFFIXES = (".launch", ".xml")
 _FIND = re.compile(r"\$\(find ([A-Za-z0-9_]+)\)")
 
 
@@ -115,12 +115,6 @@ class Imported:
     local_nodes: tuple[str, ...]
     base: Path
     notes: tuple[str, ...] = ()  # what the import decided that the launch file did not say
-
-
-class Converted(NamedTuple):
-    manifest: Manifest
-    text: str
-    notes: tuple[str, ...]
 
 
 def _infer_gpu(nodes: list[dict]) -> list[str]:
@@ -240,8 +234,5 @@ def import_launch(path: Path, *, out: Path | None = None) -> Converted:
 
 
 def load_any(path: str | Path) -> Manifest:
-    """A fogiac manifest, or a FogROS launch file converted on the fly (``fogiac up robot.launch``)."""
-    path = Path(path)
-    if path.suffix in LAUNCH_SUFFIXES:
-        return import_launch(path)[0]
-    return load_manifest(path)
+    """A fogiac manifest, or a launch file of a kind :mod:`fogiac.manifest.importers` reads."""
+    return importers.load_any(path)

@@ -103,6 +103,12 @@ class ZenohLab:
         self._start(args, name)
         return out
 
+    def monitor(self, port: int, *, to_edge: tuple[str, ...], to_cloud: tuple[str, ...]) -> subprocess.Popen:
+        """fogiac's edge monitor (``/fogros/latency``, ``/fogros/throughput``) on the router at ``port``."""
+        args = ["-m", "fogiac.net.zenoh.monitor", f"tcp/127.0.0.1:{port}", "--period", "0.5"]
+        args += [a for t in to_edge for a in ("--to-edge", t)] + [a for t in to_cloud for a in ("--to-cloud", t)]
+        return self._start(args, "monitor")
+
     @staticmethod
     def received(out: Path, topic: str) -> int:
         return len([e for e in read_events(out) if e["event"] == "received" and e["topic"] == topic])

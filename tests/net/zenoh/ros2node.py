@@ -80,10 +80,10 @@ def main() -> None:
     lock = threading.Lock()
     out = args.out.open("a")
 
-    def record(event: str, topic: str, seq: int, cdr: bytes) -> None:
+    def record(event: str, topic: str, seq: int, cdr: bytes, text: str | None = None) -> None:
+        line = {"event": event, "topic": topic, "seq": seq, "sha256": hashlib.sha256(cdr).hexdigest()}
         with lock:
-            out.write(json.dumps({"event": event, "topic": topic, "seq": seq,
-                                  "sha256": hashlib.sha256(cdr).hexdigest()}) + "\n")
+            out.write(json.dumps(line if text is None else dict(line, text=text)) + "\n")
             out.flush()
 
     subs = []
@@ -91,7 +91,11 @@ def main() -> None:
         topic, kind = spec.split("=")
 
         def on_message(msg: Any, topic: str = topic, kind: str = kind) -> None:
-            record("received", topic, _seq(kind, msg), bytes(store.serialize_cdr(msg, TYPES[kind])))
+            cdr = bytes(store.serialize_cdr(msg, TYPES[kind]))
+            if kind == "String" and "#" not in msg.data:  # not one of ours (fogiac's /fogros/* figures): keep the text
+                record("received", topic, -1, cdr, msg.data)
+            else:
+                record("received", topic, _seq(kind, msg), cdr)
 
         subs.append(ROS2Subscriber(topic=topic, msg_type=TYPES[kind], msg_definition=DEFINITIONS[TYPES[kind]],
                                    callback=on_message, router_ip="127.0.0.1", router_port=args.port))

@@ -1,0 +1,141 @@
+"""FogROS2 launch files (Python) become fogiac manifests: read with ast, never imported or run."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from fogiac.cli import app
+from fogiac.errors import ManifestError
+from fogiac.manifest.fogros import load_any
+from fogiac.manifest.fogros2 import docker_node, import_launch
+from fogiac.manifest.schema import load_manifest
+
+# Shaped like FogROS2's own examples (talker on AWS, a docker container on the machine), written here.
+LAUNCH = '''\
+"""Perception in the cloud."""
+from launch_ros.actions import Node
+
+import fogros2
+from fogros2 import AWS, CloudNode, FogROSLaunchDescription
+
+
+def pick_ami():
+    import lsb_release  # only on the robot; fogiac chooses its own images
+    return {"22.04": "ami-0123"}[lsb_release.get_os_release()["RELEASE"]]
+
+
+SERVER = ("sudo docker run --net=host --gpus all --env RMW_IMPLEMENTATION=rmw_cyclonedds_cpp "
+          "--env MODEL=/models/dexnet -v /home/ubuntu/cyclonedds.xml:/tmp/cyclonedds.xml --rm -it "
+          "ghcr.io/lab/grasp:humble ros2 launch grasp planner.launch.py")
+
+
+def generate_launch_description():
+    """Detector and grasp planner in the cloud, camera on the robot."""
+    ld = FogROSLaunchDescription()
+    machine = AWS(region="us-west-2", ec2_instance_type="g4dn.xlarge", ami_image=pick_ami(), disk_size=60)
+    machine.add_docker_container(SERVER)
+    camera = Node(package="usb_cam", executable="usb_cam_node_exe", output="screen")
+    detector = CloudNode(package="perception", executable="detector", output="screen", machine=machine)
+    ld.add_action(camera)
+    ld.add_action(detector)
+    ld.add_action(fogros2.CloudNode(package="perception", executable="tracker", name="track", machine=machine))
+    return ld
+'''
+
+
+def write(tmp_path: Path, text: str, name: str = "perception.launch.py") -> Path:
+    path = tmp_path / "src" / "bringup" / "launch" / name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    return path
+
+
+def test_cloud_nodes_and_containers_become_nodes_on_their_machine(tmp_path: Path) -> None:
+    manifest, text, _ = import_launch(write(tmp_path, LAUNCH))
+    assert (manifest.name, manifest.ros.distro, manifest.cloud.provider, manifest.cloud.region) == (
+        "perception", "humble", "aws", "us-west-2")
+    assert [(n.name, n.machine, n.image, n.command) for n in manifest.nodes] == [
+        ("detector", "g4dn.xlarge", "ros:humble-ros-base", ("ros2", "run", "perception", "detector")),
+        ("track", "g4dn.xlarge", "ros:humble-ros-base", ("ros2", "run", "perception", "tracker")),
+        ("grasp", "g4dn.xlarge", "ghcr.io/lab/grasp:humble", ("ros2", "launch", "grasp", "planner.launch.py")),
+    ]
+    grasp = manifest.nodes[2]
+    assert grasp.env == {"MODEL": "/models/dexnet"}  # the DDS choice is dropped: fogiac's Zenoh carries topics
+    assert grasp.gpu and grasp.disk_gb == 60
+    assert all(n.topics != "auto" and not n.topics.inputs and not n.topics.outputs for n in manifest.nodes)
+    assert "#   - usb_cam/usb_cam_node_exe" in text
+    assert "build an image FROM ros:humble-ros-base holding package perception" in text
+    assert "grasp: the container's volumes (-v) name paths on FogROS2's machine" in text
+
+
+def test_the_file_is_never_imported_or_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    marker = tmp_path / "ran"
+    # A helper that writes the marker feeds AWS's ami_image, and a module it imports would too.
+    (tmp_path / "evil_helper.py").write_text(f"open({str(marker)!r}, 'w').write('imported')\n")
+    side_effects = LAUNCH.replace(
+        "def pick_ami():\n", f"def pick_ami():\n    open({str(marker)!r}, 'w').write('called')\n"
+    ).replace("import fogros2\n", "import evil_helper\nimport fogros2\n")
+    monkeypatch.syspath_prepend(str(tmp_path))  # were the file imported, evil_helper would be found and run
+    path = write(tmp_path, side_effects)
+    assert [n.name for n in load_any(path).nodes] == ["detector", "track", "grasp"]
+    assert not marker.exists()
+    # A statement that would act at import time is not a FogROS2 construct: one line, still not run.
+    path.write_text(side_effects + f"\nopen({str(marker)!r}, 'w').write('module')\n")
+    with pytest.raises(ManifestError) as info:
+        import_launch(path)
+    line = len(side_effects.splitlines()) + 2
+    assert len(info.value.problems) == 1
+    assert info.value.problems[0].startswith(f"{path}:{line}: fogiac cannot import \"open(")
+    assert not marker.exists()
+
+
+def test_unknown_constructs_give_one_line_each_naming_file_and_line(tmp_path: Path) -> None:
+    text = LAUNCH.replace(
+        'output="screen", machine=machine)', "machine=fogros2.GCP(zone='us-central1-a'))"
+    ).replace("    ld.add_action(camera)\n", "    for extra in range(2):\n        ld.add_action(camera)\n").replace(
+        'ec2_instance_type="g4dn.xlarge"', 'ec2_instance_type="t2.micro"')
+    path = write(tmp_path, text)
+    with pytest.raises(ManifestError) as info:
+        import_launch(path)
+    lines = text.splitlines()
+    at = {key: next(i + 1 for i, line in enumerate(lines) if key in line) for key in ("t2.micro", "for extra", "GCP")}
+    assert info.value.problems == [
+        f"{path}:{at['t2.micro']}: ec2_instance_type 't2.micro' is not in fogiac's catalog; e.g. t3.medium, "
+        "c5.xlarge, g4dn.xlarge",
+        f"{path}:{at['GCP']}: machine must be an AWS(...) machine (FogROS2's other clouds are not imported)",
+        f"{path}:{at['for extra']}: fogiac cannot import 'for extra in range(2):' (not a FogROS2 construct it knows)",
+    ]
+
+
+def test_not_python_and_not_a_launch_file_name_the_line(tmp_path: Path) -> None:
+    with pytest.raises(ManifestError, match=r"broken\.launch\.py:2: not valid Python: "):
+        import_launch(write(tmp_path, "x = 1\ndef (:\n", "broken.launch.py"))
+    with pytest.raises(ManifestError, match=r"plain\.py:1: no generate_launch_description\(\) here"):
+        import_launch(write(tmp_path, "x = 1\n", "plain.py"))
+
+
+def test_docker_run_words() -> None:
+    assert docker_node("docker run -e A=1 --env=B=2 --name x -it img:1 python -m app") == (
+        "img:1", ("python", "-m", "app"), {"A": "1", "B": "2"}, False)
+    assert docker_node("podman run img") is None
+
+
+def test_cli_imports_by_file_kind_and_refuses_others(tmp_path: Path) -> None:
+    launch = write(tmp_path, LAUNCH)
+    out = tmp_path / "fogiac.yaml"
+    result = CliRunner().invoke(app, ["import", str(launch), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert [n.name for n in load_manifest(out).nodes] == ["detector", "track", "grasp"]
+    assert yaml.safe_load(out.read_text())["nodes"][0]["topics"] == {"in": [], "out": []}
+    other = tmp_path / "notes.txt"
+    other.write_text("hi\n")
+    result = CliRunner().invoke(app, ["import", str(other), "--out", str(tmp_path / "x.yaml")])
+    assert result.exit_code == 1
+    assert result.output.strip() == (
+        f"{other}: not a launch file fogiac imports; it reads: FogROS roslaunch XML (.launch, .xml); "
+        "FogROS2 Python launch file (.py)")
+    assert not (tmp_path / "x.yaml").exists()

@@ -20,6 +20,7 @@ from urllib.parse import urlparse
 
 from fogiac.certs import load_or_create_bundle
 from fogiac.errors import FogiacError, ProvisionError
+from fogiac.plan import guard
 from fogiac.plan.document import APPLIED_FILE, plan_document
 from fogiac.plan.model import HostSpec, Plan, RelayRoute
 from fogiac.procs import poll
@@ -31,6 +32,7 @@ from fogiac.targets.base import DownOptions, DownResult, Refreshed, SweepOutcome
 DEPLOYMENT_FILE = "deployment.json"
 EDGE_DIR = "edge"
 EDGE_MASTER = "edge-master"
+STATS_STALE_S = 30.0  # a relay writes its stats every second: this much older and it no longer runs
 
 
 @dataclass(frozen=True)
@@ -124,6 +126,27 @@ def edge_services(plan: Plan) -> list[str]:
     return sorted(p.stem for p in folder.glob("*.pid")) if folder.exists() else []
 
 
+def edge_idle_since(plan: Plan, *, now: float) -> float | None:
+    """Since when no edge relay of the stack has run on this machine, from their stats files.
+
+    A running relay rewrites its stats every second: a fresh file that says connected means an
+    edge is there now (None); a stale one dates the relay's last breath. A fresh file that says
+    disconnected cannot be dated, nor can a relay this machine never ran: None, unknown.
+    """
+    last: list[float] = []
+    for route in plan.relay:
+        path = edge_dir(plan) / f"relay-edge-{route.host}.stats.json"
+        try:
+            written = path.stat().st_mtime
+        except OSError:
+            continue
+        if now - written >= STATS_STALE_S:
+            last.append(written)
+        elif (read_json(path) or {}).get("connected"):
+            return None
+    return max(last) if last else None
+
+
 def stop_edge(plan: Plan, *, keep_master: bool = False) -> None:
     """Stop this machine's edge processes of the stack: the relays, and the demo master unless kept."""
     names = [s for s in edge_services(plan) if not (keep_master and s == EDGE_MASTER)]
@@ -204,8 +227,8 @@ class ExistingMachines:
                 (folder / APPLIED_FILE).unlink(missing_ok=True)
         return DownResult(engine_errors=tuple(errors), left=tuple(left), not_checked=())
 
-    def status(self, plan: Plan) -> dict[str, Any]:
-        """Hosts, nodes (running, restarts) and relayed topics with live figures, from the state folder."""
+    def status(self, plan: Plan, *, now: float | None = None) -> dict[str, Any]:
+        """Hosts, nodes (running, restarts), relayed topics with live figures and the cost guard."""
         head = {"stack": plan.stack, "target": plan.target}
         folder = stack_dir(plan.stack, create=False)
         deployment = read_json(folder / DEPLOYMENT_FILE) if folder.exists() else None
@@ -220,7 +243,25 @@ class ExistingMachines:
             stats = read_json(edge_dir(plan) / f"relay-edge-{host}.stats.json") or {}
             relays.append({"host": host, "connect": connect, **stats})
         return {**head, "deployed": True, "edge_master": deployment.get("edge_master"), "hosts": hosts,
-                "relays": relays}
+                "relays": relays, "cost": self._guard(plan, hosts, now=time.time() if now is None else now)}
+
+    def _guard(self, plan: Plan, hosts: list[dict[str, Any]], *, now: float) -> dict[str, Any]:
+        """These machines cost nothing fogiac can price; the guard still asks whether they run with no edge.
+
+        The hosts' watchdogs know best when the edge left (their ``idle_since``); without them, the
+        edge relays' stats files on this machine.
+        """
+        specs = {spec.name: spec for spec in plan.hosts}
+        billed = [guard.Billed(f"host {h['host']}", specs[h["host"]].usd_per_hour, None,
+                               running=not (h["autostop"] or {}).get("stopped_at")) for h in hosts]
+        watched = [h["autostop"] for h in hosts if h["autostop"]]
+        if watched and len(watched) == len(hosts):
+            idle = [w.get("idle_since") for w in watched]
+            since = None if None in idle else max(idle)
+        else:
+            since = edge_idle_since(plan, now=now)
+        return guard.guard(billed, now=now, autostop_s=plan.autostop.idle_s if plan.autostop else None,
+                           edge_idle_since=since)
 
     def render_status(self, doc: Mapping[str, Any]) -> list[Any]:
         """Nodes with their supervision state, then relayed topics with live figures."""
@@ -244,7 +285,8 @@ class ExistingMachines:
                 relays.add_row(relay["host"], link, t.get("topic", "-"), t.get("direction", "-"),
                                str(t.get("msgs", "-")), str(t.get("msgs_per_s", "-")),
                                "-" if rate is None else f"{rate / 1024:.1f}", latency, str(t.get("drops", "-")))
-        return [nodes, *idle, relays]
+        warning = (doc.get("cost") or {}).get("warning")
+        return [nodes, *idle, relays, *([f"warning: {warning}"] if warning else [])]
 
     def refresh(self, plan: Plan) -> list[Refreshed]:
         return [Refreshed(plan.target, True, self.no_cloud.format(verb="refresh") + f" (target {plan.target})")]

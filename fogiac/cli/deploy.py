@@ -21,6 +21,7 @@ from rich.live import Live
 from fogiac import targets
 from fogiac.cli._common import ENV, MANIFEST, TARGET, YES, compile_for, need_yes
 from fogiac.errors import PreflightError
+from fogiac.plan.guard import up_summary
 from fogiac.plan.saved import check_saved_plan
 from fogiac.provision.report import report_table
 from fogiac.tables import console, table
@@ -112,6 +113,7 @@ def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str |
         typer.echo(f"{name}: {host.get('instance_id')} {host.get('machine')} public {host.get('public_ip')} "
                    f"private {host.get('private_ip')}")
     typer.echo(f"applied: {result.applied}")
+    typer.echo(up_summary(plan))
 
 
 def down(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str | None = TARGET,

@@ -10,6 +10,8 @@ the only code in fogiac that imports boto3, pulumi, pulumi_aws or ``stacks``.
 from __future__ import annotations
 
 import dataclasses
+import datetime as _dt
+import time
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -17,7 +19,8 @@ from fogiac.certs import SSH_KEY, load_or_create_bundle
 from fogiac.errors import CloudError, FogiacError, ProvisionError
 from fogiac.manifest.schema import Manifest
 from fogiac.net.vpn import write_client_profile
-from fogiac.orchestrate import ensure_edge_master, provision_and_connect, stop_edge
+from fogiac.orchestrate import edge_idle_since, ensure_edge_master, provision_and_connect, stop_edge
+from fogiac.plan import guard
 from fogiac.plan.catalog import catalog
 from fogiac.plan.document import APPLIED_FILE, plan_document
 from fogiac.plan.model import Plan
@@ -39,6 +42,8 @@ from fogiac.targets.base import (
 )
 
 COMPUTE_KINDS = ("instance", "key-pair", "network-interface")  # what --keep-network still sweeps
+NETWORK_SINCE = "network_since"  # in outputs.json: when the network stack (Client VPN association) was first applied
+HOST_KEYS_FILE = "host-keys.json"  # instance id -> SHA256 fingerprints pinned from its first boot's console
 SSH_USER = "ubuntu"  # the login of both images compile chooses (Ubuntu, AWS Deep Learning Base)
 
 
@@ -76,9 +81,14 @@ class AwsTarget:
             if not opts.infra_only:  # before money is spent: the robot's side must be there to connect
                 ensure_edge_master(plan, master, start=opts.start_edge_master)
             commit()
+            started = api.start_stopped(plan.stack, region=plan.region, known_ids=engine.known_ids(plan.stack))
+            if started:
+                opts.announce(f"started {', '.join(started)} again (stopped while idle): the same instances, "
+                              "nothing recreated")
             outputs = engine.Engine(plan, on_event=opts.on_event).up(operator_cidrs=report.operator_cidrs)
             folder = stack_dir(plan.stack)
-            write_json_atomic(folder / engine.OUTPUTS_FILE, {"zone": plan.zone, **outputs})
+            since = recorded.get(NETWORK_SINCE) or round(time.time())  # what the cost guard counts from
+            write_json_atomic(folder / engine.OUTPUTS_FILE, {"zone": plan.zone, NETWORK_SINCE: since, **outputs})
             write_json_atomic(folder / APPLIED_FILE, doc)
             if opts.infra_only:
                 return UpResult(outputs=outputs, applied=folder / APPLIED_FILE)
@@ -95,8 +105,8 @@ class AwsTarget:
                 bundle=load_or_create_bundle(plan.stack, stack_dir(plan.stack) / "certs"))
             announce(f"VPN profile: {profile} (connect with: sudo fogiac vpn up; the relays retry until it is up)")
         announce("waiting for each instance to print its SSH host keys on its console (pinned, never trusted on sight)")
-        access, connect = access_from_outputs(
-            plan, outputs, fingerprints=lambda iid: api.host_fingerprints(iid, region=plan.region))
+        access, connect = access_from_outputs(plan, outputs, fingerprints=lambda iid: pinned_host_keys(
+            plan.stack, iid, fetch=lambda: api.host_fingerprints(iid, region=plan.region)))
         return provision_and_connect(plan, access=access, connect=connect, master=master)
 
     # -- down -------------------------------------------------------------------------------------
@@ -112,6 +122,7 @@ class AwsTarget:
             folder = stack_dir(plan.stack)
             if not result.left:
                 (folder / APPLIED_FILE).unlink(missing_ok=True)
+                (folder / HOST_KEYS_FILE).unlink(missing_ok=True)  # no instance left to know them by
                 outputs = read_json(folder / engine.OUTPUTS_FILE) or {}
                 if opts.keep_network and outputs:
                     kept = {k: v for k, v in outputs.items() if k != "compute"}
@@ -126,22 +137,31 @@ class AwsTarget:
 
     # -- status, doctor, refresh, sweep ---------------------------------------------------------------
 
-    def status(self, plan: Plan) -> dict[str, Any]:
-        rows = api.status(plan.stack, region=plan.region)
+    def status(self, plan: Plan, *, now: float | None = None) -> dict[str, Any]:
+        """Each instance (state, when and by whom it stopped) and the cost guard over all the stack still has."""
+        now = time.time() if now is None else now
+        rows = api.status(plan.stack, region=plan.region, now=_dt.datetime.fromtimestamp(now, _dt.timezone.utc))
+        outputs = read_json(stack_dir(plan.stack, create=False) / engine.OUTPUTS_FILE) or {}
         return {"stack": plan.stack, "target": plan.target, "region": plan.region, "hosts": [
             {"host": r.name, "instance_id": r.instance_id, "state": r.state, "machine": r.machine,
              "public_ip": r.public_ip, "private_ip": r.private_ip, "launched": r.launched.isoformat(),
-             "uptime_s": round(r.uptime_s), "cost_usd": r.cost_usd} for r in rows]}
+             "uptime_s": round(r.uptime_s), "cost_usd": r.cost_usd,
+             "stopped_at": r.stopped_at.isoformat() if r.stopped_at else None, "stopped_by": r.stopped_by}
+            for r in rows], "cost": cost_guard(plan, rows, outputs, now=now)}
 
     def render_status(self, doc: Mapping[str, Any]) -> list[Any]:
+        guarded = guard.render(doc["cost"]) if doc.get("cost") else []
         if not doc["hosts"]:
-            return [f"{doc['stack']}: no instances"]
+            return [f"{doc['stack']}: no instances", *guarded]
         out = table(f"{doc['stack']} ({doc['region']})", "host", "instance", "state", "type", "public", "private",
                     "uptime", "cost so far")
         for h in doc["hosts"]:
-            out.add_row(h["host"], h["instance_id"], h["state"], h["machine"], h["public_ip"] or "-",
+            state = h["state"]
+            if h.get("stopped_at"):
+                state += f" at {h['stopped_at'][11:19]} UTC" + (f" by {h['stopped_by']}" if h["stopped_by"] else "")
+            out.add_row(h["host"], h["instance_id"], state, h["machine"], h["public_ip"] or "-",
                         h["private_ip"] or "-", f"{h['uptime_s'] / 3600:.1f} h", f"${h['cost_usd']:.2f}")
-        return [out]
+        return [out, *guarded]
 
     def doctor(self, plan: Plan, *, ssh_from: str | None = None) -> list[Check]:
         """Every check ``up`` would make, each as (what, ok, detail); nothing is created."""
@@ -177,9 +197,46 @@ class AwsTarget:
                               acm=api.client("acm", region=plan.region), dry_run=dry_run, kinds=kinds)
 
 
+def cost_guard(plan: Plan, rows: list[api.InstanceStatus], outputs: Mapping[str, Any], *,
+               now: float) -> dict[str, Any]:
+    """What the stack still has on AWS, priced; "no edge" from autostop's stops and this machine's edge relays.
+
+    A host the instance itself powered off (autostop) saw no edge for the autostop time before
+    it stopped, so the edge has been gone since at least then; the edge relays' stats files
+    say when this machine last ran one.
+    """
+    billed = [guard.Billed(f"instance {r.name} ({r.machine}, {r.state})", r.usd_per_hour,
+                           r.launched.timestamp() if r.usd_per_hour else None,
+                           running=r.state in {"pending", "running", "stopping"}) for r in rows]
+    if plan.vpn is not None and outputs.get("network", {}).get("vpn_endpoint_id"):
+        billed.append(guard.Billed("Client VPN subnet association", catalog().vpn_association_usd_per_hour,
+                                   outputs.get(NETWORK_SINCE)))
+    autostop_s = plan.autostop.idle_s if plan.autostop is not None else None
+    seen = [edge_idle_since(plan, now=now)]
+    if autostop_s is not None and rows and all(r.stopped_by == "the instance" and r.stopped_at for r in rows):
+        seen.append(max(r.stopped_at.timestamp() for r in rows if r.stopped_at) - autostop_s)
+    known = [t for t in seen if t is not None]
+    return guard.guard(billed, now=now, autostop_s=autostop_s, edge_idle_since=max(known) if known else None)
+
+
 def kept_network_usd_per_hour(plan: Plan) -> float:
     """A kept network costs its Client VPN association (VPC, subnets and gateways are free)."""
     return catalog().vpn_association_usd_per_hour if plan.vpn is not None else 0.0
+
+
+def pinned_host_keys(stack: str, instance_id: str, *, fetch: Callable[[], tuple[str, ...]]) -> tuple[str, ...]:
+    """The instance's SSH host keys as first pinned from its console; read from the console only once.
+
+    cloud-init prints them on the first boot only, so an instance autostop stopped and ``up``
+    started again is known by the keys recorded then (same instance id, same disk, same keys).
+    """
+    path = stack_dir(stack) / HOST_KEYS_FILE
+    recorded = read_json(path) or {}
+    if recorded.get(instance_id):
+        return tuple(recorded[instance_id])
+    found = fetch()
+    write_json_atomic(path, {**recorded, instance_id: list(found)})
+    return found
 
 
 def access_from_outputs(plan: Plan, outputs: Mapping[str, Any], *, fingerprints: Callable[[str], tuple[str, ...]]

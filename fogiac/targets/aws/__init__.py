@@ -12,11 +12,11 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from typing import Any
 
 from fogiac.certs import SSH_KEY, load_or_create_bundle
-from fogiac.errors import CloudError, FogiacError, ProvisionError
+from fogiac.errors import CloudError, EngineError, FogiacError, ProvisionError
 from fogiac.manifest.schema import Manifest
 from fogiac.net.vpn import write_client_profile
 from fogiac.orchestrate import edge_idle_since, ensure_edge_master, provision_and_connect, stop_edge
@@ -28,7 +28,7 @@ from fogiac.plan.placement import Placement, Tags
 from fogiac.provision import SshAccess
 from fogiac.state import read_json, stack_dir, stack_lock, write_json_atomic
 from fogiac.tables import table
-from fogiac.targets.aws import api, engine, offline, placement
+from fogiac.targets.aws import api, engine, offline, placement, spot
 from fogiac.targets.aws import sweep as sweeping
 from fogiac.targets.base import (
     Check,
@@ -71,6 +71,7 @@ class AwsTarget:
                 plan = dataclasses.replace(plan, zone=recorded["zone"], zone_chosen=True)
             report = api.preflight(plan, operator_cidr=opts.ssh_from, known_ids=engine.known_ids(plan.stack))
             plan = dataclasses.replace(plan, zone=report.zone)
+            asked_spot = {h.name for h in plan.hosts if h.spot}
             opts.show(doc, report)
             if plan.vpn is not None:
                 opts.announce(engine.VPN_NOTICE)
@@ -85,16 +86,37 @@ class AwsTarget:
             if started:
                 opts.announce(f"started {', '.join(started)} again (stopped while idle): the same instances, "
                               "nothing recreated")
-            outputs = engine.Engine(plan, on_event=opts.on_event).up(operator_cidrs=report.operator_cidrs)
+            plan, outputs = self._apply(plan, report.operator_cidrs, recorded.get(spot.ON_DEMAND, ()), opts)
             folder = stack_dir(plan.stack)
             since = recorded.get(NETWORK_SINCE) or round(time.time())  # what the cost guard counts from
-            write_json_atomic(folder / engine.OUTPUTS_FILE, {"zone": plan.zone, NETWORK_SINCE: since, **outputs})
+            fallen = [h.name for h in plan.hosts if not h.spot and h.name in asked_spot]
+            write_json_atomic(folder / engine.OUTPUTS_FILE, {"zone": plan.zone, NETWORK_SINCE: since, **outputs,
+                                                             **({spot.ON_DEMAND: fallen} if fallen else {})})
             write_json_atomic(folder / APPLIED_FILE, doc)
             if opts.infra_only:
                 return UpResult(outputs=outputs, applied=folder / APPLIED_FILE)
             done = self._connect(plan, outputs, master=master, announce=opts.announce)
             return UpResult(outputs=outputs, applied=folder / APPLIED_FILE, report=done.report,
                             relays=done.relays, edge_master=master)
+
+    def _apply(self, plan: Plan, operator_cidrs: tuple[str, ...], fallen: Collection[str],
+               opts: UpOptions) -> tuple[Plan, dict[str, Any]]:
+        """Run the engine; spot hosts AWS has no capacity for are made again on-demand, once, and named."""
+        plan = spot.on_demand(plan, fallen)  # fell back before: switching market would replace the instance
+        try:
+            return plan, engine.Engine(plan, on_event=opts.on_event).up(operator_cidrs=operator_cidrs)
+        except EngineError as err:
+            code = spot.no_capacity(str(err))
+            if not code:
+                raise
+            have = {r.name for r in api.status(plan.stack, region=plan.region) if r.state in {"pending", "running"}}
+            hosts = [h.name for h in plan.hosts if h.spot and h.name not in have]  # spot hosts that got nothing
+            if not hosts:
+                raise
+        for host in hosts:
+            opts.announce(spot.fallback_line(plan, host, code))
+        plan = spot.on_demand(plan, hosts)
+        return plan, engine.Engine(plan, on_event=opts.on_event).up(operator_cidrs=operator_cidrs)
 
     def _connect(self, plan: Plan, outputs: Mapping[str, Any], *, master: str,
                  announce: Callable[[str], None]) -> Any:
@@ -146,7 +168,8 @@ class AwsTarget:
             {"host": r.name, "instance_id": r.instance_id, "state": r.state, "machine": r.machine,
              "public_ip": r.public_ip, "private_ip": r.private_ip, "launched": r.launched.isoformat(),
              "uptime_s": round(r.uptime_s), "cost_usd": r.cost_usd,
-             "stopped_at": r.stopped_at.isoformat() if r.stopped_at else None, "stopped_by": r.stopped_by}
+             "stopped_at": r.stopped_at.isoformat() if r.stopped_at else None, "stopped_by": r.stopped_by,
+             "market": "spot" if r.spot else "on-demand"}
             for r in rows], "cost": cost_guard(plan, rows, outputs, now=now)}
 
     def render_status(self, doc: Mapping[str, Any]) -> list[Any]:
@@ -159,7 +182,8 @@ class AwsTarget:
             state = h["state"]
             if h.get("stopped_at"):
                 state += f" at {h['stopped_at'][11:19]} UTC" + (f" by {h['stopped_by']}" if h["stopped_by"] else "")
-            out.add_row(h["host"], h["instance_id"], state, h["machine"], h["public_ip"] or "-",
+            machine = h["machine"] + (" (spot)" if h.get("market") == "spot" else "")
+            out.add_row(h["host"], h["instance_id"], state, machine, h["public_ip"] or "-",
                         h["private_ip"] or "-", f"{h['uptime_s'] / 3600:.1f} h", f"${h['cost_usd']:.2f}")
         return [out, *guarded]
 

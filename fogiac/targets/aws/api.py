@@ -287,6 +287,7 @@ class InstanceStatus:
     usd_per_hour: float = 0.0  # what it costs now (0 while stopped; its disk is not in the catalogue)
     stopped_at: _dt.datetime | None = None
     stopped_by: str = ""  # "the instance" (autostop's poweroff), "a user", or "" while running
+    spot: bool = False  # bought on the spot market (priced here at most the on-demand rate)
 
 
 _STOPPED_AT = re.compile(r"\((\d{4}-\d\d-\d\d \d\d:\d\d:\d\d) (?:GMT|UTC)\)")  # AWS says GMT, moto UTC
@@ -331,7 +332,7 @@ def status(stack: str, *, region: str, ec2: Any = None,
                 state=state, machine=inst["InstanceType"], public_ip=inst.get("PublicIpAddress"),
                 private_ip=inst.get("PrivateIpAddress"), launched=launched, uptime_s=uptime,
                 cost_usd=round(uptime / 3600 * price, 4), usd_per_hour=price if running else 0.0,
-                stopped_at=stopped_at, stopped_by=stopped_by))
+                stopped_at=stopped_at, stopped_by=stopped_by, spot=inst.get("InstanceLifecycle") == "spot"))
     return sorted(rows, key=lambda r: (r.name, r.instance_id))
 
 

@@ -21,6 +21,7 @@ from urllib.parse import urlparse
 from fogiac import deployment
 from fogiac.certs import load_or_create_bundle
 from fogiac.errors import FogiacError, ProvisionError
+from fogiac.plan import guard
 from fogiac.plan.document import APPLIED_FILE, plan_document
 from fogiac.plan.model import HostSpec, Plan, RelayRoute
 from fogiac.procs import poll
@@ -35,6 +36,7 @@ EDGE_MASTER = "edge-master"
 # The edge relay counts directions as the edge sees them (it sends "out" what the manifest calls "in");
 # status shows them as the manifest says.
 MANIFEST_DIRECTION = {"out": "in", "in": "out", "-": "-"}
+STATS_STALE_S = 30.0  # a relay writes its stats every second: this much older and it no longer runs
 
 
 @dataclass(frozen=True)
@@ -131,6 +133,27 @@ def _duration(seconds: float) -> str:
 def edge_services(plan: Plan) -> list[str]:
     folder = stack_dir(plan.stack, create=False) / EDGE_DIR  # asking creates nothing
     return sorted(p.stem for p in folder.glob("*.pid")) if folder.exists() else []
+
+
+def edge_idle_since(plan: Plan, *, now: float) -> float | None:
+    """Since when no edge relay of the stack has run on this machine, from their stats files.
+
+    A running relay rewrites its stats every second: a fresh file that says connected means an
+    edge is there now (None); a stale one dates the relay's last breath. A fresh file that says
+    disconnected cannot be dated, nor can a relay this machine never ran: None, unknown.
+    """
+    last: list[float] = []
+    for route in plan.relay:
+        path = edge_dir(plan) / f"relay-edge-{route.host}.stats.json"
+        try:
+            written = path.stat().st_mtime
+        except OSError:
+            continue
+        if now - written >= STATS_STALE_S:
+            last.append(written)
+        elif (read_json(path) or {}).get("connected"):
+            return None
+    return max(last) if last else None
 
 
 def stop_edge(plan: Plan, *, keep_master: bool = False) -> None:
@@ -234,8 +257,8 @@ class ExistingMachines:
         """Where a host is reached, for ``status`` (a relay's HOST:PORT on targets without SSH)."""
         return spec.address or "-"
 
-    def status(self, plan: Plan) -> dict[str, Any]:
-        """Hosts (address, uptime, cost so far), nodes, edge processes and relayed topics, from the state folder."""
+    def status(self, plan: Plan, *, now: float | None = None) -> dict[str, Any]:
+        """Hosts (address, uptime, cost so far), nodes, edge processes, relayed topics and the cost guard."""
         head = {"stack": plan.stack, "target": plan.target}
         folder = stack_dir(plan.stack, create=False)
         record = deployment.read(plan.stack)
@@ -259,7 +282,25 @@ class ExistingMachines:
         edge = [supervise.status(edge_dir(plan), name) for name in edge_services(plan)]
         return {**head, "deployed": True, "partial": record is None or record.partial,
                 "edge_master": saved.get("edge_master", plan.edge_master), "hosts": hosts, "relays": relays,
-                "edge": edge}
+                "edge": edge, "cost": self._guard(plan, hosts, now=time.time() if now is None else now)}
+
+    def _guard(self, plan: Plan, hosts: list[dict[str, Any]], *, now: float) -> dict[str, Any]:
+        """These machines cost nothing fogiac can price; the guard still asks whether they run with no edge.
+
+        The hosts' watchdogs know best when the edge left (their ``idle_since``); without them, the
+        edge relays' stats files on this machine.
+        """
+        specs = {spec.name: spec for spec in plan.hosts}
+        billed = [guard.Billed(f"host {h['host']}", specs[h["host"]].usd_per_hour, None,
+                               running=not (h["autostop"] or {}).get("stopped_at")) for h in hosts]
+        watched = [h["autostop"] for h in hosts if h["autostop"]]
+        if watched and len(watched) == len(hosts):
+            idle = [w.get("idle_since") for w in watched]
+            since = None if None in idle else max(idle)
+        else:
+            since = edge_idle_since(plan, now=now)
+        return guard.guard(billed, now=now, autostop_s=plan.autostop.idle_s if plan.autostop else None,
+                           edge_idle_since=since)
 
     def render_status(self, doc: Mapping[str, Any]) -> list[Any]:
         """Nodes with their supervision state, then relayed topics with live figures."""
@@ -294,7 +335,8 @@ class ExistingMachines:
                                "-" if rate is None else f"{rate / 1024:.1f}", latency, str(t.get("drops", "-")))
         if doc["relays"]:
             out.append(relays)
-        return out
+        warning = (doc.get("cost") or {}).get("warning")
+        return out + ([f"warning: {warning}"] if warning else [])
 
     def refresh(self, plan: Plan) -> list[Refreshed]:
         return [Refreshed(plan.target, True, self.no_cloud.format(verb="refresh") + f" (target {plan.target})")]

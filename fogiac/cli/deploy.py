@@ -23,6 +23,7 @@ from fogiac.cli._common import ENV, FORCE, MANIFEST, TARGET, YES, compile_deploy
 from fogiac.cli.plan import render
 from fogiac.errors import FogiacError, PreflightError
 from fogiac.plan.cost import MONTH, per_month
+from fogiac.plan.guard import up_summary
 from fogiac.plan.model import Plan
 from fogiac.plan.saved import check_saved_plan
 from fogiac.provision.report import report_table
@@ -125,6 +126,7 @@ def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str |
         typer.echo(f"{name}: {host.get('instance_id')} {host.get('machine')} public {host.get('public_ip')} "
                    f"private {host.get('private_ip')}")
     typer.echo(f"applied: {result.applied}")
+    typer.echo(up_summary(plan))
 
 
 def _interrupted(manifest: Path, plan: Plan, chosen: Target) -> None:

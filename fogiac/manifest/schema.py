@@ -91,6 +91,12 @@ class Cloud(_Model):
         default=None, description="Idle shutdown; unset: the target's default (aws: 30 idle minutes, stop); off: never."
     )
 
+    @field_validator("autostop", mode="before")
+    @classmethod
+    def _yaml_off(cls, value: object) -> object:
+        """YAML 1.1 reads a bare ``off`` as false: that is the ``off`` the user wrote."""
+        return "off" if value is False else value
+
     @field_validator("region")
     @classmethod
     def _region(cls, value: str) -> str:

@@ -10,15 +10,18 @@ the only code in fogiac that imports boto3, pulumi, pulumi_aws or ``stacks``.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Mapping
+import datetime as _dt
+import time
+from collections.abc import Callable, Collection, Mapping
 from typing import Any
 
 from fogiac import deployment
 from fogiac.certs import SSH_KEY, load_or_create_bundle
-from fogiac.errors import CloudError, FogiacError, ProvisionError
+from fogiac.errors import CloudError, EngineError, FogiacError, ProvisionError
 from fogiac.manifest.schema import Manifest
 from fogiac.net.vpn import write_client_profile
-from fogiac.orchestrate import ensure_edge_master, provision_and_connect, stop_edge
+from fogiac.orchestrate import edge_idle_since, ensure_edge_master, provision_and_connect, stop_edge
+from fogiac.plan import guard
 from fogiac.plan.catalog import catalog
 from fogiac.plan.document import APPLIED_FILE, plan_document
 from fogiac.plan.model import Plan
@@ -26,7 +29,7 @@ from fogiac.plan.placement import Placement, Tags
 from fogiac.provision import SshAccess
 from fogiac.state import read_json, stack_dir, stack_lock, write_json_atomic
 from fogiac.tables import table
-from fogiac.targets.aws import api, engine, offline, placement
+from fogiac.targets.aws import api, engine, offline, placement, spot
 from fogiac.targets.aws import sweep as sweeping
 from fogiac.targets.base import (
     Check,
@@ -40,6 +43,8 @@ from fogiac.targets.base import (
 )
 
 COMPUTE_KINDS = ("instance", "key-pair", "network-interface")  # what --keep-network still sweeps
+NETWORK_SINCE = "network_since"  # in outputs.json: when the network stack (Client VPN association) was first applied
+HOST_KEYS_FILE = "host-keys.json"  # instance id -> SHA256 fingerprints pinned from its first boot's console
 SSH_USER = "ubuntu"  # the login of both images compile chooses (Ubuntu, AWS Deep Learning Base)
 
 
@@ -67,6 +72,7 @@ class AwsTarget:
                 plan = dataclasses.replace(plan, zone=recorded["zone"], zone_chosen=True)
             report = api.preflight(plan, operator_cidr=opts.ssh_from, known_ids=engine.known_ids(plan.stack))
             plan = dataclasses.replace(plan, zone=report.zone)
+            asked_spot = {h.name for h in plan.hosts if h.spot}
             opts.show(doc, report)
             if plan.vpn is not None:
                 opts.announce(engine.VPN_NOTICE)
@@ -78,9 +84,16 @@ class AwsTarget:
                 ensure_edge_master(plan, master, start=opts.start_edge_master)
             commit()
             deployment.begin(plan, opts.manifest_path)  # before the engine creates anything
-            outputs = engine.Engine(plan, on_event=opts.on_event).up(operator_cidrs=report.operator_cidrs)
+            started = api.start_stopped(plan.stack, region=plan.region, known_ids=engine.known_ids(plan.stack))
+            if started:
+                opts.announce(f"started {', '.join(started)} again (stopped while idle): the same instances, "
+                              "nothing recreated")
+            plan, outputs = self._apply(plan, report.operator_cidrs, recorded.get(spot.ON_DEMAND, ()), opts)
             folder = stack_dir(plan.stack)
-            write_json_atomic(folder / engine.OUTPUTS_FILE, {"zone": plan.zone, **outputs})
+            since = recorded.get(NETWORK_SINCE) or round(time.time())  # what the cost guard counts from
+            fallen = [h.name for h in plan.hosts if not h.spot and h.name in asked_spot]
+            write_json_atomic(folder / engine.OUTPUTS_FILE, {"zone": plan.zone, NETWORK_SINCE: since, **outputs,
+                                                             **({spot.ON_DEMAND: fallen} if fallen else {})})
             write_json_atomic(folder / APPLIED_FILE, doc)
             deployment.finish(plan, opts.manifest_path, plan_digest=doc["plan_digest"])
             if opts.infra_only:
@@ -88,6 +101,25 @@ class AwsTarget:
             done = self._connect(plan, outputs, master=master, announce=opts.announce)
             return UpResult(outputs=outputs, applied=folder / APPLIED_FILE, report=done.report,
                             relays=done.relays, edge_master=master)
+
+    def _apply(self, plan: Plan, operator_cidrs: tuple[str, ...], fallen: Collection[str],
+               opts: UpOptions) -> tuple[Plan, dict[str, Any]]:
+        """Run the engine; spot hosts AWS has no capacity for are made again on-demand, once, and named."""
+        plan = spot.on_demand(plan, fallen)  # fell back before: switching market would replace the instance
+        try:
+            return plan, engine.Engine(plan, on_event=opts.on_event).up(operator_cidrs=operator_cidrs)
+        except EngineError as err:
+            code = spot.no_capacity(str(err))
+            if not code:
+                raise
+            have = {r.name for r in api.status(plan.stack, region=plan.region) if r.state in {"pending", "running"}}
+            hosts = [h.name for h in plan.hosts if h.spot and h.name not in have]  # spot hosts that got nothing
+            if not hosts:
+                raise
+        for host in hosts:
+            opts.announce(spot.fallback_line(plan, host, code))
+        plan = spot.on_demand(plan, hosts)
+        return plan, engine.Engine(plan, on_event=opts.on_event).up(operator_cidrs=operator_cidrs)
 
     def _connect(self, plan: Plan, outputs: Mapping[str, Any], *, master: str,
                  announce: Callable[[str], None]) -> Any:
@@ -98,8 +130,8 @@ class AwsTarget:
                 bundle=load_or_create_bundle(plan.stack, stack_dir(plan.stack) / "certs"))
             announce(f"VPN profile: {profile} (connect with: sudo fogiac vpn up; the relays retry until it is up)")
         announce("waiting for each instance to print its SSH host keys on its console (pinned, never trusted on sight)")
-        access, connect = access_from_outputs(
-            plan, outputs, fingerprints=lambda iid: api.host_fingerprints(iid, region=plan.region))
+        access, connect = access_from_outputs(plan, outputs, fingerprints=lambda iid: pinned_host_keys(
+            plan.stack, iid, fetch=lambda: api.host_fingerprints(iid, region=plan.region)))
         return provision_and_connect(plan, access=access, connect=connect, master=master)
 
     # -- down -------------------------------------------------------------------------------------
@@ -115,6 +147,7 @@ class AwsTarget:
             folder = stack_dir(plan.stack)
             if not result.left:
                 (folder / APPLIED_FILE).unlink(missing_ok=True)
+                (folder / HOST_KEYS_FILE).unlink(missing_ok=True)  # no instance left to know them by
                 outputs = read_json(folder / engine.OUTPUTS_FILE) or {}
                 if opts.keep_network and outputs:
                     kept = {k: v for k, v in outputs.items() if k != "compute"}
@@ -131,22 +164,33 @@ class AwsTarget:
 
     # -- status, doctor, refresh, sweep ---------------------------------------------------------------
 
-    def status(self, plan: Plan) -> dict[str, Any]:
-        rows = api.status(plan.stack, region=plan.region)
+    def status(self, plan: Plan, *, now: float | None = None) -> dict[str, Any]:
+        """Each instance (state, when and by whom it stopped) and the cost guard over all the stack still has."""
+        now = time.time() if now is None else now
+        rows = api.status(plan.stack, region=plan.region, now=_dt.datetime.fromtimestamp(now, _dt.timezone.utc))
+        outputs = read_json(stack_dir(plan.stack, create=False) / engine.OUTPUTS_FILE) or {}
         return {"stack": plan.stack, "target": plan.target, "region": plan.region, "hosts": [
             {"host": r.name, "instance_id": r.instance_id, "state": r.state, "machine": r.machine,
              "public_ip": r.public_ip, "private_ip": r.private_ip, "launched": r.launched.isoformat(),
-             "uptime_s": round(r.uptime_s), "cost_usd": r.cost_usd} for r in rows]}
+             "uptime_s": round(r.uptime_s), "cost_usd": r.cost_usd,
+             "stopped_at": r.stopped_at.isoformat() if r.stopped_at else None, "stopped_by": r.stopped_by,
+             "market": "spot" if r.spot else "on-demand"}
+            for r in rows], "cost": cost_guard(plan, rows, outputs, now=now)}
 
     def render_status(self, doc: Mapping[str, Any]) -> list[Any]:
+        guarded = guard.render(doc["cost"]) if doc.get("cost") else []
         if not doc["hosts"]:
-            return [f"{doc['stack']}: no instances"]
+            return [f"{doc['stack']}: no instances", *guarded]
         out = table(f"{doc['stack']} ({doc['region']})", "host", "instance", "state", "type", "public", "private",
                     "uptime", "cost so far")
         for h in doc["hosts"]:
-            out.add_row(h["host"], h["instance_id"], h["state"], h["machine"], h["public_ip"] or "-",
+            state = h["state"]
+            if h.get("stopped_at"):
+                state += f" at {h['stopped_at'][11:19]} UTC" + (f" by {h['stopped_by']}" if h["stopped_by"] else "")
+            machine = h["machine"] + (" (spot)" if h.get("market") == "spot" else "")
+            out.add_row(h["host"], h["instance_id"], state, machine, h["public_ip"] or "-",
                         h["private_ip"] or "-", f"{h['uptime_s'] / 3600:.1f} h", f"${h['cost_usd']:.2f}")
-        return [out]
+        return [out, *guarded]
 
     def doctor(self, plan: Plan, *, ssh_from: str | None = None) -> list[Check]:
         """Every check ``up`` would make, each as (what, ok, detail); nothing is created."""
@@ -182,9 +226,46 @@ class AwsTarget:
                               acm=api.client("acm", region=plan.region), dry_run=dry_run, kinds=kinds)
 
 
+def cost_guard(plan: Plan, rows: list[api.InstanceStatus], outputs: Mapping[str, Any], *,
+               now: float) -> dict[str, Any]:
+    """What the stack still has on AWS, priced; "no edge" from autostop's stops and this machine's edge relays.
+
+    A host the instance itself powered off (autostop) saw no edge for the autostop time before
+    it stopped, so the edge has been gone since at least then; the edge relays' stats files
+    say when this machine last ran one.
+    """
+    billed = [guard.Billed(f"instance {r.name} ({r.machine}, {r.state})", r.usd_per_hour,
+                           r.launched.timestamp() if r.usd_per_hour else None,
+                           running=r.state in {"pending", "running", "stopping"}) for r in rows]
+    if plan.vpn is not None and outputs.get("network", {}).get("vpn_endpoint_id"):
+        billed.append(guard.Billed("Client VPN subnet association", catalog().vpn_association_usd_per_hour,
+                                   outputs.get(NETWORK_SINCE)))
+    autostop_s = plan.autostop.idle_s if plan.autostop is not None else None
+    seen = [edge_idle_since(plan, now=now)]
+    if autostop_s is not None and rows and all(r.stopped_by == "the instance" and r.stopped_at for r in rows):
+        seen.append(max(r.stopped_at.timestamp() for r in rows if r.stopped_at) - autostop_s)
+    known = [t for t in seen if t is not None]
+    return guard.guard(billed, now=now, autostop_s=autostop_s, edge_idle_since=max(known) if known else None)
+
+
 def kept_network_usd_per_hour(plan: Plan) -> float:
     """A kept network costs its Client VPN association (VPC, subnets and gateways are free)."""
     return catalog().vpn_association_usd_per_hour if plan.vpn is not None else 0.0
+
+
+def pinned_host_keys(stack: str, instance_id: str, *, fetch: Callable[[], tuple[str, ...]]) -> tuple[str, ...]:
+    """The instance's SSH host keys as first pinned from its console; read from the console only once.
+
+    cloud-init prints them on the first boot only, so an instance autostop stopped and ``up``
+    started again is known by the keys recorded then (same instance id, same disk, same keys).
+    """
+    path = stack_dir(stack) / HOST_KEYS_FILE
+    recorded = read_json(path) or {}
+    if recorded.get(instance_id):
+        return tuple(recorded[instance_id])
+    found = fetch()
+    write_json_atomic(path, {**recorded, instance_id: list(found)})
+    return found
 
 
 def access_from_outputs(plan: Plan, outputs: Mapping[str, Any], *, fingerprints: Callable[[str], tuple[str, ...]]

@@ -11,6 +11,7 @@ from __future__ import annotations
 import datetime as _dt
 import ipaddress
 import os
+import re
 import time
 import urllib.request
 from collections.abc import Collection, Sequence
@@ -280,9 +281,31 @@ class InstanceStatus:
     machine: str
     public_ip: str | None
     private_ip: str | None
-    launched: _dt.datetime
+    launched: _dt.datetime  # AWS moves it on every start: the running stretch's beginning
     uptime_s: float
     cost_usd: float
+    usd_per_hour: float = 0.0  # what it costs now (0 while stopped; its disk is not in the catalogue)
+    stopped_at: _dt.datetime | None = None
+    stopped_by: str = ""  # "the instance" (autostop's poweroff), "a user", or "" while running
+    spot: bool = False  # bought on the spot market (priced here at most the on-demand rate)
+
+
+_STOPPED_AT = re.compile(r"\((\d{4}-\d\d-\d\d \d\d:\d\d:\d\d) (?:GMT|UTC)\)")  # AWS says GMT, moto UTC
+_STOPPED_BY = {"Client.InstanceInitiatedShutdown": "the instance", "Client.UserInitiatedShutdown": "a user"}
+
+
+def stop_time(inst: dict[str, Any]) -> tuple[_dt.datetime | None, str]:
+    """When and by whom a stopped instance stopped, from AWS's ``StateTransitionReason`` and ``StateReason``.
+
+    AWS writes ``User initiated (2026-11-23 12:03:10 GMT)`` for every stop; the state reason's
+    code tells a poweroff from inside (autostop) from a console click or API call.
+    """
+    if inst["State"]["Name"] not in {"stopping", "stopped"}:
+        return None, ""
+    found = _STOPPED_AT.search(inst.get("StateTransitionReason") or "")
+    when = (_dt.datetime.strptime(found.group(1), "%Y-%m-%d %H:%M:%S").replace(tzinfo=_dt.timezone.utc)
+            if found else None)
+    return when, _STOPPED_BY.get((inst.get("StateReason") or {}).get("Code", ""), "")
 
 
 def status(stack: str, *, region: str, ec2: Any = None,
@@ -303,12 +326,39 @@ def status(stack: str, *, region: str, ec2: Any = None,
             known = prices.get(inst["InstanceType"])
             price = known.usd_per_hour.get(region, 0.0) if known is not None else 0.0
             tags = tags_of(inst)
+            stopped_at, stopped_by = stop_time(inst)
             rows.append(InstanceStatus(
                 name=tags.get(NODE_TAG, tags.get("Name", inst["InstanceId"])), instance_id=inst["InstanceId"],
                 state=state, machine=inst["InstanceType"], public_ip=inst.get("PublicIpAddress"),
                 private_ip=inst.get("PrivateIpAddress"), launched=launched, uptime_s=uptime,
-                cost_usd=round(uptime / 3600 * price, 4)))
+                cost_usd=round(uptime / 3600 * price, 4), usd_per_hour=price if running else 0.0,
+                stopped_at=stopped_at, stopped_by=stopped_by, spot=inst.get("InstanceLifecycle") == "spot"))
     return sorted(rows, key=lambda r: (r.name, r.instance_id))
+
+
+def start_stopped(stack: str, *, region: str, known_ids: Collection[str], ec2: Any = None,
+                  delay_s: int = 5, attempts: int = 120) -> list[str]:
+    """Start the stack's stopped instances (autostop's poweroff) that fogiac's state knows; wait until running.
+
+    Started, not recreated: the same instance, disk and private address come back, so the
+    engine's refresh finds nothing to replace and provisioning redoes only what changed.
+    Instances still stopping are waited for first (AWS refuses to start them).
+    """
+    ec2 = ec2 or client("ec2", region=region)
+    found = [i for r in paginate(ec2, "describe_instances", "Reservations", Filters=tag_filter(stack) + [
+        {"Name": "instance-state-name", "Values": ["stopping", "stopped"]}]) for i in r["Instances"]]
+    ids = sorted(i["InstanceId"] for i in found if i["InstanceId"] in known_ids)
+    if not ids:
+        return []
+    config = {"Delay": delay_s, "MaxAttempts": attempts}
+    waiters = need("botocore.exceptions")
+    try:
+        ec2.get_waiter("instance_stopped").wait(InstanceIds=ids, WaiterConfig=config)
+        _call(ec2.start_instances, InstanceIds=ids)
+        ec2.get_waiter("instance_running").wait(InstanceIds=ids, WaiterConfig=config)
+    except waiters.WaiterError as err:
+        raise CloudError(f"starting the stopped instances {', '.join(ids)} failed: {err}") from None
+    return ids
 
 
 def identity(*, region: str, sts: Any = None) -> str:

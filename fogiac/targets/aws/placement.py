@@ -98,7 +98,8 @@ def _vpn(manifest: Manifest, stack: str, network: NetworkSpec) -> VpnSpec:
 
 def _cost(hosts: tuple[HostSpec, ...], vpn: VpnSpec | None) -> tuple[CostLine, ...]:
     lines = [
-        CostLine(f"instance {h.name} ({h.machine}{', spot: at most' if h.spot else ''})", 1, h.usd_per_hour)
+        CostLine(f"instance {h.name} ({h.machine}{', spot: at most the on-demand price' if h.spot else ''})", 1,
+                 h.usd_per_hour)
         for h in hosts
     ]
     if vpn is not None:

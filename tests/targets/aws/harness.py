@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import pulumi
+from botocore.exceptions import ClientError
 
 from fogiac.targets.aws.api import error_code
 from fogiac.certs import Bundle
@@ -59,6 +60,7 @@ class Harness:
     acm: Any
     path: Path | None = None
     fail_at: int | None = None  # raise instead of creating the Nth resource of an apply
+    spot_capacity: bool = True  # False: refuse spot launches as AWS does when it has none (InsufficientInstanceCapacity)
     state: dict[str, dict[str, Any]] = field(default_factory=dict)
     created: list[str] = field(default_factory=list)  # keys created by the last apply
     reused: list[str] = field(default_factory=list)
@@ -265,6 +267,10 @@ def _instance(h: Harness, i: dict[str, Any]) -> tuple[str, dict[str, Any]]:
         TagSpecifications=_tag_spec("instance", i.get("tags")) + _tag_spec("volume", i.get("volumeTags")),
     )
     if i.get("instanceMarketOptions"):
+        if not h.spot_capacity:
+            raise ClientError({"Error": {"Code": "InsufficientInstanceCapacity", "Message": (
+                f"There is no Spot capacity available that matches your request ({i['instanceType']}).")}},
+                "RunInstances")
         args["InstanceMarketOptions"] = {"MarketType": "spot"}
     inst = h.ec2.run_instances(**args)["Instances"][0]
     return inst["InstanceId"], {"publicIp": inst.get("PublicIpAddress", ""), "privateIp": inst["PrivateIpAddress"]}

@@ -14,10 +14,12 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from botocore.exceptions import ClientError
 from typer.testing import CliRunner
 
 from fogiac.certs import new_bundle
 from fogiac.cli import app
+from fogiac.errors import EngineError
 from fogiac.targets.aws.engine import LAYERS, OUTPUTS_FILE, PULUMI_CLI_VERSION, SSH_KEY_FILE, Engine
 from fogiac.state import stack_dir, write_json_atomic
 
@@ -44,7 +46,10 @@ def engine_is_harness(aws_env: str, tmp_path: Path, monkeypatch: pytest.MonkeyPa
             outputs: dict[str, Any] = {}
             programs = self.programs(operator_cidrs=operator_cidrs, network_outputs=lambda: outputs["network"])
             for layer in LAYERS:
-                outputs[layer] = harness.run_layer(self.plan, layer, programs[layer])
+                try:
+                    outputs[layer] = harness.run_layer(self.plan, layer, programs[layer])
+                except ClientError as err:  # what AWS refused reaches fogiac as the engine's error, as with Pulumi
+                    raise EngineError(f"{layer} stack failed: {err}; `fogiac down` removes what was made") from None
             return outputs
 
         def destroy(self, *, layers: tuple[str, ...] = ("compute", "network")) -> list[str]:

@@ -1,0 +1,89 @@
+"""The operator's cost guard: what a stack still has, what it costs per hour and so far, and a
+warning when it has had no edge for longer than its autostop time yet still runs or costs.
+
+Pure: a target gathers the facts (its instances and their state, the network stack's age, when
+an edge was last seen) and this module does the sums and the wording, the same for every
+target. Prices are the catalogue's on-demand ones, like the plan's; a stopped instance's disk is
+not in the catalogue and is not counted.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from fogiac.plan.model import Plan
+
+
+@dataclass(frozen=True)
+class Billed:
+    """One thing the stack still has."""
+
+    item: str
+    usd_per_hour: float  # what it costs now (0 while stopped, or on a machine with no price)
+    since: float | None  # epoch seconds this rate has applied since; None: unknown, nothing counted so far
+    running: bool = True  # a stopped host is kept (its disk) but does not run
+
+
+def duration(seconds: float) -> str:
+    """``2h 05m``, ``12m 30s``: short enough for a status line."""
+    s = max(0, int(seconds))
+    if s >= 3600:
+        return f"{s // 3600}h {s % 3600 // 60:02d}m"
+    return f"{s // 60}m {s % 60:02d}s"
+
+
+def guard(billed: Sequence[Billed], *, now: float, autostop_s: float | None,
+          edge_idle_since: float | None) -> dict[str, Any]:
+    """``{lines, usd_per_hour, cost_usd, no_edge_s, warning}`` for ``fogiac status`` (JSON-ready).
+
+    ``edge_idle_since``: since when no edge has been connected, as far as the target can tell
+    (None: one is connected now, or nobody knows). The warning fires when that is longer than
+    the autostop time and something still runs or costs: the watchdog did not stop it, or what
+    it cannot stop (the Client VPN association) is still billed.
+    """
+    lines: list[dict[str, Any]] = [{"item": b.item, "usd_per_hour": b.usd_per_hour, "running": b.running,
+              "since": b.since, "cost_usd": round(max(0.0, now - b.since) / 3600 * b.usd_per_hour, 4)
+              if b.since is not None else None} for b in billed]
+    hourly = round(sum(b.usd_per_hour for b in billed), 4)
+    no_edge = now - edge_idle_since if edge_idle_since is not None else None
+    warning = ""
+    if autostop_s is not None and no_edge is not None and no_edge > autostop_s:
+        costly = [b.item for b in billed if b.usd_per_hour > 0]
+        running = [b.item for b in billed if b.running]
+        head = f"no edge for {duration(no_edge)}, longer than autostop's {duration(autostop_s)}"
+        if costly:
+            warning = (f"{head}, and this stack still costs ${hourly:.2f}/h ({', '.join(costly)}): "
+                       "`fogiac down` removes it")
+        elif running:
+            warning = (f"{head}, yet {', '.join(running)} still run: the autostop watchdog did not stop them "
+                       "(see its log on the host)")
+    return {"lines": lines, "usd_per_hour": hourly,
+            "cost_usd": round(sum(line["cost_usd"] or 0.0 for line in lines), 4),
+            "no_edge_s": round(no_edge) if no_edge is not None else None, "warning": warning}
+
+
+def render(doc: dict[str, Any]) -> list[str]:
+    """The guard's lines under a status table: the totals, then the warning if any."""
+    out = [f"cost: ${doc['usd_per_hour']:.4f}/h now, ${doc['cost_usd']:.2f} so far "
+           "(on-demand catalogue prices; stopped hosts' disks not counted)"]
+    for line in doc["lines"]:
+        so_far = "-" if line["cost_usd"] is None else f"${line['cost_usd']:.2f}"
+        out.append(f"  ${line['usd_per_hour']:.4f}/h  {so_far:>8} so far  {line['item']}")
+    if doc["warning"]:
+        out.append(f"warning: {doc['warning']}")
+    return out
+
+
+def up_summary(plan: Plan) -> str:
+    """``up``'s last word on money: what the stack costs while up and what autostop does about it."""
+    head = f"cost: ${plan.hourly_usd:.4f}/h while up"
+    if plan.autostop is None:
+        return f"{head}; autostop is off: it costs this until `fogiac down`"
+    stop = plan.autostop
+    what = "stops the hosts" if stop.action == "stop" else "terminates the hosts"
+    tail = ""
+    if plan.vpn is not None:
+        tail = "; the Client VPN association is billed until `fogiac down`"
+    return f"{head}; autostop {what} after {duration(stop.idle_s)} without an edge{tail}"

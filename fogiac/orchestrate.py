@@ -46,12 +46,7 @@ def edge_dir(plan: Plan) -> Path:
 def _relay_argv(route: RelayRoute, *, connect: str, master: str, certs: Path, stats: Path) -> list[str]:
     argv = [sys.executable, "-m", "fogiac", "relay", "edge", "--connect", connect, "--master", master,
             "--certs", str(certs), "--stats-file", str(stats), "--queue-depth", str(route.queue_size)]
-    # The manifest's "in" (robot -> node) is what the edge sends out, its "out" what comes in.
-    if route.to_cloud:
-        argv += ["--out", ",".join(route.to_cloud)]
-    if route.to_edge:
-        argv += ["--in", ",".join(route.to_edge)]
-    argv += ["--topics", "auto" if route.auto else ",".join(route.listed)] if (route.auto or route.listed) else []
+    argv += route.policy_argv()
     compression = dict(route.compression)
     if "*" in compression:
         argv += ["--compression", compression["*"]]

@@ -136,5 +136,5 @@ def test_relay_cloud_end_command(plan: Plan) -> None:
     relay = svc.relay_service(plan, plan.host("talker"), where)
     assert relay.script.splitlines()[-1] == (
         "exec python3 -m fogiac relay cloud --listen 0.0.0.0:11411 --master http://127.0.0.1:11311 "
-        f"--certs {where.layout.certs}"
+        f"--certs {where.layout.certs} --topics auto"  # the same topic policy as the edge end's
     )

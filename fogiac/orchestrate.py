@@ -150,6 +150,9 @@ class ExistingMachines:
     def leftovers(self, plan: Plan, folder: Path) -> list[str]:
         return []
 
+    def forget(self, plan: Plan, folder: Path) -> None:
+        """Drop what :meth:`access` recorded, once ``down`` found nothing left."""
+
     def node_states(self, plan: Plan, spec: HostSpec, entry: Any) -> list[dict[str, Any]]:
         return [{"node": n} for n in spec.nodes]
 
@@ -187,6 +190,7 @@ class ExistingMachines:
             left += self.leftovers(plan, folder)
             if not left and not errors:
                 (folder / DEPLOYMENT_FILE).unlink(missing_ok=True)
+                self.forget(plan, folder)
         return DownResult(engine_errors=tuple(errors), left=tuple(left), not_checked=())
 
     def status(self, plan: Plan) -> dict[str, Any]:

@@ -15,6 +15,7 @@ from rich.markup import escape
 
 from fogiac import targets
 from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_for
+from fogiac.errors import FogiacError
 from fogiac.plan.document import APPLIED_FILE, plan_document
 from fogiac.state import read_json, stack_dir, write_json_atomic
 from fogiac.tables import console, table
@@ -101,7 +102,12 @@ def plan(
     compiled = compile_for(manifest, env, target)
     doc = plan_document(compiled, targets.get(compiled.target).declare(compiled), manifest=manifest)
     if out is not None:
-        write_json_atomic(out, doc, mode=0o644)
+        if out.is_dir():
+            raise FogiacError(f"--out {out}: is a directory; name the file to write")
+        try:
+            write_json_atomic(out, doc, mode=0o644)
+        except OSError as err:
+            raise FogiacError(f"--out {out}: cannot write: {err.strerror or err}") from None
     if as_json:
         typer.echo(json.dumps(doc, indent=2, sort_keys=True))
     else:

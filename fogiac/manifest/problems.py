@@ -96,8 +96,8 @@ def parse_yaml(text: str, *, source: str) -> tuple[yaml.Node | None, Any]:
         mark = err.problem_mark or err.context_mark
         line = mark.line + 1 if mark else 1
         raise ManifestError([f"{source}:{line}: invalid YAML: {err.problem or err.context}"]) from None
-    except yaml.YAMLError as err:
-        raise ManifestError([f"{source}:1: invalid YAML: {err}"]) from None
+    except yaml.YAMLError as err:  # e.g. a ReaderError for bytes YAML forbids; its text spans lines
+        raise ManifestError([f"{source}:1: invalid YAML: {' '.join(str(err).split())}"]) from None
     duplicates = list(_duplicate_keys(root, ()))
     if duplicates:
         raise ManifestError(

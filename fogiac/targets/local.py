@@ -17,7 +17,7 @@ from fogiac.orchestrate import ExistingMachines
 from fogiac.plan.model import HostSpec, Plan
 from fogiac.plan.placement import Placement, Tags, host_per_node
 from fogiac.provision import LocalAccess, supervise
-from fogiac.provision.local import local_access, sandbox_root
+from fogiac.provision.local import PORTS_FILE, local_access, sandbox_root
 from fogiac.targets.base import Check
 
 
@@ -37,6 +37,12 @@ class LocalTarget(ExistingMachines):
 
     def leftovers(self, plan: Plan, folder: Path) -> list[str]:
         return [f"sandbox {p}" for p in sorted(sandbox_root(folder).glob("*")) if p.is_dir()]
+
+    def forget(self, plan: Plan, folder: Path) -> None:
+        root = sandbox_root(folder)
+        (root / PORTS_FILE).unlink(missing_ok=True)
+        if root.is_dir() and not any(root.iterdir()):
+            root.rmdir()
 
     def node_states(self, plan: Plan, spec: HostSpec, entry: Any) -> list[dict[str, Any]]:
         if entry is None:

@@ -68,6 +68,10 @@ _OPEN = (yaml.MappingStartEvent, yaml.SequenceStartEvent)
 _CLOSE = (yaml.MappingEndEvent, yaml.SequenceEndEvent)
 
 
+def _line(event: yaml.Event) -> int:
+    return event.start_mark.line + 1 if event.start_mark else 1
+
+
 def _screen(text: str, *, source: str) -> None:
     """Refuse, from the event stream alone, what would make composing the tree blow up: aliases
     (a few hundred bytes expand to gigabytes, or cycle), nesting deeper than any manifest needs
@@ -77,12 +81,12 @@ def _screen(text: str, *, source: str) -> None:
     depth = 0
     for event in yaml.parse(text, Loader=yaml.SafeLoader):
         if isinstance(event, yaml.AliasEvent):
-            raise ManifestError([f"{source}:{event.start_mark.line + 1}: YAML alias *{event.anchor} is not "
+            raise ManifestError([f"{source}:{_line(event)}: YAML alias *{event.anchor} is not "
                                  "allowed in a manifest; write the value out"])
         if isinstance(event, _OPEN):
             depth += 1
             if depth > MAX_DEPTH:
-                raise ManifestError([f"{source}:{event.start_mark.line + 1}: nested deeper than {MAX_DEPTH} levels"])
+                raise ManifestError([f"{source}:{_line(event)}: nested deeper than {MAX_DEPTH} levels"])
         elif isinstance(event, _CLOSE):
             depth -= 1
 

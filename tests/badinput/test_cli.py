@@ -43,3 +43,16 @@ def test_down_of_a_never_deployed_local_stack_leaves_nothing(state: Path) -> Non
     result = runner.invoke(app, ["down", str(EXAMPLES / "minimal.yaml"), "--yes", "--target", "local"])
     assert result.exit_code == 0, result.output
     assert not (state / "minimal-dev" / "local").exists()
+
+
+@pytest.mark.parametrize("given", ["0.0.0.0/0", "0.0.0.0/1", "10.0.0.0/7"])
+def test_preflight_refuses_a_wide_ssh_from(given: str) -> None:
+    from fogiac.errors import PreflightError
+    from fogiac.manifest.schema import load_manifest
+    from fogiac.plan.compile import compile_plan
+    from fogiac.targets.aws.api import operator_cidrs
+
+    plan = compile_plan(load_manifest(EXAMPLES / "minimal.yaml"), target="aws")
+    with pytest.raises(PreflightError, match=rf"^ssh_from: {given} cover \d+ addresses, more than a /8"):
+        operator_cidrs(plan, override=given)
+    assert operator_cidrs(plan, override="10.0.0.0/8") == ("10.0.0.0/8",)

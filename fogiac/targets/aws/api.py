@@ -139,7 +139,7 @@ def operator_cidrs(plan: Plan, *, override: str | None = None, fetch: bool = Tru
                 f"pass --ssh-from CIDR or set {OPERATOR_ENV}"
             ) from None
     cidrs = tuple(mine if cidr == OPERATOR else cidr for cidr in plan.ssh_from)
-    problem = ssh_from_problem(ipaddress.ip_network(c) for c in cidrs)  # --ssh-from may be as wide as any
+    problem = ssh_from_problem(ipaddress.IPv4Network(c) for c in cidrs)  # --ssh-from may be as wide as any
     if problem:
         raise PreflightError(f"ssh_from: {problem}")
     return cidrs

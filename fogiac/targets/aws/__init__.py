@@ -9,6 +9,7 @@ the only code in fogiac that imports boto3, pulumi, pulumi_aws or ``stacks``.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 from collections.abc import Callable, Mapping
 from typing import Any
@@ -168,7 +169,10 @@ class AwsTarget:
             return [Refreshed(r.layer, r.ok, r.summary) for r in engine.Engine(plan).refresh()]
 
     def sweep(self, plan: Plan, *, dry_run: bool) -> SweepOutcome:
-        result = self._sweep(plan, dry_run=dry_run)
+        # Deleting takes the stack's lock, so a sweep cannot delete what a running up is creating;
+        # a dry run only lists.
+        with contextlib.nullcontext() if dry_run else stack_lock(plan.stack, operation="sweep"):
+            result = self._sweep(plan, dry_run=dry_run)
         return SweepOutcome(found=tuple(map(str, result.found)), deleted=tuple(map(str, result.deleted)),
                             left=tuple(map(str, result.left)), errors=result.errors, not_checked=result.not_checked)
 

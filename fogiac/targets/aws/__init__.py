@@ -24,6 +24,7 @@ from fogiac.plan.document import APPLIED_FILE, plan_document
 from fogiac.plan.model import Plan
 from fogiac.plan.placement import Placement, Tags
 from fogiac.provision import SshAccess
+from fogiac.provision.runner import KNOWN_HOSTS
 from fogiac.state import read_json, stack_dir, stack_lock, write_json_atomic
 from fogiac.tables import table
 from fogiac.targets.aws import api, engine, offline, placement
@@ -113,6 +114,8 @@ class AwsTarget:
             folder = stack_dir(plan.stack)
             if not result.left:
                 (folder / APPLIED_FILE).unlink(missing_ok=True)
+                # The instances are gone and their public addresses go back to AWS's pool.
+                (folder / KNOWN_HOSTS).unlink(missing_ok=True)
                 outputs = read_json(folder / engine.OUTPUTS_FILE) or {}
                 if opts.keep_network and outputs:
                     kept = {k: v for k, v in outputs.items() if k != "compute"}

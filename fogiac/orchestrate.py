@@ -54,12 +54,7 @@ def edge_dir(plan: Plan) -> Path:
 def _relay_argv(route: RelayRoute, *, connect: str, master: str, certs: Path, stats: Path) -> list[str]:
     argv = [sys.executable, "-m", "fogiac", "relay", "edge", "--connect", connect, "--master", master,
             "--certs", str(certs), "--stats-file", str(stats), "--queue-depth", str(route.queue_size)]
-    # The manifest's "in" (robot -> node) is what the edge sends out, its "out" what comes in.
-    if route.to_cloud:
-        argv += ["--out", ",".join(route.to_cloud)]
-    if route.to_edge:
-        argv += ["--in", ",".join(route.to_edge)]
-    argv += ["--topics", "auto" if route.auto else ",".join(route.listed)] if (route.auto or route.listed) else []
+    argv += route.policy_argv()
     compression = dict(route.compression)
     if "*" in compression:
         argv += ["--compression", compression["*"]]
@@ -187,6 +182,9 @@ class ExistingMachines:
     def leftovers(self, plan: Plan, folder: Path) -> list[str]:
         return []
 
+    def forget(self, plan: Plan, folder: Path) -> None:
+        """Drop what :meth:`access` recorded, once ``down`` found nothing left."""
+
     def node_states(self, plan: Plan, spec: HostSpec, entry: Any) -> list[dict[str, Any]]:
         return [{"node": n} for n in spec.nodes]
 
@@ -251,6 +249,7 @@ class ExistingMachines:
                 (folder / DEPLOYMENT_FILE).unlink(missing_ok=True)
                 (folder / APPLIED_FILE).unlink(missing_ok=True)
                 deployment.removed(plan.stack)
+                self.forget(plan, folder)
         return DownResult(engine_errors=tuple(errors), left=tuple(left), not_checked=(), deleted=tuple(deleted))
 
     def host_address(self, plan: Plan, spec: HostSpec, entry: Any) -> str:

@@ -25,7 +25,9 @@ def state_root() -> Path:
 
 
 def stack_dir(stack: str, *, create: bool = True) -> Path:
-    """The folder for one stack (``<name>-<environment>``), 0700."""
+    """The folder for one stack (``<name>-<environment>``), 0700; never a path outside the root."""
+    if not stack or "/" in stack or stack.startswith(".") or any(ord(c) < 32 for c in stack):
+        raise StateError(f"{stack!r} is not a stack name")
     path = state_root() / stack
     if create:
         try:

@@ -54,3 +54,20 @@ def test_installed_cli_validates_a_copied_manifest(installed: Path, tmp_path: Pa
         "try:\n    main()\nexcept SystemExit as e:\n    assert not e.code, e.code\n"
     ))
     assert out.strip() == "fogiac.yaml: valid (1 node, 1 host, target aws)"
+
+
+def test_ssh_libraries_include_the_terrapin_fix() -> None:
+    """fabric alone accepts Debian's paramiko 2.12 (no strict key exchange, CVE-2023-48795)."""
+    import inspect
+    import tomllib
+
+    import cryptography
+    import paramiko
+
+    project = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())["project"]
+    assert any(r.startswith("paramiko>=3.4.0") for r in project["optional-dependencies"]["ssh"])
+    assert "cryptography>=42.0.4" in project["dependencies"]
+    assert tuple(map(int, paramiko.__version__.split(".")[:2])) >= (3, 4)
+    assert tuple(map(int, cryptography.__version__.split(".")[:3])) >= (42, 0, 4)
+    strict = inspect.signature(paramiko.Transport.__init__).parameters.get("strict_kex")
+    assert strict is not None and strict.default is True

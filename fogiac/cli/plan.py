@@ -18,6 +18,7 @@ from rich.markup import escape
 
 from fogiac import targets
 from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_deployed, compile_for
+from fogiac.errors import FogiacError
 from fogiac.manifest.revision import load_revision
 from fogiac.plan import review
 from fogiac.plan.compile import compile_plan
@@ -148,7 +149,12 @@ def plan(
     diff = diff_documents(before, declared, against="manifest" if against else "applied")
     doc = annotate(declared, diff)
     if out is not None:
-        write_json_atomic(out, doc, mode=0o644)
+        if out.is_dir():
+            raise FogiacError(f"--out {out}: is a directory; name the file to write")
+        try:
+            write_json_atomic(out, doc, mode=0o644)
+        except OSError as err:
+            raise FogiacError(f"--out {out}: cannot write: {err.strerror or err}") from None
     if as_json:
         typer.echo(json.dumps(doc, indent=2, sort_keys=True))
     elif markdown:

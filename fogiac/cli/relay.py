@@ -23,6 +23,9 @@ _ROS_HOST = typer.Option(None, "--ros-host",
 _STATS = typer.Option(None, "--stats-file", help="Write live figures as JSON here every second.")
 _DEPTH = typer.Option(4, "--queue-depth", help="Per-topic queue length (oldest dropped first).")
 _VERBOSE = typer.Option(False, "--verbose", "-v", help="Log debug detail.")
+_TOPICS = typer.Option("auto", "--topics", help="auto, or /a,/b (direction from the publisher).")
+_OUT = typer.Option("", "--out", help="/a,/b always sent edge -> cloud.")
+_IN = typer.Option("", "--in", help="/a,/b always sent cloud -> edge.")
 
 
 def _run(end: object, verbose: bool) -> None:
@@ -53,18 +56,19 @@ def register(app: typer.Typer) -> None:
     @relay.command("cloud")
     def cloud(listen: str = typer.Option("0.0.0.0:11411", "--listen", help="HOST:PORT to accept the edge on."),
               master: str = _MASTER, certs: Path = _CERTS, ros_host: str | None = _ROS_HOST,
+              topics: str = _TOPICS, out_topics: str = _OUT, in_topics: str = _IN,
               stats_file: Path | None = _STATS, queue_depth: int = _DEPTH, verbose: bool = _VERBOSE) -> None:
-        """The cloud end: wait for the edge and relay what it asks for."""
+        """The cloud end: wait for the edge and relay what it asks for, within the same topic policy."""
 
-        config = CloudConfig(listen=parse_hostport(listen), **_common(master, certs, ros_host, stats_file, queue_depth))
+        config = CloudConfig(listen=parse_hostport(listen),
+                             policy=policy_from_spec(topics, out_topics=out_topics, in_topics=in_topics),
+                             **_common(master, certs, ros_host, stats_file, queue_depth))
         _run(CloudRelay(config), verbose)
 
     @relay.command("edge")
     def edge(connect: str = typer.Option(..., "--connect", help="The cloud end's HOST:PORT."),
              master: str = _MASTER, certs: Path = _CERTS,
-             topics: str = typer.Option("auto", "--topics", help="auto, or /a,/b (direction from the publisher)."),
-             out_topics: str = typer.Option("", "--out", help="/a,/b always sent edge -> cloud."),
-             in_topics: str = typer.Option("", "--in", help="/a,/b always sent cloud -> edge."),
+             topics: str = _TOPICS, out_topics: str = _OUT, in_topics: str = _IN,
              compression: str = typer.Option("none", "--compression", help="none|zstd|lz4, or per topic /t=zstd,..."),
              server_name: str | None = typer.Option(None, "--server-name",
                                                    help="Name in the cloud's certificate (default: server.pem's)."),

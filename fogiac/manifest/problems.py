@@ -77,16 +77,46 @@ def suggest(value: object, choices: Iterable[str]) -> str:
     return ""
 
 
+MAX_BYTES = 1 << 20  # a manifest of 100 nodes is ~20 KB
+MAX_DEPTH = 24  # the schema nests 5 deep; env and tags add one
+_OPEN = (yaml.MappingStartEvent, yaml.SequenceStartEvent)
+_CLOSE = (yaml.MappingEndEvent, yaml.SequenceEndEvent)
+
+
+def _line(event: yaml.Event) -> int:
+    return event.start_mark.line + 1 if event.start_mark else 1
+
+
+def _screen(text: str, *, source: str) -> None:
+    """Refuse, from the event stream alone, what would make composing the tree blow up: aliases
+    (a few hundred bytes expand to gigabytes, or cycle), nesting deeper than any manifest needs
+    (the composer recurses), and oversized files. The parser itself keeps no recursion."""
+    if len(text) > MAX_BYTES:
+        raise ManifestError([f"{source}:1: the manifest is {len(text)} characters; the limit is {MAX_BYTES}"])
+    depth = 0
+    for event in yaml.parse(text, Loader=yaml.SafeLoader):
+        if isinstance(event, yaml.AliasEvent):
+            raise ManifestError([f"{source}:{_line(event)}: YAML alias *{event.anchor} is not "
+                                 "allowed in a manifest; write the value out"])
+        if isinstance(event, _OPEN):
+            depth += 1
+            if depth > MAX_DEPTH:
+                raise ManifestError([f"{source}:{_line(event)}: nested deeper than {MAX_DEPTH} levels"])
+        elif isinstance(event, _CLOSE):
+            depth -= 1
+
+
 def parse_yaml(text: str, *, source: str) -> tuple[yaml.Node | None, Any]:
     try:
+        _screen(text, source=source)
         root = yaml.compose(text, Loader=yaml.SafeLoader)
         data = yaml.safe_load(text)
     except yaml.MarkedYAMLError as err:
         mark = err.problem_mark or err.context_mark
         line = mark.line + 1 if mark else 1
         raise ManifestError([f"{source}:{line}: invalid YAML: {err.problem or err.context}"]) from None
-    except yaml.YAMLError as err:
-        raise ManifestError([f"{source}:1: invalid YAML: {err}"]) from None
+    except yaml.YAMLError as err:  # e.g. a ReaderError for bytes YAML forbids; its text spans lines
+        raise ManifestError([f"{source}:1: invalid YAML: {' '.join(str(err).split())}"]) from None
     duplicates = list(_duplicate_keys(root, ()))
     if duplicates:
         raise ManifestError(

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import ipaddress
 import re
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Annotated, Literal
 from urllib.parse import urlparse
@@ -26,6 +27,48 @@ _DNS_NAME = re.compile(r"^[a-z]([a-z0-9-]{0,38}[a-z0-9])?$")
 _TOPIC = re.compile(r"^/[A-Za-z][A-Za-z0-9_/]*$")
 _ENV_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 _MIN_SUBNET_PREFIX = 27
+# ssh_from may cover at most a /8 (16.7 M addresses) in all: the largest block one organisation
+# holds (the legacy /8s); anything wider is not "my network" but a share of the whole internet,
+# and /1 pairs would otherwise slip past a check for 0.0.0.0/0 alone.
+SSH_FROM_MAX_PREFIX = 8
+_USER = re.compile(r"^[a-z_][a-z0-9_-]{0,31}$")  # POSIX user names as useradd takes them
+_HOST_LABEL = re.compile(r"^(?!-)[A-Za-z0-9-]{1,63}(?<!-)$")
+
+
+def ssh_from_problem(nets: Iterable[ipaddress.IPv4Network]) -> str | None:
+    """Why these CIDRs are too wide to open SSH (and the relay) to, or None."""
+    given = list(nets)
+    covered = sum(n.num_addresses for n in ipaddress.collapse_addresses(given))
+    if covered > 2 ** (32 - SSH_FROM_MAX_PREFIX):
+        return (f"{', '.join(str(n) for n in given)} cover {covered} addresses, more than a "
+                f"/{SSH_FROM_MAX_PREFIX} ({2 ** (32 - SSH_FROM_MAX_PREFIX)}); name your own network")
+    return None
+
+
+def _no_control(value: Path) -> Path:
+    if any(ord(c) < 32 or ord(c) == 127 for c in str(value)):
+        raise ValueError(f"{str(value)!r} contains a control character")
+    return value
+
+
+PlainPath = Annotated[Path, AfterValidator(_no_control)]
+
+
+def _user(value: str) -> str:
+    if not _USER.match(value):
+        raise ValueError(f"{value!r} is not a user name (lowercase letters, digits, '_', '-', up to 32)")
+    return value
+
+
+def _address(value: str) -> str:
+    try:
+        ipaddress.ip_address(value)
+        return value
+    except ValueError:
+        pass
+    if len(value) <= 253 and all(_HOST_LABEL.match(label) for label in value.split(".")):
+        return value
+    raise ValueError(f"{value!r} is not an IP address or host name (letters, digits, '-', dots)")
 
 Compression = Literal["none", "zstd", "lz4"]
 
@@ -66,10 +109,10 @@ class HostMachine(_Model):
     """An existing machine for the ``hosts`` target (a lab GPU server is fog too)."""
 
     name: DnsName = Field(description="Short DNS-safe name for the machine.")
-    address: str = Field(description="IP address or DNS name reachable over SSH.")
-    user: str = Field(default="ubuntu", description="SSH user.")
+    address: Annotated[str, AfterValidator(_address)] = Field(description="IP address or DNS name reachable over SSH.")
+    user: Annotated[str, AfterValidator(_user)] = Field(default="ubuntu", description="SSH user.")
     port: int = Field(default=22, ge=1, le=65535, description="SSH port.")
-    key: Path = Field(description="Private key file for SSH, relative to the manifest.")
+    key: PlainPath = Field(description="Private key file for SSH, relative to the manifest.")
     gpus: int = Field(default=0, ge=0, description="GPUs the machine has.")
 
 
@@ -157,6 +200,9 @@ class Network(_Model):
             for net in value:
                 if net.prefixlen == 0:
                     raise ValueError(f"{net} opens SSH to the whole internet; name your own network")
+            problem = ssh_from_problem(value)
+            if problem:
+                raise ValueError(problem)
         return value
 
     @model_validator(mode="after")
@@ -185,8 +231,8 @@ class Edge(_Model):
 class Launch(_Model):
     package: str = Field(description="ROS package holding the launch file.")
     file: str = Field(description="Launch file name, e.g. planner.launch.")
-    workspace: Path = Field(description="Workspace folder to push, relative to the manifest.")
-    env_script: Path | None = Field(default=None, description="Script run once per change to set the host up.")
+    workspace: PlainPath = Field(description="Workspace folder to push, relative to the manifest.")
+    env_script: PlainPath | None = Field(default=None, description="Script run once per change to set the host up.")
 
 
 class TopicLists(_Model):
@@ -387,8 +433,8 @@ def _resolve_paths(data: dict, base: Path) -> list[tuple[tuple, str]]:
 
     def fix(container: dict, key: str, loc: tuple, *, folder: bool) -> None:
         value = container.get(key)
-        if not isinstance(value, str):
-            return
+        if not isinstance(value, str) or any(ord(c) < 32 or ord(c) == 127 for c in value):
+            return  # a control character is reported by the field's own check, on one line
         path = (base / value).resolve()
         container[key] = str(path)
         if not (path.is_dir() if folder else path.is_file()):

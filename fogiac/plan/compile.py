@@ -9,7 +9,10 @@ edits this module.
 
 from __future__ import annotations
 
+import re
+
 from fogiac import targets
+from fogiac.errors import FogiacError
 from fogiac.manifest.schema import Manifest, Node
 from fogiac.net import middleware
 from fogiac.plan.model import (
@@ -23,8 +26,14 @@ from fogiac.plan.model import (
 )
 from fogiac.plan.placement import ssh_sources
 
+_ENVIRONMENT = re.compile(r"^[a-z]([a-z0-9-]{0,38}[a-z0-9])?$")
+
 
 def stack_name(manifest: Manifest, environment: str = "dev") -> str:
+    """``<name>-<environment>``: a folder name, a tag and a word in rendered units and scripts, so
+    the environment obeys the same DNS-safe rule as the manifest's name."""
+    if not _ENVIRONMENT.match(environment):
+        raise FogiacError(f"--env {environment!r} is not DNS-safe (lowercase letters, digits, '-', up to 40)")
     return f"{manifest.name}-{environment}"
 
 

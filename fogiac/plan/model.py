@@ -173,6 +173,18 @@ class RelayRoute:
     compression: tuple[tuple[str, str], ...]  # ("*", alg) for all topics, or per topic
     queue_size: int
 
+    def policy_argv(self) -> list[str]:
+        """``--out/--in/--topics`` for ``fogiac relay edge|cloud``: both ends enforce the same
+        policy. The manifest's "in" (robot -> node) is what the edge sends out, its "out" what
+        comes in."""
+        argv = ["--out", ",".join(self.to_cloud)] if self.to_cloud else []
+        argv += ["--in", ",".join(self.to_edge)] if self.to_edge else []
+        if self.auto or self.listed:
+            argv += ["--topics", "auto" if self.auto else ",".join(self.listed)]
+        else:
+            argv += ["--topics", ""]  # nothing beyond the lists: not the CLI's default of auto
+        return argv
+
 
 AutostopPower = Literal["machine", "services"]  # power the machine off, or stop fogiac's services on it
 

@@ -3,8 +3,10 @@
 Why: a provisioner pushes certificates and runs code as root, so it must know it talks to the
 machine it means. Keys are recorded in the stack's own ``known_hosts`` (0600, in the state
 directory), never the user's ``~/.ssh``; a host whose key changed is refused until the user
-removes its line, and the refusal says which line. paramiko (the ``ssh`` extra) is imported when a
-key is first handled, so importing this module costs nothing.
+removes its line, and the refusal says which line. Pins win over the record: a cloud instance's
+console reports the keys of the instance now at that address, so a recorded key outside the
+pins belongs to an earlier instance (public addresses are reused) and is forgotten. paramiko
+(the ``ssh`` extra) is imported when a key is first handled, so importing this module costs nothing.
 """
 
 from __future__ import annotations
@@ -65,9 +67,19 @@ class KnownHosts:
         with self._lock:
             keys = self._load()
             keys.add(name, key.get_name(), key)
-            lines = [f"{host} {kind} {k.get_base64()}\n"
-                     for host, entry in sorted(keys.items()) for kind, k in sorted(entry.items())]
-            write_private(self.path, "".join(lines).encode())
+            self._save(keys)
+
+    def forget(self, name: str) -> None:
+        with self._lock:
+            keys = self._load()
+            if name in keys:
+                del keys[name]
+                self._save(keys)
+
+    def _save(self, keys: paramiko.HostKeys) -> None:
+        lines = [f"{host} {kind} {k.get_base64()}\n"
+                 for host, entry in sorted(keys.items()) for kind, k in sorted(entry.items())]
+        write_private(self.path, "".join(lines).encode())
 
     def changed_error(self, *, host: str, name: str, got: paramiko.PKey, expected: paramiko.PKey) -> HostKeyError:
         return HostKeyError(
@@ -103,6 +115,10 @@ def prepare(client: paramiko.SSHClient, known: KnownHosts, *, host: str, name: s
             pinned: tuple[str, ...]) -> None:
     """Make ``client`` trust only the stack's known_hosts and ``pinned``, never ~/.ssh."""
     client.get_host_keys().clear()
-    for kind, key in known.keys_for(name).items():
+    recorded = known.keys_for(name)
+    if pinned and any(fingerprint(key) not in pinned for key in recorded.values()):
+        known.forget(name)  # an earlier instance's key at a reused address; the pins decide
+        recorded = {}
+    for kind, key in recorded.items():
         client.get_host_keys().add(name, kind, key)
     client.set_missing_host_key_policy(VerifyPolicy(known, host=host, pinned=pinned))

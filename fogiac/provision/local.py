@@ -110,6 +110,9 @@ class LocalHost:
         pass
 
 
+PORTS_FILE = "ports.json"
+
+
 def sandbox_root(state_dir: Path) -> Path:
     return state_dir / "local"
 
@@ -121,7 +124,7 @@ def local_access(plan: Plan, *, state_dir: Path) -> Mapping[str, LocalAccess]:
     """
     root = sandbox_root(state_dir)
     root.mkdir(parents=True, exist_ok=True, mode=0o700)
-    ports_file = root / "ports.json"
+    ports_file = root / PORTS_FILE
     ports: dict[str, dict[str, int]] = read_json(ports_file) or {}
     out: dict[str, LocalAccess] = {}
     for host in plan.hosts:

@@ -27,6 +27,7 @@ from fogiac.state import read_json, write_json_atomic
 
 Progress = Callable[[str, str, str], None]  # (host, step, status)
 RECORD = "provision.json"
+KNOWN_HOSTS = "known_hosts"  # in the stack folder: the SSH host keys provisioning has seen
 
 
 @dataclass(frozen=True)
@@ -141,7 +142,7 @@ def provision(plan: Plan, *, hosts: Mapping[str, HostAccess], state_dir: Path, c
     """
     started = time.monotonic()
     options = Options(certs_dir=certs_dir, health_timeout=health_timeout, allow_install=allow_install)
-    known_hosts = state_dir / "known_hosts"
+    known_hosts = state_dir / KNOWN_HOSTS
     record_access(state_dir, plan, hosts, {})  # first: an interrupted run's hosts are found again
     outcomes = _for_each(plan, hosts, lambda spec, access: _provision_one(
         plan, spec, access, known_hosts=known_hosts, options=options, progress=progress))

@@ -237,8 +237,11 @@ def relay_service(plan: Plan, spec: HostSpec, where: Where) -> Service:
     # A host reached over loopback (the local target) never listens beyond it; others listen on
     # every interface and the security group (or the lab's network) decides who reaches the port.
     listen = "127.0.0.1" if where.ros_address.startswith("127.") else "0.0.0.0"
+    route = next((r for r in plan.relay if r.host == spec.name), None)
+    policy = " ".join(q(arg) for arg in route.policy_argv()) if route is not None else ""
     command = (f"{q(where.python)} -m fogiac relay cloud --listen {listen}:{where.relay_port} "
-               f"--master {master_uri(where)} --certs {q(where.layout.certs)} --stats-file {q(relay_stats(where))}")
+               f"--master {master_uri(where)} --certs {q(where.layout.certs)} --stats-file {q(relay_stats(where))} "
+               f"{policy}").rstrip()
     return _service("relay-cloud", plan=plan, spec=spec, where=where, command=command, check="alive",
                     python_path=where.code_root, after="fogiac-ros-master.service")
 

@@ -54,12 +54,28 @@ def pid_alive(pid: int) -> bool:
         return True
 
 
-def _read_pid(path: Path) -> int | None:
+def _start_time(pid: int) -> str | None:
+    """When ``pid`` started (clock ticks since boot, field 22 of /proc/PID/stat): with the pid it
+    names one process for good, unlike the command line, which the child's exec changes."""
     try:
-        pid = int(path.read_text().strip())
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[19]
+    except (OSError, IndexError):
+        return None
+
+
+def _write_pid(path: Path, pid: int) -> None:
+    path.write_text(f"{pid} {_start_time(pid)}\n")
+
+
+def _read_pid(path: Path) -> int | None:
+    """The live process a pid file names, or None. A pid that was reused by an unrelated process
+    (a stale file after a reboot or a crash) has another start time: never trusted, never signalled."""
+    try:
+        pid_text, started = path.read_text().split()
+        pid = int(pid_text)
     except (OSError, ValueError):
         return None
-    return pid if pid_alive(pid) else None
+    return pid if pid_alive(pid) and _start_time(pid) == started else None
 
 
 def _ppid(pid: int) -> int | None:
@@ -144,7 +160,7 @@ def _supervise(files: _Files, argv: list[str]) -> None:
             started = time.monotonic()
             child = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
                                      start_new_session=True)
-            files.child.write_text(f"{child.pid}\n")
+            _write_pid(files.child, child.pid)
             files.state.write_text(json.dumps({"restarts": restarts, "child": child.pid}) + "\n")
             code = child.wait()
             if stopping:
@@ -187,7 +203,7 @@ def start(run_dir: Path, name: str, argv: list[str]) -> str:
     for fd in (0, 1, 2):
         os.dup2(null, fd)
     os.closerange(3, 1024)
-    files.pid.write_text(f"{os.getpid()}\n")
+    _write_pid(files.pid, os.getpid())
     try:
         _supervise(files, argv)
     finally:

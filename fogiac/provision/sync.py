@@ -5,6 +5,10 @@ The host keeps ``<dest>.sha256sums`` (``sha256  path`` lines, the ``sha256sum`` 
 it received; a push compares it with the local folder and sends one gzip'd tar with the
 changed files and only the checksum lines that changed (the host merges them with ``awk``),
 then deletes files that went away.
+
+Symbolic links are never followed: a link is pushed as a link (its target text, as it is), so a
+link to ``/`` or ``~`` cannot carry the operator's files (``~/.fogiac`` keys included) to a host,
+and links to a parent folder cannot make the walk exponential.
 """
 
 from __future__ import annotations
@@ -12,6 +16,7 @@ from __future__ import annotations
 import fnmatch
 import hashlib
 import io
+import os
 import tarfile
 import time
 from dataclasses import dataclass
@@ -64,14 +69,18 @@ def _ignored(rel: str, is_dir: bool, patterns: tuple[str, ...]) -> bool:
 
 
 def scan(root: Path, patterns: tuple[str, ...]) -> dict[str, str]:
-    """``{relative path: sha256}`` of every file under ``root`` not ignored (symlinks followed)."""
+    """``{relative path: sha256}`` of every file and link under ``root`` not ignored; a link's hash is
+    of its target text, and nothing behind a link is read."""
     out: dict[str, str] = {}
     todo = [root]
     while todo:
         folder = todo.pop()
         for entry in sorted(folder.iterdir()):
             rel = entry.relative_to(root).as_posix()
-            if entry.is_dir():
+            if entry.is_symlink():
+                if not _ignored(rel, False, patterns):
+                    out[rel] = hashlib.sha256(b"symlink\0" + os.fsencode(os.readlink(entry))).hexdigest()
+            elif entry.is_dir():
                 if not _ignored(rel, True, patterns):
                     todo.append(entry)
             elif entry.is_file() and not _ignored(rel, False, patterns):
@@ -114,6 +123,11 @@ def _tarball(root: Path, send: list[str], drop: list[str], local: dict[str, str]
     with tarfile.open(fileobj=buf, mode="w:gz", compresslevel=9) as tar:
         for rel in send:
             src = root / rel
+            if src.is_symlink():
+                link = tarfile.TarInfo(f"{dest_name}/{rel}")
+                link.type, link.linkname, link.mtime = tarfile.SYMTYPE, os.readlink(src), int(time.time())
+                tar.addfile(link)
+                continue
             _member(tar, f"{dest_name}/{rel}", src.read_bytes(), 0o755 if src.stat().st_mode & 0o111 else 0o644)
         _member(tar, f"{dest_name}.delta", sums_text({p: local[p] for p in send}).encode(), 0o600)
         _member(tar, f"{dest_name}.drop", "".join(f"{p}\n" for p in drop).encode(), 0o600)

@@ -18,7 +18,7 @@ from fogiac.orchestrate import ExistingMachines
 from fogiac.plan.model import HostSpec, Plan
 from fogiac.plan.placement import Placement, Tags, autostop_for, host_per_node
 from fogiac.provision import LocalAccess, autostop, supervise
-from fogiac.provision.local import local_access, sandbox_root
+from fogiac.provision.local import PORTS_FILE, local_access, sandbox_root
 from fogiac.targets.base import Check
 
 
@@ -42,6 +42,11 @@ class LocalTarget(ExistingMachines):
 
     def host_address(self, plan: Plan, spec: HostSpec, entry: Any) -> str:
         return entry[0].location if entry is not None else "-"
+    def forget(self, plan: Plan, folder: Path) -> None:
+        root = sandbox_root(folder)
+        (root / PORTS_FILE).unlink(missing_ok=True)
+        if root.is_dir() and not any(root.iterdir()):
+            root.rmdir()
 
     def node_states(self, plan: Plan, spec: HostSpec, entry: Any) -> list[dict[str, Any]]:
         if entry is None:

@@ -205,3 +205,18 @@ def test_teardown_stops_every_process_and_removes_the_base(lab: Deployment) -> N
         assert not host.base_dir.exists()
         sshd_only = [p for p in host.ns.pids() if "sshd" not in Path(f"/proc/{p}/cmdline").read_text()]
         assert sshd_only == []
+
+
+def test_the_console_pin_wins_over_a_key_recorded_for_an_earlier_instance(lab: Deployment, tmp_path: Path) -> None:
+    """A public address reused by a fresh instance: the old instance's key is still recorded, the
+    console pins the new one. The pin proves the new key; the stale line is replaced."""
+    plan = lab.plan(lab.hosts[:1])
+    access = replace(lab.access(plan)["h0"], fingerprints=(fingerprint_of(lab.hosts[0].host_key_pub),))
+    stale = lab.hosts[2].host_key_pub.read_text().split()
+    known = tmp_path / "kh"
+    known.write_text(f"{lab.hosts[0].address} {stale[0]} {stale[1]}\n")
+    host = access.open(name="h0", known_hosts=known, stack="s")
+    assert host.connect() == 1
+    host.close()
+    real = lab.hosts[0].host_key_pub.read_text().split()
+    assert known.read_text() == f"{lab.hosts[0].address} {real[0]} {real[1]}\n"

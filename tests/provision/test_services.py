@@ -136,7 +136,7 @@ def test_relay_cloud_end_command(plan: Plan) -> None:
     relay = svc.relay_service(plan, plan.host("talker"), where)
     assert relay.script.splitlines()[-1] == (
         "exec python3 -m fogiac relay cloud --listen 0.0.0.0:11411 --master http://127.0.0.1:11311 "
-        f"--certs {where.layout.certs} --stats-file {where.layout.run}/relay-cloud.stats.json"
+        f"--certs {where.layout.certs} --stats-file {where.layout.run}/relay-cloud.stats.json --topics auto"  # the edge's policy
     )
 
 

@@ -56,6 +56,27 @@ def test_start_is_idempotent_and_a_killed_child_is_restarted(run_dir: Path) -> N
     assert "exited with -9; restart 1 in 1s" in (run_dir / "sleeper.log").read_text()
 
 
+@pytest.mark.parametrize("recorded", ["{pid}", "{pid} 1"])
+def test_a_stale_pid_file_naming_another_process_is_neither_trusted_nor_signalled(run_dir: Path,
+                                                                                  recorded: str) -> None:
+    """A pid file from before a reboot names a pid an unrelated process now has (old format, or
+    the right pid with another start time)."""
+    bystander = subprocess.Popen(["sleep", "300"], start_new_session=True)
+    try:
+        run_dir.mkdir(parents=True)
+        for suffix in ("pid", "child"):
+            (run_dir / f"svc.{suffix}").write_text(recorded.format(pid=bystander.pid) + "\n")
+        assert not _status(run_dir, "svc")["running"]
+        assert _sup(run_dir, "stop", "svc") == "not running"
+        assert bystander.poll() is None
+        assert _sup(run_dir, "start", "svc", "--", "sleep", "300").startswith("started ")
+        assert _status(run_dir, "svc")["pid"] != bystander.pid
+        assert _sup(run_dir, "stop", "svc") == "stopped" and bystander.poll() is None
+    finally:
+        bystander.kill()
+        bystander.wait()
+
+
 def test_stop_kills_the_whole_tree_and_removes_pid_files(run_dir: Path) -> None:
     _sup(run_dir, "start", "tree", "--", "bash", "-c", "setsid sleep 300 & echo grandchild $!; wait")
     assert _wait(lambda: "grandchild" in (run_dir / "tree.log").read_text())

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from fogiac.provision.local import LocalHost
@@ -39,3 +40,28 @@ def test_repush_sends_one_changed_file_and_removes_deleted_ones(tmp_path: Path) 
     assert not Path(dest, "src/fogtest/config/params_004.yaml").exists()
     assert Path(dest, "src/fogtest/scripts/talker.py").stat().st_mode & 0o111
     assert Path(f"{dest}.sha256sums").read_text().count("\n") == 32
+
+
+def test_links_are_pushed_as_links_and_never_followed(tmp_path: Path) -> None:
+    """A link to a private folder outside the workspace, and two links to the parent (an
+    exponential walk when followed): the scan reads nothing behind them, the host gets links."""
+    ws = make_workspace(tmp_path / "ws", extra_files=0)
+    secret = tmp_path / "home" / ".fogiac"
+    secret.mkdir(parents=True)
+    (secret / "id_ed25519").write_text("PRIVATE KEY\n")
+    (ws / "home").symlink_to(tmp_path / "home")
+    for name in ("up1", "up2"):
+        (ws / "src" / name).symlink_to("..")
+    (ws / "src/fogtest/talker_link.py").symlink_to("scripts/talker.py")
+    files = scan(ws, ignore_patterns(ws))
+    assert not any("id_ed25519" in rel or rel.startswith(("src/up1/", "src/up2/")) for rel in files)
+    assert {"home", "src/up1", "src/up2", "src/fogtest/talker_link.py"} <= set(files)
+    host = LocalHost(name="box", base=str(tmp_path / "box"))
+    host.connect()
+    dest = f"{host.base}/ws/demo"
+    push_tree(host, ws, dest, tmp_dir=f"{host.base}/tmp")
+    assert Path(dest, "home").is_symlink()
+    assert not any("id_ed25519" in names for _, _, names in os.walk(dest))  # the key itself never travelled
+    assert Path(dest, "src/up1").readlink() == Path("..")
+    assert Path(dest, "src/fogtest/talker_link.py").read_text() == (ws / "src/fogtest/scripts/talker.py").read_text()
+    assert push_tree(host, ws, dest, tmp_dir=f"{host.base}/tmp").changed is False

@@ -2,7 +2,11 @@
 
 Only a connection that completes mutual TLS and opens with a HELLO becomes the session; a
 newer one replaces an older (the edge reconnected after a half-open link), and garbage on any
-connection closes only that connection.
+connection closes only that connection. The edge may ask for (SUBSCRIBE) and send (OPEN) only
+the topics this end's policy lets cross in that direction; anything else is refused and counted.
+At most ``max_handshakes`` connections are in TLS/HELLO at once (each has a thread and a
+deadline); a connection beyond that is closed as soon as it is accepted, so idle or slow
+connections cannot pile up threads.
 """
 
 from __future__ import annotations
@@ -17,7 +21,7 @@ from fogiac.net.relay import framing
 from fogiac.net.relay.config import CloudConfig
 from fogiac.net.relay.end import RelayEnd
 from fogiac.net.relay.framing import Frame, FrameError, Kind
-from fogiac.net.relay.graph import GraphState
+from fogiac.net.relay.graph import Direction, GraphState, may_cross
 from fogiac.net.relay.session import Session, read_frame, send_now
 from fogiac.net.relay.tls import server_context
 
@@ -35,6 +39,9 @@ class CloudRelay(RelayEnd):
         self._ctx = server_context(config.certs)
         self._listener: socket.socket | None = None
         self._swap = threading.Lock()
+        self._graph = GraphState()  # this master's graph as last reported to the edge
+        self._handshakes = threading.BoundedSemaphore(config.max_handshakes)
+        self.turned_away = 0  # connections closed because too many were handshaking
 
     @property
     def address(self) -> tuple[str, int]:
@@ -63,17 +70,31 @@ class CloudRelay(RelayEnd):
                 raw, addr = self._listener.accept()
             except OSError:
                 return
+            if not self._handshakes.acquire(blocking=False):
+                self.turned_away += 1
+                log.warning("turned away %s:%d: %d connections already handshaking", *addr[:2],
+                            self.cloud_config.max_handshakes)
+                raw.close()
+                continue
             threading.Thread(target=self._serve, args=(raw, addr), name="relay-conn", daemon=True).start()
 
     def _serve(self, raw: socket.socket, addr: tuple[str, int]) -> None:
-        peer = f"{addr[0]}:{addr[1]}"
+        try:
+            sock = self._handshake(raw, f"{addr[0]}:{addr[1]}")
+        finally:
+            self._handshakes.release()
+        if sock is not None:
+            self._run_session(sock, f"{addr[0]}:{addr[1]}")
+
+    def _handshake(self, raw: socket.socket, peer: str) -> ssl.SSLSocket | None:
+        """TLS and HELLO, each read bounded by HANDSHAKE_TIMEOUT; None when the peer fails them."""
         try:
             raw.settimeout(HANDSHAKE_TIMEOUT)
             sock = self._ctx.wrap_socket(raw, server_side=True)
         except (ssl.SSLError, OSError) as err:
             log.warning("refused TLS connection from %s: %s", peer, err)
             raw.close()
-            return
+            return None
         try:
             hello = read_frame(sock)
             if hello.kind is not Kind.HELLO or framing.parse_json(hello).get("role") != "edge":
@@ -87,7 +108,10 @@ class CloudRelay(RelayEnd):
         except (FrameError, OSError) as err:
             log.warning("dropping connection from %s: %s", peer, err)
             sock.close()
-            return
+            return None
+        return sock
+
+    def _run_session(self, sock: ssl.SSLSocket, peer: str) -> None:
         with self._swap:
             if self._stopping.is_set():
                 sock.close()
@@ -99,7 +123,8 @@ class CloudRelay(RelayEnd):
                 old.closed.wait(10)
                 self.reconnects += 1
             assert self.node is not None
-            session = Session(sock=sock, node=self.node, config=self.config, peer=f"edge {peer}")
+            session = Session(sock=sock, node=self.node, config=self.config, peer=f"edge {peer}",
+                              accepts=lambda topic: self._allowed(topic, "out"))
             session.handlers[Kind.SUBSCRIBE] = lambda f: self._on_subscribe(session, f)
             session.handlers[Kind.UNSUBSCRIBE] = lambda f: self._on_unsubscribe(session, f)
             self.session = session
@@ -114,6 +139,7 @@ class CloudRelay(RelayEnd):
         while session.alive and not self._stopping.is_set():
             graph = self.local_graph()
             if graph is not None and graph != last:
+                self._graph = graph
                 session.send(framing.json_frame(Kind.STATE, graph.to_json()))
                 last = graph
             session.closed.wait(self.config.poll_interval)
@@ -122,7 +148,17 @@ class CloudRelay(RelayEnd):
         body = framing.parse_json(frame)
         if not isinstance(body.get("topic"), str):
             raise FrameError("SUBSCRIBE needs a topic")
+        if not self._allowed(body["topic"], "in"):
+            session.refuse(f"SUBSCRIBE for {body['topic']!r}")
+            return
         session.start_source(body["topic"], str(body.get("compression", "none")))
+
+    def _allowed(self, topic: str, direction: Direction) -> bool:
+        policy = self.cloud_config.policy
+        if may_cross(topic, direction, policy, self._graph):
+            return True
+        fresh = self.local_graph() if policy.auto else None  # the graph may have moved since the last poll
+        return fresh is not None and may_cross(topic, direction, policy, fresh)
 
     def _on_unsubscribe(self, session: Session, frame: Frame) -> None:
         body = framing.parse_json(frame)

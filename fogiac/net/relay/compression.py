@@ -1,7 +1,9 @@
 """Per-topic compression codecs, keyed by name (the manifest says ``zstd`` or ``lz4``).
 
 A codec's contexts are made when a topic asks for it, so ``none`` costs nothing; an unknown
-name raises an error that lists the valid ones.
+name raises an error that lists the valid ones. Decompression is the peer's input: it never
+yields more than :data:`~fogiac.net.relay.framing.MAX_FRAME` bytes (an 8 KB zstd frame can
+claim gigabytes), and any failure is a :class:`FrameError`, which closes only that link.
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ import lz4.frame
 import zstandard
 
 from fogiac.errors import RelayError
-from fogiac.net.relay.framing import Payload
+from fogiac.net.relay.framing import MAX_FRAME, FrameError, Payload
 
 
 @dataclass(frozen=True)
@@ -38,13 +40,43 @@ def _zstd() -> Codec:
     dctx = zstandard.ZstdDecompressor()
 
     def decompress(data: Payload) -> Payload:
-        return dctx.decompress(data)
+        # Streamed, so the frame header's claimed size is never trusted for an allocation.
+        try:
+            with dctx.stream_reader(bytes(data)) as reader:
+                out = _read_capped(reader.read)
+        except zstandard.ZstdError as err:
+            raise FrameError(f"invalid zstd data: {err}") from None
+        return out
 
     return Codec("zstd", comp.compress, decompress)
 
 
 def _lz4() -> Codec:
-    return Codec("lz4", lz4.frame.compress, lz4.frame.decompress)
+    def decompress(data: Payload) -> Payload:
+        try:
+            out = lz4.frame.LZ4FrameDecompressor().decompress(bytes(data), max_length=MAX_FRAME + 1)
+        except RuntimeError as err:
+            raise FrameError(f"invalid lz4 data: {err}") from None
+        if len(out) > MAX_FRAME:
+            raise _too_big()
+        return out
+
+    return Codec("lz4", lz4.frame.compress, decompress)
+
+
+def _too_big() -> FrameError:
+    return FrameError(f"compressed message expands beyond {MAX_FRAME} bytes")
+
+
+def _read_capped(read: Callable[[int], bytes]) -> bytes:
+    parts: list[bytes] = []
+    size = 0
+    while chunk := read(min(MAX_FRAME + 1 - size, 1 << 20)):
+        parts.append(chunk)
+        size += len(chunk)
+        if size > MAX_FRAME:
+            raise _too_big()
+    return b"".join(parts)
 
 
 CODECS: dict[str, Callable[[], Codec]] = {"none": _none, "zstd": _zstd, "lz4": _lz4}

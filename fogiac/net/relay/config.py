@@ -38,12 +38,15 @@ class EndConfig:
     poll_interval: float = 0.5  # seconds between getSystemState polls
     ping_interval: float = 1.0
     dead_after: float = 10.0  # seconds without a frame before the link is declared dead
+    write_timeout: float = 30.0  # seconds one write may block before the peer is declared stuck
     stats_file: Path | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
 class CloudConfig(EndConfig):
     listen: tuple[str, int] = ("0.0.0.0", RELAY_PORT)
+    policy: TopicPolicy = TopicPolicy(auto=True)  # what the edge may ask for or send, as the edge's
+    max_handshakes: int = 8  # connections still in TLS/HELLO; more are closed at once
     caller_id: str = "/fogiac_relay_cloud"
 
 

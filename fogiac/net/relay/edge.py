@@ -4,6 +4,7 @@ The edge owns the topic policy. It polls its own master, hears the cloud's graph
 frames, and applies :func:`~fogiac.net.relay.graph.select_routes`: an outgoing route makes
 the edge a source; an incoming one becomes a SUBSCRIBE to the cloud. A lost link is redialled
 with bounded exponential backoff, and the routes are rebuilt from scratch on the new one.
+The cloud may open only topics the edge asked it for; whatever else it opens is refused.
 """
 
 from __future__ import annotations
@@ -13,7 +14,6 @@ import socket
 import ssl
 import threading
 
-from fogiac.errors import RelayError
 from fogiac.net.relay import framing
 from fogiac.net.relay.cloud import HANDSHAKE_TIMEOUT, PROTOCOL_VERSION
 from fogiac.net.relay.config import EdgeConfig
@@ -38,6 +38,7 @@ class EdgeRelay(RelayEnd):
         self._cloud_graph = GraphState()
         self.connected = threading.Event()
         self.last_error: str | None = None
+        self._asked: set[str] = set()  # topics this link asked the cloud for (SUBSCRIBE)
 
     def _start_link(self) -> None:
         self._spawn(self._dial_loop, "relay-dial")
@@ -50,7 +51,7 @@ class EdgeRelay(RelayEnd):
         while not self._stopping.is_set():
             try:
                 sock = self._dial()
-            except (OSError, ssl.SSLError, RelayError) as err:
+            except Exception as err:  # whatever the far end did, this thread must keep dialling
                 self.last_error = str(err)
                 log.warning("cannot reach the cloud relay at %s:%d: %s; retrying in %.1f s",
                             *self.edge_config.connect, err, delay)
@@ -58,7 +59,9 @@ class EdgeRelay(RelayEnd):
                 delay = min(delay * 2, self.edge_config.backoff_max)
                 continue
             delay = self.edge_config.backoff_initial
-            session = Session(sock=sock, node=self.node, config=self.config, peer="cloud")  # type: ignore[arg-type]
+            self._asked = set()
+            session = Session(sock=sock, node=self.node, config=self.config, peer="cloud",  # type: ignore[arg-type]
+                              accepts=self._asked.__contains__)
             session.handlers[Kind.STATE] = self._on_state
             self._cloud_graph = GraphState()
             self.session = session
@@ -115,11 +118,13 @@ class EdgeRelay(RelayEnd):
             if route.direction == "out":
                 session.start_source(route.topic, comp)
             else:
+                self._asked.add(route.topic)
                 session.send(framing.json_frame(Kind.SUBSCRIBE, {"topic": route.topic, "compression": comp}))
                 log.info("asking the cloud for %s (%s)", route.topic, comp)
         for route in sorted(current - wanted):
             if route.direction == "out":
                 session.stop_source(route.topic)
             else:
+                self._asked.discard(route.topic)
                 session.send(framing.json_frame(Kind.UNSUBSCRIBE, {"topic": route.topic}))
                 log.info("no longer asking the cloud for %s", route.topic)

@@ -73,7 +73,7 @@ class RelayEnd:
             role=self.role, connected=live,
             rtt_ms=None if rtt is None else round(rtt / 1e6, 3),
             clock_offset_ms=round(session.clock.offset_ns / 1e6, 3) if live and session else 0.0,
-            reconnects=self.reconnects,
+            reconnects=self.reconnects, refused=session.refused if live and session else 0,
             topics=tuple(sorted((c.snapshot() for c in session.counters()), key=lambda t: (t.topic, t.direction)))
             if live and session else (),
         )

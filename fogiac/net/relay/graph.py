@@ -81,6 +81,18 @@ def _ignored(topic: str, prefixes: tuple[str, ...]) -> bool:
     return any(topic == p or (p.endswith("/") and topic.startswith(p)) for p in prefixes)
 
 
+def may_cross(topic: str, direction: Direction, policy: TopicPolicy, local: GraphState) -> bool:
+    """May the far end start ``topic`` in ``direction``? Asked by the cloud end of its own graph
+    (``local``): listed topics always, and in auto mode only what its nodes publish ("in") or
+    subscribe to ("out")."""
+    if topic in policy.topics or topic in (policy.out_topics if direction == "out" else policy.in_topics):
+        return True
+    if not policy.auto or _ignored(topic, policy.ignore):
+        return False
+    side = local.subscribers if direction == "out" else local.publishers
+    return bool(side.get(topic))
+
+
 def select_routes(edge: GraphState, cloud: GraphState, policy: TopicPolicy) -> frozenset[Route]:
     routes = {Route(t, "out") for t in policy.out_topics} | {Route(t, "in") for t in policy.in_topics}
     for topic in policy.topics:

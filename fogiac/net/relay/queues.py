@@ -2,8 +2,9 @@
 
 A slow link must not pile up seconds of lag: when a topic's queue is full the oldest message
 is dropped (and counted), so what crosses is always recent. Control frames have their own
-unbounded lane and go first. Topics are served round-robin so a 6 MiB stream cannot starve
-a 100 Hz one.
+lane and go first; it is bounded too (:data:`CONTROL_LIMIT`): a peer that sends PINGs but never
+reads our PONGs fills it, and then :meth:`Outbox.put_control` says so and the link is closed.
+Topics are served round-robin so a 6 MiB stream cannot starve a 100 Hz one.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from collections.abc import Sequence
 from fogiac.net.relay.framing import Payload
 
 Item = Sequence[Payload]
+CONTROL_LIMIT = 4096  # far above a healthy link's few pending OPEN/STATE/PONG frames
 
 
 class Outbox:
@@ -25,10 +27,14 @@ class Outbox:
         self._ready: deque[int] = deque()
         self._closed = False
 
-    def put_control(self, item: Item) -> None:
+    def put_control(self, item: Item) -> bool:
+        """Queue a control frame; False when the lane is full (the peer is not reading)."""
         with self._cond:
+            if len(self._control) >= CONTROL_LIMIT:
+                return False
             self._control.append(item)
             self._cond.notify()
+            return True
 
     def put(self, topic: int, item: Item, *, depth: int) -> int:
         """Queue ``item`` for ``topic``; returns how many stale items were dropped for it."""

@@ -4,6 +4,11 @@ crossing it. When the connection ends, every registration it made is withdrawn.
 Threads: the caller of :meth:`Session.run` reads frames; one writer drains the
 :class:`~fogiac.net.relay.queues.Outbox`; one pinger keeps the clock offset fresh and declares
 a silent peer dead. Topic sources add publisher-reader threads (see ``pubsub``).
+
+The peer is not trusted: any failure while handling its frames (a codec's own error, a
+decompression bomb, a MemoryError) closes this link, and the end that owns it redials or waits
+for the next one. An OPEN for a topic this end did not agree to is refused and counted in
+:attr:`Session.refused`, never published.
 """
 
 from __future__ import annotations
@@ -29,6 +34,7 @@ from fogiac.net.relay.tcpros import Stream
 
 log = logging.getLogger(__name__)
 Handler = Callable[[Frame], None]
+Gate = Callable[[str], bool]  # may the peer start sending this topic to us?
 _COALESCE = 256 * 1024  # join smaller writes: one TLS record beats several
 
 
@@ -98,8 +104,11 @@ class _Sink:
 
 
 class Session:
-    def __init__(self, *, sock: ssl.SSLSocket, node: RelayNode, config: EndConfig, peer: str) -> None:
+    def __init__(self, *, sock: ssl.SSLSocket, node: RelayNode, config: EndConfig, peer: str,
+                 accepts: Gate) -> None:
         self.sock, self.node, self.config, self.peer = sock, node, config, peer
+        self.accepts = accepts
+        self.refused = 0  # OPENs and requests for topics outside this end's policy
         self.outbox = Outbox()
         self.clock = ClockSync()
         self._ids = itertools.count(1)
@@ -110,6 +119,7 @@ class Session:
         self._closing = threading.Event()
         self.closed = threading.Event()
         self._last_rx = time.monotonic()
+        self._writing_since: float | None = None  # set while a write is in the kernel's hands
         self.handlers: dict[Kind, Handler] = {
             Kind.OPEN: self._on_open, Kind.CLOSE: self._on_close, Kind.DATA: self._on_data,
             Kind.PING: self._on_ping, Kind.PONG: self._on_pong,
@@ -117,7 +127,8 @@ class Session:
 
     # --- public ----------------------------------------------------------------------------
     def send(self, frame: Frame) -> None:
-        self.outbox.put_control((framing.encode(frame),))
+        if not self.outbox.put_control((framing.encode(frame),)) and not self._closing.is_set():
+            self.close("the peer does not read: control queue full")
 
     def start_source(self, topic: str, compression: str) -> None:
         with self._lock:
@@ -183,6 +194,9 @@ class Session:
         except RelayError as err:
             log.error("link to %s failed: %s", self.peer, err)
             self.close(str(err))
+        except Exception as err:  # a codec's own error, MemoryError...: only this link ends
+            log.error("link to %s failed: %s: %s", self.peer, type(err).__name__, err)
+            self.close(f"{type(err).__name__}: {err}")
         finally:
             self.close("done")
             stream.close()
@@ -221,11 +235,15 @@ class Session:
 
     def _write(self, batch: list[Item]) -> None:
         bufs = [buf for item in batch for buf in item]
-        if len(bufs) > 1 and sum(len(b) for b in bufs) <= _COALESCE:
-            self.sock.sendall(b"".join(bufs))
-        else:
-            for buf in bufs:
-                self.sock.sendall(buf)
+        self._writing_since = time.monotonic()
+        try:
+            if len(bufs) > 1 and sum(len(b) for b in bufs) <= _COALESCE:
+                self.sock.sendall(b"".join(bufs))
+            else:
+                for buf in bufs:
+                    self.sock.sendall(buf)
+        finally:
+            self._writing_since = None
 
     def _write_loop(self) -> None:
         try:
@@ -241,8 +259,13 @@ class Session:
             self.send(framing.ping(time.time_ns()))
             n += 1
             self._closing.wait(0.05 if n < 8 else self.config.ping_interval)
-            if time.monotonic() - self._last_rx > self.config.dead_after:
+            now = time.monotonic()
+            if now - self._last_rx > self.config.dead_after:
                 self.close(f"no frame for {self.config.dead_after:g} s")
+            since = self._writing_since
+            if since is not None and now - since > self.config.write_timeout:
+                # shutdown() in close() makes the blocked sendall fail, so the writer ends too
+                self.close(f"a write has not finished in {self.config.write_timeout:g} s: the peer does not read")
 
     def _on_ping(self, frame: Frame) -> None:
         self.send(framing.pong(framing.parse_ping(frame), time.time_ns()))
@@ -253,8 +276,12 @@ class Session:
 
     def _on_open(self, frame: Frame) -> None:
         body = framing.parse_json(frame)
+        topic = str(body.get("topic"))
+        if not self.accepts(topic):
+            self.refuse(f"OPEN for {topic!r}")
+            return
         try:
-            topic, meta = str(body["topic"]), TopicMeta.from_json(body)
+            meta = TopicMeta.from_json(body)
             compression = str(body.get("compression", "none"))
             sink = _Sink(self, topic, meta, compression)
         except (KeyError, ValueError, RelayError) as err:
@@ -272,6 +299,11 @@ class Session:
         with self._lock:
             self._sinks[frame.topic] = sink
         log.info("publishing %s (%s%s) from %s", topic, meta.type, ", latched" if meta.latching else "", self.peer)
+
+    def refuse(self, what: str) -> None:
+        """Count and log a request outside this end's topic policy; the link stays up."""
+        self.refused += 1
+        log.warning("refused %s from %s: not a topic this end relays in that direction", what, self.peer)
 
     def _on_close(self, frame: Frame) -> None:
         with self._lock:

@@ -62,6 +62,7 @@ class RelayStats:
     clock_offset_ms: float
     reconnects: int
     topics: tuple[TopicStats, ...] = field(default_factory=tuple)
+    refused: int = 0  # the peer's requests for topics outside this end's policy, this link
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), separators=(",", ":"))

@@ -9,6 +9,7 @@ the only code in fogiac that imports boto3, pulumi, pulumi_aws or ``stacks``.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import datetime as _dt
 import time
@@ -27,6 +28,7 @@ from fogiac.plan.document import APPLIED_FILE, plan_document
 from fogiac.plan.model import Plan
 from fogiac.plan.placement import Placement, Tags
 from fogiac.provision import SshAccess
+from fogiac.provision.runner import KNOWN_HOSTS
 from fogiac.state import read_json, stack_dir, stack_lock, write_json_atomic
 from fogiac.tables import table
 from fogiac.targets.aws import api, engine, offline, placement, spot
@@ -148,6 +150,8 @@ class AwsTarget:
             if not result.left:
                 (folder / APPLIED_FILE).unlink(missing_ok=True)
                 (folder / HOST_KEYS_FILE).unlink(missing_ok=True)  # no instance left to know them by
+                # The instances are gone and their public addresses go back to AWS's pool.
+                (folder / KNOWN_HOSTS).unlink(missing_ok=True)
                 outputs = read_json(folder / engine.OUTPUTS_FILE) or {}
                 if opts.keep_network and outputs:
                     kept = {k: v for k, v in outputs.items() if k != "compute"}
@@ -217,7 +221,10 @@ class AwsTarget:
             return [Refreshed(r.layer, r.ok, r.summary) for r in engine.Engine(plan).refresh()]
 
     def sweep(self, plan: Plan, *, dry_run: bool) -> SweepOutcome:
-        result = self._sweep(plan, dry_run=dry_run)
+        # Deleting takes the stack's lock, so a sweep cannot delete what a running up is creating;
+        # a dry run only lists.
+        with contextlib.nullcontext() if dry_run else stack_lock(plan.stack, operation="sweep"):
+            result = self._sweep(plan, dry_run=dry_run)
         return SweepOutcome(found=tuple(map(str, result.found)), deleted=tuple(map(str, result.deleted)),
                             left=tuple(map(str, result.left)), errors=result.errors, not_checked=result.not_checked)
 

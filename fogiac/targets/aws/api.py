@@ -20,6 +20,7 @@ from typing import Any
 
 from fogiac.errors import CloudError, CredentialsError, PreflightError
 from fogiac.extras import need
+from fogiac.manifest.schema import ssh_from_problem
 from fogiac.plan.catalog import catalog
 from fogiac.plan.model import OPERATOR, ImageQuery, Plan
 from stacks import HOST_KEYS_BEGIN, HOST_KEYS_END
@@ -123,7 +124,7 @@ def operator_cidrs(plan: Plan, *, override: str | None = None, fetch: bool = Tru
     given = override or os.environ.get(OPERATOR_ENV)
     if given:
         try:
-            mine = str(ipaddress.ip_network(given.strip(), strict=False))
+            mine = str(ipaddress.IPv4Network(given.strip(), strict=False))
         except ValueError:
             raise PreflightError(f"--ssh-from {given!r} is not an address or CIDR") from None
     elif not fetch:
@@ -138,7 +139,11 @@ def operator_cidrs(plan: Plan, *, override: str | None = None, fetch: bool = Tru
                 f"ssh_from: auto could not learn your public address from {CHECKIP_URL} ({err}); "
                 f"pass --ssh-from CIDR or set {OPERATOR_ENV}"
             ) from None
-    return tuple(mine if cidr == OPERATOR else cidr for cidr in plan.ssh_from)
+    cidrs = tuple(mine if cidr == OPERATOR else cidr for cidr in plan.ssh_from)
+    problem = ssh_from_problem(ipaddress.IPv4Network(c) for c in cidrs)  # --ssh-from may be as wide as any
+    if problem:
+        raise PreflightError(f"ssh_from: {problem}")
+    return cidrs
 
 
 def _zones(ec2: Any, types: Sequence[str]) -> dict[str, set[str]]:

@@ -12,7 +12,7 @@ from fogiac.errors import RelayError
 from fogiac.net.relay import framing, tcpros
 from fogiac.net.relay.compression import codec, parse_spec
 from fogiac.net.relay.framing import Frame, FrameError, Kind
-from fogiac.net.relay.graph import GraphState, Route, TopicPolicy, from_system_state, select_routes
+from fogiac.net.relay.graph import GraphState, Route, TopicPolicy, from_system_state, may_cross, select_routes
 from fogiac.net.relay.queues import Outbox
 from fogiac.net.relay.stats import ClockSync
 
@@ -119,6 +119,32 @@ def test_compression_round_trips(name: str) -> None:
     assert c.decompress(memoryview(packed)) == data
     if name != "none":
         assert len(packed) < len(data) / 10
+
+
+@pytest.mark.parametrize("name", ["zstd", "lz4"])
+def test_decompression_stops_at_the_frame_limit(name: str) -> None:
+    c = codec(name)
+    bomb = c.compress(bytes(framing.MAX_FRAME + 1))  # a few KB that claim more than a frame may hold
+    with pytest.raises(FrameError, match=f"expands beyond {framing.MAX_FRAME} bytes"):
+        c.decompress(bomb)
+    assert len(c.decompress(c.compress(bytes(framing.MAX_FRAME)))) == framing.MAX_FRAME
+
+
+@pytest.mark.parametrize("name", ["zstd", "lz4"])
+def test_corrupt_compressed_data_is_a_frame_error(name: str) -> None:
+    with pytest.raises(FrameError, match=f"invalid {name} data"):
+        codec(name).decompress(b"\x28\xb5\x2f\xfd\x04\x22\x4d\x18garbage")
+
+
+def test_cloud_policy_accepts_only_listed_or_discovered_directions() -> None:
+    graph = _graph({"/map": ["/mapper"]}, {"/scan": ["/slam"]})
+    listed = TopicPolicy(out_topics=("/goal",), in_topics=("/path",))
+    assert may_cross("/goal", "out", listed, graph) and may_cross("/path", "in", listed, graph)
+    assert not may_cross("/goal", "in", listed, graph) and not may_cross("/cmd_vel", "in", listed, graph)
+    auto = TopicPolicy(auto=True)
+    assert may_cross("/map", "in", auto, graph) and may_cross("/scan", "out", auto, graph)
+    assert not may_cross("/map", "out", auto, graph) and not may_cross("/cmd_vel", "in", auto, graph)
+    assert not may_cross("/rosout", "out", auto, _graph({}, {"/rosout": ["/rosout"]}))
 
 
 def test_unknown_compression_lists_valid_ones() -> None:

@@ -26,8 +26,10 @@ pytestmark = pytest.mark.ros
 @contextlib.contextmanager
 def relay_pair(masters: tuple[Master, Master], certs: Path, **edge: object) -> Iterator[tuple[EdgeRelay, CloudRelay]]:
     edge_master, cloud_master = masters
+    # Both ends enforce the same policy, as provisioning starts them.
     cloud = CloudRelay(CloudConfig(master_uri=cloud_master.uri, certs=certs, ros_host="127.0.0.1",
-                                   listen=("127.0.0.1", 0), poll_interval=0.1))
+                                   listen=("127.0.0.1", 0), poll_interval=0.1,
+                                   policy=edge.get("policy", TopicPolicy(auto=True))))  # type: ignore[arg-type]
     cloud.start()
     try:
         edge_end = EdgeRelay(EdgeConfig(master_uri=edge_master.uri, certs=edge.pop("edge_certs", certs),  # type: ignore[arg-type]

@@ -107,8 +107,10 @@ def test_up_records_what_it_made_and_a_second_up_changes_nothing(engine_is_harne
     assert json.loads((folder / OUTPUTS_FILE).read_text()) == outputs
     assert instance in fogiac("status", str(path)).stdout
 
+    (folder / "known_hosts").write_text("203.0.113.9 ssh-ed25519 AAAAC3NzaC1lZDI1NTE5AAAA\n")  # as provisioning left it
     assert down(str(path), "--yes").exit_code == 0
     assert not (folder / APPLIED_FILE).exists() and not (folder / OUTPUTS_FILE).exists()
+    assert not (folder / "known_hosts").exists()  # the addresses go back to AWS: forget their keys
     assert _tagged(ec2, "roundtrip-dev") == {"vpcs": [], "instances": [], "keys": []}
 
 

@@ -80,3 +80,22 @@ def test_sweep_leaves_nothing_tagged(ec2: Any, acm: Any) -> None:
     assert made["acm-certificate"] not in {c["CertificateArn"] for c in acm.list_certificates()["CertificateSummaryList"]}
     assert ec2.describe_vpcs(VpcIds=[other])["Vpcs"], "another stack's VPC must survive"
     ec2.delete_vpc(VpcId=other)
+
+
+def test_sweep_waits_for_no_one_and_deletes_nothing_while_up_holds_the_lock(
+        ec2: Any, acm: Any, tmp_path: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    from fogiac import targets
+    from fogiac.errors import LockHeld
+    from fogiac.manifest.schema import parse_manifest
+    from fogiac.plan.compile import compile_plan
+    from fogiac.state import stack_lock
+
+    monkeypatch.setenv("FOGIAC_STATE_DIR", str(tmp_path / "state"))
+    plan = compile_plan(parse_manifest("name: sweeplock\nnodes:\n  - {name: a, machine: t3.micro, image: i}\n"),
+                        target="aws")
+    made = leak(ec2, acm, plan.stack)  # what a running up is creating
+    with stack_lock(plan.stack, operation="up"), pytest.raises(LockHeld, match="is locked by up"):
+        targets.get("aws").sweep(plan, dry_run=False)
+    assert ec2.describe_vpcs(VpcIds=[made["vpc"]])["Vpcs"]
+    assert targets.get("aws").sweep(plan, dry_run=True).deleted == ()  # listing needs no lock
+    assert sweep(plan.stack, dry_run=False, ec2=ec2, acm=acm, first_delay_s=0.1).clean

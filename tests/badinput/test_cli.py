@@ -1,0 +1,58 @@
+"""Hostile command lines: each is refused in one line, with nothing created outside the state
+folder and nothing left behind."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from fogiac.cli import app
+from tests.conftest import EXAMPLES
+
+runner = CliRunner()
+
+
+@pytest.fixture
+def state(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    root = tmp_path / "state" / "root"
+    monkeypatch.setenv("FOGIAC_STATE_DIR", str(root))
+    return root
+
+
+@pytest.mark.parametrize("env", ["x/../../outside", "Prod Env", "dev\n# ExecStartPre=/bin/sh", "", "-dev"])
+def test_env_must_be_dns_safe(env: str, state: Path) -> None:
+    for argv in (["down", str(EXAMPLES / "minimal.yaml"), "--env", env, "--yes", "--target", "local"],
+                 ["plan", str(EXAMPLES / "minimal.yaml"), "--env", env]):
+        result = runner.invoke(app, argv)
+        assert result.exit_code == 1, result.output
+        assert result.output.strip().splitlines() == [f"error: --env {env!r} is not DNS-safe "
+                                                      "(lowercase letters, digits, '-', up to 40)"]
+    assert not (state.parent / "outside").exists() and not state.exists()
+
+
+def test_plan_out_to_a_directory_is_one_line(tmp_path: Path, state: Path) -> None:
+    result = runner.invoke(app, ["plan", str(EXAMPLES / "minimal.yaml"), "--out", str(tmp_path)])
+    assert result.exit_code == 1
+    assert result.output.strip().splitlines() == [f"error: --out {tmp_path}: is a directory; name the file to write"]
+    assert list(tmp_path.iterdir()) == []  # no temporary file left beside it
+
+
+def test_down_of_a_never_deployed_local_stack_leaves_nothing(state: Path) -> None:
+    result = runner.invoke(app, ["down", str(EXAMPLES / "minimal.yaml"), "--yes", "--target", "local"])
+    assert result.exit_code == 0, result.output
+    assert not (state / "minimal-dev" / "local").exists()
+
+
+@pytest.mark.parametrize("given", ["0.0.0.0/0", "0.0.0.0/1", "10.0.0.0/7"])
+def test_preflight_refuses_a_wide_ssh_from(given: str) -> None:
+    from fogiac.errors import PreflightError
+    from fogiac.manifest.schema import load_manifest
+    from fogiac.plan.compile import compile_plan
+    from fogiac.targets.aws.api import operator_cidrs
+
+    plan = compile_plan(load_manifest(EXAMPLES / "minimal.yaml"), target="aws")
+    with pytest.raises(PreflightError, match=rf"^ssh_from: {given} cover \d+ addresses, more than a /8"):
+        operator_cidrs(plan, override=given)
+    assert operator_cidrs(plan, override="10.0.0.0/8") == ("10.0.0.0/8",)

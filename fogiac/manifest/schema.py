@@ -22,6 +22,12 @@ from fogiac.plan.catalog import catalog
 _DNS_NAME = re.compile(r"^[a-z]([a-z0-9-]{0,38}[a-z0-9])?$")
 _TOPIC = re.compile(r"^/[A-Za-z][A-Za-z0-9_/]*$")
 _ENV_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+# An OCI image reference: [registry[:port]/]path[:tag][@digest], lowercase path components.
+_IMAGE_REF = re.compile(
+    r"^(?:[A-Za-z0-9](?:[A-Za-z0-9.-]*[A-Za-z0-9])?(?::[0-9]+)?/)?"
+    r"[a-z0-9]+(?:(?:[._]|__|-+)[a-z0-9]+)*(?:/[a-z0-9]+(?:(?:[._]|__|-+)[a-z0-9]+)*)*"
+    r"(?::[A-Za-z0-9_][A-Za-z0-9_.-]{0,127})?(?:@sha256:[0-9a-f]{64})?$"
+)
 _MIN_SUBNET_PREFIX = 27
 
 Compression = Literal["none", "zstd", "lz4"]
@@ -69,6 +75,11 @@ class Cloud(_Model):
     region: str = Field(default="us-west-2", description="AWS region (one the price table covers).")
     zone: str | None = Field(default=None, description="Availability zone; chosen by preflight if absent.")
     hosts: tuple[HostMachine, ...] = Field(default=(), description="Machines for the hosts target.")
+    runtime: Literal["auto", "container", "native"] = Field(
+        default="auto",
+        description="How nodes run on local and hosts machines: in containers (podman, or a docker that answers), "
+        "natively, or auto (containers where `docker info` answers).",
+    )
 
     @field_validator("region")
     @classmethod
@@ -162,6 +173,24 @@ class Launch(_Model):
     env_script: Path | None = Field(default=None, description="Script run once per change to set the host up.")
 
 
+class Build(_Model):
+    context: Path = Field(description="Build context folder, relative to the manifest.")
+    dockerfile: str = Field(default="Dockerfile", description="Dockerfile inside the context folder.")
+
+    @field_validator("dockerfile")
+    @classmethod
+    def _inside(cls, value: str) -> str:
+        if value.startswith("/") or ".." in Path(value).parts:
+            raise ValueError(f"{value!r} must be a path inside the context folder")
+        return value
+
+    @model_validator(mode="after")
+    def _dockerfile_exists(self) -> Build:
+        if self.context.is_dir() and not (self.context / self.dockerfile).is_file():
+            raise FieldProblem(f"{self.dockerfile!r} is not a file in {self.context}", field="dockerfile")
+        return self
+
+
 class TopicLists(_Model):
     inputs: tuple[Topic, ...] = Field(default=(), alias="in", description="Topics from the robot to this node.")
     outputs: tuple[Topic, ...] = Field(default=(), alias="out", description="Topics from this node to the robot.")
@@ -179,8 +208,9 @@ class Node(_Model):
     name: DnsName = Field(description="DNS-safe node name, unique in the manifest.")
     machine: str = Field(description="EC2 instance type, e.g. c5.24xlarge or g4dn.xlarge.")
     image: str | None = Field(
-        default=None, description="Container image to run (exactly one of image, launch, workload)."
+        default=None, description="Container image to run (exactly one of image, build, launch, workload)."
     )
+    build: Build | None = Field(default=None, description="Container image built on the host from a Dockerfile.")
     launch: Launch | None = Field(default=None, description="ROS package + launch file from a workspace.")
     workload: Workload | None = Field(default=None, description="A workload that ships with fogiac.")
     command: tuple[str, ...] = Field(default=(), description="Arguments after the image (containers only).")
@@ -198,6 +228,13 @@ class Node(_Model):
             raise FieldProblem(f"{value!r} is not a known instance type", choices=tuple(catalog().types))
         return value
 
+    @field_validator("image")
+    @classmethod
+    def _image(cls, value: str | None) -> str | None:
+        if value is not None and not _IMAGE_REF.match(value):
+            raise ValueError(f"{value!r} is not an image reference like 'ros:noetic-ros-core' or 'ghcr.io/org/app:1.0'")
+        return value
+
     @field_validator("env")
     @classmethod
     def _env(cls, value: dict[str, str]) -> dict[str, str]:
@@ -208,11 +245,11 @@ class Node(_Model):
 
     @model_validator(mode="after")
     def _one_kind(self) -> Node:
-        given = [k for k in ("image", "launch", "workload") if getattr(self, k) is not None]
+        given = [k for k in ("image", "build", "launch", "workload") if getattr(self, k) is not None]
         if len(given) != 1:
             what = "none" if not given else " and ".join(given)
-            raise FieldProblem(f"needs exactly one of image, launch or workload (got {what})")
-        if self.command and self.image is None:
+            raise FieldProblem(f"needs exactly one of image, build, launch or workload (got {what})")
+        if self.command and self.image is None and self.build is None:
             raise FieldProblem("command is only for image nodes", field="command")
         if self.gpu and not catalog().types[self.machine].has_gpu:
             raise FieldProblem(
@@ -223,7 +260,7 @@ class Node(_Model):
 
     @property
     def kind(self) -> NodeKind:
-        return "image" if self.image else "launch" if self.launch else "workload"
+        return "image" if self.image or self.build else "launch" if self.launch else "workload"
 
 
 class Relay(_Model):
@@ -302,6 +339,8 @@ def _resolve_paths(data: dict, base: Path) -> list[tuple[tuple, str]]:
         if isinstance(node, dict) and isinstance(node.get("launch"), dict):
             fix(node["launch"], "workspace", ("nodes", i, "launch"), folder=True)
             fix(node["launch"], "env_script", ("nodes", i, "launch"), folder=False)
+        if isinstance(node, dict) and isinstance(node.get("build"), dict):
+            fix(node["build"], "context", ("nodes", i, "build"), folder=True)
     cloud = data.get("cloud")
     if isinstance(cloud, dict):
         hosts = cloud.get("hosts")

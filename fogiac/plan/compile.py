@@ -12,6 +12,7 @@ from fogiac import targets
 from fogiac.manifest.schema import Manifest, Node
 from fogiac.plan.model import (
     RELAY_PORT,
+    BuildSpec,
     ConnectVia,
     HostSpec,
     LaunchSpec,
@@ -78,6 +79,7 @@ def _node(node: Node, host: str) -> NodeSpec:
             else None
         ),
         workload=node.workload,
+        build=BuildSpec(context=str(node.build.context), dockerfile=node.build.dockerfile) if node.build else None,
         gpu=node.gpu,
         env=tuple(sorted(node.env.items())),
         topics_auto=lists is None,

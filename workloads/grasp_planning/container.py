@@ -19,6 +19,10 @@ DEFAULTS: dict[str, Any] = {
 }
 
 
+# Per base distribution (the /etc/os-release ID of the base image): overrides of DEFAULTS.
+FLAVOURS: dict[str, dict[str, Any]] = {"ubuntu": {}}
+
+
 def dockerfile(**overrides: Any) -> str:
     """The Dockerfile text; ``overrides`` replace DEFAULTS, unknown names are an error."""
     return render_dockerfile(TEMPLATE, DEFAULTS, overrides)

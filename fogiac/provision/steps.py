@@ -257,7 +257,14 @@ def step_env_script(run: HostRun) -> StepResult:
             names = tuple(f"{i}.sh" for i in range(len(bodies)))
             for name, body in zip(names, bodies, strict=True):
                 run.host.put(body, f"{dest}/.fogiac-setup/{name}", mode=0o700)
-            run.host.run(svc.workspace_build_command(run.plan, run.where(), local, names), timeout=1800)
+            log = f"{run.layout.build}/ws-{dest.rsplit('/', 1)[-1]}.log"
+            built = run.host.run(f"mkdir -p {q(run.layout.build)} && "
+                                 f"{svc.workspace_build_command(run.plan, run.where(), local, names)} >{q(log)} 2>&1",
+                                 check=False, timeout=1800)
+            if not built.ok:
+                tail = run.host.run(f"tail -n 1 {q(log)}", check=False).last_line()
+                raise ProvisionError(f"{run.spec.name}: workspace {Path(local).name}: build in "
+                                     f"{svc.ros_image(run.plan)} failed ({tail}); log: {log}")
         else:
             for i, body in enumerate(bodies):
                 path = f"{run.layout.tmp}/setup-{i}.sh"

@@ -10,10 +10,12 @@ container. The base image comes from ``.ci/containers.sh``.
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -21,6 +23,9 @@ from typer.testing import CliRunner
 
 from fogiac.cli import app
 from fogiac.procs import free_port
+
+from tests.conftest import EXAMPLES, REPO
+from tests.targets.test_local import CLIENT
 
 BASE = "docker.io/library/ros:noetic-ros-core"
 
@@ -199,3 +204,33 @@ def test_build_and_launch_nodes_in_podman_two_stacks_and_down(tmp_path: Path, _s
         for manifest in manifests:
             runner.invoke(app, ["down", str(manifest), "--target", "local", "--yes"])
     assert _containers("ctra-dev") == [] and _containers("ctrb-dev") == []
+
+
+def test_motion_planning_workload_built_from_its_recipe_answers_through_the_relay(
+        tmp_path: Path, _state_dir: Path) -> None:
+    runner = CliRunner()
+    edge = free_port()
+    manifest = tmp_path / "fogiac.yaml"
+    manifest.write_text((EXAMPLES / "motion-planning.yaml").read_text()
+                        .replace("ros_master: http://localhost:11311", f"ros_master: http://127.0.0.1:{edge}")
+                        .replace("  provider: aws\n", "  provider: aws\n  runtime: container\n"))
+    try:
+        up = runner.invoke(app, ["up", str(manifest), "--target", "local", "--yes", "--start-edge-master"])
+        assert up.exit_code == 0, up.output
+        (name,) = [n for n in _containers("motion-planning-dev") if not n.endswith("-ros-master")]
+        image = subprocess.run(["podman", "inspect", "--format", "{{.ImageName}}", name], capture_output=True,
+                               text=True, check=True).stdout.strip()
+        assert re.fullmatch(r"localhost/fogiac/motion_planning:[0-9a-f]{16}", image), image
+        env = {**os.environ, "ROS_MASTER_URI": f"http://127.0.0.1:{edge}", "ROS_HOSTNAME": "127.0.0.1",
+               "PYTHONPATH": str(REPO)}
+        result = subprocess.run([sys.executable, "-c", CLIENT], env=env, capture_output=True, text=True,
+                                timeout=240, cwd=tmp_path)
+        assert result.returncode == 0, result.stderr[-3000:]
+        answer = json.loads(result.stdout.strip().splitlines()[-1])
+        assert answer["solved"] and answer["poses"] >= 2 and answer["free"], answer
+        again = runner.invoke(app, ["up", str(manifest), "--target", "local", "--yes"])
+        assert again.exit_code == 0 and "no changes" in again.output, again.output
+    finally:
+        down = runner.invoke(app, ["down", str(manifest), "--target", "local", "--yes"])
+    assert down.exit_code == 0 and "nothing left" in down.output, down.output
+    assert _containers("motion-planning-dev") == []

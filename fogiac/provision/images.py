@@ -86,6 +86,9 @@ def build(host: Host, recipe: Recipe, *, engine: str, base_id: str, dest: str, t
     if not done.ok:
         step = last_step(host.run(f"tail -n 400 {q(log)}", check=False).stdout)
         raise ProvisionError(f"{host.name}: node {recipe.node}: image build failed at {step}; log: {log}")
+    # Older digests of this image go, unless a container still runs on one (rmi refuses then).
+    host.run(f"for t in $({engine} images --format '{{{{.Repository}}}}:{{{{.Tag}}}}' {q(recipe.repo)}); do "
+             f"case $t in *:{digest[:16]}) ;; *) {engine} rmi $t >/dev/null 2>&1 ;; esac; done", check=False)
     return Built(node=recipe.node, tag=tag, built=True)
 
 

@@ -102,6 +102,7 @@ class Where:
     workspace_digests: tuple[tuple[str, str], ...] = ()  # (local path, digest) of pushed workspaces
     engine: str = "docker"  # the container engine's command on the host (runtime CONTAINER)
     images: tuple[tuple[str, str], ...] = ()  # (node, tag) of images built on the host
+    workload_python: str = ""  # interpreter of workload nodes on a native host ('' : python)
 
 
 @dataclass(frozen=True)
@@ -225,7 +226,8 @@ def _native_node(node: NodeSpec, plan: Plan, spec: HostSpec, where: Where) -> _N
         ws = where.layout.workspace(node.launch.workspace)
         return _NodeRun(command=f"roslaunch --wait {q(node.launch.package)} {q(node.launch.file)}",
                         package_path=f"{ws}/src:{ws}", check="node", cwd=ws)
-    return _NodeRun(command=f"{q(where.python)} -m workloads.{node.workload} node", python_path=where.code_root,
+    python = where.workload_python or where.python
+    return _NodeRun(command=f"{q(python)} -m workloads.{node.workload} node", python_path=where.code_root,
                     check="node")
 
 

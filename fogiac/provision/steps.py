@@ -16,7 +16,7 @@ from pathlib import Path
 from fogiac.errors import ProvisionError
 from fogiac.net.rosenv import side_env
 from fogiac.plan.model import HostSpec, Plan
-from fogiac.provision import images
+from fogiac.provision import images, venv
 from fogiac.provision import services as svc
 from fogiac.provision.host import Host, HostAccess, q
 from fogiac.provision.managers import Manager, manager_for
@@ -26,7 +26,7 @@ from fogiac.render import render
 from fogiac.resources import package_dir
 
 CHANGED, OK, SKIPPED = "changed", "ok", "skipped"
-_CODE_IGNORE = ("tests/", "*.pt", "*.npz", "problems/", "*.ipynb")
+_CODE_IGNORE = ("tests/", "*.npz", "problems/", "*.ipynb")  # the grasp node's model.pt (0.2 MB) goes along
 _ROS_PACKAGES = ("ros-core", "python3-rospy", "python3-std-msgs")
 _RELAY_CERTS = (("ca.pem", 0o644), ("server.pem", 0o644), ("server.key", 0o600))
 
@@ -53,6 +53,7 @@ class HostRun:
     runtime: str = ""
     engine: str = ""  # the container engine's command, when runtime is CONTAINER
     images: dict[str, str] = field(default_factory=dict)  # node -> image tag built on the host
+    workload_python: str = ""  # the virtual environment's interpreter for workload nodes on a native host
     facts: Facts | None = None
     systemd: bool | None = None  # whether the runtime step's probe saw systemd as PID 1; None: not probed
     files_pushed: int = 0
@@ -76,7 +77,8 @@ class HostRun:
                          relay_port=self.access.relay_port, ros_address=self.access.ros_address,
                          python=self.access.python, code_root=code_root, user=self.access.user,
                          workspace_digests=tuple(sorted(self.digests.items())), engine=self.engine or "docker",
-                         images=tuple(sorted(self.images.items())))
+                         images=tuple(sorted(self.images.items())),
+                         workload_python=self.workload_python or self.access.python)
 
     def services(self) -> tuple[svc.Service, ...]:
         where = self.where()
@@ -216,6 +218,23 @@ def step_images(run: HostRun) -> StepResult:
     return (CHANGED, f"built {', '.join(built)}") if built else (OK, f"{len(run.images)} image(s) up to date")
 
 
+def step_venv(run: HostRun) -> StepResult:
+    """On a native host that runs fogiac's pushed code, workload nodes get their requirements in a venv."""
+    if run.runtime != svc.NATIVE:
+        return SKIPPED, "container runtime: requirements are in the images"
+    if not run.access.ship_code:
+        return SKIPPED, "nodes run on fogiac's own interpreter"
+    names = [n.workload for n in (run.plan.node(x) for x in run.spec.nodes) if n.workload is not None]
+    marker = f"{run.layout.state}/venv.sha256"
+    known = run.facts.marker(marker) if run.facts is not None else ""
+    env = venv.ensure(run.host, root=f"{run.layout.base}/venv", marker=marker, known=known,
+                      reqs=venv.requirements(names), python=run.access.python,
+                      allow_install=run.options.allow_install, log=f"{run.layout.run}/venv-install.log")
+    run.workload_python = env.python
+    return (CHANGED, f"installed {', '.join(venv.requirements(names))}") if env.built else \
+        (OK, f"requirements installed already ({env.digest[:12]})")
+
+
 def _workspaces(run: HostRun) -> list[str]:
     seen: list[str] = []
     for name in run.spec.nodes:
@@ -333,6 +352,7 @@ STEPS: dict[str, Callable[[HostRun], StepResult]] = {
     "connect": step_connect,
     "runtime": step_runtime,
     "images": step_images,
+    "venv": step_venv,
     "workspace": step_workspace,
     "env_script": step_env_script,
     "services": step_services,

@@ -22,7 +22,10 @@ import pytest
 from typer.testing import CliRunner
 
 from fogiac.cli import app
+from fogiac.errors import ProvisionError
 from fogiac.procs import free_port
+from fogiac.provision import images
+from fogiac.provision.local import LocalHost
 
 from tests.conftest import EXAMPLES, REPO
 from tests.targets.test_local import CLIENT
@@ -154,6 +157,25 @@ def _listening(pids: set[int]) -> list[str]:
     return found
 
 
+def _started_at(name: str) -> str:
+    return subprocess.run(["podman", "inspect", "--format", "{{.State.StartedAt}}", name], capture_output=True,
+                          text=True, check=True).stdout.strip()
+
+
+def test_a_failed_build_is_one_line_naming_the_node_the_step_and_the_log(tmp_path: Path) -> None:
+    context = tmp_path / "ctx"
+    context.mkdir()
+    (context / "Dockerfile").write_text("FROM ros:noetic-ros-core\nRUN echo first\nRUN exit 3\nRUN echo never\n")
+    host = LocalHost(name="lab1", base=str(tmp_path / "base"))
+    host.connect()
+    recipe = images.Recipe(node="broken", repo="fogiac/test-broken", context=context, dockerfile="Dockerfile")
+    log = f"{tmp_path}/base/build/broken.log"
+    with pytest.raises(ProvisionError, match=r"^lab1: node broken: image build failed at STEP 3/4: RUN exit 3; "
+                                             rf"log: {re.escape(log)}$"):
+        images.build(host, recipe, engine="podman", base_id="x", dest=f"{tmp_path}/base/build/broken",
+                     tmp_dir=f"{tmp_path}/base/tmp", log=log)
+
+
 def _container_pids(stack: str) -> set[int]:
     pids: set[int] = set()
     for name in _containers(stack):
@@ -190,6 +212,15 @@ def test_build_and_launch_nodes_in_podman_two_stacks_and_down(tmp_path: Path, _s
 
         again = runner.invoke(app, ["up", str(first), "--target", "local", "--yes"])
         assert again.exit_code == 0 and "no changes" in again.output, again.output
+
+        # One file of one node changed: that node's image is rebuilt and restarted, the other left alone.
+        started = _started_at("fogiac-ctra-dev-cat")
+        talker = tmp_path / "one" / "app" / "talker.py"
+        talker.write_text(talker.read_text().replace('"built says "', '"rebuilt says "'))
+        changed = runner.invoke(app, ["up", str(first), "--target", "local", "--yes"])
+        assert changed.exit_code == 0 and "1 of 2 host(s) changed" in changed.output, changed.output
+        assert _echo(edge, "/built").startswith('data: "rebuilt says hello from a private file"')
+        assert _started_at("fogiac-ctra-dev-cat") == started
 
         # A second stack with the same node names on the same machine: both healthy.
         up2 = runner.invoke(app, ["up", str(second), "--target", "local", "--yes"])

@@ -23,6 +23,11 @@ DEFAULTS: dict[str, Any] = {
 FLAVOURS: dict[str, dict[str, Any]] = {"ubuntu": {}}
 
 
+def requirements() -> list[str]:
+    """What the node needs from PyPI beside the system's rospy: torch pinned, then the recipe's list."""
+    return [f"torch=={DEFAULTS['torch_version']}", *DEFAULTS["pip_packages"]]
+
+
 def dockerfile(**overrides: Any) -> str:
     """The Dockerfile text; ``overrides`` replace DEFAULTS, unknown names are an error."""
     return render_dockerfile(TEMPLATE, DEFAULTS, overrides)

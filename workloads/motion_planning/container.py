@@ -27,6 +27,11 @@ FLAVOURS: dict[str, dict[str, Any]] = {
 }
 
 
+def requirements() -> list[str]:
+    """What the node needs from PyPI beside the system's rospy: the recipe's own list."""
+    return list(DEFAULTS["pip_packages"])
+
+
 def dockerfile(**overrides: Any) -> str:
     """The Dockerfile text; ``overrides`` replace DEFAULTS, unknown names are an error."""
     return render_dockerfile(TEMPLATE, DEFAULTS, overrides)

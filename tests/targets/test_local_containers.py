@@ -1,8 +1,9 @@
 """The container runtime end to end in a real OCI engine (podman with runc), on the local target.
 
 Each node runs in a container on the host network beside its sandbox's master container; the
-edge relay carries its topic to a robot-side roscore started by fogiac. Covered: a ``build:``
-node (its image built on the host from a Dockerfile, its env through a 0600 file), a
+edge relay carries its topic to a robot-side roscore started by fogiac. Covered: an ``image:``
+node, a ``build:`` node (its image built on the host from a Dockerfile, its env through a 0600
+file, rebuilt alone when one of its files changes), a
 ``launch:`` node (a catkin package built inside the ROS image, its env script sourced there), a
 second stack beside the first, a no-change ``up``, loopback-only sockets, and ``down`` leaving no
 container. The base image comes from ``.ci/containers.sh``.
@@ -124,6 +125,11 @@ nodes:
     build: {{context: app}}
     env: {{GREETING: "hello from a private file"}}
     topics: {{out: [/built]}}
+  - name: plain
+    machine: t3.small
+    image: ros:noetic-ros-core
+    command: [rostopic, pub, -r, "5", /plain, std_msgs/String, "data: plain image"]
+    topics: {{out: [/plain]}}
   - name: cat
     machine: t3.small
     launch: {{package: fogcat, file: talker.launch, workspace: ws, env_script: setup.sh}}
@@ -193,11 +199,13 @@ def test_build_and_launch_nodes_in_podman_two_stacks_and_down(tmp_path: Path, _s
     try:
         up = runner.invoke(app, ["up", str(first), "--target", "local", "--yes", "--start-edge-master"])
         assert up.exit_code == 0, up.output
-        assert "2 of 2 host(s) changed" in up.output
+        assert "3 of 3 host(s) changed" in up.output
         assert _echo(edge, "/built").startswith('data: "built says hello from a private file"')
+        assert _echo(edge, "/plain").startswith('data: "plain image"')
         assert _echo(edge, "/cat").startswith('data: "cat says meow"')
         assert _containers("ctra-dev") == ["fogiac-ctra-dev-built", "fogiac-ctra-dev-built-ros-master",
-                                           "fogiac-ctra-dev-cat", "fogiac-ctra-dev-cat-ros-master"]
+                                           "fogiac-ctra-dev-cat", "fogiac-ctra-dev-cat-ros-master",
+                                           "fogiac-ctra-dev-plain", "fogiac-ctra-dev-plain-ros-master"]
         sandbox = _state_dir / "ctra-dev" / "local"
         env_file = sandbox / "built" / "env" / "node-built.env"
         assert env_file.stat().st_mode & 0o777 == 0o600
@@ -218,7 +226,7 @@ def test_build_and_launch_nodes_in_podman_two_stacks_and_down(tmp_path: Path, _s
         talker = tmp_path / "one" / "app" / "talker.py"
         talker.write_text(talker.read_text().replace('"built says "', '"rebuilt says "'))
         changed = runner.invoke(app, ["up", str(first), "--target", "local", "--yes"])
-        assert changed.exit_code == 0 and "1 of 2 host(s) changed" in changed.output, changed.output
+        assert changed.exit_code == 0 and "1 of 3 host(s) changed" in changed.output, changed.output
         assert _echo(edge, "/built").startswith('data: "rebuilt says hello from a private file"')
         assert _started_at("fogiac-ctra-dev-cat") == started
 
@@ -229,7 +237,7 @@ def test_build_and_launch_nodes_in_podman_two_stacks_and_down(tmp_path: Path, _s
         down2 = runner.invoke(app, ["down", str(second), "--target", "local", "--yes"])
         assert down2.exit_code == 0 and "nothing left" in down2.output, down2.output
         assert _containers("ctrb-dev") == []
-        assert len(_containers("ctra-dev")) == 4
+        assert len(_containers("ctra-dev")) == 6
         assert _echo(edge, "/cat").startswith('data: "cat says meow"')
     finally:
         for manifest in manifests:

@@ -9,6 +9,7 @@ alive, nothing of the target left. Everything lives in the stack's state folder.
 
 from __future__ import annotations
 
+import re
 import sys
 import time
 import xmlrpc.client
@@ -51,9 +52,13 @@ def edge_dir(plan: Plan) -> Path:
     return stack_dir(plan.stack) / EDGE_DIR
 
 
-def _relay_argv(route: RelayRoute, *, connect: str, master: str, certs: Path, stats: Path) -> list[str]:
+def _relay_argv(route: RelayRoute, *, stack: str, connect: str, master: str, certs: Path, stats: Path) -> list[str]:
+    # One ROS name per relay: a master drops a node when another registers with its name, so
+    # the relays of several hosts (or several stacks) on one edge master would evict each other.
+    name = "/fogiac_relay_edge_" + re.sub(r"[^A-Za-z0-9_]", "_", f"{stack}_{route.host}")
     argv = [sys.executable, "-m", "fogiac", "relay", "edge", "--connect", connect, "--master", master,
-            "--certs", str(certs), "--stats-file", str(stats), "--queue-depth", str(route.queue_size)]
+            "--certs", str(certs), "--stats-file", str(stats), "--queue-depth", str(route.queue_size),
+            "--name", name]
     argv += route.policy_argv()
     compression = dict(route.compression)
     if "*" in compression:
@@ -107,7 +112,7 @@ def provision_and_connect(plan: Plan, *, access: Mapping[str, Any], connect: Map
             continue
         relays[route.host] = connect[route.host]
         supervise.start(edge_dir(plan), f"relay-edge-{route.host}", _relay_argv(
-            route, connect=relays[route.host], master=master, certs=certs,
+            route, stack=plan.stack, connect=relays[route.host], master=master, certs=certs,
             stats=edge_dir(plan) / f"relay-edge-{route.host}.stats.json"))
     deployment = folder / DEPLOYMENT_FILE
     write_json_atomic(deployment, {

@@ -128,11 +128,11 @@ def test_unique_node_names(tmp_path: Path) -> None:
 def test_exactly_one_of_image_launch_workload(tmp_path: Path) -> None:
     both = VALID.replace("    workload: motion_planning\n", "    workload: motion_planning\n    image: x\n")
     assert problems(tmp_path, both) == [
-        "6: nodes[0]: needs exactly one of image, launch or workload (got image and workload)"
+        "6: nodes[0]: needs exactly one of image, build, launch or workload (got image and workload)"
     ]
     none = VALID.replace("    workload: motion_planning\n", "")
     assert problems(tmp_path, none) == [
-        "6: nodes[0]: needs exactly one of image, launch or workload (got none)"
+        "6: nodes[0]: needs exactly one of image, build, launch or workload (got none)"
     ]
 
 
@@ -214,3 +214,34 @@ def test_json_schema_describes_the_manifest() -> None:
     assert node["additionalProperties"] is False
     assert "machine" in node["properties"]
     assert "in" in schema["$defs"]["TopicLists"]["properties"]
+
+
+def test_an_image_reference_is_checked_by_its_grammar(tmp_path: Path) -> None:
+    for good in ("ros:noetic-ros-core", "ghcr.io/org/app:1.0", "localhost:5000/a/b_c", "a@sha256:" + "0" * 64):
+        assert load_manifest(write(tmp_path, VALID.replace("example/grasp:1", good))).nodes[1].image == good
+    # An image starting with "-" would be read by the engine as an option.
+    assert problems(tmp_path, VALID.replace("example/grasp:1", "'--privileged'")) == [
+        "12: nodes[1].image: '--privileged' is not an image reference like 'ros:noetic-ros-core' "
+        "or 'ghcr.io/org/app:1.0'"
+    ]
+
+
+def test_a_build_node_names_a_context_folder_and_a_dockerfile_in_it(tmp_path: Path) -> None:
+    (tmp_path / "app").mkdir()
+    text = VALID.replace("    image: example/grasp:1\n", "    build: {context: app}\n")
+    assert problems(tmp_path, text) == [
+        f"12: nodes[1].build.dockerfile: 'Dockerfile' is not a file in {tmp_path / 'app'}"
+    ]
+    (tmp_path / "app" / "Dockerfile").write_text("FROM ros:noetic-ros-core\n")
+    node = load_manifest(write(tmp_path, text)).nodes[1]
+    assert node.kind == "image" and node.build is not None and node.build.context == tmp_path / "app"
+    outside = text.replace("{context: app}", "{context: app, dockerfile: ../Dockerfile}")
+    assert problems(tmp_path, outside) == [
+        "12: nodes[1].build.dockerfile: '../Dockerfile' must be a path inside the context folder"
+    ]
+
+
+def test_runtime_is_a_choice(tmp_path: Path) -> None:
+    text = VALID.replace("  region: us-west-2\n", "  region: us-west-2\n  runtime: docker\n")
+    (line,) = problems(tmp_path, text)
+    assert line.startswith("5: cloud.runtime: ") and "'auto', 'container', 'native'" in line

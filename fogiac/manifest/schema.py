@@ -26,6 +26,12 @@ from fogiac.plan.machines import Choice, NoMachine, Requirement, choose, parse_b
 _DNS_NAME = re.compile(r"^[a-z]([a-z0-9-]{0,38}[a-z0-9])?$")
 _TOPIC = re.compile(r"^/[A-Za-z][A-Za-z0-9_/]*$")
 _ENV_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+# An OCI image reference: [registry[:port]/]path[:tag][@digest], lowercase path components.
+_IMAGE_REF = re.compile(
+    r"^(?:[A-Za-z0-9](?:[A-Za-z0-9.-]*[A-Za-z0-9])?(?::[0-9]+)?/)?"
+    r"[a-z0-9]+(?:(?:[._]|__|-+)[a-z0-9]+)*(?:/[a-z0-9]+(?:(?:[._]|__|-+)[a-z0-9]+)*)*"
+    r"(?::[A-Za-z0-9_][A-Za-z0-9_.-]{0,127})?(?:@sha256:[0-9a-f]{64})?$"
+)
 _MIN_SUBNET_PREFIX = 27
 # ssh_from may cover at most a /8 (16.7 M addresses) in all: the largest block one organisation
 # holds (the legacy /8s); anything wider is not "my network" but a share of the whole internet,
@@ -139,6 +145,11 @@ class Cloud(_Model):
     def _yaml_off(cls, value: object) -> object:
         """YAML 1.1 reads a bare ``off`` as false: that is the ``off`` the user wrote."""
         return "off" if value is False else value
+    runtime: Literal["auto", "container", "native"] = Field(
+        default="auto",
+        description="How nodes run on local and hosts machines: in containers (podman, or a docker that answers), "
+        "natively, or auto (containers where `docker info` answers).",
+    )
 
     @field_validator("region")
     @classmethod
@@ -235,6 +246,24 @@ class Launch(_Model):
     env_script: PlainPath | None = Field(default=None, description="Script run once per change to set the host up.")
 
 
+class Build(_Model):
+    context: Path = Field(description="Build context folder, relative to the manifest.")
+    dockerfile: str = Field(default="Dockerfile", description="Dockerfile inside the context folder.")
+
+    @field_validator("dockerfile")
+    @classmethod
+    def _inside(cls, value: str) -> str:
+        if value.startswith("/") or ".." in Path(value).parts:
+            raise ValueError(f"{value!r} must be a path inside the context folder")
+        return value
+
+    @model_validator(mode="after")
+    def _dockerfile_exists(self) -> Build:
+        if self.context.is_dir() and not (self.context / self.dockerfile).is_file():
+            raise FieldProblem(f"{self.dockerfile!r} is not a file in {self.context}", field="dockerfile")
+        return self
+
+
 class TopicLists(_Model):
     inputs: tuple[Topic, ...] = Field(default=(), alias="in", description="Topics from the robot to this node.")
     outputs: tuple[Topic, ...] = Field(default=(), alias="out", description="Topics from this node to the robot.")
@@ -294,8 +323,9 @@ class Node(_Model):
         description="EC2 instance type (c5.24xlarge), or what the node needs ({gpu: T4, vcpus: '>=8'})."
     )
     image: str | None = Field(
-        default=None, description="Container image to run (exactly one of image, launch, workload)."
+        default=None, description="Container image to run (exactly one of image, build, launch, workload)."
     )
+    build: Build | None = Field(default=None, description="Container image built on the host from a Dockerfile.")
     launch: Launch | None = Field(default=None, description="ROS package + launch file from a workspace.")
     workload: Workload | None = Field(default=None, description="A workload that ships with fogiac.")
     command: tuple[str, ...] = Field(default=(), description="Arguments after the image (containers only).")
@@ -313,6 +343,13 @@ class Node(_Model):
             raise FieldProblem(f"{value!r} is not a known instance type", choices=tuple(catalog().types))
         return value
 
+    @field_validator("image")
+    @classmethod
+    def _image(cls, value: str | None) -> str | None:
+        if value is not None and not _IMAGE_REF.match(value):
+            raise ValueError(f"{value!r} is not an image reference like 'ros:noetic-ros-core' or 'ghcr.io/org/app:1.0'")
+        return value
+
     @field_validator("env")
     @classmethod
     def _env(cls, value: dict[str, str]) -> dict[str, str]:
@@ -323,11 +360,11 @@ class Node(_Model):
 
     @model_validator(mode="after")
     def _one_kind(self) -> Node:
-        given = [k for k in ("image", "launch", "workload") if getattr(self, k) is not None]
+        given = [k for k in ("image", "build", "launch", "workload") if getattr(self, k) is not None]
         if len(given) != 1:
             what = "none" if not given else " and ".join(given)
-            raise FieldProblem(f"needs exactly one of image, launch or workload (got {what})")
-        if self.command and self.image is None:
+            raise FieldProblem(f"needs exactly one of image, build, launch or workload (got {what})")
+        if self.command and self.image is None and self.build is None:
             raise FieldProblem("command is only for image nodes", field="command")
         named = self.machine if isinstance(self.machine, str) else self.machine.type
         if self.gpu and named is not None and not catalog().types[named].has_gpu:
@@ -353,7 +390,7 @@ class Node(_Model):
 
     @property
     def kind(self) -> NodeKind:
-        return "image" if self.image else "launch" if self.launch else "workload"
+        return "image" if self.image or self.build else "launch" if self.launch else "workload"
 
 
 class Relay(_Model):
@@ -445,6 +482,8 @@ def _resolve_paths(data: dict, base: Path) -> list[tuple[tuple, str]]:
         if isinstance(node, dict) and isinstance(node.get("launch"), dict):
             fix(node["launch"], "workspace", ("nodes", i, "launch"), folder=True)
             fix(node["launch"], "env_script", ("nodes", i, "launch"), folder=False)
+        if isinstance(node, dict) and isinstance(node.get("build"), dict):
+            fix(node["build"], "context", ("nodes", i, "build"), folder=True)
     cloud = data.get("cloud")
     if isinstance(cloud, dict):
         hosts = cloud.get("hosts")

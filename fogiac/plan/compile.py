@@ -16,6 +16,7 @@ from fogiac.errors import FogiacError
 from fogiac.manifest.schema import Manifest, Node
 from fogiac.net import middleware
 from fogiac.plan.model import (
+    BuildSpec,
     ConnectVia,
     HostSpec,
     LaunchSpec,
@@ -91,6 +92,7 @@ def _node(node: Node, host: str) -> NodeSpec:
             else None
         ),
         workload=node.workload,
+        build=BuildSpec(context=str(node.build.context), dockerfile=node.build.dockerfile) if node.build else None,
         gpu=node.needs_gpu,
         env=tuple(sorted(node.env.items())),
         topics_auto=lists is None,

@@ -116,6 +116,12 @@ class LaunchSpec:
 
 
 @dataclass(frozen=True)
+class BuildSpec:
+    context: str
+    dockerfile: str
+
+
+@dataclass(frozen=True)
 class NodeSpec:
     name: str
     host: str
@@ -129,6 +135,7 @@ class NodeSpec:
     topics_auto: bool
     topics_in: tuple[str, ...]
     topics_out: tuple[str, ...]
+    build: BuildSpec | None = None
 
 
 @dataclass(frozen=True)
@@ -153,6 +160,7 @@ class HostSpec:
     user: str | None = None
     port: int | None = None
     key: str | None = None
+    runtime: Literal["auto", "container", "native"] = "auto"  # auto: containers where `docker info` answers
 
     @property
     def has_gpu(self) -> bool:

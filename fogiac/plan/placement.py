@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Literal
 
 from fogiac.manifest.schema import Manifest, Node
 from fogiac.plan.catalog import InstanceType, catalog
@@ -64,6 +65,10 @@ def ssh_sources(manifest: Manifest) -> tuple[str, ...]:
 def steps_for(nodes: Sequence[Node]) -> tuple[str, ...]:
     """The provisioning steps a host runs for ``nodes``, in order."""
     steps = ["connect", "runtime"]
+    if any(n.workload or n.build for n in nodes):
+        steps.append("images")
+    if any(n.workload for n in nodes):
+        steps.append("venv")
     if any(n.launch is not None for n in nodes):
         steps += ["workspace", "env_script"]
     steps += ["services", "relay", "health"]
@@ -74,7 +79,9 @@ def host_per_node(manifest: Manifest, *, stack: str, tags: Tags,
                   usd_per_hour: Callable[[InstanceType], float] = lambda spec: 0.0,
                   spot: bool = False,
                   image: Callable[[InstanceType], ImageQuery | None] = lambda spec: None,
-                  address: str | None = None) -> tuple[tuple[HostSpec, ...], dict[str, str]]:
+                  address: str | None = None,
+                  runtime: Literal["auto", "container", "native"] = "auto",
+                  ) -> tuple[tuple[HostSpec, ...], dict[str, str]]:
     """One host per node, of the node's machine type: how ``aws`` and ``local`` place nodes."""
     types = catalog().types
     hosts = []
@@ -86,6 +93,6 @@ def host_per_node(manifest: Manifest, *, stack: str, tags: Tags,
             chosen_for=choice.chosen_for, vcpus=spec.vcpus, gpus=spec.gpus, memory_gib=spec.memory_gib,
             usd_per_hour=usd_per_hour(spec), spot=node.spot and spot, disk_gb=node.disk_gb, nodes=(node.name,),
             steps=steps_for([node]), tags=tags + (("fogiac:node", node.name), ("Name", f"{stack}-{node.name}")),
-            image=image(spec), address=address,
+            image=image(spec), address=address, runtime=runtime,
         ))
     return tuple(hosts), {n.name: n.name for n in manifest.nodes}

@@ -22,6 +22,7 @@ class Facts:
     base: str
     missing: list[str] = field(default_factory=list)
     flags: set[str] = field(default_factory=set)  # engine, ros, roscore, nvidia, systemd, relaycli
+    engines: list[str] = field(default_factory=list)  # container engines that answered, docker first
 
     @property
     def has_ros(self) -> bool:
@@ -49,17 +50,21 @@ class Facts:
         return self.markers.get(self._rel(path), "")
 
 
-def gather(host: Host, layout: Layout, *, relay_cli: str) -> Facts:
+def gather(host: Host, layout: Layout, *, relay_cli: str, engines: tuple[str, ...] = ("docker",)) -> Facts:
+    """``engines``: the container engines to ask, in order of preference (each answer costs a moment)."""
     folders = (layout.bin, layout.run, layout.services, layout.ws, layout.env, layout.state, layout.certs,
                layout.ros_home, layout.tmp)
     script = render("provision/probe.sh.j2", folders=folders, relay_cli=relay_cli, base=layout.base,
-                    supervisor=layout.supervisor, run_dir=layout.run)
+                    supervisor=layout.supervisor, run_dir=layout.run, engines=engines)
     facts = Facts(base=layout.base)
     for line in host.run(script, check=False).stdout.splitlines():
         key, _, rest = line.partition(" ")
         if key == "missing":
             facts.missing.append(rest)
-        elif key in ("engine", "ros", "roscore", "nvidia", "systemd", "relaycli"):
+        elif key == "engine":
+            facts.flags.add(key)
+            facts.engines.append(rest.strip())
+        elif key in ("ros", "roscore", "nvidia", "systemd", "relaycli"):
             facts.flags.add(key)
         elif key == "sha":
             digest, _, path = rest.partition(" ")

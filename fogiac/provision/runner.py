@@ -17,7 +17,7 @@ from typing import Any
 
 from fogiac.errors import FogiacError, ProvisionError
 from fogiac.plan.model import HostSpec, Plan
-from fogiac.provision.host import HostAccess, q
+from fogiac.provision.host import Host, HostAccess, q
 from fogiac.provision.local import LocalAccess
 from fogiac.provision.managers import manager_for
 from fogiac.provision.services import Layout
@@ -200,6 +200,7 @@ def _stop_one(plan: Plan, spec: HostSpec, access: HostAccess, *, known_hosts: Pa
     try:
         host.connect()
         stopped = manager_for(host).stop_all(host, Layout(host.base))
+        stopped += remove_containers(host, Layout(host.base), stack=plan.stack, host_name=spec.name)
         detail = f"stopped {', '.join(stopped)}" if stopped else "nothing running"
         status = CHANGED if stopped else "ok"
         if remove:
@@ -215,6 +216,21 @@ def _stop_one(plan: Plan, spec: HostSpec, access: HostAccess, *, known_hosts: Pa
     return HostOutcome(host=spec.name, address=access.location, steps=(StepOutcome("stop", status, detail,
                        time.monotonic() - started),), error=error, files_pushed=0, bytes_sent=0,
                        seconds=time.monotonic() - started, base=host.base, stopped=tuple(stopped))
+
+
+# Containers fogiac ran carry the stack and host as labels (as Compose labels its project's):
+# whatever a killed engine client left running is found and removed by them. Engines are asked
+# only where a service script ran one, so native hosts pay nothing.
+_REMOVE = ("grep -qs -- '--label fogiac.stack=' {services}/*.sh || exit 0; "
+           "for e in docker podman; do command -v $e >/dev/null && $e info >/dev/null 2>&1 || continue; "
+           "ids=$($e ps -aq --filter label=fogiac.stack={stack} --filter label=fogiac.host={host}); "
+           "[ -z \"$ids\" ] || {{ $e rm -f $ids >/dev/null && echo \"$ids\" | wc -l; }}; done")
+
+
+def remove_containers(host: Host, layout: Layout, *, stack: str, host_name: str) -> list[str]:
+    """Remove every container of ``stack`` on ``host_name``; one entry per engine that had some."""
+    done = host.run(_REMOVE.format(services=q(layout.services), stack=q(stack), host=q(host_name)), check=False)
+    return [f"{n.strip()} container(s)" for n in done.stdout.split() if n.strip()]
 
 
 def stop_all(plan: Plan, *, hosts: Mapping[str, HostAccess], state_dir: Path) -> ProvisionReport:

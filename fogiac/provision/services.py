@@ -45,6 +45,10 @@ class Layout:
         return f"{self.base}/ws"
 
     @property
+    def build(self) -> str:
+        return f"{self.base}/build"
+
+    @property
     def env(self) -> str:
         return f"{self.base}/env"
 
@@ -96,6 +100,9 @@ class Where:
     code_root: str  # the folder holding fogiac/ and workloads/ for `python -m`
     user: str = "root"
     workspace_digests: tuple[tuple[str, str], ...] = ()  # (local path, digest) of pushed workspaces
+    engine: str = "docker"  # the container engine's command on the host (runtime CONTAINER)
+    images: tuple[tuple[str, str], ...] = ()  # (node, tag) of images built on the host
+    workload_python: str = ""  # interpreter of workload nodes on a native host ('' : python)
 
 
 @dataclass(frozen=True)
@@ -106,6 +113,7 @@ class Service:
     script: str
     check: str  # master | node | any | alive
     unit: str
+    files: tuple[tuple[str, str, int], ...] = ()  # (path, text, mode) the script reads; written before it starts
 
     @property
     def digest(self) -> str:
@@ -116,38 +124,76 @@ def master_uri(where: Where) -> str:
     return f"http://127.0.0.1:{where.master_port}"
 
 
-def container_name(node: str) -> str:
-    return f"fogiac-{node}"
+def container_name(stack: str, name: str) -> str:
+    """Containers carry the stack, so two stacks on one machine never take each other's names."""
+    return f"fogiac-{stack}-{name}"
 
 
 def ros_image(plan: Plan) -> str:
     return f"ros:{plan.ros_distro}-ros-core"
 
 
-def workload_image(workload: str) -> str:
-    return f"fogiac/{workload}:latest"
+def node_env_file(layout: Layout, node: str) -> str:
+    return f"{layout.env}/node-{node}.env"
 
 
-def node_env(node: NodeSpec, where: Where) -> tuple[tuple[str, str], ...]:
-    """ROS_MASTER_URI, ROS_IP (or ROS_HOSTNAME) first, then the node's own variables."""
-    ros = side_env(side="cloud", master_uri=master_uri(where), address=where.ros_address).env
-    return tuple(ros.items()) + node.env
+def env_file_text(env: tuple[tuple[str, str], ...]) -> str:
+    """``KEY=VALUE`` lines as ``--env-file`` reads them: values taken literally, no quoting."""
+    for key, value in env:
+        if "\n" in value or "\r" in value:
+            raise ProvisionError(f"env {key}: a value cannot hold a line break")
+    return "".join(f"{key}={value}\n" for key, value in env)
+
+
+def ros_env(where: Where) -> tuple[tuple[str, str], ...]:
+    """ROS_MASTER_URI and ROS_IP (or ROS_HOSTNAME): what every container on the host is given."""
+    return tuple(side_env(side="cloud", master_uri=master_uri(where), address=where.ros_address).env.items())
+
+
+def _built(node: NodeSpec, where: Where) -> str:
+    tag = dict(where.images).get(node.name)
+    if tag is None:
+        raise ProvisionError(f"node {node.name}: its image was not built on the host before its service")
+    return tag
 
 
 def docker_run(node: NodeSpec, *, plan: Plan, spec: HostSpec, where: Where) -> str:
-    """The exact ``docker run`` line of a node on a container host (``--gpus all`` on GPU types only)."""
-    volumes: tuple[tuple[str, str], ...] = ()
-    env = node_env(node, where)
+    """The exact ``docker run`` line of a node on a container host (``--gpus all`` on GPU types only).
+
+    The node's own ``env:`` travels in a 0600 env file, never on the command line; ``--`` ends
+    the engine's options, so nothing in the image or command is read as one.
+    """
+    volumes: tuple[tuple[str, str, str], ...] = ()
+    env, workdir = ros_env(where), ""
     if node.kind == "image":
-        image, command = node.image or "", node.command
+        image, command = (node.image or _built(node, where)), node.command
     elif node.kind == "launch" and node.launch is not None:
-        image, command = ros_image(plan), ("roslaunch", "--wait", node.launch.package, node.launch.file)
-        volumes = ((where.layout.workspace(node.launch.workspace), _WS_MOUNT),)
+        image = ros_image(plan)
+        command = ("bash", "-c", f"{_SOURCE_DEVEL}exec roslaunch --wait \"$0\" \"$1\"",
+                   node.launch.package, node.launch.file)
+        volumes = ((where.layout.workspace(node.launch.workspace), _WS_MOUNT, "ro"),)
         env += (("ROS_PACKAGE_PATH", f"{_WS_MOUNT}/src:{_WS_MOUNT}"),)
+        workdir = _WS_MOUNT
     else:
-        image, command = workload_image(node.workload or ""), ("python", "-m", f"workloads.{node.workload}", "node")
-    return render("provision/docker_run.j2", gpus=spec.has_gpu, container=container_name(node.name), env=env,
-                  volumes=volumes, image=image, command=command).strip()
+        image, command = _built(node, where), ("python", "-m", f"workloads.{node.workload}", "node")
+    return render("provision/docker_run.j2", engine=where.engine, stack=plan.stack, host=spec.name,
+                  gpus=spec.has_gpu, container=container_name(plan.stack, node.name), env=env,
+                  env_file=node_env_file(where.layout, node.name) if node.env else "", volumes=volumes,
+                  workdir=workdir, image=image, command=command).strip()
+
+
+# A catkin workspace built in the container leaves devel/setup.bash; sourcing it puts the
+# package's built messages and scripts where roslaunch finds them.
+_SOURCE_DEVEL = f"if [ -f {_WS_MOUNT}/devel/setup.bash ]; then . {_WS_MOUNT}/devel/setup.bash; fi; "
+
+
+def workspace_build_command(plan: Plan, where: Where, workspace: str, scripts: tuple[str, ...]) -> str:
+    """Build a pushed workspace inside the ROS image, the way FogROS built on the cloud: each env
+    script sourced in order, then ``catkin_make`` when the workspace has a top-level CMakeLists."""
+    steps = [f". {q(_WS_MOUNT + '/.fogiac-setup/' + s)}" for s in scripts]
+    steps.append("if [ -f src/CMakeLists.txt ]; then catkin_make >/dev/null; fi")
+    return (f"{where.engine} run --rm --network host --volume {q(where.layout.workspace(workspace) + ':' + _WS_MOUNT)} "
+            f"--workdir {_WS_MOUNT} -- {q(ros_image(plan))} bash -ec {q('; '.join(steps))}")
 
 
 @dataclass(frozen=True)
@@ -163,9 +209,9 @@ class _NodeRun:
 
 
 def _container_node(node: NodeSpec, plan: Plan, spec: HostSpec, where: Where) -> _NodeRun:
-    name = container_name(node.name)
+    name = container_name(plan.stack, node.name)
     return _NodeRun(command=docker_run(node, plan=plan, spec=spec, where=where),
-                    pre=(f"docker rm -f {name} >/dev/null 2>&1 || true",), check="any")
+                    pre=(f"{where.engine} rm -f {name} >/dev/null 2>&1 || true",), check="any")
 
 
 # roslaunch --wait: without it, a roslaunch that starts before the host's master service would
@@ -180,7 +226,8 @@ def _native_node(node: NodeSpec, plan: Plan, spec: HostSpec, where: Where) -> _N
         ws = where.layout.workspace(node.launch.workspace)
         return _NodeRun(command=f"roslaunch --wait {q(node.launch.package)} {q(node.launch.file)}",
                         package_path=f"{ws}/src:{ws}", check="node", cwd=ws)
-    return _NodeRun(command=f"{q(where.python)} -m workloads.{node.workload} node", python_path=where.code_root,
+    python = where.workload_python or where.python
+    return _NodeRun(command=f"{q(python)} -m workloads.{node.workload} node", python_path=where.code_root,
                     check="node")
 
 
@@ -192,8 +239,11 @@ _NODE_RUNTIMES: dict[str, Callable[[NodeSpec, Plan, HostSpec, Where], _NodeRun]]
 
 def _service(name: str, *, plan: Plan, spec: HostSpec, where: Where, command: str, check: str,
              env: tuple[tuple[str, str], ...] = (), pre: tuple[str, ...] = (), package_path: str = "",
-             python_path: str = "", cwd: str = "", notes: tuple[str, ...] = (), after: str = "") -> Service:
+             python_path: str = "", cwd: str = "", notes: tuple[str, ...] = (), after: str = "",
+             files: tuple[tuple[str, str, int], ...] = ()) -> Service:
     layout = where.layout
+    # A file the script reads is named with its digest, so changing it restarts the service.
+    notes += tuple(f"{path} sha256 {hashlib.sha256(text.encode()).hexdigest()}" for path, text, _ in files)
     script_path = f"{layout.services}/{name}.sh"
     script = render(
         "provision/service.sh.j2", name=name, host=spec.name, stack=plan.stack, notes=notes,
@@ -202,14 +252,17 @@ def _service(name: str, *, plan: Plan, spec: HostSpec, where: Where, command: st
     )
     unit = render("provision/systemd.service.j2", name=name, host=spec.name, stack=plan.stack, user=where.user,
                   script=script_path, after=after)
-    return Service(name=name, script=script, check=check, unit=unit)
+    return Service(name=name, script=script, check=check, unit=unit, files=files)
 
 
 def master_service(plan: Plan, spec: HostSpec, where: Where) -> Service:
     if where.runtime == CONTAINER:
-        command = render("provision/docker_run.j2", gpus=False, container="fogiac-ros-master", env=(),
-                         volumes=(), image=ros_image(plan), command=("roscore", "-p", str(where.master_port))).strip()
-        pre: tuple[str, ...] = ("docker rm -f fogiac-ros-master >/dev/null 2>&1 || true",)
+        # ROS_IP in the container: the master advertises (and, on loopback, binds) the host's ROS address.
+        name = container_name(plan.stack, f"{spec.name}-ros-master")
+        command = render("provision/docker_run.j2", engine=where.engine, stack=plan.stack, host=spec.name, gpus=False,
+                         container=name, env=ros_env(where), env_file="", volumes=(), workdir="",
+                         image=ros_image(plan), command=("roscore", "-p", str(where.master_port))).strip()
+        pre: tuple[str, ...] = (f"{where.engine} rm -f {name} >/dev/null 2>&1 || true",)
     else:
         command, pre = f"roscore -p {where.master_port}", ()
     return _service("ros-master", plan=plan, spec=spec, where=where, command=command, check="master", pre=pre)
@@ -225,10 +278,13 @@ def node_services(plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ..
         notes: tuple[str, ...] = ()
         if node.launch is not None:
             notes = (f"workspace {node.launch.workspace} digest {digests.get(node.launch.workspace, 'unknown')}",)
+        in_container = where.runtime == CONTAINER
+        files = ((node_env_file(where.layout, name), env_file_text(node.env), 0o600),) if in_container and node.env \
+            else ()
         out.append(_service(
             f"node-{name}", plan=plan, spec=spec, where=where, command=parts.command, check=parts.check,
-            env=node.env if where.runtime == NATIVE else (), pre=parts.pre, package_path=parts.package_path,
-            python_path=parts.python_path, cwd=parts.cwd, notes=notes, after="fogiac-ros-master.service",
+            env=() if in_container else node.env, pre=parts.pre, package_path=parts.package_path,
+            python_path=parts.python_path, cwd=parts.cwd, notes=notes, after="fogiac-ros-master.service", files=files,
         ))
     return tuple(out)
 

@@ -8,6 +8,7 @@ report says "no changes".
 from __future__ import annotations
 
 import hashlib
+import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -15,6 +16,7 @@ from pathlib import Path
 from fogiac.errors import ProvisionError
 from fogiac.net.rosenv import side_env
 from fogiac.plan.model import HostSpec, Plan
+from fogiac.provision import images, venv
 from fogiac.provision import services as svc
 from fogiac.provision.host import Host, HostAccess, q
 from fogiac.provision.managers import Manager, manager_for
@@ -24,7 +26,7 @@ from fogiac.render import render
 from fogiac.resources import package_dir
 
 CHANGED, OK, SKIPPED = "changed", "ok", "skipped"
-_CODE_IGNORE = ("tests/", "*.pt", "*.npz", "problems/", "*.ipynb")
+_CODE_IGNORE = ("tests/", "*.npz", "problems/", "*.ipynb")  # the grasp node's model.pt (0.2 MB) goes along
 _ROS_PACKAGES = ("ros-core", "python3-rospy", "python3-std-msgs")
 _ALWAYS_KEPT = ["relay-cloud"]  # started by the relay step, not the services step
 _RELAY_CERTS = (("ca.pem", 0o644), ("server.pem", 0o644), ("server.key", 0o600))
@@ -50,6 +52,9 @@ class HostRun:
     host: Host
     options: Options
     runtime: str = ""
+    engine: str = ""  # the container engine's command, when runtime is CONTAINER
+    images: dict[str, str] = field(default_factory=dict)  # node -> image tag built on the host
+    workload_python: str = ""  # the virtual environment's interpreter for workload nodes on a native host
     facts: Facts | None = None
     systemd: bool | None = None  # whether the runtime step's probe saw systemd as PID 1; None: not probed
     files_pushed: int = 0
@@ -72,7 +77,9 @@ class HostRun:
         return svc.Where(layout=self.layout, runtime=self.runtime or svc.NATIVE, master_port=self.access.master_port,
                          relay_port=self.access.relay_port, ros_address=self.access.ros_address,
                          python=self.access.python, code_root=code_root, user=self.access.user,
-                         workspace_digests=tuple(sorted(self.digests.items())))
+                         workspace_digests=tuple(sorted(self.digests.items())), engine=self.engine or "docker",
+                         images=tuple(sorted(self.images.items())),
+                         workload_python=self.workload_python or self.access.python)
 
     def services(self) -> tuple[svc.Service, ...]:
         where = self.where()
@@ -105,12 +112,14 @@ def step_connect(run: HostRun) -> StepResult:
 
 def step_runtime(run: HostRun) -> StepResult:
     host, layout, changes = run.host, run.layout, []
-    facts = run.facts = gather(host, layout, relay_cli=_relay_cli(run))
+    wanted = run.spec.runtime
+    facts = run.facts = gather(host, layout, relay_cli=_relay_cli(run),
+                               engines=_ENGINES if wanted == svc.CONTAINER else _ENGINES[:1])
     if facts.missing:
         host.run(f"mkdir -p -m 700 {' '.join(q(f) for f in facts.missing)}")
         changes.append("folders")
     run.systemd = "systemd" in facts.flags
-    run.runtime = svc.CONTAINER if "engine" in facts.flags else svc.NATIVE
+    run.runtime, run.engine = _choose_runtime(run.spec, facts)
     changes += _RUNTIMES[run.runtime](run, facts)
     if ensure_file(run, Path(__file__).with_name("supervise.py").read_bytes(), layout.supervisor, mode=0o755):
         changes.append("supervisor")
@@ -126,6 +135,24 @@ def step_runtime(run: HostRun) -> StepResult:
     return (CHANGED if changes else OK), detail
 
 
+# Engines in order of preference: a docker that answers (AWS hosts have one), else podman.
+_ENGINES = ("docker", "podman")
+
+
+def _choose_runtime(spec: HostSpec, facts: Facts) -> tuple[str, str]:
+    """(runtime, engine): ``auto`` keeps containers for hosts where ``docker info`` answers."""
+    if spec.runtime == svc.NATIVE:
+        return svc.NATIVE, ""
+    if facts.engines:
+        return svc.CONTAINER, facts.engines[0]
+    if spec.runtime == svc.CONTAINER:
+        raise ProvisionError(
+            f"{spec.name}: runtime is container but no container engine answers (`docker info` and `podman info` "
+            "failed); install one (apt-get install podman runc) or set cloud.runtime: native"
+        )
+    return svc.NATIVE, ""
+
+
 def _relay_cli(run: HostRun) -> str:
     code_root = run.layout.lib if run.access.ship_code else str(package_dir("fogiac").parent)
     return f"{code_root}/fogiac/cli/relay.py"
@@ -138,9 +165,9 @@ def _container_runtime(run: HostRun, facts: Facts) -> list[str]:
         run.host.put(script.encode(), f"{run.layout.tmp}/nvidia-toolkit.sh", mode=0o700)
         run.host.sudo(f"bash {q(run.layout.tmp + '/nvidia-toolkit.sh')}", timeout=900)
         changes.append("NVIDIA container toolkit")
-    image = svc.ros_image(run.plan)
-    if not run.host.run(f"docker image inspect {q(image)} >/dev/null 2>&1", check=False).ok:
-        run.host.run(f"docker pull -q {q(image)}", timeout=900)
+    image, engine = svc.ros_image(run.plan), run.engine
+    if not run.host.run(f"{engine} image inspect {q(image)} >/dev/null 2>&1", check=False).ok:
+        run.host.run(f"{engine} pull -q {q(image)}", timeout=900)
         changes.append(f"pulled {image}")
     return changes
 
@@ -164,6 +191,49 @@ def _native_runtime(run: HostRun, facts: Facts) -> list[str]:
 
 _RUNTIMES: dict[str, Callable[[HostRun, Facts], list[str]]] = {svc.CONTAINER: _container_runtime,
                                                          svc.NATIVE: _native_runtime}
+
+
+def step_images(run: HostRun) -> StepResult:
+    """Build each workload or ``build:`` node's image on the host, unless its digest is there already."""
+    if run.runtime != svc.CONTAINER:
+        return SKIPPED, "native runtime: nodes run from the pushed code"
+    host, engine, layout = run.host, run.engine, run.layout
+    base = images.base_image(run.plan)
+    base_id = host.run(f"{engine} image inspect --format '{{{{.Id}}}}' {q(base)}").stdout.strip()
+    flavour, built = "", []
+    with tempfile.TemporaryDirectory(prefix="fogiac-build-") as tmp:
+        for node in (run.plan.node(n) for n in run.spec.nodes):
+            if not images.needs_image(node):
+                continue
+            if node.workload is not None:
+                flavour = flavour or host.run(f"{engine} run --rm --network none -- {q(base)} "
+                                              "sh -c '. /etc/os-release && echo $ID'").stdout.strip()
+                recipe = images.workload_context(node, flavour=flavour, into=Path(tmp) / node.name)
+            else:
+                recipe = images.user_context(node, stack=run.plan.stack)
+            done = images.build(host, recipe, engine=engine, base_id=base_id, dest=f"{layout.build}/{node.name}",
+                                tmp_dir=layout.tmp, log=f"{layout.build}/{node.name}.log")
+            run.images[node.name] = done.tag
+            if done.built:
+                built.append(f"{node.name} ({done.tag})")
+    return (CHANGED, f"built {', '.join(built)}") if built else (OK, f"{len(run.images)} image(s) up to date")
+
+
+def step_venv(run: HostRun) -> StepResult:
+    """On a native host that runs fogiac's pushed code, workload nodes get their requirements in a venv."""
+    if run.runtime != svc.NATIVE:
+        return SKIPPED, "container runtime: requirements are in the images"
+    if not run.access.ship_code:
+        return SKIPPED, "nodes run on fogiac's own interpreter"
+    names = [n.workload for n in (run.plan.node(x) for x in run.spec.nodes) if n.workload is not None]
+    marker = f"{run.layout.state}/venv.sha256"
+    known = run.facts.marker(marker) if run.facts is not None else ""
+    env = venv.ensure(run.host, root=f"{run.layout.base}/venv", marker=marker, known=known,
+                      reqs=venv.requirements(names), python=run.access.python,
+                      allow_install=run.options.allow_install, log=f"{run.layout.run}/venv-install.log")
+    run.workload_python = env.python
+    return (CHANGED, f"installed {', '.join(venv.requirements(names))}") if env.built else \
+        (OK, f"requirements installed already ({env.digest[:12]})")
 
 
 def _workspaces(run: HostRun) -> list[str]:
@@ -203,12 +273,25 @@ def step_env_script(run: HostRun) -> StepResult:
                 else run.host.run(f"cat {q(marker)} 2>/dev/null", check=False).stdout.strip())
         if done == key:
             continue
-        for i, body in enumerate(bodies):
-            path = f"{run.layout.tmp}/setup-{i}.sh"
-            run.host.put(body, path, mode=0o700)
-            run.host.run(f"cd {q(dest)} && . {q(run.layout.env_file)} && bash {q(path)}", timeout=1800)
-        run.host.run(f"cd {q(dest)} && if [ -f src/CMakeLists.txt ] && command -v catkin_make >/dev/null; "
-                     f"then . {q(run.layout.env_file)} && catkin_make >/dev/null; fi", timeout=1800)
+        if run.runtime == svc.CONTAINER:
+            names = tuple(f"{i}.sh" for i in range(len(bodies)))
+            for name, body in zip(names, bodies, strict=True):
+                run.host.put(body, f"{dest}/.fogiac-setup/{name}", mode=0o700)
+            log = f"{run.layout.build}/ws-{dest.rsplit('/', 1)[-1]}.log"
+            built = run.host.run(f"mkdir -p {q(run.layout.build)} && "
+                                 f"{svc.workspace_build_command(run.plan, run.where(), local, names)} >{q(log)} 2>&1",
+                                 check=False, timeout=1800)
+            if not built.ok:
+                tail = run.host.run(f"tail -n 1 {q(log)}", check=False).last_line()
+                raise ProvisionError(f"{run.spec.name}: workspace {Path(local).name}: build in "
+                                     f"{svc.ros_image(run.plan)} failed ({tail}); log: {log}")
+        else:
+            for i, body in enumerate(bodies):
+                path = f"{run.layout.tmp}/setup-{i}.sh"
+                run.host.put(body, path, mode=0o700)
+                run.host.run(f"cd {q(dest)} && . {q(run.layout.env_file)} && bash {q(path)}", timeout=1800)
+            run.host.run(f"cd {q(dest)} && if [ -f src/CMakeLists.txt ] && command -v catkin_make >/dev/null; "
+                         f"then . {q(run.layout.env_file)} && catkin_make >/dev/null; fi", timeout=1800)
         run.host.put(key.encode() + b"\n", marker, mode=0o600)
         ran.append(Path(local).name)
     return (CHANGED, f"set up {', '.join(ran)}") if ran else (OK, "set up already")
@@ -219,6 +302,9 @@ def step_services(run: HostRun) -> StepResult:
     env_changed = ensure_file(run, env.encode(), run.layout.env_file)
     manager = run.manager
     wanted = run.services()
+    for service in wanted:
+        for path, text, mode in service.files:
+            ensure_file(run, text.encode(), path, mode=mode)
     started = manager.ensure(run.host, run.layout, wanted, restart_all=env_changed, facts=run.facts)
     kept = [s.name for s in wanted] + _ALWAYS_KEPT + (["autostop"] if run.plan.autostop else [])
     stopped = manager.prune(run.host, run.layout, keep=kept, facts=run.facts)
@@ -272,6 +358,8 @@ def step_health(run: HostRun) -> StepResult:
 STEPS: dict[str, Callable[[HostRun], StepResult]] = {
     "connect": step_connect,
     "runtime": step_runtime,
+    "images": step_images,
+    "venv": step_venv,
     "workspace": step_workspace,
     "env_script": step_env_script,
     "services": step_services,

@@ -45,6 +45,7 @@ class HostsTarget(ExistingMachines):
                 spot=False, disk_gb=0, nodes=tuple(n.name for n in placed), steps=steps_for(placed),
                 tags=tags + (("fogiac:node", ",".join(n.name for n in placed)),),
                 address=machine.address, user=machine.user, port=machine.port, key=str(machine.key),
+                runtime=manifest.cloud.runtime,
             ))
         return Placement(hosts=tuple(hosts), node_hosts=node_hosts, mode="relay", connect_via="address",
                          autostop=autostop_for(manifest, power="services", default_minutes=None))

@@ -27,7 +27,8 @@ class LocalTarget(ExistingMachines):
     summary = "sandboxes on this machine, one ROS master each (demos, CI)"
 
     def place(self, manifest: Manifest, *, stack: str, tags: Tags) -> Placement:
-        hosts, node_hosts = host_per_node(manifest, stack=stack, tags=tags, address="127.0.0.1")
+        hosts, node_hosts = host_per_node(manifest, stack=stack, tags=tags, address="127.0.0.1",
+                                          runtime=manifest.cloud.runtime)
         return Placement(hosts=hosts, node_hosts=node_hosts, mode="relay", connect_via="loopback",
                          autostop=autostop_for(manifest, power="services", default_minutes=None))
 

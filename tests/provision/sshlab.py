@@ -71,8 +71,12 @@ def _octet_base() -> int:
 
 
 @contextmanager
-def ssh_lab(root: Path, count: int, *, dead: int = 0) -> Iterator[tuple[list[LabHost], Path]]:
+def ssh_lab(root: Path, count: int, *, dead: int = 0,
+            env: dict[str, str] | None = None) -> Iterator[tuple[list[LabHost], Path]]:
     """``count`` namespaces with sshd (plus ``dead`` ones without), and the client key path.
+
+    ``env``: variables every SSH session on the hosts gets (sshd's ``SetEnv``), as a lab's own
+    login configuration would set them.
 
     ``root`` holds keys, configs and each host's base folder; everything else is torn down on exit.
     """
@@ -103,6 +107,7 @@ def ssh_lab(root: Path, count: int, *, dead: int = 0) -> Iterator[tuple[list[Lab
                 f"AuthorizedKeysFile {folder}/authorized_keys\nPermitRootLogin prohibit-password\n"
                 "PasswordAuthentication no\nKbdInteractiveAuthentication no\nUsePAM no\nStrictModes no\n"
                 "MaxStartups 100\nMaxSessions 100\nSubsystem sftp internal-sftp\n"
+                + "".join(f"SetEnv {key}={value}\n" for key, value in (env or {}).items())
             )
             # Debian's bash sources ~/.bashrc for every SSH command; this machine's runs `pyenv init`
             # (~0.8 s). Real servers return early for non-interactive shells; so does this stand-in,

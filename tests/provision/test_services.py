@@ -42,7 +42,12 @@ def plan(tmp_path: Path) -> Plan:
 
 def _where(runtime: str, base: str = "/home/ubuntu/.fogiac/fleet-dev/x") -> svc.Where:
     return svc.Where(layout=svc.Layout(base), runtime=runtime, master_port=11311, relay_port=11411,
-                     ros_address="10.10.0.5", python="python3", code_root=f"{base}/lib", user="ubuntu")
+                     ros_address="10.10.0.5", python="python3", code_root=f"{base}/lib", user="ubuntu",
+                     images=(("plan", "fogiac/motion_planning:0123456789abcdef"),))
+
+
+RUN = "docker run --rm --network host --label fogiac.stack=fleet-dev --label fogiac.host={host}"
+ROS = "--env ROS_MASTER_URI=http://127.0.0.1:11311 --env ROS_IP=10.10.0.5"
 
 
 def _line(plan: Plan, node: str) -> str:
@@ -51,33 +56,44 @@ def _line(plan: Plan, node: str) -> str:
 
 
 def test_cpu_image_node_runs_without_gpu_flags(plan: Plan) -> None:
+    env_file = _where(svc.CONTAINER).layout.env + "/node-talker.env"
     assert _line(plan, "talker") == (
-        "docker run --rm --network host --name fogiac-talker --env ROS_MASTER_URI=http://127.0.0.1:11311 "
-        "--env ROS_IP=10.10.0.5 --env FOO=bar ros:noetic-ros-core rostopic pub -r 1 /chatter std_msgs/String "
-        "'data: hello'"
+        f"{RUN.format(host='talker')} --name fogiac-fleet-dev-talker {ROS} --env-file {env_file} "
+        "-- ros:noetic-ros-core rostopic pub -r 1 /chatter std_msgs/String 'data: hello'"
     )
 
 
+def test_node_env_goes_through_a_private_file_not_the_command_line(plan: Plan) -> None:
+    where = _where(svc.CONTAINER)
+    (service,) = svc.node_services(plan, plan.host("talker"), where)
+    assert service.files == ((f"{where.layout.env}/node-talker.env", "FOO=bar\n", 0o600),)
+    assert "bar" not in service.script.replace("sha256", "")
+    assert svc.env_file_text((("A", "x y='z'"),)) == "A=x y='z'\n"
+    with pytest.raises(ProvisionError, match=r"^env A: a value cannot hold a line break$"):
+        svc.env_file_text((("A", "one\ntwo"),))
+
+
 def test_gpu_types_get_gpus_all(plan: Plan) -> None:
+    # No GPU on these machines: --gpus all is checked as text.
     assert _line(plan, "grasp") == (
-        "docker run --rm --network host --gpus all --name fogiac-grasp --env ROS_MASTER_URI=http://127.0.0.1:11311 "
-        "--env ROS_IP=10.10.0.5 example/grasp:1.2"
+        f"{RUN.format(host='grasp')} --gpus all --name fogiac-fleet-dev-grasp {ROS} -- example/grasp:1.2"
     )
 
 
 def test_launch_node_mounts_its_pushed_workspace_read_only(plan: Plan) -> None:
     ws = _where(svc.CONTAINER).layout.workspace(plan.node("arm").launch.workspace)  # type: ignore[union-attr]
     assert _line(plan, "arm") == (
-        "docker run --rm --network host --name fogiac-arm --env ROS_MASTER_URI=http://127.0.0.1:11311 "
-        "--env ROS_IP=10.10.0.5 --env ROS_PACKAGE_PATH=/fogiac/ws/src:/fogiac/ws "
-        f"--volume {ws}:/fogiac/ws:ro ros:noetic-ros-core roslaunch --wait fogtest talker.launch"
+        f"{RUN.format(host='arm')} --name fogiac-fleet-dev-arm {ROS} --env ROS_PACKAGE_PATH=/fogiac/ws/src:/fogiac/ws "
+        f"--volume {ws}:/fogiac/ws:ro --workdir /fogiac/ws -- ros:noetic-ros-core bash -c "
+        "'if [ -f /fogiac/ws/devel/setup.bash ]; then . /fogiac/ws/devel/setup.bash; fi; "
+        "exec roslaunch --wait \"$0\" \"$1\"' fogtest talker.launch"
     )
 
 
 def test_workload_node_runs_its_image(plan: Plan) -> None:
     assert _line(plan, "plan") == (
-        "docker run --rm --network host --name fogiac-plan --env ROS_MASTER_URI=http://127.0.0.1:11311 "
-        "--env ROS_IP=10.10.0.5 fogiac/motion_planning:latest python -m workloads.motion_planning node"
+        f"{RUN.format(host='plan')} --name fogiac-fleet-dev-plan {ROS} -- fogiac/motion_planning:0123456789abcdef "
+        "python -m workloads.motion_planning node"
     )
 
 
@@ -87,7 +103,7 @@ def test_container_service_script_and_systemd_unit(plan: Plan) -> None:
     base = where.layout.base
     assert service.name == "node-grasp" and service.check == "any"
     assert service.script.splitlines()[-2:] == [
-        "docker rm -f fogiac-grasp >/dev/null 2>&1 || true",
+        "docker rm -f fogiac-fleet-dev-grasp >/dev/null 2>&1 || true",
         "exec " + _line(plan, "grasp"),
     ]
     assert f". {base}/env/ros.sh" in service.script.splitlines()
@@ -105,7 +121,8 @@ def test_container_service_script_and_systemd_unit(plan: Plan) -> None:
 def test_ros_master_runs_from_the_official_image_on_container_hosts(plan: Plan) -> None:
     master = svc.master_service(plan, plan.host("talker"), _where(svc.CONTAINER))
     assert master.script.splitlines()[-1] == (
-        "exec docker run --rm --network host --name fogiac-ros-master ros:noetic-ros-core roscore -p 11311"
+        f"exec {RUN.format(host='talker')} --name fogiac-fleet-dev-talker-ros-master {ROS} "
+        "-- ros:noetic-ros-core roscore -p 11311"
     )
     gpu_master = svc.master_service(plan, plan.host("grasp"), _where(svc.CONTAINER))
     assert "--gpus" not in gpu_master.script

@@ -19,6 +19,15 @@ DEFAULTS: dict[str, Any] = {
 }
 
 
+# Per base distribution (the /etc/os-release ID of the base image): overrides of DEFAULTS.
+FLAVOURS: dict[str, dict[str, Any]] = {"ubuntu": {}}
+
+
+def requirements() -> list[str]:
+    """What the node needs from PyPI beside the system's rospy: torch pinned, then the recipe's list."""
+    return [f"torch=={DEFAULTS['torch_version']}", *DEFAULTS["pip_packages"]]
+
+
 def dockerfile(**overrides: Any) -> str:
     """The Dockerfile text; ``overrides`` replace DEFAULTS, unknown names are an error."""
     return render_dockerfile(TEMPLATE, DEFAULTS, overrides)

@@ -32,7 +32,7 @@ def test_overrides_and_quoting() -> None:
 
 
 def test_unknown_and_missing_variables() -> None:
-    valid = "cores, pip_packages, planner, python, ros_distro, time_limit"
+    valid = "apt_packages, cores, pip_packages, planner, python, ros_distro, time_limit"
     with pytest.raises(WorkloadError, match=rf"^unknown Dockerfile variables gpus; valid: {valid}$"):
         dockerfile(gpus=True)
     with pytest.raises(jinja2.UndefinedError, match="'ros_distro' is undefined"):

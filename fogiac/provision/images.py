@@ -1,0 +1,100 @@
+"""Container images a host builds for its nodes: the shipped workloads' recipes and users' ``build:`` folders.
+
+Why on the host: no registry stands between this machine and the hosts, and the host's engine
+keeps the layers. Each image is tagged by a digest of what goes into it (the Dockerfile, every
+file of the context, the base image's id), so an unchanged node builds nothing and a changed
+file rebuilds that node's image only, as ``docker compose build`` would.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import re
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+from fogiac.errors import ProvisionError
+from fogiac.plan.model import NodeSpec, Plan
+from fogiac.provision.host import Host, q
+from fogiac.provision.sync import push_tree
+from fogiac.resources import package_dir
+
+_BUILD_LOG_LINES = ("STEP ", "#")  # podman/buildah prints "STEP 3/7: RUN ...", BuildKit "#5 [3/7] RUN ..."
+
+
+@dataclass(frozen=True)
+class Recipe:
+    """What one node's image is built from: a local context folder and a Dockerfile inside it."""
+
+    node: str
+    repo: str  # the image name without its tag
+    context: Path
+    dockerfile: str
+
+
+@dataclass(frozen=True)
+class Built:
+    node: str
+    tag: str
+    built: bool  # False: an image with this digest was there already
+
+
+def base_image(plan: Plan) -> str:
+    return f"ros:{plan.ros_distro}-ros-core"
+
+
+def workload_repo(workload: str) -> str:
+    return f"fogiac/{workload}"
+
+
+def needs_image(node: NodeSpec) -> bool:
+    return node.kind == "workload" or node.build is not None
+
+
+def workload_context(node: NodeSpec, *, flavour: str, into: Path) -> Recipe:
+    """Lay out a workload's build context under ``into``: fogiac/, workloads/<name>/ and its Dockerfile."""
+    name = node.workload or ""
+    container = importlib.import_module(f"workloads.{name}.container")
+    overrides = container.FLAVOURS.get(flavour, {})
+    ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "tests")
+    shutil.copytree(package_dir("fogiac"), into / "fogiac", ignore=ignore)
+    workloads = package_dir("workloads")
+    (into / "workloads").mkdir()
+    shutil.copy2(workloads / "__init__.py", into / "workloads" / "__init__.py")
+    shutil.copytree(workloads / name, into / "workloads" / name, ignore=ignore)
+    (into / "Dockerfile").write_text(container.dockerfile(**overrides))
+    return Recipe(node=node.name, repo=workload_repo(name), context=into, dockerfile="Dockerfile")
+
+
+def user_context(node: NodeSpec, *, stack: str) -> Recipe:
+    assert node.build is not None
+    return Recipe(node=node.name, repo=f"fogiac/{stack}-{node.name}", context=Path(node.build.context),
+                  dockerfile=node.build.dockerfile)
+
+
+def build(host: Host, recipe: Recipe, *, engine: str, base_id: str, dest: str, tmp_dir: str, log: str) -> Built:
+    """Push the context, then build it unless an image tagged with its digest is there already."""
+    pushed = push_tree(host, recipe.context, dest, tmp_dir=tmp_dir)
+    digest = hashlib.sha256(f"{pushed.digest}\n{recipe.dockerfile}\n{base_id}\n".encode()).hexdigest()
+    tag = f"{recipe.repo}:{digest[:16]}"
+    if host.run(f"{engine} image inspect {q(tag)} >/dev/null 2>&1", check=False).ok:
+        return Built(node=recipe.node, tag=tag, built=False)
+    done = host.run(f"{engine} build --network host -t {q(tag)} -f {q(dest + '/' + recipe.dockerfile)} {q(dest)} "
+                    f">{q(log)} 2>&1", check=False, timeout=3600)
+    if not done.ok:
+        step = last_step(host.run(f"tail -n 400 {q(log)}", check=False).stdout)
+        raise ProvisionError(f"{host.name}: node {recipe.node}: image build failed at {step}; log: {log}")
+    # Older digests of this image go, unless a container still runs on one (rmi refuses then).
+    host.run(f"for t in $({engine} images --format '{{{{.Repository}}}}:{{{{.Tag}}}}' {q(recipe.repo)}); do "
+             f"case $t in *:{digest[:16]}) ;; *) {engine} rmi $t >/dev/null 2>&1 ;; esac; done", check=False)
+    return Built(node=recipe.node, tag=tag, built=True)
+
+
+def last_step(log: str) -> str:
+    """The build step that was running when the build stopped, from the engine's own output."""
+    steps = [line.strip() for line in log.splitlines() if line.startswith(_BUILD_LOG_LINES)]
+    if not steps:
+        return "the start (no step ran)"
+    return re.sub(r"\s+", " ", steps[-1])[:160]

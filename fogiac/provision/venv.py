@@ -1,0 +1,64 @@
+"""The virtual environment a native host runs its workload nodes in.
+
+Why: a host's system Python has ROS (rospy from Debian's or ROS's packages) but not the
+workloads' own requirements (numpy, OMPL, torch). Provisioning builds one virtual environment
+that sees the system's packages (``--system-site-packages``) and holds the workloads' pinned
+requirements, named by a digest of those pins: a second ``up`` with the same pins installs
+nothing, a changed pin builds a fresh one and removes the old.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+from dataclasses import dataclass
+
+from fogiac.errors import ProvisionError
+from fogiac.provision.host import Host, q
+
+_HAS_VENV = "import ensurepip, venv"  # Debian's python3 has venv but not ensurepip without python3-venv
+
+
+@dataclass(frozen=True)
+class Venv:
+    python: str  # the environment's interpreter on the host
+    digest: str
+    built: bool
+
+
+def requirements(workloads: list[str]) -> tuple[str, ...]:
+    """Every requirement of ``workloads``, each once, in a stable order."""
+    found: list[str] = []
+    for name in sorted(set(workloads)):
+        for req in importlib.import_module(f"workloads.{name}.container").requirements():
+            if req not in found:
+                found.append(req)
+    return tuple(found)
+
+
+def pins_digest(reqs: tuple[str, ...], python: str) -> str:
+    return hashlib.sha256("\n".join((python, *reqs)).encode()).hexdigest()
+
+
+def ensure(host: Host, *, root: str, marker: str, known: str, reqs: tuple[str, ...], python: str,
+           allow_install: bool, log: str) -> Venv:
+    """Make ``root/<digest>`` hold ``reqs`` over ``python``'s system packages; ``known`` is the marker's content."""
+    digest = pins_digest(reqs, python)
+    folder = f"{root}/{digest[:16]}"
+    if known == digest:
+        return Venv(python=f"{folder}/bin/python", digest=digest, built=False)
+    if not host.run(f"{q(python)} -c {q(_HAS_VENV)}", check=False).ok:
+        if not allow_install:
+            raise ProvisionError(f"{host.name}: {python} cannot make virtual environments (python3-venv is missing); "
+                                 "run: sudo apt-get install -y python3-venv")
+        host.sudo("env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-venv", timeout=900)
+    done = host.run(
+        f"{{ mkdir -p {q(root)} && find {q(root)} -mindepth 1 -maxdepth 1 -exec rm -rf {{}} + && "
+        f"{q(python)} -m venv --system-site-packages {q(folder)} && "
+        f"{q(folder + '/bin/python')} -m pip install --disable-pip-version-check {' '.join(q(r) for r in reqs)}; "
+        f"}} >{q(log)} 2>&1", check=False, timeout=3600)
+    if not done.ok:
+        tail = host.run(f"tail -n 1 {q(log)}", check=False).last_line()
+        raise ProvisionError(f"{host.name}: installing the workloads' requirements failed ({tail}); log: {log}")
+    host.put(f"{digest}\n".encode(), marker, mode=0o600)
+    return Venv(python=f"{folder}/bin/python", digest=digest, built=True)

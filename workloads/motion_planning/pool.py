@@ -98,9 +98,8 @@ class WarmPlanner:
             request = {"id": self._request_id, "name": name, "start": start or problem.start,
                        "goal": goal or problem.goal, "resolution": res, "time_limit": limit}
             t0 = time.perf_counter()
-            for conn in self._conns:
-                assert conn is not None
-                conn.send(request)
+            for i in range(self.workers):
+                self._send(i, request)
             winner, statuses = self._collect(self._request_id, deadline=t0 + limit + self.simplify_time + 30.0)
             elapsed = time.perf_counter() - t0
         return solution_from(winner, statuses, cores=self.workers, elapsed=elapsed, planner=self.planner)
@@ -166,8 +165,18 @@ class WarmPlanner:
             if "error" in msg:
                 raise WorkloadError(f"planner worker {i}: {msg['error']}")
 
+    def _send(self, i: int, request: dict[str, Any]) -> None:
+        """Hand a worker the request; one that died unseen (its pipe broke) is replaced first."""
+        try:
+            self._conns[i].send(request)  # type: ignore[union-attr]
+        except OSError:
+            self._replace([i])
+            self._conns[i].send(request)  # type: ignore[union-attr]
+
     def _replace_dead(self) -> None:
-        dead = [i for i, p in enumerate(self._procs) if p is None or not p.is_alive()]
+        self._replace([i for i, p in enumerate(self._procs) if p is None or not p.is_alive()])
+
+    def _replace(self, dead: list[int]) -> None:
         for i in dead:
             self._discard(i)
             self._start(i)

@@ -84,7 +84,8 @@ class WarmPlanner:
         return [p.pid for p in self._procs if p is not None]
 
     def solve(self, name: str, *, start: Pose | None = None, goal: Pose | None = None,
-              time_limit: float | None = None, resolution: float | None = None) -> Solution:
+              time_limit: float | None = None, resolution: float | None = None,
+              simplify_time: float | None = None) -> Solution:
         """Plan on a known problem (its own endpoints unless given); waits while another request runs."""
         if name not in self.problems:
             raise WorkloadError(f"unknown problem {name!r}; known: {', '.join(sorted(self.problems))}")
@@ -95,12 +96,14 @@ class WarmPlanner:
             self._replace_dead()
             self._request_id += 1
             self._flag.value = 0
+            simplify = self.simplify_time if simplify_time is None else simplify_time
             request = {"id": self._request_id, "name": name, "start": start or problem.start,
-                       "goal": goal or problem.goal, "resolution": res, "time_limit": limit}
+                       "goal": goal or problem.goal, "resolution": res, "time_limit": limit,
+                       "simplify_time": simplify}
             t0 = time.perf_counter()
             for i in range(self.workers):
                 self._send(i, request)
-            winner, statuses = self._collect(self._request_id, deadline=t0 + limit + self.simplify_time + 30.0)
+            winner, statuses = self._collect(self._request_id, deadline=t0 + limit + simplify + 30.0)
             elapsed = time.perf_counter() - t0
         return solution_from(winner, statuses, cores=self.workers, elapsed=elapsed, planner=self.planner)
 
@@ -146,7 +149,7 @@ class WarmPlanner:
         parent, child = self._ctx.Pipe()
         proc = self._ctx.Process(target=_serve, name=f"mp-warm-planner-{i}", daemon=True,
                                  args=(self.problems, PLANNERS[self.planner], ompl_seed(self._seed + i), i,
-                                       self.simplify_time, self._flag, child, os.getpid()))
+                                       self._flag, child, os.getpid()))
         proc.start()
         child.close()
         self._procs[i], self._conns[i] = proc, parent
@@ -213,8 +216,8 @@ class WarmPlanner:
             self._discard(i)
 
 
-def _serve(problems: Mapping[str, Problem], planner: str, seed: int, index: int, simplify_time: float,
-           flag: Any, conn: Connection, parent_pid: int) -> None:
+def _serve(problems: Mapping[str, Problem], planner: str, seed: int, index: int, flag: Any, conn: Connection,
+           parent_pid: int) -> None:
     """A warm worker: load every problem once, then answer requests until told to stop."""
     from workloads.motion_planning.search import Search, seed_process  # noqa: PLC0415 (OMPL: workers only)
 
@@ -240,7 +243,7 @@ def _serve(problems: Mapping[str, Problem], planner: str, seed: int, index: int,
         try:
             report = searches[request["name"]].run(
                 request["start"], request["goal"], planner=planner, resolution=request["resolution"],
-                time_limit=request["time_limit"], simplify_time=simplify_time, cancelled=cancelled,
+                time_limit=request["time_limit"], simplify_time=request["simplify_time"], cancelled=cancelled,
                 on_first_path=first_path)
         except Exception as err:  # report, do not hang the parent
             report = {"solved": False, "status": f"worker error: {err}"}

@@ -90,7 +90,7 @@ class Search:
         self.certifier.queries = 0
         deadline = _Clock(time_limit)
         found = self._plan(start, goal, planner=planner, resolution=resolution, ptc=_ptc(deadline, cancelled))
-        if found is None:
+        if found is None or cancelled():  # another worker's path came first: do not simplify ours too
             status = "cancelled" if cancelled() else str(self.setup.getLastPlannerStatus()).lower()
             return {"solved": False, "status": status}
         on_first_path()

@@ -18,13 +18,15 @@ from workloads.motion_planning.planner import DEFAULT_PLANNER, PLANNERS
 
 def _solve(args: argparse.Namespace) -> int:
     problem = load_problem(args.problem)
-    solution = solve(problem, cores=args.cores, time_limit=args.time_limit, seed=args.seed, planner=args.planner)
+    solution = solve(problem, cores=args.cores, time_limit=args.time_limit, seed=args.seed, planner=args.planner,
+                     resolution=args.resolution)
     if args.json:
         print(json.dumps(solution.as_dict()))
     else:
         state = "solved" if solution.solved else f"not solved ({solution.status})"
         print(f"{problem.name}: {state} in {solution.solve_time_s:.3f} s on {solution.cores} cores, "
-              f"{len(solution.path)} poses")
+              f"{len(solution.path)} poses, proven free at {solution.check_resolution:.3g} "
+              f"(planned at {solution.resolution:.3g})")
     return 0 if solution.solved else 1
 
 
@@ -50,6 +52,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--cores", type=int, default=None, help="racing planner processes (default: all cores)")
     s.add_argument("--time-limit", type=float, default=None, help="seconds (default: the cfg's time_limit)")
     s.add_argument("--seed", type=int, default=None)
+    s.add_argument("--resolution", type=float, default=None,
+                   help="world units a robot point may move between checks (default: the cfg's, else fitted)")
     s.add_argument("--planner", choices=sorted(PLANNERS), default=DEFAULT_PLANNER)
     s.add_argument("--json", action="store_true", help="print the Solution as one JSON object")
     s.set_defaults(run=_solve)

@@ -1,6 +1,11 @@
-"""Benchmark: every problem N times on 1 core and on all cores; medians, success, speedup.
+"""Benchmark: every problem N times on 1 core and on all cores, cold and warm; medians, speedup.
 
 ``python -m workloads.motion_planning.benchmark --runs 10 --out benchmarks/out``
+
+Cold is :func:`solve` (workers started and collision models built per request); warm is a
+:class:`WarmPlanner` per core count, kept for the whole benchmark. "overhead" is the median
+wall time of a request that needs no search (both endpoints in one open room, one straight
+segment), cold and warm: what a request costs beyond planning.
 
 Runs are paired and interleaved: run i uses seed ``seed + 1000 i`` on 1 core and, right after,
 the same seed for worker 0 of the multi-core race (the others take the next seeds), so a
@@ -23,12 +28,14 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from workloads.motion_planning.planner import Solution, solve, warm_up
-from workloads.motion_planning.problem import PROBLEMS_DIR, load_problem
+from workloads.motion_planning.pool import WarmPlanner
+from workloads.motion_planning.problem import PROBLEMS_DIR, Pose, Problem, load_problem
 
 
 @dataclass(frozen=True)
 class Row:
     problem: str
+    mode: str  # cold | warm
     cores: int
     runs: int
     success_rate: float
@@ -38,34 +45,58 @@ class Row:
     times_s: tuple[float, ...]
 
 
-def measure(cfg: Path, *, cores: Sequence[int], runs: int, seed: int, time_limit: float | None) -> list[Row]:
-    """Interleaved: run i goes 1 core, then N cores, back to back, so load drift hits both alike."""
-    problem = load_problem(cfg)
-    results: dict[int, list[Solution]] = {c: [] for c in cores}
+def measure(name: str, problem: Problem, warm: dict[int, WarmPlanner], *, cores: Sequence[int], runs: int, seed: int,
+            time_limit: float | None) -> list[Row]:
+    """Interleaved: run i goes cold then warm on each core count, back to back, so load drift hits all alike."""
+    results: dict[tuple[str, int], list[Solution]] = {(m, c): [] for m in ("cold", "warm") for c in cores}
     for i in range(runs):
         for c in cores:
-            results[c].append(solve(problem, cores=c, time_limit=time_limit, seed=seed + 1000 * i))
+            results[("cold", c)].append(solve(problem, cores=c, time_limit=time_limit, seed=seed + 1000 * i))
+            results[("warm", c)].append(warm[c].solve(name, time_limit=time_limit))
     rows = []
-    for c, done in results.items():
+    for (mode, c), done in results.items():
         times = tuple(r.solve_time_s for r in done)
         plan = [r.plan_time_s if r.solved else r.solve_time_s for r in done]
         checks = [r.collision_checks if r.solved else float("inf") for r in done]
-        rows.append(Row(problem.name, c, runs, sum(r.solved for r in done) / runs, statistics.median(times),
+        rows.append(Row(name, mode, c, runs, sum(r.solved for r in done) / runs, statistics.median(times),
                         statistics.median(plan), statistics.median(checks), times))
     return rows
 
 
+def overhead_ms(name: str, problem: Problem, warm: WarmPlanner, *, requests: int = 20) -> tuple[float, float]:
+    """Median ms of a request needing no search (start and goal 0.5 apart in free space), cold and warm.
+
+    No simplification either side: what is left is starting workers, loading models (cold only),
+    passing the request and the answer, and proving the one segment.
+    """
+    start = problem.start
+    goal = Pose(start.x, start.y + 0.5, start.z, start.qx, start.qy, start.qz, start.qw)
+    trivial = problem.with_endpoints(start, goal)
+    cold, hot = [], []
+    for _ in range(requests):
+        cold.append(solve(trivial, cores=warm.workers, simplify_time=0.0).solve_time_s)
+        hot.append(warm.solve(name, start=start, goal=goal, simplify_time=0.0).solve_time_s)
+    return statistics.median(cold) * 1e3, statistics.median(hot) * 1e3
+
+
+def _get(rows: Sequence[Row], name: str, mode: str, cores: int) -> Row:
+    return next(r for r in rows if r.problem == name and r.mode == mode and r.cores == cores)
+
+
 def table(rows: Sequence[Row], cores: int) -> str:
-    lines = [f"{'problem':<10} {'1-core median s':>16} {f'{cores}-core median s':>17} {'speedup':>8} "
-             f"{'plan speedup':>13} {'work speedup':>13} {'success 1/' + str(cores):>12}"]
+    lines = [f"{'problem':<10} {'cold 1c s':>10} {f'cold {cores}c s':>10} {'warm 1c s':>10} {f'warm {cores}c s':>10} "
+             f"{'speedup cold':>13} {'speedup warm':>13} {'warm/cold':>10} {'work speedup':>13} "
+             f"{'solved':>12}"]
     for name in dict.fromkeys(r.problem for r in rows):
-        one = next(r for r in rows if r.problem == name and r.cores == 1)
-        many = next(r for r in rows if r.problem == name and r.cores == cores)
-        lines.append(f"{name:<10} {one.median_solve_s:>16.3f} {many.median_solve_s:>17.3f} "
-                     f"{one.median_solve_s / many.median_solve_s:>7.2f}x "
-                     f"{one.median_plan_s / many.median_plan_s:>12.2f}x "
-                     f"{one.median_checks / many.median_checks:>12.2f}x "
-                     f"{one.success_rate:>6.0%}/{many.success_rate:.0%}")
+        c1, cn, w1, wn = (_get(rows, name, m, c) for m, c in (("cold", 1), ("cold", cores), ("warm", 1),
+                                                               ("warm", cores)))
+        solved = "/".join(f"{r.success_rate:.0%}" for r in (c1, cn, w1, wn))
+        lines.append(f"{name:<10} {c1.median_solve_s:>10.3f} {cn.median_solve_s:>10.3f} {w1.median_solve_s:>10.3f} "
+                     f"{wn.median_solve_s:>10.3f} {c1.median_solve_s / cn.median_solve_s:>12.2f}x "
+                     f"{w1.median_solve_s / wn.median_solve_s:>12.2f}x {cn.median_solve_s / wn.median_solve_s:>9.2f}x "
+                     f"{c1.median_checks / cn.median_checks:>12.2f}x {solved:>12}")
+    lines.append("speedup = 1 core / N cores (medians); warm/cold = cold N cores / warm N cores; "
+                 "work speedup = collision checks to the first path, cold 1 core / cold N cores")
     return "\n".join(lines)
 
 
@@ -76,8 +107,8 @@ def plot(rows: Sequence[Row], cores: int, path: Path) -> None:
     import matplotlib.pyplot as plt  # noqa: PLC0415
 
     names = list(dict.fromkeys(r.problem for r in rows))
-    one = [next(r for r in rows if r.problem == n and r.cores == 1) for n in names]
-    many = [next(r for r in rows if r.problem == n and r.cores == cores) for n in names]
+    one = [_get(rows, n, "cold", 1) for n in names]
+    many = [_get(rows, n, "cold", cores) for n in names]
     fig, ax = plt.subplots(figsize=(7, 4))
     xs = range(len(names))
     ax.bar([x - 0.2 for x in xs], [r.median_solve_s for r in one], width=0.4, label="1 core")
@@ -105,17 +136,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=Path("benchmarks/out"))
     args = parser.parse_args(argv)
     names = args.problems or sorted(p.stem for p in PROBLEMS_DIR.glob("*.cfg"))
+    problems = {name: load_problem(PROBLEMS_DIR / f"{name}.cfg") for name in names}
     warm_up()
+    print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}", flush=True)
     rows = []
-    for name in names:
-        for row in measure(PROBLEMS_DIR / f"{name}.cfg", cores=(1, args.cores), runs=args.runs, seed=args.seed,
-                           time_limit=args.time_limit):
-            print(f"  {name} on {row.cores} core(s): median {row.median_solve_s:.3f} s, "
-                  f"{row.success_rate:.0%} solved", flush=True)
-            rows.append(row)
+    with WarmPlanner(problems, workers=1, seed=args.seed) as warm1, \
+            WarmPlanner(problems, workers=args.cores, seed=args.seed + 500) as warm_n:
+        warm = {1: warm1, args.cores: warm_n}
+        cold_ms, warm_ms = overhead_ms(names[0], problems[names[0]], warm_n)
+        for name in names:
+            for row in measure(name, problems[name], warm, cores=(1, args.cores), runs=args.runs, seed=args.seed,
+                               time_limit=args.time_limit):
+                print(f"  {name} {row.mode} on {row.cores} core(s): median {row.median_solve_s:.3f} s, "
+                      f"{row.success_rate:.0%} solved", flush=True)
+                rows.append(row)
     print(table(rows, args.cores))
+    print(f"per-request overhead ({names[0]}, {args.cores} workers, a request needing no search): "
+          f"cold {cold_ms:.1f} ms, warm {warm_ms:.1f} ms")
+    print(f"load average at end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "motion_planning.json").write_text(json.dumps([asdict(r) for r in rows], indent=1))
+    (args.out / "motion_planning.json").write_text(json.dumps(
+        {"rows": [asdict(r) for r in rows], "overhead_ms": {"cold": cold_ms, "warm": warm_ms}}, indent=1))
     plot(rows, args.cores, args.out / "motion_planning.png")
     print(f"wrote {args.out / 'motion_planning.png'} and {args.out / 'motion_planning.json'}")
     return 0

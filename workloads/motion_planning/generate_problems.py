@@ -80,8 +80,8 @@ def _wall_piece(along_x: bool, fixed: float, s0: float, s1: float, z0: float, z1
 
 
 def write_cfg(path: Path, *, robot: str, world: str, start: Vec, goal: Vec, start_rot: Vec = (1, 0, 0, 0),
-              goal_rot: Vec = (1, 0, 0, 0), lo: Vec, hi: Vec, time_limit: float, fraction: float) -> None:
-    """``*_rot`` are (axis.x, axis.y, axis.z, theta)."""
+              goal_rot: Vec = (1, 0, 0, 0), lo: Vec, hi: Vec, time_limit: float, fraction: float | None) -> None:
+    """``*_rot`` are (axis.x, axis.y, axis.z, theta); no ``fraction``: no [solver] section, as OMPL.app's."""
     lines = ["[problem]", f"name = {path.stem}", f"robot = {robot}", f"world = {world}"]
     for end, pos, rot in (("start", start, start_rot), ("goal", goal, goal_rot)):
         lines += [f"{end}.{k} = {v:g}" for k, v in zip("xyz", pos, strict=True)]
@@ -89,8 +89,9 @@ def write_cfg(path: Path, *, robot: str, world: str, start: Vec, goal: Vec, star
         lines += [f"{end}.axis.{k} = {v:g}" for k, v in zip("xyz", rot[:3], strict=True)]
     lines += [f"volume.{m}.{k} = {v:g}"
               for m, vec in (("min", lo), ("max", hi)) for k, v in zip("xyz", vec, strict=True)]
-    lines += ["", "[solver]", f"time_limit = {time_limit:g}", f"longest_valid_segment_fraction = {fraction:g}",
-              "", "[benchmark]", f"time_limit = {time_limit:g}", "run_count = 10", ""]
+    if fraction is not None:
+        lines += ["", "[solver]", f"time_limit = {time_limit:g}", f"longest_valid_segment_fraction = {fraction:g}"]
+    lines += ["", "[benchmark]", f"time_limit = {time_limit:g}", "run_count = 10", ""]
     path.write_text("\n".join(lines), encoding="utf-8")
 
 
@@ -107,16 +108,25 @@ def easy(out: Path) -> None:
               goal_rot=(0, 0, 1, math.pi / 2), lo=(-3, -3, -3), hi=(3, 3, 3), time_limit=10, fraction=0.005)
 
 
-def twisty(out: Path, *, plates: int = 4, slot: Vec = (2.9, 0.95), name: str = "twisty") -> None:
+def twisty(out: Path, *, plates: int = 4, slot: Vec = (2.9, 0.95), name: str = "twisty", thick: float = 0.4,
+           turn: float = 40.0, scale: float = 1.0, fraction: float | None = 0.002) -> None:
+    """``turn`` degrees between slots; ``scale`` grows everything; ``fraction=None`` leaves [solver] out."""
     parts = []
     for k in range(plates):
         off = (0.6 * math.cos(1.3 * k), 0.6 * math.sin(1.3 * k))
-        parts += plate_with_slot(3.0 * (k + 1), half=5.0, thick=0.4, slot=slot, offset=off, angle=math.radians(40 * k))
+        parts += plate_with_slot(3.0 * (k + 1), half=5.0, thick=thick, slot=slot, offset=off,
+                                 angle=math.radians(turn * k))
+    robot = box((0, 0, 0), (0.4, 2.0, 0.35))
+    if scale != 1.0:
+        for mesh in [*parts, robot]:
+            mesh.apply_scale(scale)
     export(parts, out / f"{name}_env.stl")
-    export([box((0, 0, 0), (0.4, 2.0, 0.35))], out / f"{name}_robot.stl")
-    length = 3.0 * (plates + 1)
-    write_cfg(out / f"{name}.cfg", robot=f"{name}_robot.stl", world=f"{name}_env.stl", start=(0.5, 0, 0),
-              goal=(length - 0.5, 0, 0), lo=(0, -2.5, -2.5), hi=(length, 2.5, 2.5), time_limit=60, fraction=0.002)
+    export([robot], out / f"{name}_robot.stl")
+    length = 3.0 * (plates + 1) * scale
+    half = 2.5 * scale
+    write_cfg(out / f"{name}.cfg", robot=f"{name}_robot.stl", world=f"{name}_env.stl", start=(0.5 * scale, 0, 0),
+              goal=(length - 0.5 * scale, 0, 0), lo=(0, -half, -half), hi=(length, half, half), time_limit=60,
+              fraction=fraction)
 
 
 def cubicles(out: Path, *, n: int = 2, door_w: float = 1.4, name: str = "cubicles") -> None:

@@ -11,13 +11,18 @@ Topics (node name ``motion_planning``, so ``~x`` is ``/motion_planning/x``; rema
   An empty ``poses`` list means no path: unknown problem, bad request or not solved in time.
 
 Params: ``~cores`` (0 or unset: all cores), ``~time_limit`` (0 or unset: each cfg's), ``~problem_dir``
-(default: the shipped problems), ``~planner`` (default ``rrtconnect``).
+(default: the shipped problems), ``~planner`` (default ``rrtconnect``), ``~resolution`` (0 or
+unset: each problem's validity resolution).
+
+The node is warm: at start it loads every problem in ``~problem_dir`` into ``~cores`` long-lived
+worker processes (:class:`pool.WarmPlanner`), so a request pays for planning only. Requests are
+answered one at a time; one that arrives during another waits its turn (up to the subscriber
+queue of 10; rospy drops the oldest beyond that).
 """
 
 from __future__ import annotations
 
 import os
-import threading
 from pathlib import Path
 from typing import Any
 
@@ -27,8 +32,9 @@ from geometry_msgs.msg import Pose as PoseMsg
 from std_msgs.msg import Float64
 
 from fogiac.errors import WorkloadError
-from workloads.motion_planning.planner import DEFAULT_PLANNER, solve, warm_up
-from workloads.motion_planning.problem import PROBLEMS_DIR, Pose, Problem, load_problem
+from workloads.motion_planning.planner import DEFAULT_PLANNER, warm_up
+from workloads.motion_planning.pool import WarmPlanner
+from workloads.motion_planning.problem import PROBLEMS_DIR, Pose, load_problem
 
 NODE_NAME = "motion_planning"
 DEFAULT_PROBLEM_DIR = PROBLEMS_DIR  # ~problem_dir when the parameter is unset: the shipped problems
@@ -44,54 +50,56 @@ def pose_to_msg(pose: Pose) -> Any:
 
 
 class PlannerNode:
-    """Keeps loaded problems; answers each request on the subscriber's thread, one at a time."""
+    """A warm planner over every problem in ``problem_dir``; answers each request in turn."""
 
-    def __init__(self, *, problem_dir: Path, cores: int, time_limit: float | None, planner: str) -> None:
-        self.problem_dir, self.cores, self.time_limit, self.planner = problem_dir, cores, time_limit, planner
-        self._problems: dict[str, Problem] = {}
-        self._lock = threading.Lock()
+    def __init__(self, *, problem_dir: Path, cores: int, time_limit: float | None, planner: str,
+                 resolution: float | None = None) -> None:
+        self.problem_dir, self.cores, self.time_limit, self.resolution = problem_dir, cores, time_limit, resolution
+        problems = {path.stem: load_problem(path) for path in sorted(problem_dir.glob("*.cfg"))}
+        if not problems:
+            raise WorkloadError(f"{problem_dir}: no problem files (*.cfg)")
+        self.planner = WarmPlanner(problems, workers=cores, planner=planner)
 
-    def problem(self, name: str) -> Problem:
-        if name not in self._problems:
-            path = self.problem_dir / f"{name}.cfg"
-            if "/" in name or not path.is_file():
-                known = sorted(p.stem for p in self.problem_dir.glob("*.cfg"))
-                raise WorkloadError(f"unknown problem {name!r}; known: {', '.join(known)}")
-            self._problems[name] = load_problem(path)
-        return self._problems[name]
+    def close(self) -> None:
+        self.planner.close()
 
     def handle(self, request: Any) -> tuple[float, list[Pose]]:
         """(compute seconds, path) for one PoseArray request; an empty path on any failure."""
-        with self._lock:
-            try:
-                problem = self.problem(request.header.frame_id)
-                if len(request.poses) not in (0, 2):
-                    raise WorkloadError(f"request has {len(request.poses)} poses; send [start, goal] or none")
-                if request.poses:
-                    problem = problem.with_endpoints(*(pose_from_msg(p) for p in request.poses))
-                solution = solve(problem, cores=self.cores, time_limit=self.time_limit, planner=self.planner)
-            except WorkloadError as err:
-                rospy.logerr(f"motion_planning: {err}")
-                return 0.0, []
-            except Exception as err:  # a robot waits for an answer: log the bug, answer "no path"
-                rospy.logerr(f"motion_planning: {type(err).__name__}: {err}")
-                return 0.0, []
-            if not solution.solved:
-                rospy.logwarn(f"motion_planning: {problem.name}: not solved ({solution.status})")
-            return solution.solve_time_s, list(solution.path)
+        name = request.header.frame_id
+        try:
+            if len(request.poses) not in (0, 2):
+                raise WorkloadError(f"request has {len(request.poses)} poses; send [start, goal] or none")
+            start, goal = (pose_from_msg(p) for p in request.poses) if request.poses else (None, None)
+            solution = self.planner.solve(name, start=start, goal=goal, time_limit=self.time_limit,
+                                          resolution=self.resolution)
+        except WorkloadError as err:
+            rospy.logerr(f"motion_planning: {err}")
+            return 0.0, []
+        except Exception as err:  # a robot waits for an answer: log the bug, answer "no path"
+            rospy.logerr(f"motion_planning: {type(err).__name__}: {err}")
+            return 0.0, []
+        if solution.solved:
+            rospy.loginfo(f"motion_planning: {name}: path of {len(solution.path)} poses, proven free at "
+                          f"{solution.check_resolution:.3g} (planned at {solution.resolution:.3g})")
+        else:
+            rospy.logwarn(f"motion_planning: {name}: not solved ({solution.status})")
+        return solution.solve_time_s, list(solution.path)
 
 
 def main() -> None:
     rospy.init_node(NODE_NAME)
     time_limit = float(rospy.get_param("~time_limit", 0.0))
     cores = int(rospy.get_param("~cores", 0))
+    resolution = float(rospy.get_param("~resolution", 0.0))
+    warm_up()
     node = PlannerNode(
         problem_dir=Path(rospy.get_param("~problem_dir", str(DEFAULT_PROBLEM_DIR))),
         cores=cores if cores > 0 else os.cpu_count() or 1,
         time_limit=time_limit if time_limit > 0 else None,
         planner=str(rospy.get_param("~planner", DEFAULT_PLANNER)),
+        resolution=resolution if resolution > 0 else None,
     )
-    warm_up()
+    rospy.on_shutdown(node.close)
     path_pub = rospy.Publisher("~path", PoseArray, queue_size=10)
     time_pub = rospy.Publisher("~compute_time", Float64, queue_size=10)
 

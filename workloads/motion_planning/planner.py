@@ -4,8 +4,10 @@ Python validity callbacks hold the GIL, so threads would not scale; processes do
 come from a ``forkserver`` that has already imported OMPL, fcl and this module, so a solve
 pays milliseconds, not seconds, to start them, and no fork copies a caller's threads (a
 rospy node has several). The winner raises a shared flag that every other worker's
-termination condition reads, simplifies its own path, and reports it; the parent then
-joins every worker (killing any that outlive a grace period), so none is left behind.
+termination condition reads, simplifies its own path, proves it collision-free (repairing
+what it cannot prove; see ``search.py``) and reports it; the parent then joins every worker
+(killing any that outlive a grace period), so none is left behind. This is the cold path: each
+solve builds its collision models anew. ``pool.WarmPlanner`` keeps workers and models alive.
 """
 
 from __future__ import annotations
@@ -15,13 +17,13 @@ import os
 import queue
 import random
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 from fogiac.errors import WorkloadError
 from fogiac.procs import pid_alive
-from workloads.motion_planning.geometry import CollisionChecker
-from workloads.motion_planning.problem import Pose, Problem
+from workloads.motion_planning.problem import Pose, Problem, validity_resolution
 
 # name accepted on the CLI / in ROS params -> class in ompl.geometric
 PLANNERS = {
@@ -51,13 +53,17 @@ class Solution:
     winner: int | None  # index of the worker whose path won
     planner: str
     collision_checks: int = 0  # the winner's checks up to its first path: work, unlike time, ignores load
+    resolution: float = 0.0  # world units a robot point moved at most between two checks while planning
+    check_resolution: float = 0.0  # the path was proven free in pieces no shorter than this
+    repairs: int = 0  # segments re-planned because they could not be proven free
 
     def as_dict(self) -> dict[str, Any]:
         return {
             "solved": self.solved, "status": self.status, "cores": self.cores,
             "solve_time_s": self.solve_time_s, "plan_time_s": self.plan_time_s,
             "simplify_time_s": self.simplify_time_s, "winner": self.winner, "planner": self.planner,
-            "collision_checks": self.collision_checks,
+            "collision_checks": self.collision_checks, "resolution": self.resolution,
+            "check_resolution": self.check_resolution, "repairs": self.repairs,
             "path": [p.as_dict() for p in self.path],
         }
 
@@ -65,12 +71,12 @@ class Solution:
 _CONTEXT: Any = None
 
 
-def _context() -> Any:
+def worker_context() -> Any:
     """The forkserver context, preloading the heavy imports once per calling process."""
     global _CONTEXT
     if _CONTEXT is None:
         _CONTEXT = mp.get_context("forkserver")
-        _CONTEXT.set_forkserver_preload(["workloads.motion_planning.planner"])
+        _CONTEXT.set_forkserver_preload(["workloads.motion_planning.search"])
     return _CONTEXT
 
 
@@ -81,7 +87,7 @@ def warm_up() -> None:
     """Start the fork server and let it finish its imports, so no timed solve pays for them."""
     global _WARM
     if not _WARM:
-        probe = _context().Process(target=_noop, name="mp-planner-warm-up", daemon=True)
+        probe = worker_context().Process(target=_noop, name="mp-planner-warm-up", daemon=True)
         probe.start()
         probe.join()
         probe.close()
@@ -92,9 +98,9 @@ def _noop() -> None:
     pass
 
 
-def solve(problem: Problem, *, cores: int | None = None, time_limit: float | None = None,
-          seed: int | None = None, planner: str = DEFAULT_PLANNER, simplify_time: float = 0.5) -> Solution:
-    """Plan from ``problem.start`` to ``problem.goal`` with ``cores`` racing planners."""
+def check_request(problem: Problem, *, cores: int | None, time_limit: float | None, planner: str,
+                  resolution: float | None) -> tuple[int, float, float]:
+    """(cores, time limit, resolution) a request asks for, defaults filled in; bad values raise."""
     if planner not in PLANNERS:
         raise WorkloadError(f"unknown planner {planner!r}; valid: {', '.join(sorted(PLANNERS))}")
     n = cores if cores is not None else (os.cpu_count() or 1)
@@ -103,15 +109,42 @@ def solve(problem: Problem, *, cores: int | None = None, time_limit: float | Non
     limit = problem.time_limit if time_limit is None else time_limit
     if limit <= 0:
         raise WorkloadError(f"time limit must be positive, got {limit:g}")
+    res = validity_resolution(problem) if resolution is None else resolution
+    if not res > 0:
+        raise WorkloadError(f"resolution must be positive, got {res:g}")
+    return n, limit, res
+
+
+def solution_from(report: dict[str, Any] | None, statuses: list[str], *, cores: int, elapsed: float,
+                  planner: str) -> Solution:
+    """A Solution from the winning worker's report (None: nobody won; statuses say why)."""
+    if report is None:
+        return Solution(False, statuses[0] if statuses else "no worker ran", (), cores, elapsed, 0.0, 0.0, None,
+                        planner)
+    path = tuple(Pose(*p) for p in report.get("path", ()))
+    return Solution(report["solved"], report["status"], path, cores, elapsed, report["plan_time_s"],
+                    report["simplify_time_s"], report["index"], planner, report["checks"], report["resolution"],
+                    report["check_resolution"], report["repairs"])
+
+
+def solve(problem: Problem, *, cores: int | None = None, time_limit: float | None = None,
+          seed: int | None = None, planner: str = DEFAULT_PLANNER, simplify_time: float = 0.5,
+          resolution: float | None = None) -> Solution:
+    """Plan from ``problem.start`` to ``problem.goal`` with ``cores`` racing planners, started cold.
+
+    ``resolution`` (world units) overrides the problem's validity resolution for this request.
+    """
+    n, limit, res = check_request(problem, cores=cores, time_limit=time_limit, planner=planner,
+                                  resolution=resolution)
     base_seed = seed if seed is not None else random.SystemRandom().randrange(2**31)
     warm_up()  # a one-off per calling process, kept out of solve_time_s
-    ctx = _context()
+    ctx = worker_context()
     flag = ctx.RawValue("b", 0)
     results = ctx.Queue()
     t0 = time.perf_counter()
     workers = [
         ctx.Process(target=_worker, name=f"mp-planner-{i}", daemon=True,
-                    args=(problem, planner, _ompl_seed(base_seed + i), limit, simplify_time, flag, results, i,
+                    args=(problem, planner, ompl_seed(base_seed + i), res, limit, simplify_time, flag, results, i,
                           os.getpid()))
         for i in range(n)
     ]
@@ -128,7 +161,7 @@ def solve(problem: Problem, *, cores: int | None = None, time_limit: float | Non
             if msg is None:
                 statuses.append("a worker died or hung without reporting")
                 break
-            if msg["solved"]:
+            if "plan_time_s" in msg:  # it found a path first: the answer, proven or not
                 winner = msg
             else:
                 statuses.append(msg["status"])
@@ -136,14 +169,10 @@ def solve(problem: Problem, *, cores: int | None = None, time_limit: float | Non
     finally:
         flag.value = 1
         _reap(started, results)
-    if winner is None:
-        return Solution(False, statuses[0] if statuses else "no worker ran", (), n, elapsed, 0.0, 0.0, None, planner)
-    path = tuple(Pose(*p) for p in winner["path"])
-    return Solution(True, winner["status"], path, n, elapsed, winner["plan_time_s"], winner["simplify_time_s"],
-                    winner["index"], planner, winner["checks"])
+    return solution_from(winner, statuses, cores=n, elapsed=elapsed, planner=planner)
 
 
-def _ompl_seed(seed: int) -> int:
+def ompl_seed(seed: int) -> int:
     """Any int to OMPL's seed range: OMPL ignores a seed of 0 and takes only unsigned 32-bit ones."""
     return seed % (2**31 - 1) + 1
 
@@ -187,67 +216,37 @@ def _drain(results: Any) -> None:
         pass
 
 
-def _worker(problem: Problem, planner: str, seed: int, time_limit: float, simplify_time: float,
-            flag: Any, results: Any, index: int, parent_pid: int) -> None:
+def _worker(problem: Problem, planner: str, seed: int, resolution: float, time_limit: float,
+            simplify_time: float, flag: Any, results: Any, index: int, parent_pid: int) -> None:
     """One racing planner; runs in its own process and reports one message."""
     try:
-        results.put(_plan_one(problem, planner, seed, time_limit, simplify_time, flag, index, parent_pid))
+        from workloads.motion_planning.search import Search, seed_process  # noqa: PLC0415 (OMPL: workers only)
+
+        seed_process(seed)
+        report = Search(problem).run(
+            problem.start, problem.goal, planner=PLANNERS[planner], resolution=resolution,
+            time_limit=time_limit, simplify_time=simplify_time, cancelled=cancel_test(flag, parent_pid),
+            on_first_path=raise_on_first_path(flag))
+        results.put({**report, "index": index})
     except Exception as err:  # report, do not hang the parent
         results.put({"solved": False, "status": f"worker error: {err}", "index": index})
 
 
-def _plan_one(problem: Problem, planner: str, seed: int, time_limit: float, simplify_time: float,
-              flag: Any, index: int, parent_pid: int) -> dict[str, Any]:
-    # ompl loads in each racing worker only: importing this module (the node, `solve --help`) stays light.
-    import ompl.base as ob  # noqa: PLC0415
-    import ompl.geometric as og  # noqa: PLC0415
-    import ompl.util as ou  # noqa: PLC0415
-
-    ou.setLogLevel(ou.LOG_ERROR)
-    ou.RNG.setSeed(seed)
-    space = ob.SE3StateSpace()
-    bounds = ob.RealVectorBounds(3)
-    for i in range(3):
-        bounds.setLow(i, problem.bounds_min[i])
-        bounds.setHigh(i, problem.bounds_max[i])
-    space.setBounds(bounds)
-    space.setLongestValidSegmentFraction(problem.segment_fraction)
-    setup = og.SimpleSetup(space)
-    checker = CollisionChecker(problem)
-
-    def valid(state: Any) -> bool:
-        rot = state.rotation()
-        return checker.is_free((state.getX(), state.getY(), state.getZ()), (rot.w, rot.x, rot.y, rot.z))
-
-    setup.setStateValidityChecker(valid)
-    start, goal = space.allocState(), space.allocState()
-    for state, pose in ((start, problem.start), (goal, problem.goal)):
-        state.setXYZ(pose.x, pose.y, pose.z)
-        rot = state.rotation()
-        rot.w, rot.x, rot.y, rot.z = (float(v) for v in pose.quaternion())
-    setup.setStartAndGoalStates(start, goal)
-    setup.setPlanner(getattr(og, PLANNERS[planner])(setup.getSpaceInformation()))
+def cancel_test(flag: Any, parent_pid: int) -> Callable[[], bool]:
+    """A termination test for OMPL: another worker won, or the parent is gone (orphaned: give up)."""
     calls = [0]
 
     def cancelled() -> bool:
         if flag.value:
             return True
         calls[0] += 1
-        return calls[0] % _PARENT_CHECK_EVERY == 0 and not pid_alive(parent_pid)  # orphaned: give up
+        return calls[0] % _PARENT_CHECK_EVERY == 0 and not pid_alive(parent_pid)
 
-    ptc = ob.plannerOrTerminationCondition(ob.timedPlannerTerminationCondition(time_limit),
-                                           ob.PlannerTerminationCondition(cancelled))
-    status = str(setup.solve(ptc))
-    if flag.value or not setup.haveExactSolutionPath():
-        return {"solved": False, "status": "cancelled" if flag.value else status.lower(), "index": index}
-    flag.value = 1  # stop the others now; simplification is ours alone
-    plan_time, checks = setup.getLastPlanComputationTime(), checker.checks
-    setup.simplifySolution(simplify_time)
-    states = setup.getSolutionPath().getStates()
-    path = [(s.getX(), s.getY(), s.getZ(), s.rotation().x, s.rotation().y, s.rotation().z, s.rotation().w)
-            for s in states]
-    return {"solved": True, "status": status.lower(), "index": index, "path": path,
-            "plan_time_s": plan_time, "simplify_time_s": setup.getLastSimplificationTime(), "checks": checks}
+    return cancelled
 
 
+def raise_on_first_path(flag: Any) -> Callable[[], None]:
+    def first_path() -> None:
+        flag.value = 1  # stop the others now; simplifying and proving the path is the winner's alone
 
+    return first_path

@@ -9,6 +9,9 @@ OMPL.app's conventions are kept so its benchmark problems come out right:
   pose is applied;
 - a pose is a position plus an axis-angle rotation (``theta`` in radians);
 - without ``volume.*`` the bounds are the world mesh's bounding box, grown to hold start and goal.
+
+The validity resolution (how far any robot point may move between two collision checks while
+planning) is fitted to the robot unless the file sets it; see :func:`validity_resolution`.
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ _PROBLEM_KEYS = (
 _VOLUME_KEYS = tuple(f"volume.{m}.{a}" for m in ("min", "max") for a in "xyz")
 PROBLEMS_DIR = Path(__file__).resolve().parent / "problems"  # the problems shipped with the workload
 DEFAULT_TIME_LIMIT = 10.0
-DEFAULT_SEGMENT_FRACTION = 0.01
+ROBOT_THICKNESS_STEPS = 4  # fitted resolution: the robot's thinnest extent over this
 
 
 @dataclass(frozen=True)
@@ -96,7 +99,8 @@ class Problem:
     bounds_min: tuple[float, float, float]
     bounds_max: tuple[float, float, float]
     time_limit: float = DEFAULT_TIME_LIMIT
-    segment_fraction: float = DEFAULT_SEGMENT_FRACTION
+    segment_fraction: float | None = None  # OMPL's longest_valid_segment_fraction, when the file sets it
+    resolution: float | None = None  # [solver] resolution in world units, when the file sets it
     source: str = field(default="")
 
     def with_endpoints(self, start: Pose, goal: Pose) -> Problem:
@@ -169,10 +173,32 @@ def load_problem(path: str | Path) -> Problem:
         name=section.get("name", cfg_path.stem).strip() or cfg_path.stem,
         robot=robot, world=world, start=start, goal=goal, bounds_min=lo, bounds_max=hi,
         time_limit=_time_limit(cfg_path, parser),
-        segment_fraction=_positive(cfg_path, parser, "solver", "longest_valid_segment_fraction",
-                                   DEFAULT_SEGMENT_FRACTION),
+        segment_fraction=_optional_positive(cfg_path, parser, "longest_valid_segment_fraction"),
+        resolution=_optional_positive(cfg_path, parser, "resolution"),
         source=str(cfg_path),
     )
+
+
+def space_extent(problem: Problem) -> float:
+    """How far a robot point can move across the space: the volume's diagonal plus half a turn."""
+    diagonal = float(np.linalg.norm(np.subtract(problem.bounds_max, problem.bounds_min)))
+    return diagonal + math.pi * problem.robot.radius()
+
+
+def validity_resolution(problem: Problem) -> float:
+    """World units any robot point may move between two checks while planning.
+
+    ``[solver] resolution`` wins; else ``longest_valid_segment_fraction`` keeps OMPL's meaning
+    (that fraction of the space's extent per step); else a quarter of the robot's thinnest
+    extent, so the robot cannot hop over a wall however thin, whatever the space's size.
+    OMPL's own default (1% of the extent) ignores the robot and steps over thin walls.
+    """
+    if problem.resolution is not None:
+        return problem.resolution
+    if problem.segment_fraction is not None:
+        return problem.segment_fraction * space_extent(problem)
+    extents = problem.robot.vertices.max(axis=0) - problem.robot.vertices.min(axis=0)
+    return float(extents.min()) / ROBOT_THICKNESS_STEPS
 
 
 def _bounds(cfg: Path, section: configparser.SectionProxy, world: Mesh, start: Pose,
@@ -199,6 +225,10 @@ def _time_limit(cfg: Path, parser: configparser.ConfigParser) -> float:
         if parser.has_option(section, "time_limit"):
             return _positive(cfg, parser, section, "time_limit", DEFAULT_TIME_LIMIT)
     return DEFAULT_TIME_LIMIT
+
+
+def _optional_positive(cfg: Path, parser: configparser.ConfigParser, key: str) -> float | None:
+    return _positive(cfg, parser, "solver", key, 0.0) if parser.has_option("solver", key) else None
 
 
 def _positive(cfg: Path, parser: configparser.ConfigParser, section: str, key: str, default: float) -> float:

@@ -91,7 +91,8 @@ class _Outlet:
             elif sent < 4 + len(data):
                 self._rest = [memoryview(data)[sent - 4 :]]
             self._busy = False
-            self._cond.notify()
+            if self._rest or self._queue:  # wake the outlet's thread only when it has work:
+                self._cond.notify()  # a wake-up per message cost more than the write itself
 
     def _run(self) -> None:
         try:

@@ -37,6 +37,8 @@ def test_easy_path_is_collision_free(easy) -> None:
     assert solution.solved and solution.status == "exact solution"
     assert solution.cores == 1 and solution.winner == 0
     assert solution.collision_checks > 0
+    assert solution.resolution == pytest.approx(0.005 * 6 * 3**0.5 + 0.005 * 3.141592653589793 * easy.robot.radius())
+    assert solution.check_resolution == pytest.approx(solution.resolution / 10)
     _ends_match(easy, solution.path)
     assert path_is_collision_free(easy, solution.path, resolution=0.01)
 
@@ -87,6 +89,7 @@ def test_start_in_collision_is_reported_not_raised(easy) -> None:
          r"^unknown planner 'rrtstar9'; valid: bkpiece, kpiece, lbkpiece, prm, rrt, rrtconnect$"),
         ({"cores": 0}, r"^cores must be at least 1, got 0$"),
         ({"time_limit": 0}, r"^time limit must be positive, got 0$"),
+        ({"resolution": -0.5}, r"^resolution must be positive, got -0.5$"),
     ],
 )
 def test_bad_arguments(easy, kwargs: dict, message: str) -> None:

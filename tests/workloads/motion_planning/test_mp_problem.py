@@ -11,6 +11,7 @@ from tests.workloads.motion_planning.mp_support import CUBE_OBJ, PROBLEMS, write
 
 from fogiac.errors import WorkloadError
 from workloads.motion_planning import Pose, load_problem
+from workloads.motion_planning.problem import space_extent, validity_resolution
 
 # Four vertices, one tetrahedron; written as Z_UP COLLADA below.
 TETRA = [(0, 0, 0), (2, 0, 0), (0, 4, 0), (0, 0, 6)]
@@ -100,7 +101,19 @@ def test_poses_bounds_and_limits(cube_dir: Path) -> None:
     assert problem.goal.as_dict() == pytest.approx({"x": 2, "y": 0, "z": 0, "qx": 0, "qy": 0, "qz": h, "qw": h})
     assert (problem.bounds_min, problem.bounds_max) == ((-3, -3, -3), (3, 3, 3))
     assert problem.time_limit == 7.5
-    assert problem.segment_fraction == 0.01
+    assert problem.segment_fraction is None and problem.resolution is None
+
+
+def test_validity_resolution_is_fitted_unless_set(cube_dir: Path) -> None:
+    fitted = load_problem(write_cfg(cube_dir))
+    assert validity_resolution(fitted) == pytest.approx(1.0 / 4)  # the unit cube robot's thinnest side, over 4
+    fraction = load_problem(write_cfg(cube_dir, extra="[solver]\nlongest_valid_segment_fraction = 0.01\n"))
+    assert validity_resolution(fraction) == pytest.approx(0.01 * space_extent(fraction))
+    assert space_extent(fraction) == pytest.approx(math.sqrt(3 * 36) + math.pi * math.sqrt(0.75))
+    given = load_problem(write_cfg(cube_dir, extra="[solver]\nresolution = 0.02\nlongest_valid_segment_fraction = 0.5\n"))
+    assert validity_resolution(given) == 0.02
+    with pytest.raises(WorkloadError, match=r"p\.cfg: \[solver\] resolution: must be positive, got -1$"):
+        load_problem(write_cfg(cube_dir, extra="[solver]\nresolution = -1\n"))
 
 
 def test_benchmark_time_limit_and_inferred_volume(cube_dir: Path) -> None:

@@ -1,0 +1,250 @@
+"""The warm planner: worker processes that outlive requests, with every known problem loaded once.
+
+A cold :func:`planner.solve` starts its workers and builds their OMPL spaces and fcl models on
+every call; a ROS node answering request after request would pay that each time. Here each
+worker builds a :class:`search.Search` per known problem when it starts and then serves
+requests (problem name, start, goal, limits) over its own pipe until it is closed:
+
+- **one request at a time; a second waits its turn.** ``solve`` holds a lock for the whole
+  race, so a request that arrives during another queues behind it (a robot re-sending would
+  otherwise have to handle refusals; the node's subscriber queue bounds how many can wait).
+- **every worker races every request**; the first to find a path raises the shared flag, the
+  others stop within one planner iteration and report, so the next request starts clean.
+- **a dead worker is replaced** before the next request (its problems loaded again); a worker
+  that dies during a race counts as a loser of that race.
+- OMPL seeds once per process, so a warm worker is seeded when it starts (``seed + index``),
+  not per request: runs repeat as a sequence, not one by one.
+"""
+
+from __future__ import annotations
+
+import os
+import random
+import threading
+import time
+from collections.abc import Mapping
+from multiprocessing.connection import Connection, wait
+from typing import Any
+
+from fogiac.errors import WorkloadError
+from fogiac.procs import pid_alive
+from workloads.motion_planning.planner import (
+    DEFAULT_PLANNER,
+    PLANNERS,
+    Solution,
+    cancel_test,
+    check_request,
+    ompl_seed,
+    raise_on_first_path,
+    solution_from,
+    worker_context,
+)
+from workloads.motion_planning.problem import Pose, Problem
+
+_READY_TIMEOUT_S = 120.0
+_STOP_GRACE_S = 2.0
+_IDLE_POLL_S = 1.0
+
+
+class WarmPlanner:
+    """``workers`` long-lived planner processes racing on each request; close() (or ``with``) ends them."""
+
+    def __init__(self, problems: Mapping[str, Problem], *, workers: int | None = None,
+                 planner: str = DEFAULT_PLANNER, seed: int | None = None, simplify_time: float = 0.5) -> None:
+        if not problems:
+            raise WorkloadError("a warm planner needs at least one problem")
+        self.problems = dict(problems)
+        any_problem = next(iter(self.problems.values()))
+        self.workers, _, _ = check_request(any_problem, cores=workers, time_limit=None, planner=planner,
+                                           resolution=None)
+        self.planner, self.simplify_time = planner, simplify_time
+        self._seed = seed if seed is not None else random.SystemRandom().randrange(2**31)
+        self._ctx = worker_context()
+        self._flag = self._ctx.RawValue("b", 0)
+        self._lock = threading.Lock()
+        self._procs: list[Any] = [None] * self.workers
+        self._conns: list[Connection | None] = [None] * self.workers
+        self._request_id = 0
+        self.replaced = 0  # workers started again after dying
+        try:
+            for i in range(self.workers):
+                self._start(i)
+            self._await_ready(range(self.workers))
+        except BaseException:
+            self.close()
+            raise
+
+    def __enter__(self) -> WarmPlanner:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def pids(self) -> list[int]:
+        return [p.pid for p in self._procs if p is not None]
+
+    def solve(self, name: str, *, start: Pose | None = None, goal: Pose | None = None,
+              time_limit: float | None = None, resolution: float | None = None,
+              simplify_time: float | None = None) -> Solution:
+        """Plan on a known problem (its own endpoints unless given); waits while another request runs."""
+        if name not in self.problems:
+            raise WorkloadError(f"unknown problem {name!r}; known: {', '.join(sorted(self.problems))}")
+        problem = self.problems[name]
+        _, limit, res = check_request(problem, cores=self.workers, time_limit=time_limit, planner=self.planner,
+                                      resolution=resolution)
+        with self._lock:
+            self._replace_dead()
+            self._request_id += 1
+            self._flag.value = 0
+            simplify = self.simplify_time if simplify_time is None else simplify_time
+            request = {"id": self._request_id, "name": name, "start": start or problem.start,
+                       "goal": goal or problem.goal, "resolution": res, "time_limit": limit,
+                       "simplify_time": simplify}
+            t0 = time.perf_counter()
+            for i in range(self.workers):
+                self._send(i, request)
+            winner, statuses = self._collect(self._request_id, deadline=t0 + limit + simplify + 30.0)
+            elapsed = time.perf_counter() - t0
+        return solution_from(winner, statuses, cores=self.workers, elapsed=elapsed, planner=self.planner)
+
+    def _collect(self, request_id: int, *, deadline: float) -> tuple[dict[str, Any] | None, list[str]]:
+        """Every worker's report on this request (or its death); the first with a path wins."""
+        waiting = {i for i in range(self.workers)}
+        winner: dict[str, Any] | None = None
+        statuses: list[str] = []
+        while waiting:
+            left = deadline - time.perf_counter()
+            if left <= 0:
+                for i in waiting:  # hung: replaced before the next request
+                    self._procs[i].kill()
+                statuses.append("a worker hung without reporting")
+                break
+            conns: dict[Any, int] = {self._conns[i]: i for i in waiting}
+            sentinels: dict[Any, int] = {self._procs[i].sentinel: i for i in waiting}
+            for item in wait([*conns, *sentinels], timeout=left):
+                i = conns[item] if item in conns else sentinels[item]
+                conn = self._conns[i]
+                assert conn is not None
+                if item not in conns and conn.poll():
+                    continue  # it died after reporting: the report is read when its pipe comes up
+                try:
+                    if item not in conns:
+                        raise EOFError
+                    msg = conn.recv()
+                except (EOFError, OSError):
+                    waiting.discard(i)
+                    statuses.append("a worker died during the request")
+                    continue
+                if msg.get("id") != request_id:
+                    continue  # a late report from a request that timed out
+                waiting.discard(i)
+                if winner is None and "plan_time_s" in msg:
+                    winner = msg
+                    self._flag.value = 1
+                else:
+                    statuses.append(msg["status"])
+        return winner, statuses
+
+    def _start(self, i: int) -> None:
+        parent, child = self._ctx.Pipe()
+        proc = self._ctx.Process(target=_serve, name=f"mp-warm-planner-{i}", daemon=True,
+                                 args=(self.problems, PLANNERS[self.planner], ompl_seed(self._seed + i), i,
+                                       self._flag, child, os.getpid()))
+        proc.start()
+        child.close()
+        self._procs[i], self._conns[i] = proc, parent
+
+    def _await_ready(self, indices: range | list[int]) -> None:
+        end = time.perf_counter() + _READY_TIMEOUT_S
+        for i in indices:
+            conn = self._conns[i]
+            assert conn is not None
+            if not conn.poll(max(0.0, end - time.perf_counter())):
+                raise WorkloadError(f"planner worker {i} did not load its problems within {_READY_TIMEOUT_S:g} s")
+            try:
+                msg = conn.recv()
+            except EOFError:
+                raise WorkloadError(f"planner worker {i} died while loading its problems") from None
+            if "error" in msg:
+                raise WorkloadError(f"planner worker {i}: {msg['error']}")
+
+    def _send(self, i: int, request: dict[str, Any]) -> None:
+        """Hand a worker the request; one that died unseen (its pipe broke) is replaced first."""
+        try:
+            self._conns[i].send(request)  # type: ignore[union-attr]
+        except OSError:
+            self._replace([i])
+            self._conns[i].send(request)  # type: ignore[union-attr]
+
+    def _replace_dead(self) -> None:
+        self._replace([i for i, p in enumerate(self._procs) if p is None or not p.is_alive()])
+
+    def _replace(self, dead: list[int]) -> None:
+        for i in dead:
+            self._discard(i)
+            self._start(i)
+            self.replaced += 1
+        if dead:
+            self._await_ready(dead)
+
+    def _discard(self, i: int) -> None:
+        proc, conn = self._procs[i], self._conns[i]
+        if conn is not None:
+            conn.close()
+        if proc is not None:
+            proc.join(timeout=0)
+            if proc.is_alive():
+                proc.kill()
+            proc.join()
+            proc.close()
+        self._procs[i], self._conns[i] = None, None
+
+    def close(self) -> None:
+        """Stop every worker: a polite None, then a kill for any that outlive the grace period."""
+        self._flag.value = 1
+        for conn in self._conns:
+            if conn is not None:
+                try:
+                    conn.send(None)
+                except OSError:
+                    pass
+        end = time.perf_counter() + _STOP_GRACE_S
+        for proc in self._procs:
+            if proc is not None:
+                proc.join(timeout=max(0.0, end - time.perf_counter()))
+        for i in range(len(self._procs)):
+            self._discard(i)
+
+
+def _serve(problems: Mapping[str, Problem], planner: str, seed: int, index: int, flag: Any, conn: Connection,
+           parent_pid: int) -> None:
+    """A warm worker: load every problem once, then answer requests until told to stop."""
+    from workloads.motion_planning.search import Search, seed_process  # noqa: PLC0415 (OMPL: workers only)
+
+    try:
+        seed_process(seed)
+        searches = {name: Search(problem) for name, problem in problems.items()}
+    except Exception as err:
+        conn.send({"error": f"{type(err).__name__}: {err}"})
+        return
+    conn.send({"ready": index})
+    cancelled, first_path = cancel_test(flag, parent_pid), raise_on_first_path(flag)
+    while True:
+        if not conn.poll(_IDLE_POLL_S):
+            if not pid_alive(parent_pid):
+                return  # orphaned
+            continue
+        try:
+            request = conn.recv()
+        except EOFError:
+            return
+        if request is None:
+            return
+        try:
+            report = searches[request["name"]].run(
+                request["start"], request["goal"], planner=planner, resolution=request["resolution"],
+                time_limit=request["time_limit"], simplify_time=request["simplify_time"], cancelled=cancelled,
+                on_first_path=first_path)
+        except Exception as err:  # report, do not hang the parent
+            report = {"solved": False, "status": f"worker error: {err}"}
+        conn.send({**report, "id": request["id"], "index": index})

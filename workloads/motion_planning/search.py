@@ -1,0 +1,197 @@
+"""One planner instance on one problem, built once and reused for any start and goal.
+
+A :class:`Search` holds the OMPL space, the SimpleSetup and the fcl models of one problem, so a
+long-lived worker pays for them once (the warm planner) and a one-shot worker once per solve
+(the cold race). Every answer is a path whose segments :class:`Certifier` proved free, or none:
+
+1. plan at the validity resolution (per problem, or per request), OMPL stepping so that no robot
+   point moves more than that between two checks;
+2. simplify, then prove each segment free (continuous, by clearances, in pieces no shorter than
+   ``resolution / CHECK_DIVISOR``, the check resolution the answer states);
+3. a segment not proven is re-planned on its own at a quarter of the resolution, and that piece
+   proven in turn, up to ``MAX_REPAIR_DEPTH`` levels; what cannot be repaired in the time left
+   is answered "no path" (status ``unproven path``).
+
+Runs only inside worker processes: it imports OMPL at the top.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import ompl.base as ob
+import ompl.geometric as og
+import ompl.util as ou
+
+from workloads.motion_planning.certify import Certifier, as_poses
+from workloads.motion_planning.geometry import CollisionChecker
+from workloads.motion_planning.problem import Pose, Problem, space_extent
+
+CHECK_DIVISOR = 10  # the certifier's finest piece, relative to the planning resolution
+MAX_REPAIR_DEPTH = 3
+_REPAIR_SHRINK = 4.0
+
+ou.setLogLevel(ou.LOG_ERROR)
+
+
+class Search:
+    """OMPL set-up and collision models of one problem; :meth:`run` plans one request."""
+
+    def __init__(self, problem: Problem) -> None:
+        self.problem = problem
+        self.space = ob.SE3StateSpace()
+        bounds = ob.RealVectorBounds(3)
+        for i in range(3):
+            bounds.setLow(i, problem.bounds_min[i])
+            bounds.setHigh(i, problem.bounds_max[i])
+        self.space.setBounds(bounds)
+        self.setup = og.SimpleSetup(self.space)
+        self.checker = CollisionChecker(problem)
+        self.certifier = Certifier(problem)
+        checker = self.checker
+
+        def valid(state: Any) -> bool:
+            rot = state.rotation()
+            return checker.is_free((state.getX(), state.getY(), state.getZ()), (rot.w, rot.x, rot.y, rot.z))
+
+        certifier = self.certifier
+        margin = self._margin = [0.0]
+
+        def clear_enough(state: Any) -> bool:
+            rot = state.rotation()
+            position = np.array((state.getX(), state.getY(), state.getZ()))
+            return certifier.clearance(position, np.array((rot.w, rot.x, rot.y, rot.z))) >= margin[0]
+
+        self._valid, self._clear_enough = valid, clear_enough  # OMPL keeps references; so must we
+        self.setup.setStateValidityChecker(valid)
+        # OMPL steps each SE(3) component by fraction * its extent (the larger count wins), so a
+        # fraction of (diagonal + pi * R) bounds any robot point's move per step; see set_resolution.
+        self._extent = space_extent(problem)
+        self._resolution = -1.0
+        self.simplify_time_s = 0.0
+
+    def set_resolution(self, resolution: float) -> None:
+        if resolution != self._resolution:
+            self.space.setLongestValidSegmentFraction(min(1.0, resolution / self._extent))
+            self.space.setup()
+            self._resolution = resolution
+
+    def run(self, start: Pose, goal: Pose, *, planner: str, resolution: float, time_limit: float,
+            simplify_time: float, cancelled: Callable[[], bool], on_first_path: Callable[[], None]) -> dict[str, Any]:
+        """Plan, simplify, prove; a report dict (``solved``, ``status``, ``path``, timings, counts).
+
+        ``planner`` is a class name in ``ompl.geometric`` (``RRTConnect``, ...).
+        """
+        self.checker.checks = 0
+        self.certifier.queries = 0
+        deadline = _Clock(time_limit)
+        found = self._plan(start, goal, planner=planner, resolution=resolution, ptc=_ptc(deadline, cancelled))
+        if found is None or cancelled():  # another worker's path came first: do not simplify ours too
+            status = "cancelled" if cancelled() else str(self.setup.getLastPlannerStatus()).lower()
+            return {"solved": False, "status": status}
+        on_first_path()
+        plan_time, checks = self.setup.getLastPlanComputationTime(), self.checker.checks
+        path = self._simplify(simplify_time, resolution)
+        simplify_time_s = self.simplify_time_s
+        floor = resolution / CHECK_DIVISOR
+        proven, repairs = self._prove(path, planner=planner, resolution=resolution, floor=floor, depth=0,
+                                      deadline=deadline)
+        report = {"plan_time_s": plan_time, "simplify_time_s": simplify_time_s, "checks": checks,
+                  "repairs": repairs, "clearance_queries": self.certifier.queries, "resolution": resolution,
+                  "check_resolution": floor}
+        if proven is None:
+            return {**report, "solved": False, "status": "unproven path"}
+        return {**report, "solved": True, "status": "exact solution",
+                "path": [(p.x, p.y, p.z, p.qx, p.qy, p.qz, p.qw) for p in proven]}
+
+    def _plan(self, start: Pose, goal: Pose, *, planner: str, resolution: float, ptc: Any) -> list[Pose] | None:
+        self.set_resolution(resolution)
+        self.setup.clear()
+        a, b = self.space.allocState(), self.space.allocState()
+        for state, pose in ((a, start), (b, goal)):
+            state.setXYZ(pose.x, pose.y, pose.z)
+            rot = state.rotation()
+            rot.w, rot.x, rot.y, rot.z = (float(v) for v in pose.quaternion())
+        self.setup.setStartAndGoalStates(a, b)
+        self.setup.setPlanner(getattr(og, planner)(self.setup.getSpaceInformation()))
+        self.setup.solve(ptc)
+        if not self.setup.haveExactSolutionPath():
+            return None
+        return as_poses(self.setup.getSolutionPath().getStates())
+
+    def _simplify(self, seconds: float, resolution: float) -> list[Pose]:
+        """Shortcut the solution, accepting only shortcuts that keep half a step of clearance.
+
+        Plain shortcutting pulls a path onto the obstacles, as close as the step allows, and such
+        a path cannot be proven. With a clearance of half a step at every checked pose, a
+        shortcut is proven by the very checks that accepted it (clearances of two neighbours add
+        up to a step). Vertices the planner placed keep their plain validity.
+        """
+        self._margin[0] = resolution / 2
+        self.setup.setStateValidityChecker(self._clear_enough)
+        path = self.setup.getSolutionPath()
+        started = time.perf_counter()
+        try:
+            self.setup.getPathSimplifier().simplify(path, seconds, atLeastOnce=False)  # the budget holds
+        finally:
+            self.simplify_time_s = time.perf_counter() - started
+            self.setup.setStateValidityChecker(self._valid)
+        return as_poses(path.getStates())
+
+    def _prove(self, path: list[Pose], *, planner: str, resolution: float, floor: float, depth: int,
+               deadline: _Clock) -> tuple[list[Pose] | None, int]:
+        """The path with every unproven segment replaced by a proven re-plan; None when that fails."""
+        repairs = 0
+        out = [path[0]]
+        for a, b in zip(path, path[1:], strict=False):
+            if self.certifier.segment_is_free(a, b, floor=floor):
+                out.append(b)
+                continue
+            if depth >= MAX_REPAIR_DEPTH or deadline.left() <= 0:
+                return None, repairs
+            repairs += 1
+            finer = resolution / _REPAIR_SHRINK
+            piece = self._plan(a, b, planner=planner, resolution=finer, ptc=_ptc(deadline, lambda: False))
+            if piece is None:
+                return None, repairs
+            piece = self._simplify(min(0.2, max(0.0, deadline.left())), finer)
+            fixed, more = self._prove(piece, planner=planner, resolution=finer, floor=floor,
+                                      depth=depth + 1, deadline=deadline)
+            repairs += more
+            if fixed is None:
+                return None, repairs
+            out += fixed[1:]
+        if len(path) == 1 and not self.certifier.segment_is_free(path[0], path[0], floor=floor):
+            return None, repairs
+        return out, repairs
+
+
+def seed_process(seed: int) -> None:
+    """Seed OMPL's generator; only the first seed in a process counts (OMPL ignores later ones)."""
+    global _SEEDED
+    if not _SEEDED:
+        ou.RNG.setSeed(seed)
+        _SEEDED = True
+
+
+_SEEDED = False
+
+
+class _Clock:
+    def __init__(self, seconds: float) -> None:
+        self._end = time.perf_counter() + seconds
+
+    def left(self) -> float:
+        return self._end - time.perf_counter()
+
+
+def _ptc(deadline: _Clock, cancelled: Callable[[], bool]) -> Any:
+    left = max(1e-3, deadline.left())
+    if not math.isfinite(left):
+        left = 1e9
+    return ob.plannerOrTerminationCondition(ob.timedPlannerTerminationCondition(left),
+                                            ob.PlannerTerminationCondition(cancelled))

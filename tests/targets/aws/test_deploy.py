@@ -20,8 +20,8 @@ from typer.testing import CliRunner
 from fogiac.certs import new_bundle
 from fogiac.cli import app
 from fogiac.errors import EngineError
-from fogiac.targets.aws.engine import LAYERS, OUTPUTS_FILE, PULUMI_CLI_VERSION, SSH_KEY_FILE, Engine
-from fogiac.state import stack_dir, write_json_atomic
+from fogiac.state import read_json, stack_dir, write_json_atomic
+from fogiac.targets.aws.engine import LAYERS, OUTPUTS_FILE, PULUMI_CLI_VERSION, SSH_KEY_FILE, Engine, LayerResult
 
 from .harness import Harness, InjectedFailure
 from .plans import make_plan, write_manifest
@@ -54,6 +54,10 @@ def engine_is_harness(aws_env: str, tmp_path: Path, monkeypatch: pytest.MonkeyPa
 
         def destroy(self, *, layers: tuple[str, ...] = ("compute", "network")) -> list[str]:
             return harness.destroy(layers=layers)
+
+        def refresh(self) -> list[LayerResult]:  # the engine reads back the outputs it made: outputs.json here
+            made = read_json(stack_dir(self.plan.stack) / OUTPUTS_FILE) or {}
+            return [LayerResult(layer, True, made[layer], "no changes") for layer in LAYERS if layer in made]
 
     monkeypatch.setattr("fogiac.targets.aws.engine.Engine", HarnessEngine)
     monkeypatch.setattr("fogiac.targets.aws.sweep.time.sleep", lambda s: None)  # bounded retries, without the waiting
@@ -147,8 +151,6 @@ def test_keep_network_removes_compute_and_says_what_the_network_costs(engine_is_
         in result.stdout
     left = _tagged(ec2, plan.stack)
     assert left["instances"] == [] and left["keys"] == [] and left["vpcs"] == [outputs["network"]["vpc_id"]]
-    from fogiac.state import read_json
-
     assert set(read_json(stack_dir(plan.stack) / OUTPUTS_FILE)) == {"zone", "network"}
     assert down(str(path), "--yes").exit_code == 0
     assert _tagged(ec2, plan.stack) == {"vpcs": [], "instances": [], "keys": []}

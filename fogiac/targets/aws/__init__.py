@@ -177,7 +177,10 @@ class AwsTarget:
         now = time.time() if now is None else now
         rows = api.status(plan.stack, region=plan.region, now=_dt.datetime.fromtimestamp(now, _dt.timezone.utc))
         outputs = read_json(stack_dir(plan.stack, create=False) / engine.OUTPUTS_FILE) or {}
-        return {"stack": plan.stack, "target": plan.target, "region": plan.region, "hosts": [
+        record = deployment.read(plan.stack)
+        return {"stack": plan.stack, "target": plan.target, "region": plan.region,
+                "partial": record is not None and record.partial,
+                "network_only": "network" in outputs and "compute" not in outputs, "hosts": [
             {"host": r.name, "instance_id": r.instance_id, "state": r.state, "machine": r.machine,
              "public_ip": r.public_ip, "private_ip": r.private_ip, "launched": r.launched.isoformat(),
              "uptime_s": round(r.uptime_s), "cost_usd": r.cost_usd,
@@ -187,8 +190,15 @@ class AwsTarget:
 
     def render_status(self, doc: Mapping[str, Any]) -> list[Any]:
         guarded = guard.render(doc["cost"]) if doc.get("cost") else []
+        partial = []
+        if doc.get("partial") and doc.get("network_only"):
+            partial = [f"{doc['stack']}: network only (down --keep-network); `fogiac up` makes the compute "
+                       "again, `fogiac down` removes the network"]
+        elif doc.get("partial"):
+            partial = [f"{doc['stack']}: partial: the last up did not finish; `fogiac up` completes it, "
+                       "`fogiac down` removes what it made"]
         if not doc["hosts"]:
-            return [f"{doc['stack']}: no instances", *guarded]
+            return [*partial, f"{doc['stack']}: no instances", *guarded]
         out = table(f"{doc['stack']} ({doc['region']})", "host", "instance", "state", "type", "public", "private",
                     "uptime", "cost so far")
         for h in doc["hosts"]:
@@ -198,7 +208,7 @@ class AwsTarget:
             machine = h["machine"] + (" (spot)" if h.get("market") == "spot" else "")
             out.add_row(h["host"], h["instance_id"], state, machine, h["public_ip"] or "-",
                         h["private_ip"] or "-", f"{h['uptime_s'] / 3600:.1f} h", f"${h['cost_usd']:.2f}")
-        return [out, *guarded]
+        return [*partial, out, *guarded]
 
     def doctor(self, plan: Plan, *, ssh_from: str | None = None) -> list[Check]:
         """Every check ``up`` would make, each as (what, ok, detail); nothing is created."""

@@ -137,7 +137,7 @@ def _interrupted(manifest: Path, plan: Plan, chosen: Target) -> None:
         raise typer.Exit(INTERRUPTED)
     typer.echo(f"interrupted: up of {plan.stack} stopped part-way; this is what it left:", err=True)
     try:
-        console(stderr=True).print(*chosen.render_status(chosen.status(plan)))
+        console(stderr=True).print(*chosen.render_status(chosen.status(plan)), sep="\n")
     except FogiacError as err:
         typer.echo(f"(cannot list it: {err})", err=True)
     typer.echo(f"`fogiac down {manifest}` removes it; `fogiac up {manifest}` completes it", err=True)
@@ -195,7 +195,7 @@ def status(manifest: Path = MANIFEST, env: str = ENV, target: str | None = TARGE
     if as_json:
         typer.echo(json.dumps(doc, indent=2, sort_keys=True))
         return
-    console().print(*chosen.render_status(doc))
+    console().print(*chosen.render_status(doc), sep="\n")  # each line of a target on its own line
 
 
 def sweep(manifest: Path = MANIFEST, env: str = ENV, target: str | None = TARGET, yes: bool = YES,

@@ -3,7 +3,8 @@
 Resources print the way ``terraform plan`` reads in a CI log: one line each
 (``+ aws:ec2/vpc:Vpc motion-dev-vpc``) with its key inputs indented below; every value whole.
 Against what was applied (or, with ``--against``, another version of the manifest) only what
-changes is shown, per resource and input, ending in Terraform's ``Plan: ...`` line.
+changes is shown, per resource and input, ending in Terraform's ``Plan: ...`` line; against what
+was applied, also what the last ``fogiac refresh`` found changed outside fogiac (drift).
 """
 
 from __future__ import annotations
@@ -20,10 +21,10 @@ from fogiac import targets
 from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_deployed, compile_for
 from fogiac.errors import FogiacError
 from fogiac.manifest.revision import load_revision
-from fogiac.plan import review
+from fogiac.plan import drift, review
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.cost import MONTH, per_month
-from fogiac.plan.diff import PlanDiff, annotate, diff_documents
+from fogiac.plan.diff import PlanDiff, annotate, diff_documents, with_drift
 from fogiac.plan.document import APPLIED_FILE, document, plan_document
 from fogiac.state import read_json, stack_dir, write_json_atomic
 from fogiac.tables import console, table
@@ -147,6 +148,9 @@ def plan(
     declared = plan_document(compiled, targets.get(compiled.target).declare(compiled), manifest=manifest)
     before, label = _before(compiled, against=against, target=target, env=env)
     diff = diff_documents(before, declared, against="manifest" if against else "applied")
+    refreshed = drift.load(compiled.stack) if against is None and before is not None else None
+    if refreshed is not None:  # what `fogiac refresh` found changed outside fogiac since the apply
+        diff = with_drift(diff, refreshed.drift, refreshed_at=refreshed.at)
     doc = annotate(declared, diff)
     if out is not None:
         if out.is_dir():

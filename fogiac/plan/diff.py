@@ -14,12 +14,14 @@ as the documents hold them, ``[secret]``.
 
 from __future__ import annotations
 
+import dataclasses
 import ipaddress
 import re
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+from fogiac.plan.drift import Drift
 from fogiac.plan.replace import forces_replacement
 
 Action = Literal["create", "update", "replace", "delete", "no-op"]
@@ -78,6 +80,8 @@ class PlanDiff:
     cost_before: float
     cost_after: float
     exposure: tuple[str, ...]  # changes that open something up, each one line
+    drift: tuple[Drift, ...] = ()  # against the applied document: what the last refresh found changed outside fogiac
+    refreshed_at: str = ""  # when that refresh ran
 
     def count(self, action: Action) -> int:
         return sum(1 for r in self.resources if r.action == action)
@@ -90,13 +94,18 @@ class PlanDiff:
     def empty(self) -> bool:
         sections = (self.hosts, self.nodes, self.topics, self.security_rules)
         return (not self.changed_resources and all(s.empty for s in sections) and not self.settings
-                and self.cost_before == self.cost_after)
+                and self.cost_before == self.cost_after and not self.drift)
 
     def summary(self) -> str:
-        """Terraform's line: a replacement counts once to add and once to destroy."""
+        """Terraform's line: a replacement counts once to add and once to destroy; then the drift, if any."""
         add = self.count("create") + self.count("replace")
         destroy = self.count("delete") + self.count("replace")
-        return f"Plan: {add} to add, {self.count('update')} to change, {destroy} to destroy."
+        line = f"Plan: {add} to add, {self.count('update')} to change, {destroy} to destroy."
+        if self.drift:
+            counts = [f"{n} {status}" for status in ("changed", "deleted", "added")
+                      if (n := sum(1 for d in self.drift if d.status == status))]
+            line += f" Drift: {', '.join(counts)} outside fogiac."
+        return line
 
     def to_dict(self) -> dict[str, Any]:
         def section(s: Section) -> dict[str, Any]:
@@ -113,6 +122,7 @@ class PlanDiff:
             "settings": [{"name": k, "before": b, "after": a} for k, b, a in self.settings],
             "cost": {"hourly_usd_before": self.cost_before, "hourly_usd_after": self.cost_after},
             "exposure": list(self.exposure),
+            "drift": [d.to_dict() for d in self.drift], "refreshed_at": self.refreshed_at or None,
         }
 
 
@@ -245,6 +255,13 @@ def diff_documents(before: Mapping[str, Any] | None, after: Mapping[str, Any], *
         cost_after=float(after.get("cost", {}).get("hourly_usd", 0.0)),
         exposure=_exposure(rules, topics),
     )
+
+
+def with_drift(diff: PlanDiff, drift: tuple[Drift, ...], *, refreshed_at: str) -> PlanDiff:
+    """``diff`` with what the last refresh found; an ingress rule made outside fogiac widens exposure too."""
+    opened = tuple(f"ingress added outside fogiac: {d.detail}" for d in drift
+                   if d.status == "added" and d.type.endswith("IngressRule"))
+    return dataclasses.replace(diff, drift=drift, refreshed_at=refreshed_at, exposure=diff.exposure + opened)
 
 
 def annotate(doc: Mapping[str, Any], diff: PlanDiff) -> dict[str, Any]:

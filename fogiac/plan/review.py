@@ -13,6 +13,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from fogiac.plan.diff import InputChange, PlanDiff, ResourceChange, Section
+from fogiac.plan.drift import VERB, Drift
 
 SYMBOL = {"create": "+", "update": "~", "replace": "-/+", "delete": "-"}
 NO_CHANGES = "No changes. Your infrastructure matches the configuration."
@@ -78,6 +79,14 @@ def section_lines(section: Section, show: Any) -> list[str]:
     return lines
 
 
+def drift_lines(drift: Drift) -> list[str]:
+    """``! TYPE NAME changed outside fogiac`` then ``input: applied -> cloud`` per changed input."""
+    mark = {"changed": "!", "deleted": "x", "added": "!+"}[drift.status]
+    lines = [f"{mark} {drift.type} {drift.name} {VERB[drift.status]}" + (f": {drift.detail}" if drift.detail else "")]
+    return lines + [f"    {path}: {_value(applied)} (applied) -> {_value(cloud)} (cloud)"
+                    for path, applied, cloud in drift.changes]
+
+
 def cost_line(diff: PlanDiff) -> str:
     delta = diff.cost_after - diff.cost_before
     sign = "+" if delta >= 0 else "-"
@@ -87,6 +96,8 @@ def cost_line(diff: PlanDiff) -> str:
 def sections(diff: PlanDiff) -> list[tuple[str, list[str]]]:
     """(title, lines) for each part of the diff that is not empty, in the order a reviewer reads."""
     out = [("exposure widened", [f"! {line}" for line in diff.exposure]),
+           (f"drift (the cloud as refreshed at {diff.refreshed_at})",
+            [line for d in diff.drift for line in drift_lines(d)]),
            ("security rules", section_lines(diff.security_rules, _rule)),
            ("cost", [cost_line(diff)] if diff.cost_before != diff.cost_after else []),
            ("resources", [line for r in diff.changed_resources for line in resource_lines(r)]),

@@ -22,7 +22,7 @@ from fogiac.errors import CloudError, EngineError, FogiacError, ProvisionError
 from fogiac.manifest.schema import Manifest
 from fogiac.net.vpn import write_client_profile
 from fogiac.orchestrate import edge_idle_since, ensure_edge_master, provision_and_connect, stop_edge
-from fogiac.plan import guard
+from fogiac.plan import drift, guard
 from fogiac.plan.catalog import catalog
 from fogiac.plan.document import APPLIED_FILE, plan_document
 from fogiac.plan.model import Plan
@@ -31,7 +31,7 @@ from fogiac.provision import SshAccess
 from fogiac.provision.runner import KNOWN_HOSTS
 from fogiac.state import read_json, stack_dir, stack_lock, write_json_atomic
 from fogiac.tables import table
-from fogiac.targets.aws import api, engine, offline, placement, spot
+from fogiac.targets.aws import api, engine, observe, offline, placement, spot
 from fogiac.targets.aws import sweep as sweeping
 from fogiac.targets.base import (
     Check,
@@ -46,6 +46,7 @@ from fogiac.targets.base import (
 
 COMPUTE_KINDS = ("instance", "key-pair", "network-interface")  # what --keep-network still sweeps
 NETWORK_SINCE = "network_since"  # in outputs.json: when the network stack (Client VPN association) was first applied
+OPERATOR_CIDRS = "operator_cidrs"  # in outputs.json: what ssh_from resolved to at the last up (refresh compares)
 HOST_KEYS_FILE = "host-keys.json"  # instance id -> SHA256 fingerprints pinned from its first boot's console
 SSH_USER = "ubuntu"  # the login of both images compile chooses (Ubuntu, AWS Deep Learning Base)
 
@@ -86,6 +87,7 @@ class AwsTarget:
                 ensure_edge_master(plan, master, start=opts.start_edge_master)
             commit()
             deployment.begin(plan, opts.manifest_path)  # before the engine creates anything
+            drift.clear(plan.stack)  # the apply changes the cloud: the last refresh no longer describes it
             started = api.start_stopped(plan.stack, region=plan.region, known_ids=engine.known_ids(plan.stack))
             if started:
                 opts.announce(f"started {', '.join(started)} again (stopped while idle): the same instances, "
@@ -94,7 +96,8 @@ class AwsTarget:
             folder = stack_dir(plan.stack)
             since = recorded.get(NETWORK_SINCE) or round(time.time())  # what the cost guard counts from
             fallen = [h.name for h in plan.hosts if not h.spot and h.name in asked_spot]
-            write_json_atomic(folder / engine.OUTPUTS_FILE, {"zone": plan.zone, NETWORK_SINCE: since, **outputs,
+            write_json_atomic(folder / engine.OUTPUTS_FILE, {"zone": plan.zone, NETWORK_SINCE: since,
+                                                             OPERATOR_CIDRS: list(report.operator_cidrs), **outputs,
                                                              **({spot.ON_DEMAND: fallen} if fallen else {})})
             write_json_atomic(folder / APPLIED_FILE, doc)
             deployment.finish(plan, opts.manifest_path, plan_digest=doc["plan_digest"])
@@ -147,6 +150,7 @@ class AwsTarget:
             errors = engine.Engine(plan, on_event=opts.on_event).destroy(layers=layers)
             result = self._sweep(plan, dry_run=False, kinds=COMPUTE_KINDS if opts.keep_network else None)
             folder = stack_dir(plan.stack)
+            drift.clear(plan.stack)
             if not result.left:
                 (folder / APPLIED_FILE).unlink(missing_ok=True)
                 (folder / HOST_KEYS_FILE).unlink(missing_ok=True)  # no instance left to know them by
@@ -173,7 +177,10 @@ class AwsTarget:
         now = time.time() if now is None else now
         rows = api.status(plan.stack, region=plan.region, now=_dt.datetime.fromtimestamp(now, _dt.timezone.utc))
         outputs = read_json(stack_dir(plan.stack, create=False) / engine.OUTPUTS_FILE) or {}
-        return {"stack": plan.stack, "target": plan.target, "region": plan.region, "hosts": [
+        record = deployment.read(plan.stack)
+        return {"stack": plan.stack, "target": plan.target, "region": plan.region,
+                "partial": record is not None and record.partial,
+                "network_only": "network" in outputs and "compute" not in outputs, "hosts": [
             {"host": r.name, "instance_id": r.instance_id, "state": r.state, "machine": r.machine,
              "public_ip": r.public_ip, "private_ip": r.private_ip, "launched": r.launched.isoformat(),
              "uptime_s": round(r.uptime_s), "cost_usd": r.cost_usd,
@@ -183,8 +190,15 @@ class AwsTarget:
 
     def render_status(self, doc: Mapping[str, Any]) -> list[Any]:
         guarded = guard.render(doc["cost"]) if doc.get("cost") else []
+        partial = []
+        if doc.get("partial") and doc.get("network_only"):
+            partial = [f"{doc['stack']}: network only (down --keep-network); `fogiac up` makes the compute "
+                       "again, `fogiac down` removes the network"]
+        elif doc.get("partial"):
+            partial = [f"{doc['stack']}: partial: the last up did not finish; `fogiac up` completes it, "
+                       "`fogiac down` removes what it made"]
         if not doc["hosts"]:
-            return [f"{doc['stack']}: no instances", *guarded]
+            return [*partial, f"{doc['stack']}: no instances", *guarded]
         out = table(f"{doc['stack']} ({doc['region']})", "host", "instance", "state", "type", "public", "private",
                     "uptime", "cost so far")
         for h in doc["hosts"]:
@@ -194,7 +208,7 @@ class AwsTarget:
             machine = h["machine"] + (" (spot)" if h.get("market") == "spot" else "")
             out.add_row(h["host"], h["instance_id"], state, machine, h["public_ip"] or "-",
                         h["private_ip"] or "-", f"{h['uptime_s'] / 3600:.1f} h", f"${h['cost_usd']:.2f}")
-        return [out, *guarded]
+        return [*partial, out, *guarded]
 
     def doctor(self, plan: Plan, *, ssh_from: str | None = None) -> list[Check]:
         """Every check ``up`` would make, each as (what, ok, detail); nothing is created."""
@@ -217,8 +231,24 @@ class AwsTarget:
         ]
 
     def refresh(self, plan: Plan) -> list[Refreshed]:
+        """The engine's refresh of each layer, then what EC2 reports, recorded with its drift for ``plan``."""
         with stack_lock(plan.stack, operation="refresh"):
-            return [Refreshed(r.layer, r.ok, r.summary) for r in engine.Engine(plan).refresh()]
+            layers = engine.Engine(plan).refresh()
+            lines = [Refreshed(r.layer, r.ok, r.summary) for r in layers]
+            applied = read_json(stack_dir(plan.stack) / APPLIED_FILE)
+            if not isinstance(applied, dict):
+                return lines  # nothing applied: nothing the cloud could have drifted from
+            seen = observe.observe(plan.stack, region=plan.region)
+            recorded = read_json(stack_dir(plan.stack) / engine.OUTPUTS_FILE) or {}
+            found = observe.compare(applied, seen, operator_cidrs=recorded.get(OPERATOR_CIDRS))
+            drift.record(plan.stack, outputs={r.layer: dict(r.outputs) for r in layers if r.ok}, observed=seen,
+                         drift=found)
+            what = (f"{len(seen['instances'])} instance(s) and {len(seen['security_groups'])} security group(s) "
+                    "as AWS reports them; ")
+            if not found:
+                return [*lines, Refreshed("cloud", True, what + "no drift from what was applied")]
+            names = ", ".join(f"{d.name} ({drift.VERB[d.status]})" for d in found)
+            return [*lines, Refreshed("cloud", True, what + f"{len(found)} drifted: {names}; `fogiac plan` shows how")]
 
     def sweep(self, plan: Plan, *, dry_run: bool) -> SweepOutcome:
         # Deleting takes the stack's lock, so a sweep cannot delete what a running up is creating;

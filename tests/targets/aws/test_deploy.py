@@ -9,6 +9,7 @@ state knows, the report of what is left, the exit status and the state files.
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 from typing import Any
@@ -17,11 +18,12 @@ import pytest
 from botocore.exceptions import ClientError
 from typer.testing import CliRunner
 
+from fogiac import deployment
 from fogiac.certs import new_bundle
 from fogiac.cli import app
 from fogiac.errors import EngineError
-from fogiac.targets.aws.engine import LAYERS, OUTPUTS_FILE, PULUMI_CLI_VERSION, SSH_KEY_FILE, Engine
-from fogiac.state import stack_dir, write_json_atomic
+from fogiac.state import read_json, stack_dir, write_json_atomic
+from fogiac.targets.aws.engine import LAYERS, OUTPUTS_FILE, PULUMI_CLI_VERSION, SSH_KEY_FILE, Engine, LayerResult
 
 from .harness import Harness, InjectedFailure
 from .plans import make_plan, write_manifest
@@ -54,6 +56,10 @@ def engine_is_harness(aws_env: str, tmp_path: Path, monkeypatch: pytest.MonkeyPa
 
         def destroy(self, *, layers: tuple[str, ...] = ("compute", "network")) -> list[str]:
             return harness.destroy(layers=layers)
+
+        def refresh(self) -> list[LayerResult]:  # the engine reads back the outputs it made: outputs.json here
+            made = read_json(stack_dir(self.plan.stack) / OUTPUTS_FILE) or {}
+            return [LayerResult(layer, True, made[layer], "no changes") for layer in LAYERS if layer in made]
 
     monkeypatch.setattr("fogiac.targets.aws.engine.Engine", HarnessEngine)
     monkeypatch.setattr("fogiac.targets.aws.sweep.time.sleep", lambda s: None)  # bounded retries, without the waiting
@@ -141,14 +147,16 @@ def test_keep_network_removes_compute_and_says_what_the_network_costs(engine_is_
     outputs = engine_is_harness.apply(plan, certs=new_bundle(plan.stack), operator_cidrs=("203.0.113.7/32",),
                                       public_key_openssh=PUBLIC_KEY)
     write_json_atomic(stack_dir(plan.stack) / OUTPUTS_FILE, {"zone": "us-west-2a", **outputs})
+    deployment.finish(plan, path, plan_digest="applied")  # as up records it
     result = down(str(path), "--yes", "--keep-network")
     assert result.exit_code == 0, result.output
     assert "kept the network stack: $0.10/h while kept (Client VPN association; VPC, subnets and gateway are free)" \
         in result.stdout
+    assert fogiac("status", str(path)).stdout.splitlines()[0] == (
+        "kept-dev: network only (down --keep-network); `fogiac up` makes the compute again, `fogiac down` removes "
+        "the network")
     left = _tagged(ec2, plan.stack)
     assert left["instances"] == [] and left["keys"] == [] and left["vpcs"] == [outputs["network"]["vpc_id"]]
-    from fogiac.state import read_json
-
     assert set(read_json(stack_dir(plan.stack) / OUTPUTS_FILE)) == {"zone", "network"}
     assert down(str(path), "--yes").exit_code == 0
     assert _tagged(ec2, plan.stack) == {"vpcs": [], "instances": [], "keys": []}
@@ -205,3 +213,28 @@ def test_plan_diffs_against_what_an_apply_recorded(engine_is_harness: Harness, e
     assert any(line.strip().startswith("~ aws:ec2/instance:Instance diffed-dev-host-planner") for line in lines), lines
     assert "      instanceType: c5.large -> c5.xlarge" in lines  # changed in place, as AWS does (stop, modify, start)
     assert down(str(path), "--yes").exit_code == 0
+
+
+def test_status_shows_a_failed_up_as_partial_until_down(engine_is_harness: Harness, ec2: Any,
+                                                        tmp_path: Path) -> None:
+    """AWS refuses the compute layer (a key pair of the stack's name is there already): the network
+    exists, the deployment record says partial, and status says so, as on the local target."""
+    path = write_manifest(tmp_path, "broken", nodes=(("planner", "c5.large"),))
+    ec2.import_key_pair(KeyName="fogiac-broken-dev", PublicKeyMaterial=PUBLIC_KEY.encode())
+    try:
+        failed = fogiac("up", str(path), "--yes", "--infra-only")
+        assert failed.exit_code == 1, failed.output
+        assert "compute stack failed" in failed.stderr
+        assert _tagged(ec2, "broken-dev")["vpcs"]  # the network was made before the refusal
+        shown = fogiac("status", str(path))
+        assert shown.exit_code == 0, shown.output
+        assert shown.stdout.splitlines()[:2] == [
+            "broken-dev: partial: the last up did not finish; `fogiac up` completes it, `fogiac down` removes "
+            "what it made", "broken-dev: no instances"]
+        assert json.loads(fogiac("status", str(path), "--json").stdout)["partial"] is True
+    finally:
+        ec2.delete_key_pair(KeyName="fogiac-broken-dev")
+    assert down(str(path), "--yes").exit_code == 0
+    after = fogiac("status", str(path))
+    assert after.exit_code == 0 and "partial" not in after.stdout, after.output
+    assert _tagged(ec2, "broken-dev") == {"vpcs": [], "instances": [], "keys": []}

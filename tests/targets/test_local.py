@@ -60,14 +60,14 @@ def _pids_alive(pids: list[int]) -> list[int]:
 def _started_pids(state: Path) -> list[int]:
     pids = []
     for pid_file in state.rglob("*.pid"):
-        try:
-            pids.append(int(pid_file.read_text().strip()))
-        except ValueError:
+        try:  # "PID STARTTIME": the start time proves the pid is still the process that was started
+            pids.append(int(pid_file.read_text().split()[0]))
+        except (ValueError, IndexError):
             pass
     for child in state.rglob("*.child"):
         try:
-            pids.append(int(child.read_text().strip()))
-        except ValueError:
+            pids.append(int(child.read_text().split()[0]))
+        except (ValueError, IndexError):
             pass
     return pids
 

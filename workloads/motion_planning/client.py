@@ -54,16 +54,26 @@ def request_paths(names: Sequence[str], *, timeout: float = 120.0,
     """Send one request per problem name, in turn, and wait for each path. Needs rospy.init_node done."""
     cond = threading.Condition()
     paths: dict[tuple[str, int], Any] = {}
-    last_compute = [0.0]
+    # The node publishes a request's compute time, then its path, on two topics: two connections,
+    # so either may arrive first. Each request gets one of each; times are matched by arrival after sending.
+    compute_times: list[tuple[float, float]] = []  # (received, seconds)
 
     def on_time(msg: Float64) -> None:
         with cond:
-            last_compute[0] = msg.data
+            compute_times.append((time.perf_counter(), msg.data))
+            cond.notify_all()
 
     def on_path(msg: PoseArray) -> None:
         with cond:
-            paths[(msg.header.frame_id, msg.header.stamp.to_nsec())] = (time.perf_counter(), last_compute[0], msg)
+            paths[(msg.header.frame_id, msg.header.stamp.to_nsec())] = (time.perf_counter(), msg)
             cond.notify_all()
+
+    def compute_since(sent: float) -> float | None:
+        fresh = [seconds for received, seconds in compute_times if received >= sent]
+        return fresh[0] if fresh else None
+
+    def has_compute_since(sent: float) -> bool:
+        return compute_since(sent) is not None
 
     subs = [rospy.Subscriber(COMPUTE_TIME_TOPIC, Float64, on_time, queue_size=10),
             rospy.Subscriber(PATH_TOPIC, PoseArray, on_path, queue_size=10)]
@@ -83,7 +93,11 @@ def request_paths(names: Sequence[str], *, timeout: float = 120.0,
             with cond:
                 if not cond.wait_for(partial(operator.contains, paths, key), timeout=timeout):
                     raise WorkloadError(f"no path for {name!r} on {PATH_TOPIC} within {timeout:g} s")
-                received, compute, msg = paths.pop(key)
+                if not cond.wait_for(partial(has_compute_since, sent), timeout=timeout):
+                    raise WorkloadError(f"no compute time for {name!r} on {COMPUTE_TIME_TOPIC} within {timeout:g} s")
+                received, msg = paths.pop(key)
+                compute = compute_since(sent) or 0.0
+                compute_times.clear()
             path = tuple(pose_from_msg(p) for p in msg.poses)
             timings.append(Timing(name, bool(path), received - sent, compute, path))
         return timings

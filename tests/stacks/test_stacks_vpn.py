@@ -62,10 +62,10 @@ def test_acm_gets_the_bundle_with_private_keys_as_secrets(recorded: tuple[Record
     recorder, _ = recorded
     server = recorder.inputs["minimal-dev-cert-server"]
     client = recorder.inputs["minimal-dev-cert-client"]
-    assert server["certificateBody"] == bundle.server.cert_pem.decode()
+    assert server["certificateBody"] == bundle.vpn.cert_pem.decode()
     assert client["certificateBody"] == bundle.client.cert_pem.decode()
     assert server["certificateChain"] == client["certificateChain"] == bundle.ca.cert_pem.decode()
-    for inputs, pair in ((server, bundle.server), (client, bundle.client)):
+    for inputs, pair in ((server, bundle.vpn), (client, bundle.client)):
         assert is_secret(inputs["privateKey"])
         assert inputs["privateKey"]["value"] == pair.key_pem.decode()
     endpoint = recorder.inputs["minimal-dev-endpoint"]

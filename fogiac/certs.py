@@ -1,8 +1,11 @@
-"""Certificates for the stack's mutual TLS: one CA, a server and client certificates.
+"""Certificates for the stack's mutual TLS: one CA, the Client VPN endpoint's, the edge's, one per host.
 
 AWS Client VPN requires RSA 2048 keys, so everything here is RSA 2048 for one code path.
-The relay (edge and cloud ends) and the Client VPN endpoint trust the same CA. Private keys are
-written 0600 and never printed; callers that put them into Pulumi mark them secret.
+The relay (edge and cloud ends) and the Client VPN endpoint trust the same CA. The operator's
+machine keeps the CA key and the keys it uses itself (the VPN endpoint's, imported into ACM, and
+the edge's client key); a host's relay key is made on the host and only its CSR comes here to
+be signed (:func:`sign_csr`). Private keys are written 0600 and never printed; callers that put
+them into Pulumi mark them secret.
 """
 
 from __future__ import annotations
@@ -13,15 +16,18 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from cryptography import x509
+from cryptography.exceptions import InvalidSignature
 from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import rsa
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
+from fogiac.errors import CertError
 from fogiac.plan.model import server_name
 from fogiac.state import write_atomic
 
 _VALID_DAYS = 825
+_RENEW_DAYS = 30  # a host's certificate is reissued when it has less left
 
 
 @dataclass(frozen=True)
@@ -39,11 +45,17 @@ class KeyPair:
 
 @dataclass(frozen=True)
 class Bundle:
-    """What a stack needs: the CA, a server certificate and a client certificate."""
+    """What the operator's machine holds for a stack: the CA, the Client VPN endpoint's server
+    certificate (imported into ACM, never sent to a host) and the edge's client certificate."""
 
     ca: KeyPair
-    server: KeyPair
+    vpn: KeyPair
     client: KeyPair
+
+
+def relay_name(stack: str, host: str) -> str:
+    """The name in ``host``'s relay certificate, which the edge relay dialing that host checks."""
+    return f"{host}.relay.{stack}.fogiac"
 
 
 def _new_key() -> rsa.RSAPrivateKey:
@@ -86,29 +98,19 @@ def new_ca(common_name: str) -> KeyPair:
     return KeyPair(cert.public_bytes(serialization.Encoding.PEM), _key_pem(key))
 
 
-def issue(
-    ca: KeyPair,
-    common_name: str,
-    *,
-    server: bool,
-    dns_names: tuple[str, ...] = (),
-    ip_addresses: tuple[str, ...] = (),
-) -> KeyPair:
-    """Issue a leaf certificate signed by ``ca``; server ones carry serverAuth, others clientAuth.
-
-    AWS ACM only imports a server certificate whose subject has a domain name, so callers give
-    server certificates a DNS-style common name and repeat it in ``dns_names``.
-    """
+def _sign(
+    ca: KeyPair, public_key: rsa.RSAPublicKey, common_name: str, *, server: bool,
+    dns_names: tuple[str, ...] = (), ip_addresses: tuple[str, ...] = (),
+) -> bytes:
     ca_cert = x509.load_pem_x509_certificate(ca.cert_pem)
     ca_key = serialization.load_pem_private_key(ca.key_pem, password=None)
-    key = _new_key()
     now = _dt.datetime.now(_dt.timezone.utc)
     usage = ExtendedKeyUsageOID.SERVER_AUTH if server else ExtendedKeyUsageOID.CLIENT_AUTH
     builder = (
         x509.CertificateBuilder()
         .subject_name(_name(common_name))
         .issuer_name(ca_cert.subject)
-        .public_key(key.public_key())
+        .public_key(public_key)
         .serial_number(x509.random_serial_number())
         .not_valid_before(now - _dt.timedelta(minutes=5))
         .not_valid_after(now + _dt.timedelta(days=_VALID_DAYS))
@@ -131,18 +133,74 @@ def issue(
     alt_names += [x509.IPAddress(ipaddress.ip_address(a)) for a in ip_addresses]
     if alt_names:
         builder = builder.add_extension(x509.SubjectAlternativeName(alt_names), critical=False)
-    cert = builder.sign(ca_key, hashes.SHA256())  # type: ignore[arg-type]
-    return KeyPair(cert.public_bytes(serialization.Encoding.PEM), _key_pem(key))
+    return builder.sign(ca_key, hashes.SHA256()).public_bytes(serialization.Encoding.PEM)  # type: ignore[arg-type]
+
+
+def issue(
+    ca: KeyPair,
+    common_name: str,
+    *,
+    server: bool,
+    dns_names: tuple[str, ...] = (),
+    ip_addresses: tuple[str, ...] = (),
+) -> KeyPair:
+    """Issue a leaf certificate and its new key, signed by ``ca``; server ones carry serverAuth,
+    others clientAuth. Only for keys this machine keeps: a host's key is made on the host.
+
+    AWS ACM only imports a server certificate whose subject has a domain name, so callers give
+    server certificates a DNS-style common name and repeat it in ``dns_names``.
+    """
+    key = _new_key()
+    cert = _sign(ca, key.public_key(), common_name, server=server, dns_names=dns_names, ip_addresses=ip_addresses)
+    return KeyPair(cert, _key_pem(key))
+
+
+def sign_csr(ca: KeyPair, csr_pem: bytes, name: str) -> bytes:
+    """A server certificate for ``name`` over the public key of a host's CSR (PEM).
+
+    Only the CSR's key is taken, after its signature proves the host holds the private half:
+    the name is fogiac's, whatever the request asks for.
+    """
+    try:
+        csr = x509.load_pem_x509_csr(csr_pem)
+    except ValueError:
+        raise CertError(f"the certificate request for {name} is not a PEM CSR") from None
+    key = csr.public_key()
+    if not csr.is_signature_valid:
+        raise CertError(f"the certificate request for {name} is not signed by its own key")
+    if not isinstance(key, rsa.RSAPublicKey) or key.key_size < 2048:
+        raise CertError(f"the certificate request for {name} does not carry an RSA key of 2048 bits or more")
+    return _sign(ca, key, name, server=True, dns_names=(name,))
+
+
+def serves(ca: KeyPair, cert_pem: bytes, name: str, public_key_pem: bytes, *, days: int = _RENEW_DAYS) -> bool:
+    """Whether ``cert_pem`` is ``ca``'s certificate for ``name`` over this public key, valid ``days`` more."""
+    try:
+        cert = x509.load_pem_x509_certificate(cert_pem)
+        cert.verify_directly_issued_by(x509.load_pem_x509_certificate(ca.cert_pem))
+        key = serialization.load_pem_public_key(public_key_pem)
+        names = cert.extensions.get_extension_for_class(x509.SubjectAlternativeName).value
+    except (ValueError, TypeError, InvalidSignature, x509.ExtensionNotFound):
+        return False
+    spki = serialization.PublicFormat.SubjectPublicKeyInfo
+    same_key = (cert.public_key().public_bytes(serialization.Encoding.DER, spki)
+                == key.public_bytes(serialization.Encoding.DER, spki))
+    left = cert.not_valid_after_utc - _dt.datetime.now(_dt.timezone.utc)
+    return same_key and name in names.get_values_for_type(x509.DNSName) and left > _dt.timedelta(days=days)
+
+
+def _vpn_pair(ca: KeyPair, stack: str) -> KeyPair:
+    name = server_name(stack)
+    return issue(ca, name, server=True, dns_names=(name,))
+
+
+def _client_pair(ca: KeyPair, stack: str) -> KeyPair:
+    return issue(ca, f"client.{stack}.fogiac", server=False)
 
 
 def new_bundle(stack: str) -> Bundle:
     ca = new_ca(f"fogiac CA {stack}")
-    name = server_name(stack)
-    return Bundle(
-        ca=ca,
-        server=issue(ca, name, server=True, dns_names=(name,)),
-        client=issue(ca, f"client.{stack}.fogiac", server=False),
-    )
+    return Bundle(ca=ca, vpn=_vpn_pair(ca, stack), client=_client_pair(ca, stack))
 
 
 def write_private(path: Path, data: bytes) -> None:
@@ -150,36 +208,67 @@ def write_private(path: Path, data: bytes) -> None:
     write_atomic(path, data, mode=0o600)
 
 
-_FILES = {
-    "ca": ("ca.pem", "ca.key"),
-    "server": ("server.pem", "server.key"),
-    "client": ("client.pem", "client.key"),
-}
+_ROLES = ("ca", "vpn", "client")  # each as ROLE.pem (0644) and ROLE.key (0600)
+_SHARED_SERVER = ("server.pem", "server.key")  # before per-host keys: one server key sent to every host
+
+
+def save_pair(directory: Path, role: str, pair: KeyPair) -> None:
+    """Write ``role``.key (0600) and ``role``.pem (0644) under ``directory``."""
+    directory.mkdir(parents=True, exist_ok=True)
+    write_private(directory / f"{role}.key", pair.key_pem)
+    (directory / f"{role}.pem").write_bytes(pair.cert_pem)
+
+
+def _load_pair(directory: Path, role: str) -> KeyPair | None:
+    cert, key = directory / f"{role}.pem", directory / f"{role}.key"
+    return KeyPair(cert.read_bytes(), key.read_bytes()) if cert.exists() and key.exists() else None
 
 
 def save_bundle(bundle: Bundle, directory: Path) -> None:
-    """Write the bundle as ca/server/client .pem (0644) and .key (0600) files."""
-    directory.mkdir(parents=True, exist_ok=True)
-    for role, (cert_file, key_file) in _FILES.items():
-        pair: KeyPair = getattr(bundle, role)
-        write_private(directory / key_file, pair.key_pem)
-        (directory / cert_file).write_bytes(pair.cert_pem)
+    """Write the bundle as ca/vpn/client .pem (0644) and .key (0600) files."""
+    for role in _ROLES:
+        save_pair(directory, role, getattr(bundle, role))
 
 
 def load_bundle(directory: Path) -> Bundle:
-    pairs = {}
-    for role, (cert_file, key_file) in _FILES.items():
-        pairs[role] = KeyPair((directory / cert_file).read_bytes(), (directory / key_file).read_bytes())
-    return Bundle(**pairs)
+    pairs = {role: _load_pair(directory, role) for role in _ROLES}
+    missing = [role for role, pair in pairs.items() if pair is None]
+    if missing:
+        raise CertError(f"certificate folder {directory} lacks {', '.join(f'{r}.pem/.key' for r in missing)}")
+    return Bundle(**pairs)  # type: ignore[arg-type]
 
 
 def load_or_create_bundle(stack: str, directory: Path) -> Bundle:
-    """The stack's persisted bundle, created on first use so re-applies keep the same CA."""
-    if all((directory / f).exists() for files in _FILES.values() for f in files):
-        return load_bundle(directory)
-    bundle = new_bundle(stack)
-    save_bundle(bundle, directory)
+    """The stack's persisted bundle, created on first use so re-applies keep the same CA.
+
+    A folder from before per-host keys keeps its CA and client certificate, gains a VPN
+    certificate of its own and loses the shared server key (hosts get their own on the next up).
+    """
+    ca = _load_pair(directory, "ca")
+    if ca is None:
+        bundle = new_bundle(stack)
+        save_bundle(bundle, directory)
+    else:
+        made = {"vpn": _vpn_pair, "client": _client_pair}
+        for role, make in made.items():
+            if _load_pair(directory, role) is None:
+                save_pair(directory, role, make(ca, stack))
+        bundle = load_bundle(directory)
+    for name in _SHARED_SERVER:
+        (directory / name).unlink(missing_ok=True)
     return bundle
+
+
+def write_relay_lab(stack: str, directory: Path) -> str:
+    """For a relay run by hand (``fogiac relay certs``): ca, client and one cloud-end server
+    certificate (server.pem/.key) in ``directory``; returns the server's name. A stack's hosts
+    never get these: each makes its own key at provisioning."""
+    ca = new_ca(f"fogiac CA {stack}")
+    name = relay_name(stack, "server")
+    save_pair(directory, "ca", ca)
+    save_pair(directory, "server", issue(ca, name, server=True, dns_names=(name,)))
+    save_pair(directory, "client", _client_pair(ca, stack))
+    return name
 
 
 SSH_KEY = "id_ed25519"  # under stack_dir(stack)/"ssh": private 0600, public beside it (.pub)

@@ -17,6 +17,7 @@ problem for a :class:`ManifestError`) and exits 1. Anything else escaping is a b
     ├── RelayError             the relay could not start or lost its peer for good
     ├── ZenohError             a Zenoh router could not open (bad config, certificate, port)
     ├── VpnError               OpenVPN could not be set up
+    ├── CertError              a certificate folder or request is unusable
     ├── WorkloadError          a workload's input is unusable
     └── MissingExtra           an optional dependency (fogiac[aws], [ssh], [ros2], [workloads]) is not installed
 """
@@ -83,6 +84,10 @@ class ZenohError(FogiacError):
 
 
 class VpnError(FogiacError):
+    pass
+
+
+class CertError(FogiacError):
     pass
 
 

@@ -20,7 +20,7 @@ from typing import Any
 from urllib.parse import urlparse
 
 from fogiac import deployment
-from fogiac.certs import load_or_create_bundle
+from fogiac.certs import load_or_create_bundle, relay_name
 from fogiac.errors import FogiacError, ProvisionError
 from fogiac.plan import guard
 from fogiac.plan.document import APPLIED_FILE, plan_document
@@ -55,10 +55,11 @@ def edge_dir(plan: Plan) -> Path:
 def _relay_argv(route: RelayRoute, *, stack: str, connect: str, master: str, certs: Path, stats: Path) -> list[str]:
     # One ROS name per relay: a master drops a node when another registers with its name, so
     # the relays of several hosts (or several stacks) on one edge master would evict each other.
+    # The server name is the host's own: another host's certificate (same CA) is refused.
     name = "/fogiac_relay_edge_" + re.sub(r"[^A-Za-z0-9_]", "_", f"{stack}_{route.host}")
     argv = [sys.executable, "-m", "fogiac", "relay", "edge", "--connect", connect, "--master", master,
             "--certs", str(certs), "--stats-file", str(stats), "--queue-depth", str(route.queue_size),
-            "--name", name]
+            "--name", name, "--server-name", relay_name(stack, route.host)]
     argv += route.policy_argv()
     compression = dict(route.compression)
     if "*" in compression:

@@ -1,7 +1,8 @@
 """ClientVpn: the edge's way into the VPC, authenticated by certificates on both sides.
 
-The server and client certificates (RSA 2048, as AWS requires) are imported into ACM; the
-client one's chain is the trust root the endpoint checks clients against (mutual TLS). Split
+The endpoint's own server certificate (never a host's: each host's relay key stays on the
+host) and the client certificate (RSA 2048, as AWS requires) are imported into ACM; the client
+one's chain is the trust root the endpoint checks clients against (mutual TLS). Split
 tunnel: only VPC routes go through it, so the robot keeps its own internet path. Creating the
 association takes about ten minutes, hence the long timeouts.
 """
@@ -54,7 +55,7 @@ class ClientVpn(pulumi.ComponentResource):
                 opts=child,
             )
 
-        self.server_certificate = certificate("server", args.certs.server)
+        self.server_certificate = certificate("server", args.certs.vpn)
         self.client_certificate = certificate("client", args.certs.client)
         spec = args.spec
         self.endpoint = aws.ec2clientvpn.Endpoint(

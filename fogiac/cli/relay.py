@@ -9,7 +9,7 @@ from pathlib import Path
 
 import typer
 
-from fogiac.certs import new_bundle, save_bundle, server_name
+from fogiac.certs import write_relay_lab
 from fogiac.errors import RelayError
 from fogiac.net.relay.cloud import CloudRelay
 from fogiac.net.relay.compression import parse_spec
@@ -95,5 +95,5 @@ def register(app: typer.Typer) -> None:
         """Create a CA with a cloud (server) and an edge (client) certificate; keys are 0600."""
         if (directory / "ca.key").exists():
             raise RelayError(f"{directory} already holds a CA (ca.key); pick another directory")
-        save_bundle(new_bundle(stack), directory)
-        typer.echo(f"wrote ca, server ({server_name(stack)}) and client certificates to {directory}")
+        name = write_relay_lab(stack, directory)
+        typer.echo(f"wrote ca, server ({name}) and client certificates to {directory}")

@@ -145,8 +145,8 @@ def render_server_config(
         client_netmask=str(clients.netmask), proto=proto, listen=listen, port=port,
         routes=[(str(n.network_address), str(n.netmask)) for n in pushed],
         ca_pem=_pem(bundle.ca.cert_pem, what="CA certificate"),
-        cert_pem=_pem(bundle.server.cert_pem, what="server certificate"),
-        key_pem=_pem(bundle.server.key_pem, what="server key"),
+        cert_pem=_pem(bundle.vpn.cert_pem, what="VPN endpoint certificate"),
+        key_pem=_pem(bundle.vpn.key_pem, what="VPN endpoint key"),
     )
 
 

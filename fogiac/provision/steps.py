@@ -13,10 +13,11 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from fogiac.certs import load_bundle, relay_name
 from fogiac.errors import ProvisionError
 from fogiac.net.rosenv import side_env
 from fogiac.plan.model import HostSpec, Plan
-from fogiac.provision import images, venv
+from fogiac.provision import images, relaycert, venv
 from fogiac.provision import services as svc
 from fogiac.provision.host import Host, HostAccess, q
 from fogiac.provision.managers import Manager, manager_for
@@ -29,7 +30,6 @@ CHANGED, OK, SKIPPED = "changed", "ok", "skipped"
 _CODE_IGNORE = ("tests/", "*.npz", "problems/", "*.ipynb")  # the grasp node's model.pt (0.2 MB) goes along
 _ROS_PACKAGES = ("ros-core", "python3-rospy", "python3-std-msgs")
 _ALWAYS_KEPT = ["relay-cloud"]  # started by the relay step, not the services step
-_RELAY_CERTS = (("ca.pem", 0o644), ("server.pem", 0o644), ("server.key", 0o600))
 
 
 @dataclass(frozen=True)
@@ -322,18 +322,20 @@ def relay_available(run: HostRun) -> bool:
 
 
 def step_relay(run: HostRun) -> StepResult:
-    certs = run.options.certs_dir
-    if certs is None:
+    """The cloud end with a certificate of the host's own: its key made there, only the CA's certificate sent."""
+    if run.options.certs_dir is None:
         return SKIPPED, "no relay certificates given"
-    changed = [name for name, mode in _RELAY_CERTS
-               if ensure_file(run, (certs / name).read_bytes(), f"{run.layout.certs}/{name}", mode=mode)]
+    ca = load_bundle(run.options.certs_dir).ca
+    changed = ensure_file(run, ca.cert_pem, f"{run.layout.certs}/ca.pem")
     service = svc.relay_service(run.plan, run.spec, run.where())
     if not relay_available(run):
         ensure_file(run, service.script.encode(), f"{run.layout.services}/{service.name}.sh", mode=0o700)
         return SKIPPED, "relay CLI not installed on the host; service script rendered only"
+    changed |= relaycert.ensure(run.host, python=run.access.python, folder=run.layout.certs, ca=ca,
+                                name=relay_name(run.plan.stack, run.spec.name))
     watchdog = svc.autostop_service(run.plan, run.spec, run.where())
     wanted = (service,) if watchdog is None else (service, watchdog)
-    started = run.manager.ensure(run.host, run.layout, wanted, restart_all=bool(changed), facts=run.facts)
+    started = run.manager.ensure(run.host, run.layout, wanted, restart_all=changed, facts=run.facts)
     what = "relay cloud end" + (" and autostop watchdog" if watchdog is not None else "")
     return (CHANGED, f"{what} started") if started or changed else (OK, f"{what} running")
 

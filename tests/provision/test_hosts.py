@@ -18,7 +18,7 @@ from typing import Iterator
 
 import pytest
 
-from fogiac.certs import load_or_create_bundle
+from fogiac.certs import load_or_create_bundle, relay_name
 from fogiac.plan.compile import compile_plan
 from fogiac.manifest.schema import load_manifest
 from fogiac.plan.model import Plan
@@ -26,6 +26,7 @@ from fogiac.provision import ProvisionReport, SshAccess, provision, teardown
 from fogiac.targets.hosts import HOSTS
 from tests.provision.conftest import hosts_manifest, make_workspace, ros_skip_reason
 from tests.provision.sshlab import LabHost, fingerprint_of, ssh_lab, lab_skip_reason
+from tests.support.tls import dial, private_keys_under, public_der
 
 pytestmark = [pytest.mark.root, pytest.mark.ros]
 
@@ -195,6 +196,20 @@ def test_relay_step_pushes_cloud_certs_private(lab: Deployment) -> None:
     assert (certs / "server.key").stat().st_mode & 0o777 == 0o600
     script = (lab.hosts[0].base_dir / "services" / "relay-cloud.sh").read_text()
     assert f"-m fogiac relay cloud --listen 0.0.0.0:11411 --master http://127.0.0.1:11311 --certs {certs}" in script
+
+
+def test_each_host_has_its_own_relay_key_which_never_left_it(lab: Deployment) -> None:
+    """Over real SSH: the key was made on the host, the operator's folders hold none of it, and
+    the edge dialing h0's running cloud end as h1 refuses h0's certificate."""
+    stack = lab.plan(lab.hosts[:2]).stack
+    mine = [public_der((h.base_dir / "certs" / "server.pem").read_bytes()) for h in lab.hosts[:2]]
+    assert mine[0] != mine[1]
+    operator = {k for folder in (lab.state, lab.certs) for keys in private_keys_under(folder).values() for k in keys}
+    assert not set(mine) & operator
+    address = (lab.hosts[0].address, 11411)
+    assert dial(address, lab.certs, relay_name(stack, "h0")) is None
+    refused = dial(address, lab.certs, relay_name(stack, "h1"))
+    assert refused is not None and "Hostname mismatch" in refused
 
 
 def test_teardown_stops_every_process_and_removes_the_base(lab: Deployment) -> None:

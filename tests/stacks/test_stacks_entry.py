@@ -79,8 +79,8 @@ def test_network_then_compute_layer(config: _Config, _state_dir: Path) -> None:
     assert exports["vpn_endpoint_id"] == "id-minimal-dev-endpoint"
     assert network.inputs["minimal-dev-hosts-in-tcp-22-192.0.2.7-32"]["cidrIpv4"] == "192.0.2.7/32"
     assert sorted(p.name for p in (_state_dir / "minimal-dev" / "certs").iterdir()) == [
-        "ca.key", "ca.pem", "client.key", "client.pem", "server.key", "server.pem"
-    ]
+        "ca.key", "ca.pem", "client.key", "client.pem", "vpn.key", "vpn.pem"
+    ]  # no host's key: each host makes its own
 
     config.update({"fogiac:layer": "compute", "fogiac:networkStack": "minimal-dev-network"})
     compute = Recorder()

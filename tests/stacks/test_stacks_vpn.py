@@ -2,13 +2,20 @@
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import pytest
 
-from fogiac.certs import Bundle, new_bundle
+from fogiac.certs import Bundle, new_bundle, relay_name, save_bundle, save_pair
+from fogiac.provision import relaycert
+from fogiac.provision.local import LocalHost
 from fogiac.targets.aws.offline import OfflinePlan
 from stacks.program import network_program
 
 from .conftest import EXAMPLES, compiled
+from tests.support.tls import handshake, public_der
+
 from .recorder import Recorder, is_secret
 
 
@@ -62,10 +69,10 @@ def test_acm_gets_the_bundle_with_private_keys_as_secrets(recorded: tuple[Record
     recorder, _ = recorded
     server = recorder.inputs["minimal-dev-cert-server"]
     client = recorder.inputs["minimal-dev-cert-client"]
-    assert server["certificateBody"] == bundle.server.cert_pem.decode()
+    assert server["certificateBody"] == bundle.vpn.cert_pem.decode()
     assert client["certificateBody"] == bundle.client.cert_pem.decode()
     assert server["certificateChain"] == client["certificateChain"] == bundle.ca.cert_pem.decode()
-    for inputs, pair in ((server, bundle.server), (client, bundle.client)):
+    for inputs, pair in ((server, bundle.vpn), (client, bundle.client)):
         assert is_secret(inputs["privateKey"])
         assert inputs["privateKey"]["value"] == pair.key_pem.decode()
     endpoint = recorder.inputs["minimal-dev-endpoint"]
@@ -92,3 +99,28 @@ def test_ids_from_the_mocks_flow_into_dependants(recorded: tuple[Recorder, dict]
     assert ssh["cidrIpv4"] == "192.0.2.7/32"
     assert ssh["securityGroupId"] == "id-minimal-dev-sg-hosts"
 
+
+
+def test_acm_server_certificate_is_no_hosts(recorded: tuple[Recorder, dict], bundle: Bundle, tmp_path: Path) -> None:
+    """The endpoint's certificate is its own: every host's relay certificate (made the way
+    provisioning makes it, key on the host) differs from it, and the edge dialing a host refuses it."""
+    recorder, _ = recorded
+    acm = recorder.inputs["minimal-dev-cert-server"]["certificateBody"].encode()
+    assert acm == bundle.vpn.cert_pem
+    plan = compiled(EXAMPLES / "minimal.yaml")
+    edge = tmp_path / "edge"
+    save_bundle(bundle, edge)
+    endpoint = tmp_path / "endpoint"  # a cloud end that shows the VPN endpoint's certificate
+    save_pair(endpoint, "server", bundle.vpn)
+    (endpoint / "ca.pem").write_bytes(bundle.ca.cert_pem)
+    assert plan.hosts
+    for spec in plan.hosts:
+        host = LocalHost(name=spec.name, base=str(tmp_path / "hosts" / spec.name))
+        host.connect()
+        folder = f"{host.base}/certs"
+        assert relaycert.ensure(host, python=sys.executable, folder=folder, ca=bundle.ca,
+                                name=relay_name(plan.stack, spec.name))
+        mine = Path(folder, "server.pem").read_bytes()
+        assert mine != acm and public_der(mine) != public_der(acm)
+        refused = handshake(endpoint, edge, relay_name(plan.stack, spec.name))
+        assert refused is not None and "Hostname mismatch" in refused

@@ -100,7 +100,7 @@ def offline_bundle(stack: str) -> Bundle:
     def pair(role: str) -> KeyPair:
         return KeyPair(f"<{role} certificate of {stack}, made at up>".encode(), f"<{role} key>".encode())
 
-    return Bundle(ca=pair("CA"), server=pair("server"), client=pair("client"))
+    return Bundle(ca=pair("CA"), vpn=pair("VPN endpoint"), client=pair("client"))
 
 
 def offline_public_key(stack: str) -> str:

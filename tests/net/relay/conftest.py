@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from fogiac.certs import new_bundle, save_bundle
+from fogiac.certs import write_relay_lab
 from tests.net.relay.relay_support import Master, Procs, ros_missing
 
 
@@ -23,7 +23,7 @@ def ros_ready() -> None:
 @pytest.fixture(scope="session")
 def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
     directory = tmp_path_factory.mktemp("certs")
-    save_bundle(new_bundle("relaytest"), directory)
+    write_relay_lab("relaytest", directory)
     return directory
 
 

@@ -23,7 +23,7 @@ def test_certs_writes_a_bundle_with_private_keys_and_prints_no_key(tmp_path: Pat
     assert "PRIVATE KEY" not in result.output
     for key in ("ca.key", "server.key", "client.key"):
         assert stat.S_IMODE((tmp_path / "c" / key).stat().st_mode) == 0o600
-    assert expected_server_name(tmp_path / "c") == "server.lab.fogiac"
+    assert expected_server_name(tmp_path / "c") == "server.relay.lab.fogiac"
     again = runner.invoke(app, ["certs", str(tmp_path / "c")])
     assert again.exit_code == 1
     assert "already holds a CA (ca.key); pick another directory" in again.output

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from fogiac.certs import new_bundle, save_bundle
+from fogiac.certs import write_relay_lab
 from fogiac.net.relay import CloudConfig, CloudRelay, EdgeConfig, EdgeRelay, TopicPolicy, read_stats
 from fogiac.net.relay.tls import client_context, expected_server_name
 from tests.net.relay.relay_support import Master, Procs, free_port, indices, string_msg, wait_for
@@ -109,7 +109,7 @@ def test_compressed_topics_round_trip(masters: tuple[Master, Master], certs: Pat
 def test_wrong_client_certificate_is_refused(masters: tuple[Master, Master], certs: Path, tmp_path: Path,
                                              caplog: pytest.LogCaptureFixture) -> None:
     rogue = tmp_path / "rogue"
-    save_bundle(new_bundle("rogue"), rogue)
+    write_relay_lab("rogue", rogue)
     shutil.copy(certs / "ca.pem", rogue / "ca.pem")  # trusts the real cloud, shows a foreign client cert
     shutil.copy(certs / "server.pem", rogue / "server.pem")
     caplog.set_level(logging.INFO, logger="fogiac.net.relay")

@@ -42,7 +42,7 @@ def leak(ec2: Any, acm: Any, stack: str) -> dict[str, str]:
                                  TagSpecifications=_tags(stack, "instance"))["Instances"][0]["InstanceId"]
     address = ec2.allocate_address(Domain="vpc", TagSpecifications=_tags(stack, "elastic-ip"))["AllocationId"]
     bundle = new_bundle(stack)
-    cert = acm.import_certificate(Certificate=bundle.server.cert_pem, PrivateKey=bundle.server.key_pem,
+    cert = acm.import_certificate(Certificate=bundle.vpn.cert_pem, PrivateKey=bundle.vpn.key_pem,
                                   CertificateChain=bundle.ca.cert_pem,
                                   Tags=[{"Key": "fogiac:stack", "Value": stack}])["CertificateArn"]
     return {"vpc": vpc, "subnet": subnet, "internet-gateway": igw, "route-table": table, "key-pair": key,

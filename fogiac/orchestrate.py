@@ -176,6 +176,8 @@ class ExistingMachines:
             connect = {host: self.connect_address(plan, host, a) for host, a in access.items()}
             done = provision_and_connect(plan, access=access, connect=connect, master=master,
                                          started_edge_master=opts.start_edge_master)
+            for note in done.notes:
+                opts.announce(note)
             # What `fogiac plan` compares with (the same document it builds), as the aws target records it.
             applied = plan_document(plan, self.declare(plan), manifest=opts.manifest_path)
             write_json_atomic(stack_dir(plan.stack) / APPLIED_FILE, applied)

@@ -9,23 +9,20 @@ alive, nothing of the target left. Everything lives in the stack's state folder.
 
 from __future__ import annotations
 
-import re
-import sys
 import time
-import xmlrpc.client
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
-from urllib.parse import urlparse
 
 from fogiac import deployment
-from fogiac.certs import load_or_create_bundle, relay_name
+from fogiac.certs import load_or_create_bundle
 from fogiac.errors import FogiacError, ProvisionError
+from fogiac.net import middleware
+from fogiac.net.relay import deploy
 from fogiac.plan import guard
 from fogiac.plan.document import APPLIED_FILE, plan_document
-from fogiac.plan.model import HostSpec, Plan, RelayRoute
-from fogiac.procs import poll
+from fogiac.plan.model import HostSpec, Plan
 from fogiac.provision import HostAccess, provision, recorded_access, supervise, teardown
 from fogiac.state import read_json, stack_dir, stack_lock, write_json_atomic
 from fogiac.tables import table
@@ -33,10 +30,7 @@ from fogiac.targets.base import DownOptions, DownResult, Refreshed, SweepOutcome
 
 DEPLOYMENT_FILE = "deployment.json"
 EDGE_DIR = "edge"
-EDGE_MASTER = "edge-master"
-# The edge relay counts directions as the edge sees them (it sends "out" what the manifest calls "in");
-# status shows them as the manifest says.
-MANIFEST_DIRECTION = {"out": "in", "in": "out", "-": "-"}
+EDGE_MASTER = deploy.EDGE_MASTER  # the demo's edge roscore, kept by down --keep-master
 STATS_STALE_S = 30.0  # a relay writes its stats every second: this much older and it no longer runs
 
 
@@ -46,58 +40,22 @@ class FleetUp:
     relays: Mapping[str, str]  # host -> HOST:PORT the edge relay connects to
     edge_master: str
     deployment: Path
+    notes: tuple[str, ...] = ()  # the middleware's lines for the user: files written, what to install
 
 
 def edge_dir(plan: Plan) -> Path:
     return stack_dir(plan.stack) / EDGE_DIR
 
 
-def _relay_argv(route: RelayRoute, *, stack: str, connect: str, master: str, certs: Path, stats: Path) -> list[str]:
-    # One ROS name per relay: a master drops a node when another registers with its name, so
-    # the relays of several hosts (or several stacks) on one edge master would evict each other.
-    # The server name is the host's own: another host's certificate (same CA) is refused.
-    name = "/fogiac_relay_edge_" + re.sub(r"[^A-Za-z0-9_]", "_", f"{stack}_{route.host}")
-    argv = [sys.executable, "-m", "fogiac", "relay", "edge", "--connect", connect, "--master", master,
-            "--certs", str(certs), "--stats-file", str(stats), "--queue-depth", str(route.queue_size),
-            "--name", name, "--server-name", relay_name(stack, route.host)]
-    argv += route.policy_argv()
-    compression = dict(route.compression)
-    if "*" in compression:
-        argv += ["--compression", compression["*"]]
-    elif compression:
-        argv += ["--compression", ",".join(f"{t}={alg}" for t, alg in sorted(compression.items()))]
-    return argv
-
-
-def _master_up(uri: str, *, timeout: float) -> bool:
-    def answers() -> bool | None:
-        try:
-            reply: Any = xmlrpc.client.ServerProxy(uri).getPid("/fogiac")
-        except (OSError, xmlrpc.client.Error):
-            return None
-        return True if reply[0] == 1 else None
-
-    return poll(answers, timeout=timeout, interval=0.2, backoff=1.0) is not None
-
-
 def ensure_edge_master(plan: Plan, uri: str, *, start: bool) -> None:
-    """The edge's ROS master must answer; for demos fogiac can run it (supervised, stopped by down)."""
-    if _master_up(uri, timeout=0.5):
-        return
-    if not start:
-        raise FogiacError(f"no ROS master answers at {uri} (edge.ros_master); start roscore, "
-                          "or pass --start-edge-master to let fogiac run one")
-    url = urlparse(uri)
-    supervise.start(edge_dir(plan), EDGE_MASTER, ["roscore", "-p", str(url.port)])
-    if not _master_up(uri, timeout=30):
-        supervise.stop(edge_dir(plan), EDGE_MASTER)
-        raise FogiacError(f"the edge roscore did not come up at {uri}; see {edge_dir(plan) / (EDGE_MASTER + '.log')}")
+    """The robot's side must be there before anything is provisioned (the middleware says what that means)."""
+    middleware.get(plan.middleware).prepare_edge(plan, uri, folder=edge_dir(plan), start=start)
 
 
 def provision_and_connect(plan: Plan, *, access: Mapping[str, Any], connect: Mapping[str, str], master: str,
                           started_edge_master: bool = False,
                           progress: Callable[[str, str, str], None] | None = None) -> FleetUp:
-    """Provision every host, start one edge relay per host that came up, record the deployment.
+    """Provision every host, start the middleware's edge side for the hosts that came up, record the deployment.
 
     Every target ends here: ``local`` and ``hosts`` with their own access records, ``aws`` with
     the instances' addresses and pinned host keys. A failed host fails the run; the others stay
@@ -107,14 +65,9 @@ def provision_and_connect(plan: Plan, *, access: Mapping[str, Any], connect: Map
     certs = folder / "certs"
     load_or_create_bundle(plan.stack, certs)
     report = provision(plan, hosts=access, state_dir=folder, certs_dir=certs, progress=progress)
-    relays: dict[str, str] = {}
-    for route in plan.relay:
-        if not next(o for o in report.hosts if o.host == route.host).ok:
-            continue
-        relays[route.host] = connect[route.host]
-        supervise.start(edge_dir(plan), f"relay-edge-{route.host}", _relay_argv(
-            route, stack=plan.stack, connect=relays[route.host], master=master, certs=certs,
-            stats=edge_dir(plan) / f"relay-edge-{route.host}.stats.json"))
+    relays = {o.host: connect[o.host] for o in report.hosts if o.ok and o.host in connect}
+    notes = middleware.get(plan.middleware).edge_up(plan, entry=master, connect=relays, certs=certs,
+                                                     folder=edge_dir(plan)) if relays else []
     deployment = folder / DEPLOYMENT_FILE
     write_json_atomic(deployment, {
         "target": plan.target, "edge_master": master, "relays": relays,
@@ -123,7 +76,7 @@ def provision_and_connect(plan: Plan, *, access: Mapping[str, Any], connect: Map
     if not report.ok:
         lines = [f"{o.host}: {o.error}" for o in report.failed]
         raise ProvisionError("; ".join(lines) + " (the other hosts are up; `fogiac down` removes everything)")
-    return FleetUp(report=report, relays=relays, edge_master=master, deployment=deployment)
+    return FleetUp(report=report, relays=relays, edge_master=master, deployment=deployment, notes=tuple(notes))
 
 
 def _duration(seconds: float) -> str:
@@ -223,6 +176,8 @@ class ExistingMachines:
             connect = {host: self.connect_address(plan, host, a) for host, a in access.items()}
             done = provision_and_connect(plan, access=access, connect=connect, master=master,
                                          started_edge_master=opts.start_edge_master)
+            for note in done.notes:
+                opts.announce(note)
             # What `fogiac plan` compares with (the same document it builds), as the aws target records it.
             applied = plan_document(plan, self.declare(plan), manifest=opts.manifest_path)
             write_json_atomic(stack_dir(plan.stack) / APPLIED_FILE, applied)
@@ -278,12 +233,8 @@ class ExistingMachines:
                   "nodes": self.node_states(plan, spec, recorded.get(spec.name)),
                   "autostop": self.autostop_state(plan, spec, recorded.get(spec.name))} for spec in plan.hosts]
         saved = (read_json(folder / DEPLOYMENT_FILE) or {}) if folder.exists() else {}
-        relays = []
-        for host, connect in sorted(saved.get("relays", {}).items()):
-            stats = read_json(edge_dir(plan) / f"relay-edge-{host}.stats.json") or {}
-            topics = [{**t, "direction": MANIFEST_DIRECTION.get(t.get("direction", "-"), "-")}
-                      for t in stats.get("topics", [])]
-            relays.append({"host": host, "connect": connect, **stats, "topics": topics})
+        relays = middleware.get(plan.middleware).edge_links(plan, folder=edge_dir(plan),
+                                                            connect=saved.get("relays", {}))
         edge = [supervise.status(edge_dir(plan), name) for name in edge_services(plan)]
         return {**head, "deployed": True, "partial": record is None or record.partial,
                 "edge_master": saved.get("edge_master", plan.edge_master), "hosts": hosts, "relays": relays,

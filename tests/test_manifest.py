@@ -128,11 +128,11 @@ def test_unique_node_names(tmp_path: Path) -> None:
 def test_exactly_one_of_image_launch_workload(tmp_path: Path) -> None:
     both = VALID.replace("    workload: motion_planning\n", "    workload: motion_planning\n    image: x\n")
     assert problems(tmp_path, both) == [
-        "6: nodes[0]: needs exactly one of image, build, launch or workload (got image and workload)"
+        "6: nodes[0]: needs exactly one of image, build, launch, workload or command (got image and workload)"
     ]
     none = VALID.replace("    workload: motion_planning\n", "")
     assert problems(tmp_path, none) == [
-        "6: nodes[0]: needs exactly one of image, build, launch or workload (got none)"
+        "6: nodes[0]: needs exactly one of image, build, launch, workload or command (got none)"
     ]
 
 

@@ -227,7 +227,11 @@ class Network(_Model):
 
 class Edge(_Model):
     ros_master: str = Field(
-        default="http://localhost:11311", description="The robot's ROS master URI (ROS_MASTER_URI)."
+        default="http://localhost:11311", description="The robot's ROS master URI (ROS_MASTER_URI), ROS 1."
+    )
+    zenoh_router: str = Field(
+        default="tcp/127.0.0.1:7447",
+        description="ROS 2: where fogiac's edge router listens for the robot's rmw_zenoh nodes (loopback).",
     )
 
     @field_validator("ros_master")
@@ -236,6 +240,15 @@ class Edge(_Model):
         url = urlparse(value)
         if url.scheme != "http" or not url.hostname or url.port is None:
             raise ValueError(f"{value!r} is not a ROS master URI like 'http://localhost:11311'")
+        return value
+
+    @field_validator("zenoh_router")
+    @classmethod
+    def _endpoint(cls, value: str) -> str:
+        proto, _, rest = value.partition("/")
+        host, _, port = rest.rpartition(":")
+        if proto != "tcp" or not host or not port.isdigit() or not 0 < int(port) < 65536:
+            raise ValueError(f"{value!r} is not a Zenoh endpoint like 'tcp/127.0.0.1:7447'")
         return value
 
 
@@ -314,7 +327,7 @@ class Machine(_Model):
 
 
 Workload = Literal["motion_planning", "grasp_planning"]
-NodeKind = Literal["image", "launch", "workload"]  # which of the three a node runs
+NodeKind = Literal["image", "launch", "workload", "command"]  # which of the four a node runs
 
 
 class Node(_Model):
@@ -328,7 +341,10 @@ class Node(_Model):
     build: Build | None = Field(default=None, description="Container image built on the host from a Dockerfile.")
     launch: Launch | None = Field(default=None, description="ROS package + launch file from a workspace.")
     workload: Workload | None = Field(default=None, description="A workload that ships with fogiac.")
-    command: tuple[str, ...] = Field(default=(), description="Arguments after the image (containers only).")
+    command: tuple[str, ...] = Field(
+        default=(), description="Arguments after the image; alone: a command run as the node (in the ROS image "
+        "on container hosts)."
+    )
     gpu: bool = Field(default=False, description="The node needs a GPU.")
     topics: Literal["auto"] | TopicLists = Field(default="auto", description="Topics relayed for this node.")
     disk_gb: int = Field(default=30, ge=8, le=16384, description="Root volume size in GiB (gp3, encrypted).")
@@ -361,11 +377,13 @@ class Node(_Model):
     @model_validator(mode="after")
     def _one_kind(self) -> Node:
         given = [k for k in ("image", "build", "launch", "workload") if getattr(self, k) is not None]
+        if not given and self.command:
+            given = ["command"]
         if len(given) != 1:
             what = "none" if not given else " and ".join(given)
-            raise FieldProblem(f"needs exactly one of image, build, launch or workload (got {what})")
-        if self.command and self.image is None and self.build is None:
-            raise FieldProblem("command is only for image nodes", field="command")
+            raise FieldProblem(f"needs exactly one of image, build, launch, workload or command (got {what})")
+        if self.command and given[0] in ("launch", "workload"):
+            raise FieldProblem("command is for image nodes, or alone", field="command")
         named = self.machine if isinstance(self.machine, str) else self.machine.type
         if self.gpu and named is not None and not catalog().types[named].has_gpu:
             raise FieldProblem(
@@ -390,7 +408,9 @@ class Node(_Model):
 
     @property
     def kind(self) -> NodeKind:
-        return "image" if self.image or self.build else "launch" if self.launch else "workload"
+        if self.image or self.build:
+            return "image"
+        return "launch" if self.launch else "workload" if self.workload else "command"
 
 
 class Relay(_Model):

@@ -14,9 +14,17 @@ so compile, the targets' firewalls, plan, cost and graph ask it for its port and
 from __future__ import annotations
 
 import importlib
-from typing import Protocol
+from collections.abc import Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Protocol
 
 from fogiac.errors import PlanError
+
+if TYPE_CHECKING:
+    from fogiac.manifest.schema import Edge
+    from fogiac.plan.model import HostSpec, Plan
+    from fogiac.provision.host import Host
+    from fogiac.provision.services import Service, Where
 
 
 class Middleware(Protocol):
@@ -45,6 +53,49 @@ class Middleware(Protocol):
 
     @property
     def needs_listed_topics(self) -> bool: ...  # True: topics "auto" cannot be honoured
+
+    # -- deploying it: provisioning asks for a host's services, ``up``/``down``/``status`` for the edge's --
+
+    def edge_entry(self, edge: Edge) -> str:
+        """What the robot's side is reached at (``Plan.edge_master``): a master URI, a router endpoint."""
+        ...
+
+    def node_env(self, where: Where) -> Mapping[str, str]:
+        """The environment every node on a host gets (its env file, its containers)."""
+        ...
+
+    def host_services(self, plan: Plan, spec: HostSpec, where: Where, *, certs: Path | None,
+                      dialed: str) -> tuple[Service, ...]:
+        """What the host's nodes need running before them (a ROS master, a router); ``dialed``: the
+        address the edge reaches the host at, ``certs``: the stack's CA folder on this machine."""
+        ...
+
+    def link_services(self, plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ...]:
+        """What joins the host to the edge after its nodes run (empty when host_services does it)."""
+        ...
+
+    def link_files(self) -> tuple[tuple[str, int], ...]:
+        """Files of the stack's certificate folder the link services read from the host's certs folder."""
+        ...
+
+    def host_credentials(self, host: Host, *, python: str, folder: str, certs_dir: Path, plan: Plan,
+                         spec: HostSpec) -> bool:
+        """Credentials made on the host itself (its private key never leaves it); True when they changed."""
+        ...
+
+    def prepare_edge(self, plan: Plan, entry: str, *, folder: Path, start: bool) -> None:
+        """Before provisioning: the robot's side must be there (or fogiac starts it, for demos)."""
+        ...
+
+    def edge_up(self, plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path,
+                folder: Path) -> list[str]:
+        """Start this machine's edge processes (supervised under ``folder``) for the hosts in
+        ``connect`` (host -> HOST:PORT); returns lines for the user (files written, what to install)."""
+        ...
+
+    def edge_links(self, plan: Plan, *, folder: Path, connect: Mapping[str, str]) -> list[dict[str, Any]]:
+        """Per host: ``{host, connect, connected, rtt_ms?, topics: [{topic, direction, msgs, ...}]}``."""
+        ...
 
 
 # The built-in middlewares, imported when first asked for.

@@ -27,7 +27,7 @@ OPERATOR_PLACEHOLDER = "<operator>/32"  # what an offline plan shows for the ope
 
 Protocol = Literal["tcp", "udp", "icmp", "-1"]  # "-1": every protocol (AWS's spelling)
 SubnetRole = Literal["instances", "vpn"]
-NodeKind = Literal["image", "launch", "workload"]
+NodeKind = Literal["image", "launch", "workload", "command"]
 NetworkMode = Literal["vpn", "proxy", "relay"]  # how the edge reaches the hosts
 ConnectVia = Literal["private", "public", "address", "loopback"]  # which host address the edge relay dials
 
@@ -229,7 +229,7 @@ class Plan:
     ros_distro: str
     middleware: str  # fogiac.net.middleware's name for what carries topics across (relay, zenoh)
     mode: NetworkMode
-    edge_master: str
+    edge_master: str  # the robot side's entry: its ROS 1 master URI, or the edge Zenoh router's endpoint
     ssh_from: tuple[str, ...]
     network: NetworkSpec | None
     security_groups: tuple[SecurityGroup, ...]

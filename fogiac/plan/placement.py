@@ -71,7 +71,7 @@ def steps_for(nodes: Sequence[Node]) -> tuple[str, ...]:
         steps.append("venv")
     if any(n.launch is not None for n in nodes):
         steps += ["workspace", "env_script"]
-    steps += ["services", "relay", "health"]
+    steps += ["services", "link", "health"]
     return tuple(steps)
 
 

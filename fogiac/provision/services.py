@@ -8,11 +8,11 @@ checks, and they must be testable on a machine without Docker or systemd. The st
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from fogiac.errors import ProvisionError
-from fogiac.net.rosenv import side_env
+from fogiac.net import middleware
 from fogiac.plan.model import HostSpec, NodeSpec, Plan
 from fogiac.provision.host import q
 from fogiac.render import render
@@ -137,6 +137,12 @@ def node_env_file(layout: Layout, node: str) -> str:
     return f"{layout.env}/node-{node}.env"
 
 
+def env_script(env: Mapping[str, str], *, host: str) -> str:
+    """The env file every service script on a host sources: the middleware's environment for nodes."""
+    return f"# fogiac: environment of the nodes on {host}. Source it: . ros.sh\n" + "".join(
+        f"export {key}={q(value)}\n" for key, value in env.items())
+
+
 def env_file_text(env: tuple[tuple[str, str], ...]) -> str:
     """``KEY=VALUE`` lines as ``--env-file`` reads them: values taken literally, no quoting."""
     for key, value in env:
@@ -145,9 +151,10 @@ def env_file_text(env: tuple[tuple[str, str], ...]) -> str:
     return "".join(f"{key}={value}\n" for key, value in env)
 
 
-def ros_env(where: Where) -> tuple[tuple[str, str], ...]:
-    """ROS_MASTER_URI and ROS_IP (or ROS_HOSTNAME): what every container on the host is given."""
-    return tuple(side_env(side="cloud", master_uri=master_uri(where), address=where.ros_address).env.items())
+def ros_env(plan: Plan, where: Where) -> tuple[tuple[str, str], ...]:
+    """The middleware's environment for nodes (ROS_MASTER_URI and ROS_IP; RMW_IMPLEMENTATION and the
+    router): what every container on the host is given."""
+    return tuple(middleware.get(plan.middleware).node_env(where).items())
 
 
 def _built(node: NodeSpec, where: Where) -> str:
@@ -164,9 +171,11 @@ def docker_run(node: NodeSpec, *, plan: Plan, spec: HostSpec, where: Where) -> s
     the engine's options, so nothing in the image or command is read as one.
     """
     volumes: tuple[tuple[str, str, str], ...] = ()
-    env, workdir = ros_env(where), ""
+    env, workdir = ros_env(plan, where), ""
     if node.kind == "image":
         image, command = (node.image or _built(node, where)), node.command
+    elif node.kind == "command":
+        image, command = ros_image(plan), node.command
     elif node.kind == "launch" and node.launch is not None:
         image = ros_image(plan)
         command = ("bash", "-c", f"{_SOURCE_DEVEL}exec roslaunch --wait \"$0\" \"$1\"",
@@ -222,6 +231,8 @@ def _native_node(node: NodeSpec, plan: Plan, spec: HostSpec, where: Where) -> _N
             f"{spec.name}: node {node.name} runs image {node.image} but the host has no working "
             "container engine (`docker info` failed); install Docker there or use a launch/workload node"
         )
+    if node.kind == "command":
+        return _NodeRun(command=" ".join(q(arg) for arg in node.command), check="alive")
     if node.kind == "launch" and node.launch is not None:
         ws = where.layout.workspace(node.launch.workspace)
         return _NodeRun(command=f"roslaunch --wait {q(node.launch.package)} {q(node.launch.file)}",
@@ -255,12 +266,15 @@ def _service(name: str, *, plan: Plan, spec: HostSpec, where: Where, command: st
     return Service(name=name, script=script, check=check, unit=unit, files=files)
 
 
+make_service = _service  # for the middlewares' own services (fogiac.net.<variant>.deploy)
+
+
 def master_service(plan: Plan, spec: HostSpec, where: Where) -> Service:
     if where.runtime == CONTAINER:
         # ROS_IP in the container: the master advertises (and, on loopback, binds) the host's ROS address.
         name = container_name(plan.stack, f"{spec.name}-ros-master")
         command = render("provision/docker_run.j2", engine=where.engine, stack=plan.stack, host=spec.name, gpus=False,
-                         container=name, env=ros_env(where), env_file="", volumes=(), workdir="",
+                         container=name, env=ros_env(plan, where), env_file="", volumes=(), workdir="",
                          image=ros_image(plan), command=("roscore", "-p", str(where.master_port))).strip()
         pre: tuple[str, ...] = (f"{where.engine} rm -f {name} >/dev/null 2>&1 || true",)
     else:

@@ -13,11 +13,11 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from fogiac.certs import load_bundle, relay_name
 from fogiac.errors import ProvisionError
-from fogiac.net.rosenv import side_env
+from fogiac.net import middleware
+from fogiac.net.middleware import Middleware
 from fogiac.plan.model import HostSpec, Plan
-from fogiac.provision import images, relaycert, venv
+from fogiac.provision import images, venv
 from fogiac.provision import services as svc
 from fogiac.provision.host import Host, HostAccess, q
 from fogiac.provision.managers import Manager, manager_for
@@ -29,7 +29,6 @@ from fogiac.resources import package_dir
 CHANGED, OK, SKIPPED = "changed", "ok", "skipped"
 _CODE_IGNORE = ("tests/", "*.npz", "problems/", "*.ipynb")  # the grasp node's model.pt (0.2 MB) goes along
 _ROS_PACKAGES = ("ros-core", "python3-rospy", "python3-std-msgs")
-_ALWAYS_KEPT = ["relay-cloud"]  # started by the relay step, not the services step
 
 
 @dataclass(frozen=True)
@@ -81,9 +80,22 @@ class HostRun:
                          images=tuple(sorted(self.images.items())),
                          workload_python=self.workload_python or self.access.python)
 
+    @property
+    def carrier(self) -> Middleware:
+        return middleware.get(self.plan.middleware)
+
     def services(self) -> tuple[svc.Service, ...]:
+        """The middleware's host services (a ROS master, a router), then one per node."""
         where = self.where()
-        return (svc.master_service(self.plan, self.spec, where),) + svc.node_services(self.plan, self.spec, where)
+        dialed = self.access.location.rsplit(":", 1)[0].rpartition("@")[2]  # the address the edge reaches
+        first = self.carrier.host_services(self.plan, self.spec, where, certs=self.options.certs_dir, dialed=dialed)
+        return first + svc.node_services(self.plan, self.spec, where)
+
+    def link_services(self) -> tuple[svc.Service, ...]:
+        """What joins the host to the edge after its nodes (none without certificates or fogiac's code)."""
+        if self.options.certs_dir is None or not relay_available(self):
+            return ()
+        return self.carrier.link_services(self.plan, self.spec, self.where())
 
 
 StepResult = tuple[str, str]  # (CHANGED | OK | SKIPPED, detail)
@@ -298,7 +310,7 @@ def step_env_script(run: HostRun) -> StepResult:
 
 
 def step_services(run: HostRun) -> StepResult:
-    env = side_env(side="cloud", master_uri=svc.master_uri(run.where()), address=run.access.ros_address).text
+    env = svc.env_script(run.carrier.node_env(run.where()), host=run.spec.name)
     env_changed = ensure_file(run, env.encode(), run.layout.env_file)
     manager = run.manager
     wanted = run.services()
@@ -306,7 +318,7 @@ def step_services(run: HostRun) -> StepResult:
         for path, text, mode in service.files:
             ensure_file(run, text.encode(), path, mode=mode)
     started = manager.ensure(run.host, run.layout, wanted, restart_all=env_changed, facts=run.facts)
-    kept = [s.name for s in wanted] + _ALWAYS_KEPT + (["autostop"] if run.plan.autostop else [])
+    kept = [s.name for s in wanted + run.carrier.link_services(run.plan, run.spec, run.where())]
     stopped = manager.prune(run.host, run.layout, keep=kept, facts=run.facts)
     if not started and not stopped and not env_changed:
         return OK, f"{len(wanted)} service(s) running ({manager.name})"
@@ -321,31 +333,29 @@ def relay_available(run: HostRun) -> bool:
     return run.host.run(f"test -f {q(_relay_cli(run))}", check=False).ok
 
 
-def step_relay(run: HostRun) -> StepResult:
-    """The cloud end with a certificate of the host's own: its key made there, only the CA's certificate sent."""
-    if run.options.certs_dir is None:
-        return SKIPPED, "no relay certificates given"
-    ca = load_bundle(run.options.certs_dir).ca
-    changed = ensure_file(run, ca.cert_pem, f"{run.layout.certs}/ca.pem")
-    service = svc.relay_service(run.plan, run.spec, run.where())
+def step_link(run: HostRun) -> StepResult:
+    """The middleware's link to the edge, after the nodes (the relay's cloud end and its watchdog)."""
+    certs = run.options.certs_dir
+    if certs is None:
+        return SKIPPED, "no certificates given"
+    wanted = run.carrier.link_services(run.plan, run.spec, run.where())
+    if not wanted:
+        return OK, "the host's services carry the link"
+    changed = [name for name, mode in run.carrier.link_files()
+               if ensure_file(run, (certs / name).read_bytes(), f"{run.layout.certs}/{name}", mode=mode)]
     if not relay_available(run):
-        ensure_file(run, service.script.encode(), f"{run.layout.services}/{service.name}.sh", mode=0o700)
-        return SKIPPED, "relay CLI not installed on the host; service script rendered only"
-    changed |= relaycert.ensure(run.host, python=run.access.python, folder=run.layout.certs, ca=ca,
-                                name=relay_name(run.plan.stack, run.spec.name))
-    watchdog = svc.autostop_service(run.plan, run.spec, run.where())
-    wanted = (service,) if watchdog is None else (service, watchdog)
-    started = run.manager.ensure(run.host, run.layout, wanted, restart_all=changed, facts=run.facts)
-    what = "relay cloud end" + (" and autostop watchdog" if watchdog is not None else "")
+        for service in wanted:
+            ensure_file(run, service.script.encode(), f"{run.layout.services}/{service.name}.sh", mode=0o700)
+        return SKIPPED, "fogiac's code is not on the host; service scripts rendered only"
+    made = run.carrier.host_credentials(run.host, python=run.access.python, folder=run.layout.certs,
+                                        certs_dir=certs, plan=run.plan, spec=run.spec)
+    started = run.manager.ensure(run.host, run.layout, wanted, restart_all=bool(changed) or made, facts=run.facts)
+    what = " and ".join(s.name for s in wanted)
     return (CHANGED, f"{what} started") if started or changed else (OK, f"{what} running")
 
 
 def step_health(run: HostRun) -> StepResult:
-    checks = list(run.services())
-    if run.options.certs_dir is not None and relay_available(run):
-        checks.append(svc.relay_service(run.plan, run.spec, run.where()))
-        watchdog = svc.autostop_service(run.plan, run.spec, run.where())
-        checks += [watchdog] if watchdog is not None else []
+    checks = list(run.services()) + list(run.link_services())
     results = run.manager.health(run.host, run.layout, checks, master=svc.master_uri(run.where()),
                                 timeout=run.options.health_timeout)
     bad = [f"{name} unhealthy: {detail}" for name, ok, detail in results if not ok]
@@ -365,7 +375,7 @@ STEPS: dict[str, Callable[[HostRun], StepResult]] = {
     "workspace": step_workspace,
     "env_script": step_env_script,
     "services": step_services,
-    "relay": step_relay,
+    "link": step_link,
     "health": step_health,
 }
 

@@ -47,7 +47,7 @@ nodes:
         f"{m}:5: network.client_cidr: 10.10.4.0/22 overlaps vpc_cidr 10.10.0.0/16",
         f"{m}:6: network.ssh_fromm: unknown key; did you mean 'ssh_from'?",
         f"{m}:9: nodes[0].machine: 'c5.4xlrge' is not a known instance type; did you mean 'c5.4xlarge'?",
-        f"{m}:11: nodes[1]: needs exactly one of image, build, launch or workload (got none)",
+        f"{m}:11: nodes[1]: needs exactly one of image, build, launch, workload or command (got none)",
         f"{m}:13: nodes[2].name: duplicate node name 'planner'",
     ]
 

@@ -29,7 +29,7 @@ def test_validate_reports_each_problem_on_one_line_exit_1(tmp_path: Path) -> Non
     assert result.exit_code == 1
     assert result.output.splitlines() == [
         f"{bad}:4: nodes[0].machine: 'g4dn.xlrge' is not a known instance type; did you mean 'g4dn.xlarge'?",
-        f"{bad}:6: nodes[1]: needs exactly one of image, build, launch or workload (got none)",
+        f"{bad}:6: nodes[1]: needs exactly one of image, build, launch, workload or command (got none)",
         f"{bad}:6: nodes[1].name: duplicate node name 'a'",  # a rule across nodes, in the same run
     ]
     assert "Traceback" not in result.output

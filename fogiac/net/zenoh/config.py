@@ -19,8 +19,10 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from fogiac.net.zenoh.middleware import LOCAL_PORT
 from fogiac.plan.model import RelayRoute
+
+ROUTER_PORT = 7448  # the cloud router's mutual-TLS port for the edge (7447, rmw_zenoh's default, stays local)
+LOCAL_PORT = 7447  # rmw_zenoh's default router port: where nodes on the same machine connect
 
 GRAPH_KEYS = ("@ros2_lv/**",)  # rmw_zenoh's liveliness tokens: the ROS graph, no payloads
 _DATA = ["put", "delete"]

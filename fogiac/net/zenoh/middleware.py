@@ -2,10 +2,19 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
-ROUTER_PORT = 7448  # the cloud router's mutual-TLS port for the edge (7447, rmw_zenoh's default, stays local)
-LOCAL_PORT = 7447  # rmw_zenoh's default router port: where nodes on the same machine connect
+from fogiac.errors import ProvisionError
+from fogiac.manifest.schema import Edge
+from fogiac.net.zenoh import deploy
+from fogiac.net.zenoh.config import LOCAL_PORT as LOCAL_PORT  # re-exported: the ports in one place
+from fogiac.net.zenoh.config import ROUTER_PORT
+from fogiac.plan.model import HostSpec, Plan
+from fogiac.provision.host import Host
+from fogiac.provision.services import Service, Where
 
 
 @dataclass(frozen=True)
@@ -18,6 +27,39 @@ class ZenohMiddleware:
     cloud_side: str = "Zenoh router per host (mutual TLS, access control: the manifest's topics only)"
     rule_description: str = "Zenoh router (mutual TLS)"
     needs_listed_topics: bool = True  # access control allows exactly the listed topics
+
+
+    def edge_entry(self, edge: Edge) -> str:
+        return edge.zenoh_router
+
+    def node_env(self, where: Where) -> Mapping[str, str]:
+        return deploy.node_env(where)
+
+    def host_services(self, plan: Plan, spec: HostSpec, where: Where, *, certs: Path | None,
+                      dialed: str) -> tuple[Service, ...]:
+        if certs is None:
+            raise ProvisionError(f"{spec.name}: the Zenoh router needs the stack's certificates")
+        return deploy.host_services(plan, spec, where, certs=certs, dialed=dialed)
+
+    def link_services(self, plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ...]:
+        return ()  # the host's router (host_services) is the link
+
+    def link_files(self) -> tuple[tuple[str, int], ...]:
+        return ()
+
+    def host_credentials(self, host: Host, *, python: str, folder: str, certs_dir: Path, plan: Plan,
+                         spec: HostSpec) -> bool:
+        return False  # the router's certificate is issued with its config (host_services)
+
+    def prepare_edge(self, plan: Plan, entry: str, *, folder: Path, start: bool) -> None:
+        """Nothing to check: ROS 2 has no master, and the edge router is fogiac's own."""
+
+    def edge_up(self, plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path,
+                folder: Path) -> list[str]:
+        return deploy.edge_up(plan, entry=entry, connect=connect, certs=certs, folder=folder)
+
+    def edge_links(self, plan: Plan, *, folder: Path, connect: Mapping[str, str]) -> list[dict[str, Any]]:
+        return deploy.edge_links(plan, folder=folder, connect=connect)
 
 
 ZENOH = ZenohMiddleware()

@@ -25,12 +25,15 @@ import sys
 import threading
 import time
 from collections.abc import Sequence
+from dataclasses import asdict
+from pathlib import Path
 from typing import Any
 
 from fogiac.errors import ZenohError
 from fogiac.extras import need
 from fogiac.net.relay.stats import TopicCounters, TopicStats
 from fogiac.net.zenoh.config import topic_key
+from fogiac.state import write_json_atomic
 
 LATENCY_TOPIC = "/fogros/latency"
 THROUGHPUT_TOPIC = "/fogros/throughput"
@@ -123,7 +126,9 @@ class EdgeMonitor:
 def open_client(endpoint: str) -> Any:
     """A client session on the router at ``endpoint`` (the edge router's loopback port)."""
     zenoh = need("zenoh", extra="ros2")
-    config = {"mode": "client", "connect": {"endpoints": [endpoint]}, "scouting": {"multicast": {"enabled": False}}}
+    # Waits for the router (retrying), so a supervisor may start both at once.
+    config = {"mode": "client", "connect": {"endpoints": [endpoint], "timeout_ms": -1},
+              "scouting": {"multicast": {"enabled": False}}}
     try:
         return zenoh.open(zenoh.Config.from_json5(json.dumps(config)))
     except zenoh.ZError as err:
@@ -137,6 +142,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--to-cloud", action="append", default=[], help="a topic the robot publishes")
     parser.add_argument("--period", type=float, default=1.0)
     parser.add_argument("--domain", type=int, default=0, help="ROS_DOMAIN_ID")
+    parser.add_argument("--stats-file", type=Path, help="also write each period's figures here (for status)")
     args = parser.parse_args(argv)
     stop = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
@@ -146,7 +152,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     print("ready", flush=True)
     try:
         while not stop.wait(args.period):
-            monitor.tick()
+            stats = monitor.tick()
+            if args.stats_file is not None:
+                write_json_atomic(args.stats_file, {"topics": [asdict(t) for t in stats]})
     finally:
         monitor.close()
         session.close()

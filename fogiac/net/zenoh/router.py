@@ -7,6 +7,7 @@ is an optional extra (``fogiac[ros2]``), imported through :func:`fogiac.extras.n
 
 from __future__ import annotations
 
+import argparse
 import json
 import signal
 import sys
@@ -16,6 +17,9 @@ from typing import Any
 
 from fogiac.errors import ZenohError
 from fogiac.extras import need
+from fogiac.state import write_json_atomic
+
+STATS_PERIOD_S = 1.0
 
 
 def open_router(config: dict[str, Any]) -> Any:
@@ -27,7 +31,8 @@ def open_router(config: dict[str, Any]) -> Any:
         raise ZenohError(f"zenoh router: {err}") from None
 
 
-def serve(config_path: Path) -> None:
+def serve(config_path: Path, *, stats: Path | None = None) -> None:
+    """Route until told to stop; with ``stats``, write the ids of the routers linked to it every second."""
     config = json.loads(config_path.read_text())
     stop = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
@@ -35,14 +40,20 @@ def serve(config_path: Path) -> None:
     session = open_router(config)
     print("ready", flush=True)
     try:
-        stop.wait()
+        while not stop.wait(STATS_PERIOD_S if stats is not None else None):
+            if stats is not None:
+                write_json_atomic(stats, {"routers": sorted(str(z) for z in session.info.routers_zid())})
     finally:
         session.close()
 
 
 if __name__ == "__main__":
+    parser = argparse.ArgumentParser(prog="python -m fogiac.net.zenoh.router")
+    parser.add_argument("config", type=Path)
+    parser.add_argument("--stats-file", type=Path, help="write the linked routers' ids here every second")
+    args = parser.parse_args()
     try:
-        serve(Path(sys.argv[1]))
+        serve(args.config, stats=args.stats_file)
     except (ZenohError, OSError, ValueError, IndexError) as err:
         print(f"error: {err}", file=sys.stderr)
         sys.exit(1)

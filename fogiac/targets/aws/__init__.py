@@ -137,7 +137,10 @@ class AwsTarget:
         announce("waiting for each instance to print its SSH host keys on its console (pinned, never trusted on sight)")
         access, connect = access_from_outputs(plan, outputs, fingerprints=lambda iid: pinned_host_keys(
             plan.stack, iid, fetch=lambda: api.host_fingerprints(iid, region=plan.region)))
-        return provision_and_connect(plan, access=access, connect=connect, master=master)
+        done = provision_and_connect(plan, access=access, connect=connect, master=master)
+        for note in done.notes:
+            announce(note)
+        return done
 
     # -- down -------------------------------------------------------------------------------------
 

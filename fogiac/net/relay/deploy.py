@@ -1,0 +1,117 @@
+"""The relay deployed: a ROS master and the relay's cloud end on each host, one edge end per host here.
+
+The relay variant's answers to :class:`fogiac.net.middleware.Middleware`'s deploying half. Each
+host runs its own ``roscore`` (its nodes register there) and, once the nodes run, the relay's
+cloud end (plus the autostop watchdog, which reads that end's stats). On the edge, one supervised
+``fogiac relay edge`` per host joins the robot's master to that host's over mutual TLS.
+"""
+
+from __future__ import annotations
+
+import re
+import sys
+import xmlrpc.client
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+from urllib.parse import urlparse
+
+from fogiac.certs import load_bundle, relay_name
+from fogiac.errors import FogiacError
+from fogiac.net.rosenv import side_env
+from fogiac.plan.model import HostSpec, Plan, RelayRoute
+from fogiac.procs import poll
+from fogiac.provision import relaycert, supervise
+from fogiac.provision import services as svc
+from fogiac.provision.host import Host
+from fogiac.state import read_json
+
+EDGE_MASTER = "edge-master"
+CERT_FILES = (("ca.pem", 0o644),)  # the host makes its own key; see host_credentials
+# The edge relay counts directions as the edge sees them (it sends "out" what the manifest calls "in");
+# status shows them as the manifest says.
+MANIFEST_DIRECTION = {"out": "in", "in": "out", "-": "-"}
+
+
+def node_env(where: svc.Where) -> Mapping[str, str]:
+    return side_env(side="cloud", master_uri=svc.master_uri(where), address=where.ros_address).env
+
+
+def host_services(plan: Plan, spec: HostSpec, where: svc.Where) -> tuple[svc.Service, ...]:
+    return (svc.master_service(plan, spec, where),)
+
+
+def link_services(plan: Plan, spec: HostSpec, where: svc.Where) -> tuple[svc.Service, ...]:
+    watchdog = svc.autostop_service(plan, spec, where)
+    return (svc.relay_service(plan, spec, where),) + ((watchdog,) if watchdog is not None else ())
+
+
+def _master_up(uri: str, *, timeout: float) -> bool:
+    def answers() -> bool | None:
+        try:
+            reply: Any = xmlrpc.client.ServerProxy(uri).getPid("/fogiac")
+        except (OSError, xmlrpc.client.Error):
+            return None
+        return True if reply[0] == 1 else None
+
+    return poll(answers, timeout=timeout, interval=0.2, backoff=1.0) is not None
+
+
+def prepare_edge(uri: str, *, folder: Path, start: bool) -> None:
+    """The edge's ROS master must answer; for demos fogiac can run it (supervised, stopped by down)."""
+    if _master_up(uri, timeout=0.5):
+        return
+    if not start:
+        raise FogiacError(f"no ROS master answers at {uri} (edge.ros_master); start roscore, "
+                          "or pass --start-edge-master to let fogiac run one")
+    url = urlparse(uri)
+    supervise.start(folder, EDGE_MASTER, ["roscore", "-p", str(url.port)])
+    if not _master_up(uri, timeout=30):
+        supervise.stop(folder, EDGE_MASTER)
+        raise FogiacError(f"the edge roscore did not come up at {uri}; see {folder / (EDGE_MASTER + '.log')}")
+
+
+def _stats(folder: Path, host: str) -> Path:
+    return folder / f"relay-edge-{host}.stats.json"
+
+
+def host_credentials(host: Host, *, python: str, folder: str, certs_dir: Path, plan: Plan, spec: HostSpec) -> bool:
+    """The cloud end's certificate of the host's own: its key made on the host, only a CSR signed here."""
+    return relaycert.ensure(host, python=python, folder=folder, ca=load_bundle(certs_dir).ca,
+                            name=relay_name(plan.stack, spec.name))
+
+
+def edge_argv(route: RelayRoute, *, stack: str, connect: str, master: str, certs: Path, stats: Path) -> list[str]:
+    # One ROS name per relay: a master drops a node when another registers with its name, so
+    # the relays of several hosts (or several stacks) on one edge master would evict each other.
+    # The server name is the host's own: another host's certificate (same CA) is refused.
+    name = "/fogiac_relay_edge_" + re.sub(r"[^A-Za-z0-9_]", "_", f"{stack}_{route.host}")
+    argv = [sys.executable, "-m", "fogiac", "relay", "edge", "--connect", connect, "--master", master,
+            "--certs", str(certs), "--stats-file", str(stats), "--queue-depth", str(route.queue_size),
+            "--name", name, "--server-name", relay_name(stack, route.host)]
+    argv += route.policy_argv()
+    compression = dict(route.compression)
+    if "*" in compression:
+        argv += ["--compression", compression["*"]]
+    elif compression:
+        argv += ["--compression", ",".join(f"{t}={alg}" for t, alg in sorted(compression.items()))]
+    return argv
+
+
+def edge_up(plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path, folder: Path) -> list[str]:
+    for route in plan.relay:
+        if route.host in connect:
+            supervise.start(folder, f"relay-edge-{route.host}", edge_argv(
+                route, stack=plan.stack, connect=connect[route.host], master=entry, certs=certs,
+                stats=_stats(folder, route.host)))
+    return []
+
+
+def edge_links(folder: Path, connect: Mapping[str, str]) -> list[dict[str, Any]]:
+    links = []
+    for host, address in sorted(connect.items()):
+        stats = read_json(_stats(folder, host)) or {}
+        topics = [{**t, "direction": MANIFEST_DIRECTION.get(t.get("direction", "-"), "-")}
+                  for t in stats.get("topics", [])]
+        links.append({"host": host, "connect": address, **stats, "topics": topics})
+    return links

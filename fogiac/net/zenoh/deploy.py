@@ -1,0 +1,134 @@
+"""Zenoh deployed: a router per cloud host, and on the edge a router that dials them all plus the monitor.
+
+The Zenoh variant's answers to :class:`fogiac.net.middleware.Middleware`'s deploying half.
+
+- Each host runs its router (``python -m fogiac.net.zenoh.router``, supervised like any service)
+  before its nodes: mutual TLS for the edge on the host's middleware port, plain TCP on loopback
+  at the host's own ROS port for its nodes, access control from :func:`config.cloud_router`. Its
+  certificate comes from the stack's CA, one per host, issued once and kept beside the CA.
+- Nodes get ``RMW_IMPLEMENTATION=rmw_zenoh_cpp`` and that loopback endpoint
+  (``ZENOH_CONFIG_OVERRIDE``; ``FOGIAC_ZENOH_ROUTER`` for clients that are not rmw_zenoh).
+- The edge router listens on loopback only (``edge.zenoh_router``) and dials every cloud router;
+  the monitor publishes ``/fogros/latency`` and ``/fogros/throughput`` on it. ``up`` also writes
+  the robot's own router's and zenoh-bridge-ros2dds's configs, pointing at that endpoint.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import sys
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from fogiac.certs import KeyPair, load_or_create_bundle, write_private
+from fogiac.net.zenoh import tls
+from fogiac.net.zenoh.config import TlsFiles, cloud_router, edge_router
+from fogiac.plan.model import HostSpec, Plan
+from fogiac.provision import services as svc
+from fogiac.provision import supervise
+from fogiac.provision.host import q
+from fogiac.state import read_json
+
+ROUTER = "zenoh-router"
+EDGE_ROUTER = "zenoh-edge-router"
+EDGE_MONITOR = "zenoh-edge-monitor"
+BRIDGE_NOTE = ("zenoh-bridge-ros2dds is not installed by fogiac: for a DDS robot install it on the robot and "
+               "run `zenoh-bridge-ros2dds -c {path}`")
+
+
+def router_id(stack: str, host: str) -> str:
+    """A fixed Zenoh id per cloud router, so the edge can tell which host it is linked to."""
+    return hashlib.sha256(f"{stack}/{host}".encode()).hexdigest()[:32]
+
+
+def local_endpoint(where: svc.Where) -> str:
+    return f"tcp/127.0.0.1:{where.master_port}"
+
+
+def node_env(where: svc.Where) -> Mapping[str, str]:
+    endpoint = local_endpoint(where)
+    return {"RMW_IMPLEMENTATION": "rmw_zenoh_cpp", "ZENOH_CONFIG_OVERRIDE": f'connect/endpoints=["{endpoint}"]',
+            "FOGIAC_ZENOH_ROUTER": endpoint}
+
+
+def _issued(certs: Path, name: str, make: Any) -> KeyPair:
+    """A certificate issued once and kept under the stack's certs folder (re-used on every ``up``)."""
+    folder = certs / "zenoh"
+    cert, key = folder / f"{name}.pem", folder / f"{name}.key"
+    if cert.exists() and key.exists():
+        return KeyPair(cert_pem=cert.read_bytes(), key_pem=key.read_bytes())
+    pair: KeyPair = make()
+    folder.mkdir(parents=True, exist_ok=True, mode=0o700)
+    write_private(key, pair.key_pem)
+    cert.write_bytes(pair.cert_pem)
+    return pair
+
+
+def host_services(plan: Plan, spec: HostSpec, where: svc.Where, *, certs: Path, dialed: str) -> tuple[svc.Service, ...]:
+    ca = load_or_create_bundle(plan.stack, certs).ca
+    pair = _issued(certs, f"{spec.name}@{dialed}", lambda: tls.host_pair(ca, stack=plan.stack, host=spec.name,
+                                                                          address=dialed))
+    remote = f"{where.layout.certs}/zenoh"
+    files = TlsFiles(ca=f"{remote}/ca.pem", cert=f"{remote}/router.pem", key=f"{remote}/router.key")
+    route = next(r for r in plan.relay if r.host == spec.name)
+    listen = "127.0.0.1" if where.ros_address.startswith("127.") else "0.0.0.0"
+    config = cloud_router(route, listen_host=listen, tls=files, edge_name=tls.edge_name(plan.stack),
+                          local_port=where.master_port)
+    config["id"] = router_id(plan.stack, spec.name)
+    config["listen"]["endpoints"][0] = f"tls/{listen}:{where.relay_port}"
+    path = f"{where.layout.env}/zenoh-router.json"
+    command = f"{q(where.python)} -m fogiac.net.zenoh.router {q(path)}"
+    return (svc.make_service(ROUTER, plan=plan, spec=spec, where=where, command=command, check="alive",
+                             python_path=where.code_root, files=(
+                                 (path, json.dumps(config, indent=1, sort_keys=True), 0o600),
+                                 (files.ca, ca.cert_pem.decode(), 0o644),
+                                 (files.cert, pair.cert_pem.decode(), 0o644),
+                                 (files.key, pair.key_pem.decode(), 0o600))),)
+
+
+def _port(endpoint: str) -> int:
+    return int(endpoint.rsplit(":", 1)[1])
+
+
+def edge_up(plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path, folder: Path) -> list[str]:
+    ca = load_or_create_bundle(plan.stack, certs).ca
+    pair = _issued(certs, "edge", lambda: tls.edge_pair(ca, stack=plan.stack))
+    files = tls.write_files(folder / "zenoh", "edge", pair, ca)
+    cloud = [(address.rsplit(":", 1)[0], int(address.rsplit(":", 1)[1])) for _, address in sorted(connect.items())]
+    config = edge_router(cloud, tls=files, local_port=_port(entry))
+    router_file, stats = folder / "zenoh-edge.json", folder / "zenoh-edge.stats.json"
+    router_file.write_text(json.dumps(config, indent=1, sort_keys=True))
+    supervise.start(folder, EDGE_ROUTER, [sys.executable, "-m", "fogiac.net.zenoh.router", str(router_file),
+                                          "--stats-file", str(stats)])
+    routes = [r for r in plan.relay if r.host in connect]
+    to_edge = sorted({t for r in routes for t in r.to_edge + r.listed})
+    to_cloud = sorted({t for r in routes for t in r.to_cloud})
+    monitor = [sys.executable, "-m", "fogiac.net.zenoh.monitor", entry, "--stats-file",
+               str(folder / "zenoh-monitor.stats.json")]
+    monitor += [a for t in to_edge for a in ("--to-edge", t)] + [a for t in to_cloud for a in ("--to-cloud", t)]
+    supervise.start(folder, EDGE_MONITOR, monitor)
+    robot = folder / "robot-router.json5"
+    robot.write_text(json.dumps({"mode": "router", "connect": {"endpoints": [entry]}}, indent=1) + "\n")
+    bridge = folder / "zenoh-bridge-ros2dds.json5"
+    bridge.write_text(json.dumps({"mode": "client", "connect": {"endpoints": [entry]}, "plugins": {"ros2dds": {
+        "allow": {"publishers": [f"{t}$" for t in to_cloud], "subscribers": [f"{t}$" for t in to_edge]}}}},
+        indent=1) + "\n")
+    return [f"edge Zenoh router on {entry} (rmw_zenoh nodes on the robot connect there), dialing "
+            + ", ".join(f"tls/{a}" for a in sorted(connect.values())),
+            f"robot router config (rmw_zenohd connecting to it): {robot}", BRIDGE_NOTE.format(path=bridge)]
+
+
+def edge_links(plan: Plan, *, folder: Path, connect: Mapping[str, str]) -> list[dict[str, Any]]:
+    linked = set((read_json(folder / "zenoh-edge.stats.json") or {}).get("routers", []))
+    figures = {t["topic"]: t for t in (read_json(folder / "zenoh-monitor.stats.json") or {}).get("topics", [])}
+    links = []
+    for route in plan.relay:
+        if route.host not in connect:
+            continue
+        mine = [{**figures[t], "direction": "in" if t in route.to_cloud else "out"}
+                for t in sorted(set(route.to_cloud + route.to_edge + route.listed)) if t in figures]
+        links.append({"host": route.host, "connect": connect[route.host],
+                      "connected": router_id(plan.stack, route.host) in linked, "topics": mine})
+    return links

@@ -63,7 +63,7 @@ class HostRun:
 
     @property
     def layout(self) -> svc.Layout:
-        return svc.Layout(self.host.base)
+        return svc.Layout(self.host.base, self.plan.stack)
 
     @property
     def manager(self) -> Manager:

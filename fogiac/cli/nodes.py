@@ -83,7 +83,7 @@ def register(app: typer.Typer) -> None:
         host = access.open(name=name, known_hosts=state / "known_hosts", stack=plan.stack)
         try:
             host.connect()
-            command = manager_for(host).logs_command(Layout(base or host.base), f"node-{node}", lines=lines)
+            command = manager_for(host).logs_command(Layout(base or host.base, plan.stack), f"node-{node}", lines=lines)
             typer.echo(host.run(command).stdout, nl=False)
         finally:
             host.close()

@@ -114,7 +114,7 @@ def _route(manifest: Manifest, host: HostSpec, nodes: tuple[NodeSpec, ...], via:
     return RelayRoute(
         host=host.name,
         connect_via=via,
-        port=port,
+        port=host.relay_port or port,
         auto=relay.topics == "auto" and any(n.topics_auto for n in mine),
         to_cloud=to_cloud,
         to_edge=to_edge,

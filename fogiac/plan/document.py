@@ -64,7 +64,8 @@ def security_rules(plan: Plan) -> list[dict[str, str]]:
 def middleware_doc(plan: Plan) -> dict[str, Any]:
     """Which middleware carries the topics, and what it runs on each side."""
     carrier = middleware.get(plan.middleware)
-    return {"name": carrier.name, "ros_distro": plan.ros_distro, "port": carrier.port, "label": carrier.label,
+    port = plan.relay[0].port if plan.relay else carrier.port  # the stack's own on shared lab machines
+    return {"name": carrier.name, "ros_distro": plan.ros_distro, "port": port, "label": carrier.label,
             "edge": carrier.edge_side, "cloud": carrier.cloud_side}
 
 

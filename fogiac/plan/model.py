@@ -161,6 +161,10 @@ class HostSpec:
     port: int | None = None
     key: str | None = None
     runtime: Literal["auto", "container", "native"] = "auto"  # auto: containers where `docker info` answers
+    # The host's ROS master and relay ports: the fixed ones on machines of their own (aws), the
+    # stack's own on shared machines (hosts), so two stacks on one lab machine never meet.
+    master_port: int = ROS_MASTER_PORT
+    relay_port: int | None = None  # None: the middleware's port
 
     @property
     def has_gpu(self) -> bool:

@@ -67,8 +67,7 @@ def steps_for(nodes: Sequence[Node]) -> tuple[str, ...]:
     steps = ["connect", "runtime"]
     if any(n.workload or n.build for n in nodes):
         steps.append("images")
-    if any(n.workload for n in nodes):
-        steps.append("venv")
+    steps.append("venv")  # fogiac's own requirements for the relay, and native workload nodes'
     if any(n.launch is not None for n in nodes):
         steps += ["workspace", "env_script"]
     steps += ["services", "link", "health"]

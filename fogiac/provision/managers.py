@@ -12,7 +12,7 @@ from typing import Protocol
 
 from fogiac.provision.host import Host, q
 from fogiac.provision.probe import Facts
-from fogiac.provision.services import Layout, Service
+from fogiac.provision.services import Layout, Service, unit_name
 
 Health = list[tuple[str, bool, str]]  # (service, healthy, detail)
 
@@ -126,39 +126,43 @@ class Supervisor:
 
 
 class Systemd:
-    """One ``fogiac-<service>.service`` unit per service, ``Restart=on-failure``."""
+    """One ``fogiac-<stack>-<service>.service`` unit per service, ``Restart=on-failure``."""
 
     name = "systemd"
 
     @staticmethod
-    def unit(name: str) -> str:
-        return f"fogiac-{name}.service"
+    def unit(layout: Layout, name: str) -> str:
+        return unit_name(layout.stack, name)
 
     def ensure(self, host: Host, layout: Layout, services: Sequence[Service], *, restart_all: bool,
                facts: Facts | None = None) -> list[str]:
-        current = _current(host, layout, services, "systemctl is-active fogiac-{name}.service")
+        status = f"systemctl is-active {unit_name(layout.stack, '{name}')}"
+        current = _current(host, layout, services, status)
         started = []
         for s in services:
-            unit_path = f"/etc/systemd/system/{self.unit(s.name)}"
+            unit = self.unit(layout, s.name)
+            unit_path = f"/etc/systemd/system/{unit}"
             unit_same = host.run(f"sha256sum {q(unit_path)} 2>/dev/null", check=False).stdout.split()[:1] == [
                 hashlib.sha256(s.unit.encode()).hexdigest()]
             sha, state = current.get(s.name, ("", ""))
             if sha == s.digest and unit_same and state == "active" and not restart_all:
                 continue
             host.put(s.script.encode(), _script_path(layout, s.name), mode=0o700)
-            tmp = f"{layout.tmp}/{self.unit(s.name)}"
+            tmp = f"{layout.tmp}/{unit}"
             host.put(s.unit.encode(), tmp)
             host.sudo(f"install -m 644 {q(tmp)} {q(unit_path)} && systemctl daemon-reload && "
-                      f"systemctl enable {self.unit(s.name)} >/dev/null 2>&1 && systemctl restart {self.unit(s.name)}")
+                      f"systemctl enable {unit} >/dev/null 2>&1 && systemctl restart {unit}")
             started.append(s.name)
         return started
 
     def prune(self, host: Host, layout: Layout, *, keep: Sequence[str], facts: Facts | None = None) -> list[str]:
-        mine = self._units(host, layout)
-        gone = [u for u in mine if u.removeprefix("fogiac-").removesuffix(".service") not in keep]
+        """Units whose script lies in this stack's folder (earlier versions named them without the stack)."""
+        wanted = {self.unit(layout, k) for k in keep}
+        gone = [u for u in self._units(host, layout) if u not in wanted]
         for unit in gone:
             host.sudo(f"systemctl disable --now {unit} >/dev/null 2>&1; rm -f /etc/systemd/system/{unit}", check=False)
-        return [u.removeprefix("fogiac-").removesuffix(".service") for u in gone]
+        prefix = f"fogiac-{layout.stack}-" if layout.stack else "fogiac-"
+        return [u.removesuffix(".service").removeprefix(prefix).removeprefix("fogiac-") for u in gone]
 
     def _units(self, host: Host, layout: Layout) -> list[str]:
         out = host.run(f"grep -l {q(layout.services + '/')} /etc/systemd/system/fogiac-*.service 2>/dev/null",
@@ -169,7 +173,7 @@ class Systemd:
                timeout: float) -> Health:
         results = []
         for service in services:
-            pid = f"$(systemctl show -p MainPID --value {self.unit(service.name)})"
+            pid = f"$(systemctl show -p MainPID --value {self.unit(layout, service.name)})"
             result = host.run(f"{_SUP_PYTHON} {q(layout.supervisor)} health {q(service.name)} --dir {q(layout.run)} "
                               f"--pid {pid} --check {service.check} --master {q(master)} --timeout {timeout:g}",
                               check=False, timeout=timeout + 30)
@@ -180,7 +184,7 @@ class Systemd:
         return self.prune(host, layout, keep=())
 
     def logs_command(self, layout: Layout, name: str, *, lines: int) -> str:
-        return f"journalctl -u {self.unit(name)} -n {lines} --no-pager"
+        return f"journalctl -u {self.unit(layout, name)} -n {lines} --no-pager"
 
 
 MANAGERS: dict[str, Manager] = {"systemd": Systemd(), "supervisor": Supervisor()}

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from fogiac.errors import FogiacError, ProvisionError
-from fogiac.plan.model import HostSpec, Plan
+from fogiac.plan.model import RELAY_PORT, ROS_MASTER_PORT, HostSpec, Plan
 from fogiac.provision.host import Host, HostAccess, q
 from fogiac.provision.local import LocalAccess
 from fogiac.provision.managers import manager_for
@@ -162,7 +162,9 @@ def record_access(state_dir: Path, plan: Plan, hosts: Mapping[str, HostAccess], 
 
 def _ssh_from_dict(d: Mapping[str, Any]) -> SshAccess:
     return SshAccess(address=str(d["address"]), user=str(d["user"]), port=int(d["port"]), key=Path(str(d["key"])),
-                     base_dir=d.get("base_dir"), python=str(d["python"]))
+                     base_dir=d.get("base_dir"), python=str(d["python"]),
+                     master_port=int(d.get("master_port", ROS_MASTER_PORT)),
+                     relay_port=int(d.get("relay_port", RELAY_PORT)))
 
 
 def _local_from_dict(d: Mapping[str, Any]) -> LocalAccess:
@@ -199,8 +201,9 @@ def _stop_one(plan: Plan, spec: HostSpec, access: HostAccess, *, known_hosts: Pa
     stopped: list[str] = []
     try:
         host.connect()
-        stopped = manager_for(host).stop_all(host, Layout(host.base))
-        stopped += remove_containers(host, Layout(host.base), stack=plan.stack, host_name=spec.name)
+        layout = Layout(host.base, plan.stack)
+        stopped = manager_for(host).stop_all(host, layout)
+        stopped += remove_containers(host, layout, stack=plan.stack, host_name=spec.name)
         detail = f"stopped {', '.join(stopped)}" if stopped else "nothing running"
         status = CHANGED if stopped else "ok"
         if remove:

@@ -24,9 +24,10 @@ _WS_MOUNT = "/fogiac/ws"
 
 @dataclass(frozen=True)
 class Layout:
-    """Where fogiac keeps things under its base folder on one host."""
+    """Where fogiac keeps things under its base folder on one host, and whose they are."""
 
     base: str
+    stack: str = ""  # names what lives outside the folder (systemd units); "" only where none is made
 
     @property
     def bin(self) -> str:
@@ -127,6 +128,11 @@ def master_uri(where: Where) -> str:
 def container_name(stack: str, name: str) -> str:
     """Containers carry the stack, so two stacks on one machine never take each other's names."""
     return f"fogiac-{stack}-{name}"
+
+
+def unit_name(stack: str, name: str) -> str:
+    """A service's systemd unit carries the stack too: units live in one folder for the whole machine."""
+    return f"fogiac-{stack}-{name}.service" if stack else f"fogiac-{name}.service"
 
 
 def ros_image(plan: Plan) -> str:
@@ -298,7 +304,8 @@ def node_services(plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ..
         out.append(_service(
             f"node-{name}", plan=plan, spec=spec, where=where, command=parts.command, check=parts.check,
             env=() if in_container else node.env, pre=parts.pre, package_path=parts.package_path,
-            python_path=parts.python_path, cwd=parts.cwd, notes=notes, after="fogiac-ros-master.service", files=files,
+            python_path=parts.python_path, cwd=parts.cwd, notes=notes, after=unit_name(plan.stack, "ros-master"),
+            files=files,
         ))
     return tuple(out)
 
@@ -313,7 +320,7 @@ def relay_service(plan: Plan, spec: HostSpec, where: Where) -> Service:
                f"--master {master_uri(where)} --certs {q(where.layout.certs)} --stats-file {q(relay_stats(where))} "
                f"{policy}").rstrip()
     return _service("relay-cloud", plan=plan, spec=spec, where=where, command=command, check="alive",
-                    python_path=where.code_root, after="fogiac-ros-master.service")
+                    python_path=where.code_root, after=unit_name(plan.stack, "ros-master"))
 
 
 def relay_stats(where: Where) -> str:
@@ -329,4 +336,4 @@ def autostop_service(plan: Plan, spec: HostSpec, where: Where) -> Service | None
     command = (f"{q(where.python)} -m fogiac.provision.autostop --stats {q(relay_stats(where))} "
                f"--run {q(where.layout.run)} --idle-s {stop.idle_s:g} --action {stop.action} --power {stop.power}")
     return _service("autostop", plan=plan, spec=spec, where=where, command=command, check="alive",
-                    python_path=where.code_root, after="fogiac-relay-cloud.service")
+                    python_path=where.code_root, after=unit_name(plan.stack, "relay-cloud"))

@@ -48,6 +48,8 @@ class SshAccess:
     python: str = "python3"
     connect_timeout: float = 60.0
     ship_code: bool = True
+    master_port: int = ROS_MASTER_PORT  # the plan's (a shared lab machine's are the stack's own)
+    relay_port: int = RELAY_PORT
 
     @property
     def kind(self) -> str:
@@ -58,14 +60,6 @@ class SshAccess:
         return self.address
 
     @property
-    def master_port(self) -> int:
-        return ROS_MASTER_PORT
-
-    @property
-    def relay_port(self) -> int:
-        return RELAY_PORT
-
-    @property
     def location(self) -> str:
         return f"{self.address}:{self.port}"
 
@@ -74,7 +68,8 @@ class SshAccess:
 
     def describe(self) -> dict[str, object]:
         return {"kind": "ssh", "address": self.address, "user": self.user, "port": self.port,
-                "key": str(self.key), "base_dir": self.base_dir, "python": self.python}
+                "key": str(self.key), "base_dir": self.base_dir, "python": self.python,
+                "master_port": self.master_port, "relay_port": self.relay_port}
 
 
 class SshHost:

@@ -27,7 +27,7 @@ from fogiac.render import render
 from fogiac.resources import package_dir
 
 CHANGED, OK, SKIPPED = "changed", "ok", "skipped"
-_CODE_IGNORE = ("tests/", "*.npz", "problems/", "*.ipynb")  # the grasp node's model.pt (0.2 MB) goes along
+_CODE_IGNORE = ("tests/", "*.npz", "*.ipynb")  # the planner's problems (0.1 MB) and the grasp model (0.2 MB) go along
 _ROS_PACKAGES = ("ros-core", "python3-rospy", "python3-std-msgs")
 
 
@@ -53,7 +53,7 @@ class HostRun:
     runtime: str = ""
     engine: str = ""  # the container engine's command, when runtime is CONTAINER
     images: dict[str, str] = field(default_factory=dict)  # node -> image tag built on the host
-    workload_python: str = ""  # the virtual environment's interpreter for workload nodes on a native host
+    venv_python: str = ""  # the virtual environment's interpreter (fogiac's code, native workload nodes)
     facts: Facts | None = None
     systemd: bool | None = None  # whether the runtime step's probe saw systemd as PID 1; None: not probed
     files_pushed: int = 0
@@ -62,7 +62,7 @@ class HostRun:
 
     @property
     def layout(self) -> svc.Layout:
-        return svc.Layout(self.host.base)
+        return svc.Layout(self.host.base, self.plan.stack)
 
     @property
     def manager(self) -> Manager:
@@ -75,10 +75,10 @@ class HostRun:
         code_root = self.layout.lib if self.access.ship_code else str(package_dir("fogiac").parent)
         return svc.Where(layout=self.layout, runtime=self.runtime or svc.NATIVE, master_port=self.access.master_port,
                          relay_port=self.access.relay_port, ros_address=self.access.ros_address,
-                         python=self.access.python, code_root=code_root, user=self.access.user,
+                         python=self.venv_python or self.access.python, code_root=code_root, user=self.access.user,
                          workspace_digests=tuple(sorted(self.digests.items())), engine=self.engine or "docker",
                          images=tuple(sorted(self.images.items())),
-                         workload_python=self.workload_python or self.access.python)
+                         workload_python=self.venv_python or self.access.python)
 
     @property
     def carrier(self) -> Middleware:
@@ -143,6 +143,8 @@ def step_runtime(run: HostRun) -> StepResult:
             run.files_pushed += pushed.files
             if pushed.changed:
                 changes.append(f"{package} code")
+        if (package_dir("fogiac") / "cli" / "relay.py").is_file():
+            facts.flags.add("relaycli")  # pushed just now: the probe ran before the first push
     detail = f"{run.runtime} ROS" + (f"; {', '.join(changes)}" if changes else "")
     return (CHANGED if changes else OK), detail
 
@@ -232,19 +234,19 @@ def step_images(run: HostRun) -> StepResult:
 
 
 def step_venv(run: HostRun) -> StepResult:
-    """On a native host that runs fogiac's pushed code, workload nodes get their requirements in a venv."""
-    if run.runtime != svc.NATIVE:
-        return SKIPPED, "container runtime: requirements are in the images"
+    """A host that runs fogiac's pushed code gets fogiac's requirements (its relay imports them) in a
+    venv over the system's python3, plus its workload nodes' on a native host."""
     if not run.access.ship_code:
-        return SKIPPED, "nodes run on fogiac's own interpreter"
+        return SKIPPED, "fogiac's code runs on its own interpreter"
     names = [n.workload for n in (run.plan.node(x) for x in run.spec.nodes) if n.workload is not None]
+    reqs = venv.requirements(names if run.runtime == svc.NATIVE else [], fogiac=True)
     marker = f"{run.layout.state}/venv.sha256"
     known = run.facts.marker(marker) if run.facts is not None else ""
-    env = venv.ensure(run.host, root=f"{run.layout.base}/venv", marker=marker, known=known,
-                      reqs=venv.requirements(names), python=run.access.python,
-                      allow_install=run.options.allow_install, log=f"{run.layout.run}/venv-install.log")
-    run.workload_python = env.python
-    return (CHANGED, f"installed {', '.join(venv.requirements(names))}") if env.built else \
+    env = venv.ensure(run.host, root=f"{run.layout.base}/venv", marker=marker, known=known, reqs=reqs,
+                      python=run.access.python, allow_install=run.options.allow_install,
+                      log=f"{run.layout.run}/venv-install.log")
+    run.venv_python = env.python
+    return (CHANGED, f"installed {', '.join(reqs)}") if env.built else \
         (OK, f"requirements installed already ({env.digest[:12]})")
 
 

@@ -1,16 +1,19 @@
-"""The virtual environment a native host runs its workload nodes in.
+"""The virtual environment fogiac's pushed code runs in on a host: the relay, and native workload nodes.
 
-Why: a host's system Python has ROS (rospy from Debian's or ROS's packages) but not the
-workloads' own requirements (numpy, OMPL, torch). Provisioning builds one virtual environment
-that sees the system's packages (``--system-site-packages``) and holds the workloads' pinned
-requirements, named by a digest of those pins: a second ``up`` with the same pins installs
-nothing, a changed pin builds a fresh one and removes the old.
+Why: a host's system Python has ROS (rospy from Debian's or ROS's packages) but neither
+fogiac's own requirements (typer, cryptography, ...: the relay's cloud end imports them) nor
+the workloads' (numpy, OMPL, torch). Provisioning builds one virtual environment that sees the
+system's packages (``--system-site-packages``) and holds both, named by a digest of the
+requirement lines: a second ``up`` with the same lines installs nothing, a changed one builds a
+fresh environment and removes the old.
 """
 
 from __future__ import annotations
 
 import hashlib
 import importlib
+import importlib.metadata
+import re
 from dataclasses import dataclass
 
 from fogiac.errors import ProvisionError
@@ -26,9 +29,19 @@ class Venv:
     built: bool
 
 
-def requirements(workloads: list[str]) -> tuple[str, ...]:
-    """Every requirement of ``workloads``, each once, in a stable order."""
-    found: list[str] = []
+def fogiac_requirements() -> tuple[str, ...]:
+    """fogiac's own runtime requirements (no extras), as its installed metadata declares them."""
+    try:
+        declared = importlib.metadata.requires("fogiac") or []
+    except importlib.metadata.PackageNotFoundError:
+        raise ProvisionError("fogiac is not installed (pip install fogiac): its requirements for the host's "
+                             "relay are read from the installed package") from None
+    return tuple(re.sub(r"\s+", "", r) for r in declared if "extra ==" not in r)
+
+
+def requirements(workloads: list[str], *, fogiac: bool = False) -> tuple[str, ...]:
+    """Every requirement of ``workloads`` (and fogiac's own, first, if asked), each once, in a stable order."""
+    found: list[str] = list(fogiac_requirements()) if fogiac else []
     for name in sorted(set(workloads)):
         for req in importlib.import_module(f"workloads.{name}.container").requirements():
             if req not in found:

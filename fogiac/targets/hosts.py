@@ -2,10 +2,13 @@
 
 Nodes are placed on the manifest's ``cloud.hosts`` (a node's ``host:``, else round robin);
 the edge relay dials each host's address. Host keys are trusted on first use and pinned.
+A lab machine is shared: each stack's ROS master and relay listen on ports of its own
+(:func:`stack_ports`), beside the lab's own roscore on 11311 and any other stack.
 """
 
 from __future__ import annotations
 
+import hashlib
 import shutil
 import socket
 from collections.abc import Mapping
@@ -14,12 +17,26 @@ from pathlib import Path
 from fogiac.errors import PlanError, ProvisionError
 from fogiac.manifest.schema import Manifest
 from fogiac.orchestrate import ExistingMachines
-from fogiac.plan.model import HostSpec, Plan
+from fogiac.plan.model import RELAY_PORT, HostSpec, Plan
 from fogiac.plan.placement import Placement, Tags, autostop_for, steps_for
 from fogiac.provision import SshAccess
 from fogiac.targets.base import Check
 
 CONNECT_TIMEOUT_S = 5.0  # doctor's TCP check of each host's SSH port
+# Stacks' port pairs (master, master + 1 for the relay) lie in 20000-29999: below Linux's ephemeral
+# range (32768-60999), where nodes listen, and clear of ROS's 11311 and the relay's 11411.
+_PORTS_FROM, _PORT_PAIRS = 20000, 5000
+
+
+def stack_ports(stack: str) -> tuple[int, int]:
+    """(ROS master port, relay port) of ``stack`` on every host: the same on every run, from its name.
+
+    Two stacks meet on one pair once in 5000; the second master then cannot bind and its health
+    step names the port, rather than two stacks silently sharing a graph.
+    """
+    pair = int.from_bytes(hashlib.sha256(stack.encode()).digest()[:4], "big") % _PORT_PAIRS
+    master = _PORTS_FROM + 2 * pair
+    return master, master + 1
 
 
 class HostsTarget(ExistingMachines):
@@ -32,6 +49,7 @@ class HostsTarget(ExistingMachines):
             raise PlanError("cloud.hosts: the hosts target needs at least one machine")
         node_hosts = {node.name: node.host or machines[i % len(machines)].name
                       for i, node in enumerate(manifest.nodes)}
+        master_port, relay_port = stack_ports(stack)
         hosts = []
         for machine in machines:
             placed = [n for n in manifest.nodes if node_hosts[n.name] == machine.name]
@@ -45,7 +63,7 @@ class HostsTarget(ExistingMachines):
                 spot=False, disk_gb=0, nodes=tuple(n.name for n in placed), steps=steps_for(placed),
                 tags=tags + (("fogiac:node", ",".join(n.name for n in placed)),),
                 address=machine.address, user=machine.user, port=machine.port, key=str(machine.key),
-                runtime=manifest.cloud.runtime,
+                runtime=manifest.cloud.runtime, master_port=master_port, relay_port=relay_port,
             ))
         return Placement(hosts=tuple(hosts), node_hosts=node_hosts, mode="relay", connect_via="address",
                          autostop=autostop_for(manifest, power="services", default_minutes=None))
@@ -57,7 +75,8 @@ class HostsTarget(ExistingMachines):
             if not (spec.address and spec.user and spec.key):
                 raise ProvisionError(f"host {spec.name}: the plan lacks its address, user or key")
             out[spec.name] = SshAccess(address=spec.address, user=spec.user, port=spec.port or 22, key=Path(spec.key),
-                                       python=python, connect_timeout=connect_timeout)
+                                       python=python, connect_timeout=connect_timeout, master_port=spec.master_port,
+                                       relay_port=spec.relay_port or RELAY_PORT)
         return out
 
     def doctor(self, plan: Plan, *, ssh_from: str | None = None) -> list[Check]:

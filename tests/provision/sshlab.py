@@ -11,7 +11,9 @@ a namespace, the namespaces) runs even when the caller fails.
 from __future__ import annotations
 
 import os
+import pwd
 import shutil
+import signal
 import socket
 import subprocess
 import time
@@ -53,6 +55,49 @@ def keygen(path: Path) -> Path:
 def fingerprint_of(pub: Path) -> str:
     out = subprocess.run(["ssh-keygen", "-lf", str(pub)], capture_output=True, text=True, check=True).stdout
     return out.split()[1]
+
+
+@contextmanager
+def plain_user(client_key: Path) -> Iterator[tuple[str, Path]]:
+    """A login user with passwordless sudo, as a lab gives its researchers: (name, home).
+
+    The hosts' sshd also reads ``~/.ssh/authorized_keys``, where the client key goes. The
+    account, its home (under /tmp: the test's own folders are root's alone) and its sudoers entry
+    are removed on exit, after every process of the user is stopped.
+    """
+    name = f"fl{os.getpid()}"
+    home = Path(f"/tmp/fogiac-{name}")
+    sudoers = Path(f"/etc/sudoers.d/fogiac-test-{name}")
+    subprocess.run(["useradd", "--create-home", "--home-dir", str(home), "--shell", "/bin/bash", name], check=True)
+    try:
+        subprocess.run(["usermod", "--password", "*", name], check=True)  # no password, yet not locked for sshd
+        sudoers.write_text(f"{name} ALL=(ALL) NOPASSWD:ALL\n")
+        sudoers.chmod(0o440)
+        ssh_dir = home / ".ssh"
+        ssh_dir.mkdir(mode=0o700)
+        (ssh_dir / "authorized_keys").write_text(Path(f"{client_key}.pub").read_text())
+        subprocess.run(["chown", "-R", f"{name}:{name}", str(ssh_dir)], check=True)
+        yield name, home
+    finally:
+        _kill_owned_by(name)
+        sudoers.unlink(missing_ok=True)
+        subprocess.run(["userdel", name], capture_output=True)
+        shutil.rmtree(home, ignore_errors=True)
+
+
+def _kill_owned_by(user: str) -> None:
+    """SIGKILL each process (by its id) whose real uid is ``user``'s: the account exists for one test only."""
+    try:
+        uid = pwd.getpwnam(user).pw_uid
+    except KeyError:
+        return
+    for status in Path("/proc").glob("[0-9]*/status"):
+        try:
+            real = next(ln.split()[1] for ln in status.read_text().splitlines() if ln.startswith("Uid:"))
+            if int(real) == uid:
+                os.kill(int(status.parent.name), signal.SIGKILL)
+        except (OSError, StopIteration, ValueError):
+            continue
 
 
 def _wait_port(address: str, port: int, timeout: float = 15.0) -> None:
@@ -104,10 +149,11 @@ def ssh_lab(root: Path, count: int, *, dead: int = 0,
             config = folder / "sshd_config"
             config.write_text(
                 f"ListenAddress {address}\nPort 22\nHostKey {host_key}\nPidFile {folder}/sshd.pid\n"
-                f"AuthorizedKeysFile {folder}/authorized_keys\nPermitRootLogin prohibit-password\n"
+                f"AuthorizedKeysFile {folder}/authorized_keys .ssh/authorized_keys\nPermitRootLogin prohibit-password\n"
                 "PasswordAuthentication no\nKbdInteractiveAuthentication no\nUsePAM no\nStrictModes no\n"
                 "MaxStartups 100\nMaxSessions 100\nSubsystem sftp internal-sftp\n"
-                + "".join(f"SetEnv {key}={value}\n" for key, value in (env or {}).items())
+                # one SetEnv line: sshd takes the first of repeated keywords
+                + ("SetEnv " + " ".join(f'"{key}={value}"' for key, value in env.items()) + "\n" if env else "")
             )
             # Debian's bash sources ~/.bashrc for every SSH command; this machine's runs `pyenv init`
             # (~0.8 s). Real servers return early for non-interactive shells; so does this stand-in,

@@ -23,7 +23,7 @@ from fogiac.plan.compile import compile_plan
 from fogiac.manifest.schema import load_manifest
 from fogiac.plan.model import Plan
 from fogiac.provision import ProvisionReport, SshAccess, provision, teardown
-from fogiac.targets.hosts import HOSTS
+from fogiac.targets.hosts import HOSTS, stack_ports
 from tests.provision.conftest import hosts_manifest, make_workspace, ros_skip_reason
 from tests.provision.sshlab import LabHost, fingerprint_of, ssh_lab, lab_skip_reason
 from tests.support.tls import dial, private_keys_under, public_der
@@ -36,7 +36,7 @@ if _REASON:
 
 _QUERY = """
 import json, sys, xmlrpc.client
-m = xmlrpc.client.ServerProxy("http://127.0.0.1:11311")
+m = xmlrpc.client.ServerProxy(f"http://127.0.0.1:{sys.argv[2]}")
 code, _, uri = m.lookupNode("/t", sys.argv[1])
 pid = xmlrpc.client.ServerProxy(uri).getPid("/t")[2] if code == 1 else None
 print(json.dumps({"code": code, "pid": pid}))
@@ -69,7 +69,8 @@ class Deployment:
                          certs_dir=self.certs, health_timeout=30)
 
     def node_pid(self, host: LabHost) -> int | None:
-        out = host.ns.run(["/usr/bin/python3", "-c", _QUERY, "/fog_talker"]).stdout
+        port = self.plan(self.hosts[:2]).hosts[0].master_port  # the stack's own, not 11311: the lab may run one
+        out = host.ns.run(["/usr/bin/python3", "-c", _QUERY, "/fog_talker", str(port)]).stdout
         return json.loads(out)["pid"]
 
 
@@ -195,7 +196,8 @@ def test_relay_step_pushes_cloud_certs_private(lab: Deployment) -> None:
     assert sorted(p.name for p in certs.iterdir()) == ["ca.pem", "server.key", "server.pem"]
     assert (certs / "server.key").stat().st_mode & 0o777 == 0o600
     script = (lab.hosts[0].base_dir / "services" / "relay-cloud.sh").read_text()
-    assert f"-m fogiac relay cloud --listen 0.0.0.0:11411 --master http://127.0.0.1:11311 --certs {certs}" in script
+    master, relay = stack_ports("labtest-dev")
+    assert f"-m fogiac relay cloud --listen 0.0.0.0:{relay} --master http://127.0.0.1:{master} --certs {certs}" in script
 
 
 def test_each_host_has_its_own_relay_key_which_never_left_it(lab: Deployment) -> None:

@@ -110,7 +110,7 @@ def test_container_service_script_and_systemd_unit(plan: Plan) -> None:
     assert service.unit == (
         "# fogiac service node-grasp on host grasp (stack fleet-dev): rendered by fogiac, edits are overwritten.\n"
         "[Unit]\nDescription=fogiac fleet-dev: node-grasp\n"
-        "After=network-online.target fogiac-ros-master.service\nWants=network-online.target\n\n"
+        "After=network-online.target fogiac-fleet-dev-ros-master.service\nWants=network-online.target\n\n"
         "[Service]\nType=simple\nUser=ubuntu\n"
         f"ExecStart=/bin/bash {base}/services/node-grasp.sh\n"
         "Restart=on-failure\nRestartSec=2\nTimeoutStopSec=15\nKillMode=control-group\n\n"

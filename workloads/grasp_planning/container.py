@@ -12,6 +12,8 @@ DEFAULTS: dict[str, Any] = {
     "base_image": "nvidia/cuda:12.8.1-runtime-ubuntu22.04",
     "torch_version": "2.13.0",
     "torch_index_url": "",
+    "apt_packages": ["python3", "python3-venv", "ros-core", "python3-rospy", "python3-std-msgs",
+                     "python3-sensor-msgs", "python3-geometry-msgs"],
     "pip_packages": ["numpy>=1.24", "typer>=0.12"],
     "device": "auto",
     "threads": 0,
@@ -19,8 +21,13 @@ DEFAULTS: dict[str, Any] = {
 }
 
 
-# Per base distribution (the /etc/os-release ID of the base image): overrides of DEFAULTS.
-FLAVOURS: dict[str, dict[str, Any]] = {"ubuntu": {}}
+# Per base distribution (the /etc/os-release ID of the host's ROS base image): overrides of
+# DEFAULTS. A ROS base from Debian's own packages (bookworm, as the tests' base image) already
+# has ROS, the message packages and python3-venv: it is the base, and torch runs on the CPU.
+FLAVOURS: dict[str, dict[str, Any]] = {
+    "ubuntu": {},
+    "debian": {"base_image": "ros:noetic-ros-core", "apt_packages": [], "device": "cpu"},
+}
 
 
 def requirements() -> list[str]:

@@ -73,6 +73,18 @@ def test_dockerfile_renders_on_a_cuda_base_with_torch_pinned() -> None:
         dockerfile(gpu=True)
 
 
+def test_torch_goes_into_a_venv_that_sees_the_systems_rospy() -> None:
+    """Debian's pip refuses installs into the system's Python (PEP 668): torch lives in /opt/venv."""
+    from workloads.grasp_planning.container import FLAVOURS
+
+    text = dockerfile(**FLAVOURS["debian"])
+    assert text.startswith("FROM ros:noetic-ros-core\n") and "apt-get" not in text
+    assert "RUN python3 -m venv --system-site-packages /opt/venv \\\n && /opt/venv/bin/pip install --no-cache-dir " \
+           "torch==2.13.0\n" in text
+    assert "PATH=/opt/venv/bin:$PATH" in text and "python3 -m pip" not in text
+    assert 'CMD ["python", "-m", "workloads.grasp_planning", "node", "_device:=cpu"' in text
+
+
 def test_devices_are_checked_before_use() -> None:
     import torch
 

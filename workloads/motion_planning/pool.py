@@ -43,7 +43,7 @@ from workloads.motion_planning.planner import (
     worker_context,
 )
 from workloads.motion_planning.problem import Pose, Problem
-from workloads.motion_planning.share import DEFAULT_MODE, MODES, join_reports, split_path
+from workloads.motion_planning.share import DEFAULT_MODE, MODES, join_reports, simplify_shares, split_path
 
 _READY_TIMEOUT_S = 120.0
 _STOP_GRACE_S = 2.0
@@ -126,12 +126,13 @@ class WarmPlanner:
                        deadline: float) -> dict[str, Any]:
         """Every worker simplifies and proves one piece of the first path; the pieces joined."""
         path = [Pose(*p) for p in first["path"]]
-        pieces = split_path(path, self.workers, radius=self.problems[name].robot.radius())
+        radius = self.problems[name].robot.radius()
+        pieces = split_path(path, self.workers, radius=radius)
         self._request_id += 1
         self._flag.value = 0
-        for i, piece in enumerate(pieces):
-            self._send(i, {"id": self._request_id, "name": name, "piece": piece, "resolution": request["resolution"],
-                           "time_limit": max(1e-3, left), "simplify_time": request["simplify_time"]})
+        for i, share in enumerate(simplify_shares(pieces, request["simplify_time"], radius=radius)):
+            self._send(i, {"id": self._request_id, "name": name, "piece": pieces[i],
+                           "resolution": request["resolution"], "time_limit": max(1e-3, left), "simplify_time": share})
         reports = self._gather(self._request_id, len(pieces), deadline=deadline)
         return join_reports(first, reports)
 

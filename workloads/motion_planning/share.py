@@ -51,6 +51,18 @@ def split_path(path: list[Pose], pieces: int, *, radius: float) -> list[list[Pos
     return [path[a:b + 1] for a, b in pairwise(cuts)]
 
 
+def simplify_shares(pieces: list[list[Pose]], seconds: float, *, radius: float) -> list[float]:
+    """The request's simplification budget split over the pieces by sweep: the same work, shared.
+
+    Simplification runs until it converges or its budget is spent, and on the shipped problems
+    one core spends the whole 0.5 s; a piece with the whole budget would too, and sharing would
+    then save nothing on that phase.
+    """
+    sweeps = [sum(sweep(a, b, radius) for a, b in pairwise(piece)) for piece in pieces]
+    total = sum(sweeps)
+    return [seconds * s / total if total > 0 else seconds / len(pieces) for s in sweeps]
+
+
 def join_reports(first: dict[str, Any], pieces: list[dict[str, Any] | None]) -> dict[str, Any]:
     """One answer from the race winner's report and its pieces' (None: that worker died).
 

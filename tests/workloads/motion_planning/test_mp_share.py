@@ -10,7 +10,7 @@ from tests.workloads.motion_planning.mp_support import PROBLEMS
 from fogiac.errors import WorkloadError
 from workloads.motion_planning import Pose, load_problem, path_is_collision_free
 from workloads.motion_planning.pool import WarmPlanner
-from workloads.motion_planning.share import join_reports, split_path
+from workloads.motion_planning.share import join_reports, simplify_shares, split_path
 
 
 def _line(n: int) -> list[Pose]:
@@ -27,6 +27,12 @@ def test_pieces_have_equal_sweep_and_share_their_joints() -> None:
     half_turn = (0.0, 0.0, math.sin(math.pi / 2), math.cos(math.pi / 2))
     turning = [Pose(0.0, 0.0, 0.0), *(Pose(float(i), 0.0, 0.0, *half_turn) for i in range(5))]
     assert [len(p) for p in split_path(turning, 2, radius=1.0)] == [2, 5]
+
+
+def test_the_simplification_budget_is_shared_by_sweep() -> None:
+    assert simplify_shares(split_path(_line(9), 2, radius=1.0), 0.5, radius=1.0) == [0.25, 0.25]
+    assert simplify_shares([_line(4), _line(2)], 0.4, radius=1.0) == pytest.approx([0.3, 0.1])
+    assert simplify_shares([[Pose(0.0, 0.0, 0.0)] * 2] * 2, 0.4, radius=1.0) == [0.2, 0.2]
 
 
 def test_joined_reports() -> None:

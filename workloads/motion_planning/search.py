@@ -127,7 +127,10 @@ class Search:
             return {**report, "solved": False, "status": "unproven path"}
         return {**report, "solved": True, "status": "exact solution", "path": _tuples(proven)}
 
-    def _plan(self, start: Pose, goal: Pose, *, planner: str, resolution: float, ptc: Any) -> list[Pose] | None:
+    def _plan(self, start: Pose, goal: Pose, *, planner: str, resolution: float, ptc: Any,
+              straight: bool = True) -> list[Pose] | None:
+        """The planner's path, or the straight move when it is free and ``straight`` (not in a repair:
+        there the straight move is the segment that could not be proven)."""
         self.set_resolution(resolution)
         self.setup.clear()
         a, b = self.space.allocState(), self.space.allocState()
@@ -137,7 +140,7 @@ class Search:
             rot.w, rot.x, rot.y, rot.z = (float(v) for v in pose.quaternion())
         self.setup.setStartAndGoalStates(a, b)
         si, started = self.setup.getSpaceInformation(), time.perf_counter()
-        if si.isValid(a) and si.checkMotion(a, b):  # the straight move is free: no search needed
+        if straight and si.isValid(a) and si.checkMotion(a, b):  # the straight move is free: no search needed
             self.plan_time_s = time.perf_counter() - started
             return [start, goal]
         self.setup.setPlanner(getattr(og, planner)(si))
@@ -188,7 +191,8 @@ class Search:
                 return None, repairs
             repairs += 1
             finer = resolution / _REPAIR_SHRINK
-            piece = self._plan(a, b, planner=planner, resolution=finer, ptc=_ptc(deadline, lambda: False))
+            piece = self._plan(a, b, planner=planner, resolution=finer, ptc=_ptc(deadline, lambda: False),
+                               straight=False)
             if piece is None:
                 return None, repairs
             piece = self._simplify(self._geometric(piece), min(0.2, max(0.0, deadline.left())), finer)

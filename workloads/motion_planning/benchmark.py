@@ -3,7 +3,8 @@
 ``python -m workloads.motion_planning.benchmark --runs 10 --out benchmarks/out``
 
 Cold is :func:`solve` (workers started and collision models built per request); warm is a
-:class:`WarmPlanner` per core count, kept for the whole benchmark. "overhead" is the median
+:class:`WarmPlanner` per core count, kept for the whole benchmark, racing (``warm``) or, on N
+cores, also sharing the finish of the first path between the workers (``share``, ``share.py``). "overhead" is the median
 wall time of a request that needs no search (both endpoints in one open room, one straight
 segment), cold and warm: what a request costs beyond planning.
 
@@ -15,6 +16,8 @@ Failed runs count with their elapsed time (about the time limit), so medians sta
 Figures are ratios against the 1-core baseline measured in the same run. "work speedup" is
 the ratio of median collision checks the winner needed before its first path: what the race
 saves in work, which CPU contention from other jobs on the machine cannot distort (time can).
+"cpu speedup" is the same idea for the whole request, warm: median CPU seconds on the critical
+path (the winner's search, then its finish or the slowest piece's) on 1 core / on N cores.
 """
 
 from __future__ import annotations
@@ -35,31 +38,36 @@ from workloads.motion_planning.problem import PROBLEMS_DIR, Pose, Problem, load_
 @dataclass(frozen=True)
 class Row:
     problem: str
-    mode: str  # cold | warm
+    mode: str  # cold | warm | share
     cores: int
     runs: int
     success_rate: float
     median_solve_s: float
     median_plan_s: float
     median_checks: float  # collision checks to the first path; a failed run counts as infinite
+    median_cpu_s: float  # CPU seconds on the critical path (warm only; cold reports it too)
     times_s: tuple[float, ...]
 
 
-def measure(name: str, problem: Problem, warm: dict[int, WarmPlanner], *, cores: Sequence[int], runs: int, seed: int,
-            time_limit: float | None) -> list[Row]:
-    """Interleaved: run i goes cold then warm on each core count, back to back, so load drift hits all alike."""
-    results: dict[tuple[str, int], list[Solution]] = {(m, c): [] for m in ("cold", "warm") for c in cores}
+def measure(name: str, problem: Problem, warm: dict[tuple[str, int], WarmPlanner], *, cores: Sequence[int], runs: int,
+            seed: int, time_limit: float | None) -> list[Row]:
+    """Interleaved: run i goes cold, warm, share on each core count, back to back, so load drift hits all alike."""
+    results: dict[tuple[str, int], list[Solution]] = {("cold", c): [] for c in cores}
+    results.update({key: [] for key in warm})
     for i in range(runs):
         for c in cores:
             results[("cold", c)].append(solve(problem, cores=c, time_limit=time_limit, seed=seed + 1000 * i))
-            results[("warm", c)].append(warm[c].solve(name, time_limit=time_limit))
+            for mode in ("warm", "share"):
+                if (mode, c) in warm:
+                    results[(mode, c)].append(warm[(mode, c)].solve(name, time_limit=time_limit))
     rows = []
     for (mode, c), done in results.items():
         times = tuple(r.solve_time_s for r in done)
         plan = [r.plan_time_s if r.solved else r.solve_time_s for r in done]
         checks = [r.collision_checks if r.solved else float("inf") for r in done]
+        cpu = [r.cpu_s if r.solved else float("inf") for r in done]
         rows.append(Row(name, mode, c, runs, sum(r.solved for r in done) / runs, statistics.median(times),
-                        statistics.median(plan), statistics.median(checks), times))
+                        statistics.median(plan), statistics.median(checks), statistics.median(cpu), times))
     return rows
 
 
@@ -84,19 +92,23 @@ def _get(rows: Sequence[Row], name: str, mode: str, cores: int) -> Row:
 
 
 def table(rows: Sequence[Row], cores: int) -> str:
-    lines = [f"{'problem':<10} {'cold 1c s':>10} {f'cold {cores}c s':>10} {'warm 1c s':>10} {f'warm {cores}c s':>10} "
-             f"{'speedup cold':>13} {'speedup warm':>13} {'warm/cold':>10} {'work speedup':>13} "
-             f"{'solved':>12}"]
+    n = cores
+    lines = [f"{'problem':<10} {'cold 1c s':>10} {f'cold {n}c s':>10} {'warm 1c s':>10} {f'warm {n}c s':>10} "
+             f"{f'share {n}c s':>11} {'speedup cold':>13} {'warm':>6} {'share':>6} {'warm/cold':>10} "
+             f"{'work speedup':>13} {'cpu warm':>9} {'cpu share':>10} {'solved':>16}"]
     for name in dict.fromkeys(r.problem for r in rows):
-        c1, cn, w1, wn = (_get(rows, name, m, c) for m, c in (("cold", 1), ("cold", cores), ("warm", 1),
-                                                               ("warm", cores)))
-        solved = "/".join(f"{r.success_rate:.0%}" for r in (c1, cn, w1, wn))
+        c1, cn, w1, wn, sn = (_get(rows, name, m, c) for m, c in (("cold", 1), ("cold", n), ("warm", 1),
+                                                                   ("warm", n), ("share", n)))
+        solved = "/".join(f"{r.success_rate:.0%}" for r in (c1, cn, w1, wn, sn))
         lines.append(f"{name:<10} {c1.median_solve_s:>10.3f} {cn.median_solve_s:>10.3f} {w1.median_solve_s:>10.3f} "
-                     f"{wn.median_solve_s:>10.3f} {c1.median_solve_s / cn.median_solve_s:>12.2f}x "
-                     f"{w1.median_solve_s / wn.median_solve_s:>12.2f}x {cn.median_solve_s / wn.median_solve_s:>9.2f}x "
-                     f"{c1.median_checks / cn.median_checks:>12.2f}x {solved:>12}")
-    lines.append("speedup = 1 core / N cores (medians); warm/cold = cold N cores / warm N cores; "
-                 "work speedup = collision checks to the first path, cold 1 core / cold N cores")
+                     f"{wn.median_solve_s:>10.3f} {sn.median_solve_s:>11.3f} "
+                     f"{c1.median_solve_s / cn.median_solve_s:>12.2f}x {w1.median_solve_s / wn.median_solve_s:>5.2f}x "
+                     f"{w1.median_solve_s / sn.median_solve_s:>5.2f}x {cn.median_solve_s / wn.median_solve_s:>9.2f}x "
+                     f"{c1.median_checks / cn.median_checks:>12.2f}x {w1.median_cpu_s / wn.median_cpu_s:>8.2f}x "
+                     f"{w1.median_cpu_s / sn.median_cpu_s:>9.2f}x {solved:>16}")
+    lines.append("speedup = 1 core / N cores (medians; warm 1 core is the baseline of warm and share); warm/cold = "
+                 "cold N / warm N; work speedup = collision checks to the first path, cold 1 / cold N; cpu = CPU "
+                 "seconds on the critical path, warm 1 / warm or share N")
     return "\n".join(lines)
 
 
@@ -141,8 +153,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}", flush=True)
     rows = []
     with WarmPlanner(problems, workers=1, seed=args.seed) as warm1, \
-            WarmPlanner(problems, workers=args.cores, seed=args.seed + 500) as warm_n:
-        warm = {1: warm1, args.cores: warm_n}
+            WarmPlanner(problems, workers=args.cores, seed=args.seed + 500, mode="race") as warm_n, \
+            WarmPlanner(problems, workers=args.cores, seed=args.seed + 700, mode="share") as share_n:
+        warm = {("warm", 1): warm1, ("warm", args.cores): warm_n, ("share", args.cores): share_n}
         cold_ms, warm_ms = overhead_ms(names[0], problems[names[0]], warm_n)
         for name in names:
             for row in measure(name, problems[name], warm, cores=(1, args.cores), runs=args.runs, seed=args.seed,

@@ -12,7 +12,8 @@ Topics (node name ``motion_planning``, so ``~x`` is ``/motion_planning/x``; rema
 
 Params: ``~cores`` (0 or unset: all cores), ``~time_limit`` (0 or unset: each cfg's), ``~problem_dir``
 (default: the shipped problems), ``~planner`` (default ``rrtconnect``), ``~resolution`` (0 or
-unset: each problem's validity resolution).
+unset: each problem's validity resolution), ``~mode`` (``share``, the default: every worker
+finishes a piece of the first path; ``race``: the winner finishes it alone; see ``share.py``).
 
 The node is warm: at start it loads every problem in ``~problem_dir`` into ``~cores`` long-lived
 worker processes (:class:`pool.WarmPlanner`), so a request pays for planning only. Requests are
@@ -35,6 +36,7 @@ from fogiac.errors import WorkloadError
 from workloads.motion_planning.planner import DEFAULT_PLANNER, warm_up
 from workloads.motion_planning.pool import WarmPlanner
 from workloads.motion_planning.problem import PROBLEMS_DIR, Pose, load_problem
+from workloads.motion_planning.share import DEFAULT_MODE
 
 NODE_NAME = "motion_planning"
 DEFAULT_PROBLEM_DIR = PROBLEMS_DIR  # ~problem_dir when the parameter is unset: the shipped problems
@@ -53,12 +55,12 @@ class PlannerNode:
     """A warm planner over every problem in ``problem_dir``; answers each request in turn."""
 
     def __init__(self, *, problem_dir: Path, cores: int, time_limit: float | None, planner: str,
-                 resolution: float | None = None) -> None:
+                 resolution: float | None = None, mode: str = DEFAULT_MODE) -> None:
         self.problem_dir, self.cores, self.time_limit, self.resolution = problem_dir, cores, time_limit, resolution
         problems = {path.stem: load_problem(path) for path in sorted(problem_dir.glob("*.cfg"))}
         if not problems:
             raise WorkloadError(f"{problem_dir}: no problem files (*.cfg)")
-        self.planner = WarmPlanner(problems, workers=cores, planner=planner)
+        self.planner = WarmPlanner(problems, workers=cores, planner=planner, mode=mode)
 
     def close(self) -> None:
         self.planner.close()
@@ -98,6 +100,7 @@ def main() -> None:
         time_limit=time_limit if time_limit > 0 else None,
         planner=str(rospy.get_param("~planner", DEFAULT_PLANNER)),
         resolution=resolution if resolution > 0 else None,
+        mode=str(rospy.get_param("~mode", DEFAULT_MODE)),
     )
     rospy.on_shutdown(node.close)
     path_pub = rospy.Publisher("~path", PoseArray, queue_size=10)

@@ -56,6 +56,8 @@ class Solution:
     resolution: float = 0.0  # world units a robot point moved at most between two checks while planning
     check_resolution: float = 0.0  # the path was proven free in pieces no shorter than this
     repairs: int = 0  # segments re-planned because they could not be proven free
+    pieces: int = 1  # how many workers simplified and proved a piece of the path (share mode)
+    cpu_s: float = 0.0  # CPU seconds on the critical path (winner's search + its, or the slowest piece's, finish)
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -64,6 +66,7 @@ class Solution:
             "simplify_time_s": self.simplify_time_s, "winner": self.winner, "planner": self.planner,
             "collision_checks": self.collision_checks, "resolution": self.resolution,
             "check_resolution": self.check_resolution, "repairs": self.repairs,
+            "pieces": self.pieces, "cpu_s": self.cpu_s,
             "path": [p.as_dict() for p in self.path],
         }
 
@@ -123,8 +126,9 @@ def solution_from(report: dict[str, Any] | None, statuses: list[str], *, cores: 
                         planner)
     path = tuple(Pose(*p) for p in report.get("path", ()))
     return Solution(report["solved"], report["status"], path, cores, elapsed, report["plan_time_s"],
-                    report["simplify_time_s"], report["index"], planner, report["checks"], report["resolution"],
-                    report["check_resolution"], report["repairs"])
+                    report.get("simplify_time_s", 0.0), report["index"], planner, report["checks"],
+                    report.get("resolution", 0.0), report.get("check_resolution", 0.0), report.get("repairs", 0),
+                    report.get("pieces", 1), report.get("cpu_s", 0.0))
 
 
 def solve(problem: Problem, *, cores: int | None = None, time_limit: float | None = None,

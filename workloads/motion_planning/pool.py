@@ -14,6 +14,9 @@ requests (problem name, start, goal, limits) over its own pipe until it is close
   that dies during a race counts as a loser of that race.
 - OMPL seeds once per process, so a warm worker is seeded when it starts (``seed + index``),
   not per request: runs repeat as a sequence, not one by one.
+- ``mode="share"`` (the default) shares the work after the race: the first path is cut into a
+  piece per worker and every worker simplifies and proves its piece (``share.py``);
+  ``mode="race"`` leaves that to the winner alone. With one worker the two are the same.
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ from workloads.motion_planning.planner import (
     worker_context,
 )
 from workloads.motion_planning.problem import Pose, Problem
+from workloads.motion_planning.share import DEFAULT_MODE, MODES, join_reports, simplify_shares, split_path
 
 _READY_TIMEOUT_S = 120.0
 _STOP_GRACE_S = 2.0
@@ -50,9 +54,13 @@ class WarmPlanner:
     """``workers`` long-lived planner processes racing on each request; close() (or ``with``) ends them."""
 
     def __init__(self, problems: Mapping[str, Problem], *, workers: int | None = None,
-                 planner: str = DEFAULT_PLANNER, seed: int | None = None, simplify_time: float = 0.5) -> None:
+                 planner: str = DEFAULT_PLANNER, seed: int | None = None, simplify_time: float = 0.5,
+                 mode: str = DEFAULT_MODE) -> None:
         if not problems:
             raise WorkloadError("a warm planner needs at least one problem")
+        if mode not in MODES:
+            raise WorkloadError(f"unknown mode {mode!r}; valid: {', '.join(MODES)}")
+        self.mode = mode
         self.problems = dict(problems)
         any_problem = next(iter(self.problems.values()))
         self.workers, _, _ = check_request(any_problem, cores=workers, time_limit=None, planner=planner,
@@ -94,18 +102,63 @@ class WarmPlanner:
                                       resolution=resolution)
         with self._lock:
             self._replace_dead()
-            self._request_id += 1
-            self._flag.value = 0
             simplify = self.simplify_time if simplify_time is None else simplify_time
-            request = {"id": self._request_id, "name": name, "start": start or problem.start,
-                       "goal": goal or problem.goal, "resolution": res, "time_limit": limit,
-                       "simplify_time": simplify}
+            sharing = self.mode == "share" and self.workers > 1
+            request = {"name": name, "start": start or problem.start, "goal": goal or problem.goal,
+                       "resolution": res, "time_limit": limit, "simplify_time": simplify, "finish": not sharing}
             t0 = time.perf_counter()
-            for i in range(self.workers):
-                self._send(i, request)
-            winner, statuses = self._collect(self._request_id, deadline=t0 + limit + simplify + 30.0)
+            winner, statuses = self._race(request, deadline=t0 + limit + simplify + 30.0)
+            if winner is not None and sharing:
+                winner = self._finish_shared(name, winner, request, left=t0 + limit - time.perf_counter(),
+                                             deadline=t0 + limit + simplify + 30.0)
             elapsed = time.perf_counter() - t0
         return solution_from(winner, statuses, cores=self.workers, elapsed=elapsed, planner=self.planner)
+
+    def _race(self, request: dict[str, Any], *, deadline: float) -> tuple[dict[str, Any] | None, list[str]]:
+        self._request_id += 1
+        self._flag.value = 0
+        request = {**request, "id": self._request_id}
+        for i in range(self.workers):
+            self._send(i, request)
+        return self._collect(self._request_id, deadline=deadline)
+
+    def _finish_shared(self, name: str, first: dict[str, Any], request: dict[str, Any], *, left: float,
+                       deadline: float) -> dict[str, Any]:
+        """Every worker simplifies and proves one piece of the first path; the pieces joined."""
+        path = [Pose(*p) for p in first["path"]]
+        radius = self.problems[name].robot.radius()
+        pieces = split_path(path, self.workers, radius=radius)
+        self._request_id += 1
+        self._flag.value = 0
+        for i, share in enumerate(simplify_shares(pieces, request["simplify_time"], radius=radius)):
+            self._send(i, {"id": self._request_id, "name": name, "piece": pieces[i],
+                           "resolution": request["resolution"], "time_limit": max(1e-3, left), "simplify_time": share})
+        reports = self._gather(self._request_id, len(pieces), deadline=deadline)
+        return join_reports(first, reports)
+
+    def _gather(self, request_id: int, count: int, *, deadline: float) -> list[dict[str, Any] | None]:
+        """Workers 0..count-1's reports on this request, in order; None for one that died or hung."""
+        reports: list[dict[str, Any] | None] = [None] * count
+        waiting = set(range(count))
+        while waiting and (left := deadline - time.perf_counter()) > 0:
+            conns: dict[Any, int] = {self._conns[i]: i for i in waiting}
+            for item in wait([*conns, *(self._procs[i].sentinel for i in waiting)], timeout=left):
+                if item not in conns:
+                    continue  # a death shows as EOF on its pipe, after any report it sent
+                i = conns[item]
+                conn = self._conns[i]
+                assert conn is not None
+                try:
+                    msg: dict[str, Any] = conn.recv()
+                except (EOFError, OSError):
+                    waiting.discard(i)
+                    continue
+                if msg.get("id") == request_id:
+                    reports[i] = msg
+                    waiting.discard(i)
+        for i in waiting:  # hung: replaced before the next request
+            self._procs[i].kill()
+        return reports
 
     def _collect(self, request_id: int, *, deadline: float) -> tuple[dict[str, Any] | None, list[str]]:
         """Every worker's report on this request (or its death); the first with a path wins."""
@@ -241,10 +294,15 @@ def _serve(problems: Mapping[str, Problem], planner: str, seed: int, index: int,
         if request is None:
             return
         try:
-            report = searches[request["name"]].run(
-                request["start"], request["goal"], planner=planner, resolution=request["resolution"],
-                time_limit=request["time_limit"], simplify_time=request["simplify_time"], cancelled=cancelled,
-                on_first_path=first_path)
+            search = searches[request["name"]]
+            if "piece" in request:
+                report = search.finish(request["piece"], planner=planner, resolution=request["resolution"],
+                                       time_limit=request["time_limit"], simplify_time=request["simplify_time"])
+            else:
+                report = search.run(
+                    request["start"], request["goal"], planner=planner, resolution=request["resolution"],
+                    time_limit=request["time_limit"], simplify_time=request["simplify_time"], cancelled=cancelled,
+                    on_first_path=first_path, finish=request["finish"])
         except Exception as err:  # report, do not hang the parent
             report = {"solved": False, "status": f"worker error: {err}"}
         conn.send({**report, "id": request["id"], "index": index})

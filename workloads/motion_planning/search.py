@@ -50,6 +50,8 @@ class Search:
             bounds.setHigh(i, problem.bounds_max[i])
         self.space.setBounds(bounds)
         self.setup = og.SimpleSetup(self.space)
+        # its own simplifier, no goal: a piece's ends stay where they are (SimpleSetup makes one only in solve)
+        self.simplifier = og.PathSimplifier(self.setup.getSpaceInformation())
         self.checker = CollisionChecker(problem)
         self.certifier = Certifier(problem)
         checker = self.checker
@@ -72,7 +74,7 @@ class Search:
         # fraction of (diagonal + pi * R) bounds any robot point's move per step; see set_resolution.
         self._extent = space_extent(problem)
         self._resolution = -1.0
-        self.simplify_time_s = 0.0
+        self.plan_time_s = self.simplify_time_s = 0.0
 
     def set_resolution(self, resolution: float) -> None:
         if resolution != self._resolution:
@@ -81,34 +83,54 @@ class Search:
             self._resolution = resolution
 
     def run(self, start: Pose, goal: Pose, *, planner: str, resolution: float, time_limit: float,
-            simplify_time: float, cancelled: Callable[[], bool], on_first_path: Callable[[], None]) -> dict[str, Any]:
+            simplify_time: float, cancelled: Callable[[], bool], on_first_path: Callable[[], None],
+            finish: bool = True) -> dict[str, Any]:
         """Plan, simplify, prove; a report dict (``solved``, ``status``, ``path``, timings, counts).
 
-        ``planner`` is a class name in ``ompl.geometric`` (``RRTConnect``, ...).
+        ``planner`` is a class name in ``ompl.geometric`` (``RRTConnect``, ...). With
+        ``finish=False`` the first path is reported as planned (status ``first path``), for the
+        parent to share its simplifying and proving out among the workers (:meth:`finish`).
         """
         self.checker.checks = 0
         self.certifier.queries = 0
-        deadline = _Clock(time_limit)
+        deadline, cpu = _Clock(time_limit), time.process_time()
         found = self._plan(start, goal, planner=planner, resolution=resolution, ptc=_ptc(deadline, cancelled))
         if found is None or cancelled():  # another worker's path came first: do not simplify ours too
             status = "cancelled" if cancelled() else str(self.setup.getLastPlannerStatus()).lower()
             return {"solved": False, "status": status}
         on_first_path()
-        plan_time, checks = self.setup.getLastPlanComputationTime(), self.checker.checks
-        path = self._simplify(simplify_time, resolution)
-        simplify_time_s = self.simplify_time_s
+        first = {"plan_time_s": self.plan_time_s, "checks": self.checker.checks,
+                 "cpu_s": time.process_time() - cpu}
+        if not finish:
+            return {**first, "solved": True, "status": "first path", "path": _tuples(found)}
+        done = self.finish(found, planner=planner, resolution=resolution, time_limit=deadline.left(),
+                           simplify_time=simplify_time)
+        return {**first, **done, "cpu_s": first["cpu_s"] + done["cpu_s"]}
+
+    def finish(self, path: list[Pose], *, planner: str, resolution: float, time_limit: float,
+               simplify_time: float) -> dict[str, Any]:
+        """Simplify a planned path (or a piece of one) with clearance, then prove and repair it.
+
+        ``cpu_s`` in the report (and in :meth:`run`'s, up to the first path and then for the whole)
+        is this process's CPU time: work that other jobs' load does not stretch, unlike wall time.
+        """
+        self.certifier.queries = 0
+        deadline, cpu = _Clock(time_limit), time.process_time()
+        self.set_resolution(resolution)
+        simplified = self._simplify(self._geometric(path), simplify_time, resolution)
         floor = resolution / CHECK_DIVISOR
-        proven, repairs = self._prove(path, planner=planner, resolution=resolution, floor=floor, depth=0,
+        proven, repairs = self._prove(simplified, planner=planner, resolution=resolution, floor=floor, depth=0,
                                       deadline=deadline)
-        report = {"plan_time_s": plan_time, "simplify_time_s": simplify_time_s, "checks": checks,
-                  "repairs": repairs, "clearance_queries": self.certifier.queries, "resolution": resolution,
-                  "check_resolution": floor}
+        report = {"simplify_time_s": self.simplify_time_s, "repairs": repairs, "cpu_s": time.process_time() - cpu,
+                  "clearance_queries": self.certifier.queries, "resolution": resolution, "check_resolution": floor}
         if proven is None:
             return {**report, "solved": False, "status": "unproven path"}
-        return {**report, "solved": True, "status": "exact solution",
-                "path": [(p.x, p.y, p.z, p.qx, p.qy, p.qz, p.qw) for p in proven]}
+        return {**report, "solved": True, "status": "exact solution", "path": _tuples(proven)}
 
-    def _plan(self, start: Pose, goal: Pose, *, planner: str, resolution: float, ptc: Any) -> list[Pose] | None:
+    def _plan(self, start: Pose, goal: Pose, *, planner: str, resolution: float, ptc: Any,
+              straight: bool = True) -> list[Pose] | None:
+        """The planner's path, or the straight move when it is free and ``straight`` (not in a repair:
+        there the straight move is the segment that could not be proven)."""
         self.set_resolution(resolution)
         self.setup.clear()
         a, b = self.space.allocState(), self.space.allocState()
@@ -117,13 +139,28 @@ class Search:
             rot = state.rotation()
             rot.w, rot.x, rot.y, rot.z = (float(v) for v in pose.quaternion())
         self.setup.setStartAndGoalStates(a, b)
-        self.setup.setPlanner(getattr(og, planner)(self.setup.getSpaceInformation()))
+        si, started = self.setup.getSpaceInformation(), time.perf_counter()
+        if straight and si.isValid(a) and si.checkMotion(a, b):  # the straight move is free: no search needed
+            self.plan_time_s = time.perf_counter() - started
+            return [start, goal]
+        self.setup.setPlanner(getattr(og, planner)(si))
         self.setup.solve(ptc)
+        self.plan_time_s = time.perf_counter() - started
         if not self.setup.haveExactSolutionPath():
             return None
         return as_poses(self.setup.getSolutionPath().getStates())
 
-    def _simplify(self, seconds: float, resolution: float) -> list[Pose]:
+    def _geometric(self, poses: list[Pose]) -> Any:
+        path = og.PathGeometric(self.setup.getSpaceInformation())
+        state = self.space.allocState()
+        for pose in poses:
+            state.setXYZ(pose.x, pose.y, pose.z)
+            rot = state.rotation()
+            rot.w, rot.x, rot.y, rot.z = (float(v) for v in pose.quaternion())
+            path.append(state)  # copied
+        return path
+
+    def _simplify(self, path: Any, seconds: float, resolution: float) -> list[Pose]:
         """Shortcut the solution, accepting only shortcuts that keep half a step of clearance.
 
         Plain shortcutting pulls a path onto the obstacles, as close as the step allows, and such
@@ -133,10 +170,9 @@ class Search:
         """
         self._margin[0] = resolution / 2
         self.setup.setStateValidityChecker(self._clear_enough)
-        path = self.setup.getSolutionPath()
         started = time.perf_counter()
         try:
-            self.setup.getPathSimplifier().simplify(path, seconds, atLeastOnce=False)  # the budget holds
+            self.simplifier.simplify(path, seconds, atLeastOnce=False)  # the budget holds
         finally:
             self.simplify_time_s = time.perf_counter() - started
             self.setup.setStateValidityChecker(self._valid)
@@ -155,10 +191,11 @@ class Search:
                 return None, repairs
             repairs += 1
             finer = resolution / _REPAIR_SHRINK
-            piece = self._plan(a, b, planner=planner, resolution=finer, ptc=_ptc(deadline, lambda: False))
+            piece = self._plan(a, b, planner=planner, resolution=finer, ptc=_ptc(deadline, lambda: False),
+                               straight=False)
             if piece is None:
                 return None, repairs
-            piece = self._simplify(min(0.2, max(0.0, deadline.left())), finer)
+            piece = self._simplify(self._geometric(piece), min(0.2, max(0.0, deadline.left())), finer)
             fixed, more = self._prove(piece, planner=planner, resolution=finer, floor=floor,
                                       depth=depth + 1, deadline=deadline)
             repairs += more
@@ -168,6 +205,10 @@ class Search:
         if len(path) == 1 and not self.certifier.segment_is_free(path[0], path[0], floor=floor):
             return None, repairs
         return out, repairs
+
+
+def _tuples(path: list[Pose]) -> list[tuple[float, ...]]:
+    return [(p.x, p.y, p.z, p.qx, p.qy, p.qz, p.qw) for p in path]
 
 
 def seed_process(seed: int) -> None:

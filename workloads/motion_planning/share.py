@@ -24,7 +24,10 @@ from workloads.motion_planning.geometry import rotation_angle
 from workloads.motion_planning.problem import Pose
 
 MODES = ("race", "share")
-DEFAULT_MODE = "share"
+# race stays the default: in one benchmark run share answered "no path" once in five on cubicles and on
+# the maze (not reproduced in 20 more requests, never an unproven path); until that is understood, share
+# is opt-in (node param ~mode, benchmark columns).
+DEFAULT_MODE = "race"
 
 
 def sweep(a: Pose, b: Pose, radius: float) -> float:

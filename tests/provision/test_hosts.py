@@ -208,7 +208,7 @@ def test_each_host_has_its_own_relay_key_which_never_left_it(lab: Deployment) ->
     assert mine[0] != mine[1]
     operator = {k for folder in (lab.state, lab.certs) for keys in private_keys_under(folder).values() for k in keys}
     assert not set(mine) & operator
-    address = (lab.hosts[0].address, 11411)
+    address = (lab.hosts[0].address, lab.plan(lab.hosts[:2]).host("h0").relay_port)  # the stack's own port
     assert dial(address, lab.certs, relay_name(stack, "h0")) is None
     refused = dial(address, lab.certs, relay_name(stack, "h1"))
     assert refused is not None and "Hostname mismatch" in refused

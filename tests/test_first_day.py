@@ -16,8 +16,8 @@ from pathlib import Path
 import pytest
 
 from fogiac.procs import free_port
-
 from tests.conftest import REPO
+from tests.support.procs import alive_pids
 
 pytestmark = [pytest.mark.ros,
               pytest.mark.skipif(shutil.which("roscore") is None, reason="needs Debian's ros-core (roscore)")]
@@ -27,18 +27,6 @@ def readme_walkthrough() -> list[list[str]]:
     text = (REPO / "README.md").read_text()
     block = text[text.index("<!-- first-day:begin -->"):text.index("<!-- first-day:end -->")]
     return [shlex.split(line) for line in block.splitlines() if line.startswith(("fogiac ", "python "))]
-
-
-def _alive(state: Path) -> list[int]:
-    alive = []
-    for path in [*state.rglob("*.pid"), *state.rglob("*.child")]:
-        try:
-            pid = int(path.read_text().strip())
-            if Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z":
-                alive.append(pid)
-        except (OSError, ValueError, IndexError):
-            continue
-    return alive
 
 
 def test_first_day_from_init_to_down(tmp_path: Path, _state_dir: Path) -> None:
@@ -92,4 +80,4 @@ def test_first_day_from_init_to_down(tmp_path: Path, _state_dir: Path) -> None:
     first, second = said["fogiac down --yes"]
     assert re.search(r"first-day-dev: removed \d+ \(.*\); nothing left\n$", first), first
     assert second == "first-day-dev: not deployed; nothing to remove\n"
-    assert _alive(_state_dir) == []
+    assert alive_pids(_state_dir) == []

@@ -20,24 +20,11 @@ from typer.testing import CliRunner
 
 from fogiac.cli import app
 from fogiac.procs import free_port
-
 from tests.conftest import EXAMPLES, REPO
+from tests.support.procs import alive_pids
 
 needs_ros = pytest.mark.skipif(shutil.which("roscore") is None, reason="needs Debian's ros-core (roscore)")
 pytestmark = [pytest.mark.ros, needs_ros]
-
-
-def _pids_alive(state: Path) -> list[int]:
-    """Processes fogiac started under ``state`` (pid and child files) that still run."""
-    alive = []
-    for path in [*state.rglob("*.pid"), *state.rglob("*.child")]:
-        try:
-            pid = int(path.read_text().strip())
-            if Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z":
-                alive.append(pid)
-        except (OSError, ValueError, IndexError):
-            continue
-    return alive
 
 
 @dataclass
@@ -88,7 +75,7 @@ def deployed(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Session
     finally:
         code, down = session("down", str(session.manifest), "--yes")
         assert code == 0, "\n".join(down)
-        assert _pids_alive(session.state) == []
+        assert alive_pids(session.state) == []
 
 
 def test_1_status_down_logs_ssh_follow_the_target_up_recorded(deployed: tuple[Session, list[str]]) -> None:
@@ -196,7 +183,7 @@ def test_9_down_counts_what_it_removed_and_knows_when_nothing_was_there(tmp_path
     assert out[-1].endswith("planner process ros-master); nothing left"), out
     code, out = session("down", m, "--yes")  # again: the record says where it was, and that it is gone
     assert (code, out) == (0, ["motion-planning-dev: not deployed; nothing to remove"])
-    assert _pids_alive(session.state) == []
+    assert alive_pids(session.state) == []
 
 
 def _wait_for(condition: object, timeout: float) -> None:
@@ -229,6 +216,6 @@ def test_2_ctrl_c_during_up_says_what_is_left_and_down_removes_it(tmp_path: Path
     assert code == 0 and out[0].startswith("motion-planning-dev: partial: the last up did not finish"), out
     code, out = session("down", m, "--yes")
     assert code == 0 and out[-1].startswith("motion-planning-dev: removed ") and "nothing left" in out[-1], out
-    assert _pids_alive(session.state) == []
+    assert alive_pids(session.state) == []
     code, out = session("status", m, "--target", "local")
     assert out == ["motion-planning-dev: not deployed"]

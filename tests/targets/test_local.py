@@ -21,8 +21,8 @@ from typer.testing import CliRunner
 
 from fogiac.cli import app
 from fogiac.procs import free_port
-
 from tests.conftest import EXAMPLES, REPO
+from tests.support.procs import alive, started_pids
 
 pytestmark = [
     pytest.mark.ros,
@@ -45,33 +45,6 @@ CLIENT = textwrap.dedent("""\
 """)
 
 
-def _pids_alive(pids: list[int]) -> list[int]:
-    alive = []
-    for pid in pids:
-        try:
-            state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-        except (OSError, IndexError):
-            continue
-        if state != "Z":
-            alive.append(pid)
-    return alive
-
-
-def _started_pids(state: Path) -> list[int]:
-    pids = []
-    for pid_file in state.rglob("*.pid"):
-        try:  # "PID STARTTIME": the start time proves the pid is still the process that was started
-            pids.append(int(pid_file.read_text().split()[0]))
-        except (ValueError, IndexError):
-            pass
-    for child in state.rglob("*.child"):
-        try:
-            pids.append(int(child.read_text().split()[0]))
-        except (ValueError, IndexError):
-            pass
-    return pids
-
-
 def test_local_up_request_status_down(tmp_path: Path, _state_dir: Path) -> None:
     edge_port = free_port()
     manifest = tmp_path / "fogiac.yaml"
@@ -82,7 +55,7 @@ def test_local_up_request_status_down(tmp_path: Path, _state_dir: Path) -> None:
         up = runner.invoke(app, ["up", str(manifest), "--target", "local", "--yes", "--start-edge-master"])
         assert up.exit_code == 0, up.output
         assert "planner" in up.output
-        pids = _started_pids(_state_dir)
+        pids = started_pids(_state_dir)
         assert pids, "up started no supervised process"
 
         env = {**os.environ, "ROS_MASTER_URI": f"http://127.0.0.1:{edge_port}", "ROS_HOSTNAME": "127.0.0.1",
@@ -114,6 +87,6 @@ def test_local_up_request_status_down(tmp_path: Path, _state_dir: Path) -> None:
         down = runner.invoke(app, ["down", str(manifest), "--target", "local", "--yes"])
     assert down.exit_code == 0, down.output
     assert "nothing left" in down.output
-    assert _pids_alive(pids) == []
+    assert [pid for pid in pids if alive(pid)] == []
     sandboxes = _state_dir / "motion-planning-dev" / "local"
     assert not sandboxes.exists()  # no sandbox and no ports.json: down forgets what up chose

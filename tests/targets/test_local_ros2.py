@@ -20,18 +20,11 @@ from typer.testing import CliRunner
 
 from fogiac.cli import app
 from fogiac.procs import free_port
-
 from tests.conftest import REPO
 from tests.net.zenoh.lab import ZenohLab, read_events
-from tests.targets.test_local import _pids_alive
+from tests.support.procs import alive, started_pids
 
 pytest.importorskip("zenoh_ros2_sdk", reason="needs zenoh-ros2-sdk (pip install zenoh-ros2-sdk)")
-
-def _started_pids(state: Path) -> list[int]:
-    """Every supervisor and supervised child fogiac recorded (``PID STARTTIME`` per file)."""
-    return [int(f.read_text().split()[0]) for pattern in ("*.pid", "*.child") for f in state.rglob(pattern)
-            if f.read_text().strip()]
-
 
 MANIFEST = """\
 name: ros2-local
@@ -60,7 +53,7 @@ def test_ros2_manifest_up_exchanges_listed_topics_only_and_down_stops_everything
         up = runner.invoke(app, ["up", str(manifest), "--target", "local", "--yes"])
         assert up.exit_code == 0, up.output
         assert "zenoh-bridge-ros2dds is not installed by fogiac" in up.output
-        pids = _started_pids(_state_dir)
+        pids = started_pids(_state_dir)
         with ZenohLab(tmp_path) as lab:
             robot = lab.node("robot", edge_port, pub=("/camera=String", "/leak=String"),
                              sub=("/detections=String", "/secret=String"))
@@ -92,5 +85,6 @@ def test_ros2_manifest_up_exchanges_listed_topics_only_and_down_stops_everything
     assert down.exit_code == 0, down.output
     assert "nothing left" in down.output
     assert pids
-    assert _pids_alive(pids) == [], [Path(f"/proc/{p}/cmdline").read_bytes() for p in _pids_alive(pids)]
+    left = [pid for pid in pids if alive(pid)]
+    assert left == [], [Path(f"/proc/{p}/cmdline").read_bytes() for p in left]
     assert not (_state_dir / "ros2-local-dev" / "local").exists()

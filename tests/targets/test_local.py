@@ -45,6 +45,16 @@ CLIENT = textwrap.dedent("""\
 """)
 
 
+def ask_planner(edge_port: int, *, cwd: Path) -> dict:
+    """The robot's side: one planning request through the edge master at ``edge_port``; the client's answer."""
+    env = {**os.environ, "ROS_MASTER_URI": f"http://127.0.0.1:{edge_port}", "ROS_HOSTNAME": "127.0.0.1",
+           "PYTHONPATH": str(REPO)}
+    result = subprocess.run([sys.executable, "-c", CLIENT], env=env, capture_output=True, text=True,
+                            timeout=240, cwd=cwd)
+    assert result.returncode == 0, result.stderr[-3000:]
+    return json.loads(result.stdout.strip().splitlines()[-1])
+
+
 def test_local_up_request_status_down(tmp_path: Path, _state_dir: Path) -> None:
     edge_port = free_port()
     manifest = tmp_path / "fogiac.yaml"
@@ -58,12 +68,7 @@ def test_local_up_request_status_down(tmp_path: Path, _state_dir: Path) -> None:
         pids = started_pids(_state_dir)
         assert pids, "up started no supervised process"
 
-        env = {**os.environ, "ROS_MASTER_URI": f"http://127.0.0.1:{edge_port}", "ROS_HOSTNAME": "127.0.0.1",
-               "PYTHONPATH": str(REPO)}
-        result = subprocess.run([sys.executable, "-c", CLIENT], env=env, capture_output=True, text=True,
-                                timeout=240, cwd=tmp_path)
-        assert result.returncode == 0, result.stderr[-3000:]
-        answer = json.loads(result.stdout.strip().splitlines()[-1])
+        answer = ask_planner(edge_port, cwd=tmp_path)
         assert answer["solved"] and answer["poses"] >= 2 and answer["free"], answer
         assert 0 < answer["compute_time_s"] < answer["round_trip_s"]
 

@@ -11,12 +11,10 @@ container. The base image comes from ``.ci/containers.sh``.
 
 from __future__ import annotations
 
-import json
 import os
 import re
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -27,9 +25,8 @@ from fogiac.errors import ProvisionError
 from fogiac.procs import free_port
 from fogiac.provision import images
 from fogiac.provision.local import LocalHost
-
-from tests.conftest import EXAMPLES, REPO
-from tests.targets.test_local import CLIENT
+from tests.conftest import EXAMPLES
+from tests.targets.test_local import ask_planner
 
 BASE = "docker.io/library/ros:noetic-ros-core"
 
@@ -260,12 +257,7 @@ def test_motion_planning_workload_built_from_its_recipe_answers_through_the_rela
         image = subprocess.run(["podman", "inspect", "--format", "{{.ImageName}}", name], capture_output=True,
                                text=True, check=True).stdout.strip()
         assert re.fullmatch(r"localhost/fogiac/motion_planning:[0-9a-f]{16}", image), image
-        env = {**os.environ, "ROS_MASTER_URI": f"http://127.0.0.1:{edge}", "ROS_HOSTNAME": "127.0.0.1",
-               "PYTHONPATH": str(REPO)}
-        result = subprocess.run([sys.executable, "-c", CLIENT], env=env, capture_output=True, text=True,
-                                timeout=240, cwd=tmp_path)
-        assert result.returncode == 0, result.stderr[-3000:]
-        answer = json.loads(result.stdout.strip().splitlines()[-1])
+        answer = ask_planner(edge, cwd=tmp_path)
         assert answer["solved"] and answer["poses"] >= 2 and answer["free"], answer
         again = runner.invoke(app, ["up", str(manifest), "--target", "local", "--yes"])
         assert again.exit_code == 0 and "no changes" in again.output, again.output

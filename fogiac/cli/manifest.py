@@ -13,7 +13,7 @@ from fogiac.manifest.schema import json_schema, parse_manifest
 from fogiac.net import middleware
 from fogiac.plan.catalog import catalog
 from fogiac.plan.compile import compile_plan
-from fogiac.plan.cost import MONTH, per_month
+from fogiac.plan.cost import MONTH, per_month, saving_pct
 from fogiac.state import write_text_atomic
 from fogiac.tables import console, table
 
@@ -69,21 +69,31 @@ def init(
 
 
 def cost(manifest: Path = MANIFEST, target: str | None = TARGET) -> None:
-    """What the deployment costs per hour, day and month (730 h, as AWS counts), line by line (on-demand prices)."""
+    """What the deployment costs per hour, day and month (730 h, as AWS counts), line by line: on-demand
+    prices, and for spot hosts the catalogue's spot estimate beside them."""
     plan = compile_plan(load(manifest), target=target)
-    out = table(f"{plan.stack} ({plan.target}, {plan.region})", "item", "$/hour", "$/day", f"$/{MONTH}")
+    spot = plan.spot_hourly_usd
+    extra = ("spot $/hour", f"spot $/{MONTH}") if spot is not None else ()
+    out = table(f"{plan.stack} ({plan.target}, {plan.region})", "item", "$/hour", "$/day", f"$/{MONTH}", *extra)
     for column in out.columns[1:]:
         column.justify = "right"
     for line in plan.cost:
-        out.add_row(line.item, f"{line.total:.4f}", f"{line.total * 24:.2f}", f"{per_month(line.total):.2f}")
+        beside = (f"{line.spot_total:.4f}", f"{per_month(line.spot_total):.2f}") if spot is not None else ()
+        out.add_row(line.item, f"{line.total:.4f}", f"{line.total * 24:.2f}", f"{per_month(line.total):.2f}", *beside)
     total = plan.hourly_usd
-    out.add_row("total", f"{total:.4f}", f"{total * 24:.2f}", f"{per_month(total):.2f}", style="bold")
+    beside = (f"{spot:.4f}", f"{per_month(spot):.2f}") if spot is not None else ()
+    out.add_row("total", f"{total:.4f}", f"{total * 24:.2f}", f"{per_month(total):.2f}", *beside, style="bold")
     screen = console()
     screen.print(out)
     carrier = middleware.get(plan.middleware)
     screen.print(f"ROS {plan.ros_distro} via {carrier.label}; edge: {carrier.edge_side}; "
                  f"each host: {carrier.cloud_side} (no charge beyond the hosts)", markup=False)
     screen.print(f"prices: {catalog().source} ({catalog().as_of})", markup=False, style="dim")
+    if spot is not None:
+        screen.print(f"with spot: ${spot:.4f} per hour, {saving_pct(plan.hourly_usd, spot)}% less than on-demand "
+                     "(an estimate; AWS never charges more than on-demand)", markup=False)
+        screen.print(f"spot prices: {catalog().spot_source} ({catalog().spot_as_of}); {catalog().spot_method}",
+                     markup=False, style="dim")
 
 
 def register(app: typer.Typer) -> None:

@@ -23,7 +23,7 @@ from fogiac.errors import FogiacError
 from fogiac.manifest.revision import load_revision
 from fogiac.plan import drift, review
 from fogiac.plan.compile import compile_plan
-from fogiac.plan.cost import MONTH, per_month
+from fogiac.plan.cost import MONTH, per_month, saving_pct
 from fogiac.plan.diff import PlanDiff, annotate, diff_documents, with_drift
 from fogiac.plan.document import APPLIED_FILE, document, plan_document
 from fogiac.state import read_json, stack_dir, write_json_atomic
@@ -80,6 +80,15 @@ def _before(compiled: Any, *, against: str | None, target: str | None, env: str)
     return (applied, f"what was applied to {compiled.stack}") if isinstance(applied, dict) else (None, "nothing")
 
 
+def _spot_cell(host: Mapping[str, Any]) -> str:
+    if not host["spot"]:
+        return "no"
+    each = host.get("spot_usd_per_hour")
+    if each is None:
+        return "yes (price unknown)"
+    return f"{each:.4f} ({saving_pct(host['usd_per_hour'], each)}% less)"
+
+
 def render(doc: Mapping[str, Any]) -> None:
     out = console()
     where = f", region {doc['region']}, mode {doc['mode']}" if doc["resources"] else ""
@@ -97,12 +106,12 @@ def render(doc: Mapping[str, Any]) -> None:
             for line in _key_inputs(r):
                 out.print(f"      {escape(line)}", highlight=False)
     out.print()
-    hosts = table("hosts", "host", "machine", "address", "vCPUs", "GPUs", "memory GiB", "disk GB", "spot", "$/h",
-                  "nodes")
+    hosts = table("hosts", "host", "machine", "address", "vCPUs", "GPUs", "memory GiB", "disk GB", "on-demand $/h",
+                  "spot $/h", "nodes")
     for h in doc["hosts"]:
         hosts.add_row(h["name"], h["machine"], escape(str(h["address"] or "-")), str(h["vcpus"]), str(h["gpus"]),
-                      f"{h['memory_gib']:g}", str(h["disk_gb"]), "yes" if h["spot"] else "no",
-                      f"{h['usd_per_hour']:.4f}", ", ".join(h["nodes"]))
+                      f"{h['memory_gib']:g}", str(h["disk_gb"]), f"{h['usd_per_hour']:.4f}", _spot_cell(h),
+                      ", ".join(h["nodes"]))
     out.print(hosts)
     for h in doc["hosts"]:
         if h["chosen_for"]:
@@ -113,14 +122,25 @@ def render(doc: Mapping[str, Any]) -> None:
     for n in doc["nodes"]:
         nodes.add_row(n["name"], n["host"], n["kind"], escape(n["runs"]), "yes" if n["gpu"] else "no")
     out.print(nodes)
-    cost = table("hourly cost (on-demand prices; spot at most this)", "item", "quantity", "$/h each", "$/h")
+    spot = doc["cost"].get("spot_hourly_usd")
+    columns = ("item", "quantity", "$/h each", "$/h") + (("spot $/h",) if spot is not None else ())
+    cost = table("hourly cost (on-demand prices" + ("; spot estimate beside)" if spot is not None else ")"), *columns)
     for line in doc["cost"]["lines"]:
+        each = line.get("spot_usd_per_hour")
         cost.add_row(escape(line["item"]), f"{line['quantity']:g}", f"{line['usd_per_hour']:.4f}",
-                     f"{line['total']:.4f}")
+                     f"{line['total']:.4f}",
+                     *((f"{line['quantity'] * (line['usd_per_hour'] if each is None else each):.4f}",)
+                       if spot is not None else ()))
     total = doc["cost"]["hourly_usd"]
-    cost.add_row("[bold]total[/]", "", "", f"[bold]{total:.4f}[/]")
+    beside = (f"[bold]{spot:.4f}[/]",) if spot is not None else ()
+    cost.add_row("[bold]total[/]", "", "", f"[bold]{total:.4f}[/]", *beside)
     out.print(cost)
     out.print(f"cost: ${total:.4f} per hour (about ${per_month(total):.2f} per {MONTH} if left running)")
+    if spot is not None:
+        source = doc["cost"]["spot_prices"]
+        out.print(f"with spot: about ${spot:.4f} per hour (${per_month(spot):.2f} per {MONTH}), "
+                  f"{saving_pct(total, spot)}% less; spot estimates from {escape(source['source'].split(' (')[0])} "
+                  f"({source['as_of']}), never more than on-demand", highlight=False)
     summary = doc.get("changes", {}).get("summary")
     if summary:
         out.print(f"\n{summary}")

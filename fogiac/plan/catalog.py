@@ -1,7 +1,10 @@
-"""The checked-in catalogue of EC2 instance types fogiac knows: hardware and on-demand price.
+"""The checked-in catalogue of EC2 instance types fogiac knows: hardware, on-demand and spot price.
 
-The table (``fogiac/plan/data/instance_types.json``) names its source and date. It is what makes
-``fogiac plan`` show a cost offline and what ``validate`` checks machine names against.
+The table (``fogiac/plan/data/instance_types.json``) names its sources and dates. It is what makes
+``fogiac plan`` show a cost offline and what ``validate`` checks machine names against. Spot
+prices move hourly and AWS publishes no dated table of them; the catalogue keeps what the Spot
+Instance Advisor published, the saving over on-demand per type and region, and derives the spot
+price from it, so both prices carry a date and a source and neither is a quote.
 """
 
 from __future__ import annotations
@@ -22,6 +25,14 @@ class InstanceType:
     gpus: int
     gpu_model: str | None
     usd_per_hour: Mapping[str, float]
+    spot_savings_pct: Mapping[str, int]  # region -> the Spot Instance Advisor's saving over on-demand
+
+    def spot_usd_per_hour(self, region: str) -> float | None:
+        """The spot estimate in ``region`` (on-demand less the advisor's saving), or None if unknown."""
+        saving = self.spot_savings_pct.get(region)
+        if saving is None or region not in self.usd_per_hour:
+            return None
+        return round(self.usd_per_hour[region] * (100 - saving) / 100, 4)
 
     @property
     def has_gpu(self) -> bool:
@@ -36,6 +47,9 @@ class Catalog:
     types: Mapping[str, InstanceType]
     vpn_association_usd_per_hour: float
     vpn_connection_usd_per_hour: float
+    spot_source: str
+    spot_as_of: str
+    spot_method: str
 
 
 @lru_cache(maxsize=1)
@@ -49,6 +63,7 @@ def catalog() -> Catalog:
             gpus=spec["gpus"],
             gpu_model=spec["gpu_model"],
             usd_per_hour=MappingProxyType(dict(spec["usd_per_hour"])),
+            spot_savings_pct=MappingProxyType(dict(spec.get("spot_savings_pct", {}))),
         )
         for name, spec in raw["types"].items()
     }
@@ -59,4 +74,7 @@ def catalog() -> Catalog:
         types=MappingProxyType(types),
         vpn_association_usd_per_hour=raw["client_vpn_usd_per_hour"]["association"],
         vpn_connection_usd_per_hour=raw["client_vpn_usd_per_hour"]["connection"],
+        spot_source=raw["spot"]["source"],
+        spot_as_of=raw["spot"]["as_of"],
+        spot_method=raw["spot"]["method"],
     )

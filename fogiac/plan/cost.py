@@ -1,14 +1,15 @@
 """What a plan costs and which machines it uses, as plain rows for tables and JSON.
 
 Pure: prices come from the compiled Plan (the checked-in catalogue), never from an API, so
-``fogiac plan`` shows them offline. Spot instances are priced at the on-demand rate, the most
-a spot instance can cost.
+``fogiac plan`` shows them offline. Totals are on-demand, the most an instance can cost; a spot
+instance also carries the catalogue's spot estimate, and the plan its total with spot.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
+from fogiac.plan.catalog import catalog
 from fogiac.plan.model import CostLine, HostSpec, NodeSpec, Plan
 
 # A month, wherever fogiac prints one: AWS's pricing pages use 730 hours (365 days * 24 / 12).
@@ -21,12 +22,28 @@ def per_month(usd_per_hour: float) -> float:
 
 
 def cost_line(line: CostLine) -> dict[str, Any]:
-    return {"item": line.item, "quantity": line.quantity, "usd_per_hour": line.usd_per_hour, "total": line.total}
+    return {"item": line.item, "quantity": line.quantity, "usd_per_hour": line.usd_per_hour, "total": line.total,
+            "spot_usd_per_hour": line.spot_usd_per_hour}
+
+
+def saving_pct(on_demand: float, spot: float) -> int:
+    """How much less the spot price is, in whole percent."""
+    return round(100 * (on_demand - spot) / on_demand) if on_demand else 0
+
+
+def spot_source() -> dict[str, str]:
+    cat = catalog()
+    return {"source": cat.spot_source, "as_of": cat.spot_as_of, "method": cat.spot_method}
 
 
 def cost(plan: Plan) -> dict[str, Any]:
-    """``{lines, hourly_usd}``: instances, Client VPN association-hours and connection-hours."""
-    return {"lines": [cost_line(line) for line in plan.cost], "hourly_usd": plan.hourly_usd}
+    """``{lines, hourly_usd}``: instances, Client VPN association-hours and connection-hours; with
+    spot hosts also ``spot_hourly_usd`` and where the spot estimate comes from."""
+    out: dict[str, Any] = {"lines": [cost_line(line) for line in plan.cost], "hourly_usd": plan.hourly_usd}
+    if plan.spot_hourly_usd is not None:
+        out["spot_hourly_usd"] = plan.spot_hourly_usd
+        out["spot_prices"] = spot_source()
+    return out
 
 
 def host_row(host: HostSpec) -> dict[str, Any]:
@@ -40,6 +57,7 @@ def host_row(host: HostSpec) -> dict[str, Any]:
         "memory_gib": host.memory_gib,
         "usd_per_hour": host.usd_per_hour,
         "spot": host.spot,
+        "spot_usd_per_hour": host.spot_usd_per_hour,
         "disk_gb": host.disk_gb,
         "image": host.image.description if host.image else None,
         "address": host.address,

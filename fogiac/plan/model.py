@@ -147,7 +147,7 @@ class HostSpec:
     vcpus: int
     gpus: int
     memory_gib: float
-    usd_per_hour: float
+    usd_per_hour: float  # on-demand: what a spot host costs at most
     spot: bool
     disk_gb: int
     nodes: tuple[str, ...]
@@ -156,6 +156,7 @@ class HostSpec:
     image: ImageQuery | None = None
     chosen_for: str | None = None  # the node's requirement in words, when compile chose the machine
     alternatives: tuple[Option, ...] = ()  # the next cheapest types that also fit
+    spot_usd_per_hour: float | None = None  # a spot host's catalogue spot estimate (None: on-demand, or unknown)
     address: str | None = None
     user: str | None = None
     port: int | None = None
@@ -214,11 +215,18 @@ class AutostopSpec:
 class CostLine:
     item: str
     quantity: float
-    usd_per_hour: float
+    usd_per_hour: float  # on-demand
+    spot_usd_per_hour: float | None = None  # the catalogue's spot estimate, for a spot instance
 
     @property
     def total(self) -> float:
         return round(self.quantity * self.usd_per_hour, 4)
+
+    @property
+    def spot_total(self) -> float:
+        """What the line costs at the spot estimate (the on-demand total where there is none)."""
+        each = self.usd_per_hour if self.spot_usd_per_hour is None else self.spot_usd_per_hour
+        return round(self.quantity * each, 4)
 
 
 @dataclass(frozen=True)
@@ -247,7 +255,15 @@ class Plan:
 
     @property
     def hourly_usd(self) -> float:
+        """On-demand prices throughout: the most the plan costs an hour."""
         return round(sum(line.total for line in self.cost), 4)
+
+    @property
+    def spot_hourly_usd(self) -> float | None:
+        """The hour with spot hosts at their spot estimate; None when no line has one."""
+        if all(line.spot_usd_per_hour is None for line in self.cost):
+            return None
+        return round(sum(line.spot_total for line in self.cost), 4)
 
     def host(self, name: str) -> HostSpec:
         for host in self.hosts:

@@ -77,6 +77,7 @@ def steps_for(nodes: Sequence[Node]) -> tuple[str, ...]:
 def host_per_node(manifest: Manifest, *, stack: str, tags: Tags,
                   usd_per_hour: Callable[[InstanceType], float] = lambda spec: 0.0,
                   spot: bool = False,
+                  spot_usd_per_hour: Callable[[InstanceType], float | None] = lambda spec: None,
                   image: Callable[[InstanceType], ImageQuery | None] = lambda spec: None,
                   address: str | None = None,
                   runtime: Literal["auto", "container", "native"] = "auto",
@@ -90,7 +91,9 @@ def host_per_node(manifest: Manifest, *, stack: str, tags: Tags,
         hosts.append(HostSpec(
             name=node.name, machine=choice.machine, alternatives=choice.alternatives,
             chosen_for=choice.chosen_for, vcpus=spec.vcpus, gpus=spec.gpus, memory_gib=spec.memory_gib,
-            usd_per_hour=usd_per_hour(spec), spot=node.spot and spot, disk_gb=node.disk_gb, nodes=(node.name,),
+            usd_per_hour=usd_per_hour(spec), spot=node.spot and spot,
+            spot_usd_per_hour=spot_usd_per_hour(spec) if node.spot and spot else None,
+            disk_gb=node.disk_gb, nodes=(node.name,),
             steps=steps_for([node]), tags=tags + (("fogiac:node", node.name), ("Name", f"{stack}-{node.name}")),
             image=image(spec), address=address, runtime=runtime,
         ))

@@ -96,10 +96,11 @@ def _vpn(manifest: Manifest, stack: str, network: NetworkSpec) -> VpnSpec:
     )
 
 
-def _cost(hosts: tuple[HostSpec, ...], vpn: VpnSpec | None) -> tuple[CostLine, ...]:
+def cost_lines(hosts: tuple[HostSpec, ...], vpn: VpnSpec | None) -> tuple[CostLine, ...]:
+    """Each instance at its on-demand price, a spot one with its spot estimate beside; the Client VPN."""
     lines = [
-        CostLine(f"instance {h.name} ({h.machine}{', spot: at most the on-demand price' if h.spot else ''})", 1,
-                 h.usd_per_hour)
+        CostLine(f"instance {h.name} ({h.machine}{', spot' if h.spot else ''})", 1, h.usd_per_hour,
+                 spot_usd_per_hour=h.spot_usd_per_hour if h.spot else None)
         for h in hosts
     ]
     if vpn is not None:
@@ -116,11 +117,13 @@ def place(manifest: Manifest, *, stack: str, tags: Tags) -> Placement:
     network = _network(manifest)
     hosts, node_hosts = host_per_node(
         manifest, stack=stack, tags=tags, usd_per_hour=lambda spec: spec.usd_per_hour[region], spot=True,
+        spot_usd_per_hour=lambda spec: spec.spot_usd_per_hour(region),
         image=lambda spec: NVIDIA if spec.has_gpu else UBUNTU)
     vpn = _vpn(manifest, stack, network) if vpn_mode else None
     return Placement(
         hosts=hosts, node_hosts=node_hosts, mode=manifest.network.mode,
         connect_via="private" if vpn_mode else "public", network=network,
-        security_groups=_firewall(manifest, ssh_sources(manifest), vpn_mode=vpn_mode), vpn=vpn, cost=_cost(hosts, vpn),
+        security_groups=_firewall(manifest, ssh_sources(manifest), vpn_mode=vpn_mode), vpn=vpn,
+        cost=cost_lines(hosts, vpn),
         autostop=autostop_for(manifest, power="machine", default_minutes=AUTOSTOP_MINUTES),
     )

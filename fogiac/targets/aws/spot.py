@@ -13,6 +13,7 @@ import dataclasses
 from collections.abc import Collection
 
 from fogiac.plan.model import Plan
+from fogiac.targets.aws.placement import cost_lines
 
 ON_DEMAND = "on_demand_fallback"  # in outputs.json: spot hosts that run on-demand
 # What AWS answers when a spot launch cannot be had (EC2 API error codes and spot request status codes).
@@ -26,11 +27,12 @@ def no_capacity(error: str) -> str:
 
 
 def on_demand(plan: Plan, hosts: Collection[str]) -> Plan:
-    """The plan with ``hosts`` asking for on-demand instead of spot."""
+    """The plan with ``hosts`` asking for on-demand instead of spot, and priced so."""
     if not any(h.spot and h.name in hosts for h in plan.hosts):
         return plan
-    return dataclasses.replace(plan, hosts=tuple(
-        dataclasses.replace(h, spot=False) if h.name in hosts else h for h in plan.hosts))
+    specs = tuple(dataclasses.replace(h, spot=False, spot_usd_per_hour=None) if h.name in hosts else h
+                  for h in plan.hosts)
+    return dataclasses.replace(plan, hosts=specs, cost=cost_lines(specs, plan.vpn))
 
 
 def fallback_line(plan: Plan, host: str, code: str) -> str:

@@ -23,7 +23,8 @@ from fogiac.net.relay import deploy
 from fogiac.plan import guard
 from fogiac.plan.document import APPLIED_FILE, plan_document
 from fogiac.plan.model import HostSpec, Plan
-from fogiac.provision import HostAccess, provision, recorded_access, supervise, teardown
+from fogiac.provision import HostAccess, idle, provision, recorded_access, supervise, teardown
+from fogiac.provision.runner import KNOWN_HOSTS
 from fogiac.state import read_json, stack_dir, stack_lock, write_json_atomic
 from fogiac.tables import table
 from fogiac.targets.base import DownOptions, DownResult, Refreshed, SweepOutcome, UpOptions, UpResult
@@ -148,8 +149,13 @@ class ExistingMachines:
         return [{"node": n} for n in spec.nodes]
 
     def autostop_state(self, plan: Plan, spec: HostSpec, entry: Any) -> dict[str, Any] | None:
-        """The host's idle watchdog's last word (idle_since, stops_at, stopped_at), where the target can read it."""
-        return None
+        """The host's idle watchdog's last word (idle_since, stops_at, stopped_at), read on the host the
+        way provisioning reaches it; ``{"unreachable": why}`` when it does not answer."""
+        if entry is None or plan.autostop is None:
+            return None
+        access, base = entry[0], entry[1]
+        return idle.read(access, name=spec.name, base=base, known_hosts=stack_dir(plan.stack) / KNOWN_HOSTS,
+                         stack=plan.stack)
 
     def declare(self, plan: Plan) -> tuple[Mapping[str, Any], ...]:
         return ()  # nothing is created: the machines exist
@@ -309,10 +315,12 @@ def autostop_line(state: Mapping[str, Any], now: float | None = None) -> str:
     def clock(t: float) -> str:
         return time.strftime("%H:%M:%S UTC", time.gmtime(t))
 
+    if state.get(idle.UNREACHABLE):
+        return f"idle time unknown ({idle.UNREACHABLE}: {state[idle.UNREACHABLE]})"
     if state.get("stopped_at"):
         verb = "terminated" if state.get("action") == "terminate" else "stopped"
         return f"{verb} by autostop at {clock(state['stopped_at'])} (idle since {clock(state['idle_since'])})"
     if state.get("idle_since") is None:
         return f"in use (autostop {state.get('action', 'stop')} after idle)"
-    idle = int(now - state["idle_since"])
-    return f"idle {idle // 60}m {idle % 60}s, autostop at {clock(state['stops_at'])}"
+    idle_s = int(now - state["idle_since"])
+    return f"idle {idle_s // 60}m {idle_s % 60}s, autostop at {clock(state['stops_at'])}"

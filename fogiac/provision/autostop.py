@@ -80,11 +80,19 @@ def _write_state(run_dir: Path, state: IdleState) -> None:
     os.replace(tmp, run_dir / STATE_FILE)
 
 
+def parse_state(text: str) -> IdleState | None:
+    """The watchdog's state file's text as an :class:`IdleState`, or None if it is not one."""
+    try:
+        return IdleState(**json.loads(text))
+    except (ValueError, TypeError):
+        return None
+
+
 def read_state(run_dir: Path) -> IdleState | None:
     """The watchdog's last word for this run folder, or None if it never ran there."""
     try:
-        return IdleState(**json.loads((run_dir / STATE_FILE).read_text()))
-    except (OSError, ValueError, TypeError):
+        return parse_state((run_dir / STATE_FILE).read_text())
+    except OSError:
         return None
 
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 import importlib.util
 import shutil
 from collections.abc import Mapping
-from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +16,7 @@ from fogiac.manifest.schema import Manifest
 from fogiac.orchestrate import ExistingMachines
 from fogiac.plan.model import HostSpec, Plan
 from fogiac.plan.placement import Placement, Tags, autostop_for, host_per_node
-from fogiac.provision import LocalAccess, autostop, supervise
+from fogiac.provision import LocalAccess, supervise
 from fogiac.provision.local import PORTS_FILE, local_access, sandbox_root
 from fogiac.targets.base import Check
 
@@ -54,12 +53,6 @@ class LocalTarget(ExistingMachines):
             return super().node_states(plan, spec, entry)
         run_dir = Path(entry[1] or entry[0].sandbox) / "run"
         return [{"node": node, **supervise.status(run_dir, f"node-{node}")} for node in spec.nodes]
-
-    def autostop_state(self, plan: Plan, spec: HostSpec, entry: Any) -> dict[str, Any] | None:
-        if entry is None or plan.autostop is None:
-            return None
-        state = autostop.read_state(Path(entry[1]) / "run")
-        return asdict(state) if state is not None else None
 
     def doctor(self, plan: Plan, *, ssh_from: str | None = None) -> list[Check]:
         """What the sandboxes need on this machine: ROS 1's roscore and rospy."""

@@ -21,13 +21,13 @@ from fogiac.certs import SSH_KEY, load_or_create_bundle
 from fogiac.errors import CloudError, EngineError, FogiacError, ProvisionError
 from fogiac.manifest.schema import Manifest
 from fogiac.net.vpn import write_client_profile
-from fogiac.orchestrate import edge_idle_since, ensure_edge_master, provision_and_connect, stop_edge
+from fogiac.orchestrate import autostop_line, edge_idle_since, ensure_edge_master, provision_and_connect, stop_edge
 from fogiac.plan import drift, guard
 from fogiac.plan.catalog import catalog
 from fogiac.plan.document import APPLIED_FILE, plan_document
 from fogiac.plan.model import Plan
 from fogiac.plan.placement import Placement, Tags
-from fogiac.provision import SshAccess
+from fogiac.provision import SshAccess, idle, recorded_access
 from fogiac.provision.runner import KNOWN_HOSTS
 from fogiac.state import read_json, stack_dir, stack_lock, write_json_atomic
 from fogiac.tables import table
@@ -180,6 +180,7 @@ class AwsTarget:
         now = time.time() if now is None else now
         rows = api.status(plan.stack, region=plan.region, now=_dt.datetime.fromtimestamp(now, _dt.timezone.utc))
         outputs = read_json(stack_dir(plan.stack, create=False) / engine.OUTPUTS_FILE) or {}
+        watched = watchdogs(plan, rows)
         record = deployment.read(plan.stack)
         return {"stack": plan.stack, "target": plan.target, "region": plan.region,
                 "partial": record is not None and record.partial,
@@ -188,8 +189,8 @@ class AwsTarget:
              "public_ip": r.public_ip, "private_ip": r.private_ip, "launched": r.launched.isoformat(),
              "uptime_s": round(r.uptime_s), "cost_usd": r.cost_usd,
              "stopped_at": r.stopped_at.isoformat() if r.stopped_at else None, "stopped_by": r.stopped_by,
-             "market": "spot" if r.spot else "on-demand"}
-            for r in rows], "cost": cost_guard(plan, rows, outputs, now=now)}
+             "market": "spot" if r.spot else "on-demand", "autostop": watched.get(r.name)}
+            for r in rows], "cost": cost_guard(plan, rows, outputs, now=now, watched=watched)}
 
     def render_status(self, doc: Mapping[str, Any]) -> list[Any]:
         guarded = guard.render(doc["cost"]) if doc.get("cost") else []
@@ -211,7 +212,8 @@ class AwsTarget:
             machine = h["machine"] + (" (spot)" if h.get("market") == "spot" else "")
             out.add_row(h["host"], h["instance_id"], state, machine, h["public_ip"] or "-",
                         h["private_ip"] or "-", f"{h['uptime_s'] / 3600:.1f} h", f"${h['cost_usd']:.2f}")
-        return [*partial, out, *guarded]
+        idle_lines = [f"{h['host']}: {autostop_line(h['autostop'])}" for h in doc["hosts"] if h.get("autostop")]
+        return [*partial, out, *idle_lines, *guarded]
 
     def doctor(self, plan: Plan, *, ssh_from: str | None = None) -> list[Check]:
         """Every check ``up`` would make, each as (what, ok, detail); nothing is created."""
@@ -266,13 +268,41 @@ class AwsTarget:
                               acm=api.client("acm", region=plan.region), dry_run=dry_run, kinds=kinds)
 
 
-def cost_guard(plan: Plan, rows: list[api.InstanceStatus], outputs: Mapping[str, Any], *,
-               now: float) -> dict[str, Any]:
-    """What the stack still has on AWS, priced; "no edge" from autostop's stops and this machine's edge relays.
+def watchdogs(plan: Plan, rows: list[api.InstanceStatus]) -> dict[str, dict[str, Any] | None]:
+    """Each running instance's autostop watchdog, read over SSH as provisioning reached it.
 
-    A host the instance itself powered off (autostop) saw no edge for the autostop time before
-    it stopped, so the edge has been gone since at least then; the edge relays' stats files
-    say when this machine last ran one.
+    The address is the instance's current one (a stopped and started instance may have a new
+    public address) and the host key the one pinned from its first boot's console: an instance
+    without a pinned key is not asked, since trusting a key on sight is what pinning avoids.
+    """
+    folder = stack_dir(plan.stack, create=False)
+    if plan.autostop is None or not folder.exists():
+        return {}
+    recorded = recorded_access(folder)
+    pinned = read_json(folder / HOST_KEYS_FILE) or {}
+    ask: dict[str, tuple[Any, str]] = {}
+    unpinned: dict[str, dict[str, Any] | None] = {}
+    for r in rows:
+        entry = recorded.get(r.name)
+        if r.state != "running" or entry is None or not isinstance(entry[0], SshAccess) or not r.public_ip:
+            continue
+        keys = tuple(pinned.get(r.instance_id) or ())
+        if not keys:
+            unpinned[r.name] = {idle.UNREACHABLE: f"no host key pinned for {r.instance_id}"}
+            continue
+        ask[r.name] = (dataclasses.replace(entry[0], address=r.public_ip, fingerprints=keys), entry[1])
+    return {**unpinned, **idle.read_all(ask, known_hosts=folder / KNOWN_HOSTS, stack=plan.stack)}
+
+
+def cost_guard(plan: Plan, rows: list[api.InstanceStatus], outputs: Mapping[str, Any], *,
+               now: float, watched: Mapping[str, Mapping[str, Any] | None] | None = None) -> dict[str, Any]:
+    """What the stack still has on AWS, priced; "no edge" from the watchdogs, autostop's stops and
+    this machine's edge relays.
+
+    The running hosts' watchdogs (``watched``) say since when each saw no edge; a host the
+    instance itself powered off (autostop) saw no edge for the autostop time before it stopped,
+    so the edge has been gone since at least then; the edge relays' stats files say when this
+    machine last ran one.
     """
     billed = [guard.Billed(f"instance {r.name} ({r.machine}, {r.state})", r.usd_per_hour,
                            r.launched.timestamp() if r.usd_per_hour else None,
@@ -281,6 +311,12 @@ def cost_guard(plan: Plan, rows: list[api.InstanceStatus], outputs: Mapping[str,
         billed.append(guard.Billed("Client VPN subnet association", catalog().vpn_association_usd_per_hour,
                                    outputs.get(NETWORK_SINCE)))
     autostop_s = plan.autostop.idle_s if plan.autostop is not None else None
+    running = [r.name for r in rows if r.state == "running"]
+    readings = [(watched or {}).get(name) or {} for name in running]
+    if running and all("idle_since" in w for w in readings):  # every running host's watchdog answered
+        idle_since = [w["idle_since"] for w in readings]
+        since = None if None in idle_since else max(idle_since)
+        return guard.guard(billed, now=now, autostop_s=autostop_s, edge_idle_since=since)
     seen = [edge_idle_since(plan, now=now)]
     if autostop_s is not None and rows and all(r.stopped_by == "the instance" and r.stopped_at for r in rows):
         seen.append(max(r.stopped_at.timestamp() for r in rows if r.stopped_at) - autostop_s)

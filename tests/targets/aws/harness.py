@@ -266,6 +266,8 @@ def _instance(h: Harness, i: dict[str, Any]) -> tuple[str, dict[str, Any]]:
             "Encrypted": bool(root.get("encrypted")), "DeleteOnTermination": root.get("deleteOnTermination", True)}}],
         TagSpecifications=_tag_spec("instance", i.get("tags")) + _tag_spec("volume", i.get("volumeTags")),
     )
+    if i.get("instanceInitiatedShutdownBehavior"):  # what the watchdog's poweroff does: stop or terminate
+        args["InstanceInitiatedShutdownBehavior"] = i["instanceInitiatedShutdownBehavior"]
     if i.get("instanceMarketOptions"):
         if not h.spot_capacity:
             raise ClientError({"Error": {"Code": "InsufficientInstanceCapacity", "Message": (

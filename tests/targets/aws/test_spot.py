@@ -61,6 +61,9 @@ def test_no_spot_capacity_falls_back_to_on_demand_and_says_so(engine_is_harness:
     assert instance.get("InstanceLifecycle") != "spot"
     [key] = [k for k in engine_is_harness.state if k.endswith("host-planner")]
     assert engine_is_harness.state[key]["inputs"]["instanceInitiatedShutdownBehavior"] == "stop"  # on-demand can stop
+    behaviour = ec2.describe_instance_attribute(InstanceId=instance["InstanceId"],
+                                                Attribute="instanceInitiatedShutdownBehavior")
+    assert behaviour["InstanceInitiatedShutdownBehavior"]["Value"] == "stop"
     assert json.loads((stack_dir("nospot-dev") / OUTPUTS_FILE).read_text())[ON_DEMAND] == ["planner"]
     status = json.loads(fogiac("status", str(path), "--json").stdout)
     assert [(h["host"], h["market"]) for h in status["hosts"]] == [("planner", "on-demand")]
@@ -83,6 +86,9 @@ def test_spot_when_there_is_capacity(engine_is_harness: Harness, ec2: Any, tmp_p
     assert "no spot capacity" not in result.stderr
     instance = _instance(ec2, "gotspot-dev")
     assert instance["InstanceLifecycle"] == "spot"
+    behaviour = ec2.describe_instance_attribute(InstanceId=instance["InstanceId"],
+                                                Attribute="instanceInitiatedShutdownBehavior")
+    assert behaviour["InstanceInitiatedShutdownBehavior"]["Value"] == "terminate"  # one-time spot cannot stop
     assert ON_DEMAND not in json.loads((stack_dir("gotspot-dev") / OUTPUTS_FILE).read_text())
     status = fogiac("status", str(path))
     assert "c5.large (spot)" in status.stdout

@@ -45,6 +45,8 @@ def test_up_starts_a_stopped_host_again_same_instance(engine_is_harness: Harness
     outputs = json.loads((stack_dir("waking-dev") / OUTPUTS_FILE).read_text())
     instance = outputs["compute"]["hosts"]["planner"]["instance_id"]
     created = list(engine_is_harness.created)
+    behaviour = ec2.describe_instance_attribute(InstanceId=instance, Attribute="instanceInitiatedShutdownBehavior")
+    assert behaviour["InstanceInitiatedShutdownBehavior"]["Value"] == "stop"  # the watchdog's poweroff stops it
 
     ec2.stop_instances(InstanceIds=[instance])  # as the watchdog's poweroff would
     ec2.get_waiter("instance_stopped").wait(InstanceIds=[instance], WaiterConfig={"Delay": 1, "MaxAttempts": 30})

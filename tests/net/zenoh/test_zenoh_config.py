@@ -2,17 +2,13 @@
 
 from __future__ import annotations
 
-import ipaddress
 from pathlib import Path
 
 import pytest
-from cryptography import x509
 
-from fogiac.certs import new_ca
 from fogiac.errors import ManifestError, PlanError
 from fogiac.manifest.schema import load_manifest, parse_manifest
 from fogiac.net import middleware
-from fogiac.net.zenoh import tls
 from fogiac.net.zenoh.config import TlsFiles, access_control, cloud_router, edge_router, topic_key
 from fogiac.net.zenoh.middleware import ROUTER_PORT
 from fogiac.plan.compile import compile_plan
@@ -66,17 +62,6 @@ def test_the_cloud_router_listens_with_mutual_tls_and_the_edge_router_only_dials
     for config in (cloud, edge):
         assert config["scouting"]["multicast"]["enabled"] is False
         assert config["scouting"]["gossip"]["autoconnect"]["router"] == []  # routers dial only what they are told
-
-
-def test_one_certificate_per_host_naming_the_address_the_edge_dials(tmp_path: Path) -> None:
-    ca = new_ca("fogiac CA s")
-    pair = tls.host_pair(ca, stack="s", host="gpu", address="203.0.113.7")
-    cert = x509.load_pem_x509_certificate(pair.cert_pem)
-    san = cert.extensions.get_extension_for_class(x509.SubjectAlternativeName).value
-    assert san.get_values_for_type(x509.IPAddress) == [ipaddress.ip_address("203.0.113.7")]
-    assert pair.common_name == "gpu.router.s.fogiac" != tls.host_pair(ca, stack="s", host="b", address="h").common_name
-    files = tls.write_files(tmp_path, "gpu", pair, ca)
-    assert Path(files.key).stat().st_mode & 0o777 == 0o600
 
 
 def test_a_ros2_plan_says_zenoh_and_opens_the_router_port_to_ssh_from_or_the_vpn_only() -> None:

@@ -9,6 +9,8 @@ The Zenoh variant's answers to :class:`fogiac.net.middleware.Middleware`'s deplo
   signs its CSR for the router's name and the address the edge dials, one certificate per host.
 - Nodes get ``RMW_IMPLEMENTATION=rmw_zenoh_cpp`` and that loopback endpoint
   (``ZENOH_CONFIG_OVERRIDE``; ``FOGIAC_ZENOH_ROUTER`` for clients that are not rmw_zenoh).
+- With autostop on, the host's watchdog reads the router's stats file: idle while no edge router
+  is linked (nothing can cross without one).
 - The edge router listens on loopback only (``edge.zenoh_router``) and dials every cloud router;
   the monitor publishes ``/fogros/latency`` and ``/fogros/throughput`` on it. ``up`` also writes
   the robot's own router's and zenoh-bridge-ros2dds's configs, pointing at that endpoint.
@@ -91,12 +93,19 @@ def host_services(plan: Plan, spec: HostSpec, where: svc.Where, *, certs: Path) 
                           local_port=where.master_port)
     config["id"] = router_id(plan.stack, spec.name)
     config["listen"]["endpoints"][0] = f"tls/{listen}:{where.relay_port}"
-    path = f"{where.layout.env}/zenoh-router.json"
-    command = f"{q(where.python)} -m fogiac.net.zenoh.router {q(path)}"
-    return (svc.make_service(ROUTER, plan=plan, spec=spec, where=where, command=command, check="alive",
-                             python_path=where.code_root, files=(
-                                 (path, json.dumps(config, indent=1, sort_keys=True), 0o600),
-                                 (files.ca, ca.cert_pem.decode(), 0o644))),)
+    path, stats = f"{where.layout.env}/zenoh-router.json", router_stats(where)
+    command = f"{q(where.python)} -m fogiac.net.zenoh.router {q(path)} --stats-file {q(stats)}"
+    router = svc.make_service(ROUTER, plan=plan, spec=spec, where=where, command=command, check="alive",
+                              python_path=where.code_root, files=(
+                                  (path, json.dumps(config, indent=1, sort_keys=True), 0o600),
+                                  (files.ca, ca.cert_pem.decode(), 0o644)))
+    watchdog = svc.autostop_service(plan, spec, where, stats=stats, after=ROUTER)
+    return (router,) + ((watchdog,) if watchdog is not None else ())
+
+
+def router_stats(where: svc.Where) -> str:
+    """Where the host's router writes whether the edge's router is linked, which the autostop watchdog reads."""
+    return f"{where.layout.run}/{ROUTER}.stats.json"
 
 
 def _port(endpoint: str) -> int:

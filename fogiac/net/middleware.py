@@ -57,6 +57,9 @@ class Middleware(Protocol):
     @property
     def credentials_first(self) -> bool: ...  # True: host_credentials before host_services start, else at link
 
+    @property
+    def host_requirements(self) -> tuple[str, ...]: ...  # pinned PyPI packages its cloud side imports on a host
+
     # -- deploying it: provisioning asks for a host's services, ``up``/``down``/``status`` for the edge's --
 
     def edge_entry(self, edge: Edge) -> str:

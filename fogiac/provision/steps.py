@@ -247,12 +247,14 @@ def step_images(run: HostRun) -> StepResult:
 
 
 def step_venv(run: HostRun) -> StepResult:
-    """A host that runs fogiac's pushed code gets fogiac's requirements (its relay imports them) in a
-    venv over the system's python3, plus its workload nodes' on a native host."""
+    """A host that runs fogiac's pushed code gets fogiac's requirements and its middleware's (the relay's
+    cloud end, the Zenoh router import them) in a venv over the system's python3, in either runtime (they
+    run on the host), plus its workload nodes' on a native host."""
     if not run.access.ship_code:
         return SKIPPED, "fogiac's code runs on its own interpreter"
     names = [n.workload for n in (run.plan.node(x) for x in run.spec.nodes) if n.workload is not None]
-    reqs = venv.requirements(names if run.runtime == svc.NATIVE else [], fogiac=True)
+    reqs = venv.requirements(names if run.runtime == svc.NATIVE else [], fogiac=True,
+                             middleware=run.carrier.host_requirements)
     marker = f"{run.layout.state}/venv.sha256"
     known = run.facts.marker(marker) if run.facts is not None else ""
     env = venv.ensure(run.host, root=f"{run.layout.base}/venv", marker=marker, known=known, reqs=reqs,
@@ -329,10 +331,10 @@ def step_services(run: HostRun) -> StepResult:
     env_changed = ensure_file(run, env.encode(), run.layout.env_file)
     manager = run.manager
     wanted = run.services()
+    made = run.carrier.credentials_first and run.credentials()  # a new certificate: its router restarts
     for service in wanted:
         for path, text, mode in service.files:
             ensure_file(run, text.encode(), path, mode=mode)
-    made = run.carrier.credentials_first and run.credentials()  # a new certificate: its router restarts
     started = manager.ensure(run.host, run.layout, wanted, restart_all=env_changed or made, facts=run.facts)
     kept = [s.name for s in wanted + run.carrier.link_services(run.plan, run.spec, run.where())]
     stopped = manager.prune(run.host, run.layout, keep=kept, facts=run.facts)

@@ -26,6 +26,7 @@ class RelayMiddleware:
     rule_description: str = "fogiac relay (mutual TLS)"
     needs_listed_topics: bool = False  # the relay discovers topics from both masters
     credentials_first: bool = False  # the cloud end starts at link, after the nodes
+    host_requirements: tuple[str, ...] = ()  # the cloud end needs fogiac's own requirements only
 
     def edge_entry(self, edge: Edge) -> str:
         return edge.ros_master

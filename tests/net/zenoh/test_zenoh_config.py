@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+import tomllib
 
 from fogiac.errors import ManifestError, PlanError
 from fogiac.manifest.schema import load_manifest, parse_manifest
@@ -13,7 +14,7 @@ from fogiac.net.zenoh.config import TlsFiles, access_control, cloud_router, edge
 from fogiac.net.zenoh.middleware import ROUTER_PORT
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.model import OPERATOR
-from tests.conftest import EXAMPLES
+from tests.conftest import EXAMPLES, REPO
 from tests.net.zenoh.lab import route
 
 FILES = TlsFiles(ca="/etc/fogiac/ca.pem", cert="/etc/fogiac/router.pem", key="/etc/fogiac/router.key")
@@ -83,3 +84,10 @@ def test_ros2_nodes_must_list_their_topics(tmp_path: Path) -> None:
     text = "name: r\nros:\n  distro: humble\nnodes:\n  - name: a\n    machine: c5.large\n    image: x\n"
     with pytest.raises(ManifestError, match=r"<manifest>:5: nodes\[0\].topics: ROS humble crosses through zenoh"):
         parse_manifest(text)
+
+
+def test_the_hosts_router_requirement_is_pyprojects_pin() -> None:
+    extras = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["optional-dependencies"]
+    (pin,) = middleware.get("zenoh").host_requirements
+    assert pin in extras["ros2"] and pin.startswith("eclipse-zenoh==")
+    assert middleware.get("relay").host_requirements == ()

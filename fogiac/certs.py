@@ -3,9 +3,9 @@
 AWS Client VPN requires RSA 2048 keys, so everything here is RSA 2048 for one code path.
 The relay (edge and cloud ends) and the Client VPN endpoint trust the same CA. The operator's
 machine keeps the CA key and the keys it uses itself (the VPN endpoint's, imported into ACM, and
-the edge's client key); a host's relay key is made on the host and only its CSR comes here to
-be signed (:func:`sign_csr`). Private keys are written 0600 and never printed; callers that put
-them into Pulumi mark them secret.
+the edge's client key); a host's key (its relay's, its Zenoh router's) is made on the host and
+only its CSR comes here to be signed (:func:`sign_csr`). Private keys are written 0600 and never
+printed; callers that put them into Pulumi mark them secret.
 """
 
 from __future__ import annotations
@@ -155,11 +155,24 @@ def issue(
     return KeyPair(cert, _key_pem(key))
 
 
-def sign_csr(ca: KeyPair, csr_pem: bytes, name: str) -> bytes:
-    """A server certificate for ``name`` over the public key of a host's CSR (PEM).
+def split_addresses(addresses: tuple[str, ...]) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """``(dns_names, ip_addresses)``: how each address a peer dials goes into a subjectAltName."""
+    dns: list[str] = []
+    ips: list[str] = []
+    for address in addresses:
+        try:
+            ips.append(str(ipaddress.ip_address(address)))
+        except ValueError:
+            dns.append(address)
+    return tuple(dns), tuple(ips)
+
+
+def sign_csr(ca: KeyPair, csr_pem: bytes, name: str, *, addresses: tuple[str, ...] = ()) -> bytes:
+    """A server certificate for ``name`` (and ``addresses``, IPs or DNS names) over a host's CSR key (PEM).
 
     Only the CSR's key is taken, after its signature proves the host holds the private half:
-    the name is fogiac's, whatever the request asks for.
+    the names are fogiac's, whatever the request asks for. ``addresses`` are for peers that check
+    the address they dialed (Zenoh's ``verify_name_on_connect``); the relay checks ``name``.
     """
     try:
         csr = x509.load_pem_x509_csr(csr_pem)
@@ -170,11 +183,14 @@ def sign_csr(ca: KeyPair, csr_pem: bytes, name: str) -> bytes:
         raise CertError(f"the certificate request for {name} is not signed by its own key")
     if not isinstance(key, rsa.RSAPublicKey) or key.key_size < 2048:
         raise CertError(f"the certificate request for {name} does not carry an RSA key of 2048 bits or more")
-    return _sign(ca, key, name, server=True, dns_names=(name,))
+    dns, ips = split_addresses(addresses)
+    return _sign(ca, key, name, server=True, dns_names=(name, *dns), ip_addresses=ips)
 
 
-def serves(ca: KeyPair, cert_pem: bytes, name: str, public_key_pem: bytes, *, days: int = _RENEW_DAYS) -> bool:
-    """Whether ``cert_pem`` is ``ca``'s certificate for ``name`` over this public key, valid ``days`` more."""
+def serves(ca: KeyPair, cert_pem: bytes, name: str, public_key_pem: bytes, *, addresses: tuple[str, ...] = (),
+           days: int = _RENEW_DAYS) -> bool:
+    """Whether ``cert_pem`` is ``ca``'s certificate for ``name`` (and every one of ``addresses``) over this
+    public key, valid ``days`` more."""
     try:
         cert = x509.load_pem_x509_certificate(cert_pem)
         cert.verify_directly_issued_by(x509.load_pem_x509_certificate(ca.cert_pem))
@@ -186,7 +202,10 @@ def serves(ca: KeyPair, cert_pem: bytes, name: str, public_key_pem: bytes, *, da
     same_key = (cert.public_key().public_bytes(serialization.Encoding.DER, spki)
                 == key.public_bytes(serialization.Encoding.DER, spki))
     left = cert.not_valid_after_utc - _dt.datetime.now(_dt.timezone.utc)
-    return same_key and name in names.get_values_for_type(x509.DNSName) and left > _dt.timedelta(days=days)
+    dns, ips = split_addresses(addresses)
+    named = set(dns + (name,)) <= set(names.get_values_for_type(x509.DNSName))
+    named = named and {ipaddress.ip_address(a) for a in ips} <= set(names.get_values_for_type(x509.IPAddress))
+    return same_key and named and left > _dt.timedelta(days=days)
 
 
 def _vpn_pair(ca: KeyPair, stack: str) -> KeyPair:

@@ -53,6 +53,11 @@ def ensure_edge_master(plan: Plan, uri: str, *, start: bool) -> None:
     middleware.get(plan.middleware).prepare_edge(plan, uri, folder=edge_dir(plan), start=start)
 
 
+def dialed_addresses(connect: Mapping[str, str]) -> dict[str, str]:
+    """host -> the address alone, from ``connect``'s ``HOST:PORT`` (``[v6]:PORT`` too)."""
+    return {host: address.rsplit(":", 1)[0].strip("[]") for host, address in connect.items()}
+
+
 def provision_and_connect(plan: Plan, *, access: Mapping[str, Any], connect: Mapping[str, str], master: str,
                           started_edge_master: bool = False,
                           progress: Callable[[str, str, str], None] | None = None) -> FleetUp:
@@ -65,7 +70,8 @@ def provision_and_connect(plan: Plan, *, access: Mapping[str, Any], connect: Map
     folder = stack_dir(plan.stack)
     certs = folder / "certs"
     load_or_create_bundle(plan.stack, certs)
-    report = provision(plan, hosts=access, state_dir=folder, certs_dir=certs, progress=progress)
+    report = provision(plan, hosts=access, state_dir=folder, certs_dir=certs, progress=progress,
+                       dialed=dialed_addresses(connect))
     relays = {o.host: connect[o.host] for o in report.hosts if o.ok and o.host in connect}
     notes = middleware.get(plan.middleware).edge_up(plan, entry=master, connect=relays, certs=certs,
                                                      folder=edge_dir(plan)) if relays else []

@@ -54,6 +54,12 @@ class Middleware(Protocol):
     @property
     def needs_listed_topics(self) -> bool: ...  # True: topics "auto" cannot be honoured
 
+    @property
+    def credentials_first(self) -> bool: ...  # True: host_credentials before host_services start, else at link
+
+    @property
+    def host_requirements(self) -> tuple[str, ...]: ...  # pinned PyPI packages its cloud side imports on a host
+
     # -- deploying it: provisioning asks for a host's services, ``up``/``down``/``status`` for the edge's --
 
     def edge_entry(self, edge: Edge) -> str:
@@ -64,10 +70,9 @@ class Middleware(Protocol):
         """The environment every node on a host gets (its env file, its containers)."""
         ...
 
-    def host_services(self, plan: Plan, spec: HostSpec, where: Where, *, certs: Path | None,
-                      dialed: str) -> tuple[Service, ...]:
-        """What the host's nodes need running before them (a ROS master, a router); ``dialed``: the
-        address the edge reaches the host at, ``certs``: the stack's CA folder on this machine."""
+    def host_services(self, plan: Plan, spec: HostSpec, where: Where, *, certs: Path | None) -> tuple[Service, ...]:
+        """What the host's nodes need running before them (a ROS master, a router); ``certs``: the
+        stack's CA folder on this machine."""
         ...
 
     def link_services(self, plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ...]:
@@ -79,8 +84,9 @@ class Middleware(Protocol):
         ...
 
     def host_credentials(self, host: Host, *, python: str, folder: str, certs_dir: Path, plan: Plan,
-                         spec: HostSpec) -> bool:
-        """Credentials made on the host itself (its private key never leaves it); True when they changed."""
+                         spec: HostSpec, dialed: str) -> bool:
+        """Credentials made on the host itself (its private key never leaves it); True when they changed.
+        ``dialed``: the address the edge reaches the host at (what a certificate may have to name)."""
         ...
 
     def prepare_edge(self, plan: Plan, entry: str, *, folder: Path, start: bool) -> None:

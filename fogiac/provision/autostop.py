@@ -1,10 +1,11 @@
 """The autostop watchdog: a host with no edge and no traffic for N minutes stops itself.
 
 Why on the host: a forgotten stack must stop without the operator's laptop. The watchdog runs
-as one more supervised service beside the relay's cloud end and judges "idle" only from what
-fogiac already knows, the relay's stats file: no edge connected and no message crossing (the
-message counters did not move). A host with no stats file yet counts as idle from the
-watchdog's start, so a host whose edge never came stops too.
+as one more supervised service beside the middleware's cloud side and judges "idle" only from
+what fogiac already knows, the stats file that side writes every second (the relay's cloud end,
+the Zenoh router): no edge connected (``connected``) and no message crossing (the ``msgs`` of its
+``topics`` did not move, where it counts them). A host with no stats file yet counts as idle
+from the watchdog's start, so a host whose edge never came stops too.
 
 How it stops is the target's choice (``--power``): ``machine`` powers the host off (on EC2 the
 instance's shutdown behaviour, stop or terminate, is set by the compute stack); ``services``
@@ -24,7 +25,6 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from fogiac.net.relay.stats import RelayStats, read_stats
 from fogiac.provision import supervise
 
 STATE_FILE = "autostop.json"
@@ -45,18 +45,26 @@ class IdleState:
         return json.dumps(asdict(self), separators=(",", ":"))
 
 
+@dataclass(frozen=True)
+class Activity:
+    """What a middleware's stats file says about the host's link to the edge, at one moment."""
+
+    connected: bool  # an edge is linked now (the relay's edge end, the edge's Zenoh router)
+    msgs: int | None = None  # messages crossed so far; None where the file does not count them
+
+
 class IdleClock:
-    """Pure: feeds on relay snapshots and says since when the host has been idle."""
+    """Pure: feeds on activity snapshots and says since when the host has been idle."""
 
     def __init__(self, idle_s: float, now: float) -> None:
         self.idle_s = idle_s
         self.last_active = now
         self._msgs: int | None = None
 
-    def observe(self, stats: RelayStats | None, now: float) -> None:
-        msgs = sum(t.msgs for t in stats.topics) if stats is not None else None
+    def observe(self, seen: Activity | None, now: float) -> None:
+        msgs = seen.msgs if seen is not None else None
         moved = msgs is not None and self._msgs is not None and msgs != self._msgs
-        if (stats is not None and stats.connected) or moved:
+        if (seen is not None and seen.connected) or moved:
             self.last_active = now
         self._msgs = msgs
 
@@ -67,10 +75,14 @@ class IdleClock:
         return now - self.last_active >= self.idle_s
 
 
-def _snapshot(path: Path) -> RelayStats | None:
+def read_activity(path: Path) -> Activity | None:
+    """``{"connected": bool, "topics": [{"msgs": int, ...}, ...]}`` (topics optional); None if unreadable."""
     try:
-        return read_stats(path)
-    except (OSError, ValueError, TypeError, KeyError):
+        doc = json.loads(path.read_text())
+        topics = doc.get("topics")
+        msgs = sum(int(t["msgs"]) for t in topics) if isinstance(topics, list) else None
+        return Activity(connected=bool(doc.get("connected")), msgs=msgs)
+    except (OSError, ValueError, TypeError, KeyError, AttributeError):
         return None
 
 
@@ -119,7 +131,7 @@ def watch(*, stats_file: Path, run_dir: Path, idle_s: float, action: str, power:
     idle = IdleClock(idle_s, clock())
     while True:
         now = clock()
-        idle.observe(_snapshot(stats_file), now)
+        idle.observe(read_activity(stats_file), now)
         since = idle.idle_since(now)
         if idle.due(now):
             state = IdleState(idle_since=since, stops_at=now, stopped_at=now, action=action)
@@ -131,7 +143,7 @@ def watch(*, stats_file: Path, run_dir: Path, idle_s: float, action: str, power:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m fogiac.provision.autostop", description=__doc__.splitlines()[0])
-    parser.add_argument("--stats", type=Path, required=True, help="the relay cloud end's --stats-file")
+    parser.add_argument("--stats", type=Path, required=True, help="the middleware's stats file on this host")
     parser.add_argument("--run", type=Path, required=True, help="the supervisor's run folder")
     parser.add_argument("--idle-s", type=float, required=True)
     parser.add_argument("--action", choices=("stop", "terminate"), default="stop")

@@ -1,4 +1,4 @@
-"""Run ON a host (``python -c``): its relay key is made and kept there; only a CSR leaves.
+"""Run ON a host (``python -c``): its server key (relay, Zenoh router) is made and kept there; only a CSR leaves.
 
 Standalone on purpose (the standard library and ``cryptography``, which the relay's cloud end
 needs anyway), so the host needs nothing of fogiac on its path to run it.

@@ -134,14 +134,16 @@ def _for_each(plan: Plan, hosts: Mapping[str, HostAccess], work: Callable[[HostS
 
 def provision(plan: Plan, *, hosts: Mapping[str, HostAccess], state_dir: Path, certs_dir: Path | None = None,
               progress: Progress | None = None, health_timeout: float = 30.0,
-              allow_install: bool = False) -> ProvisionReport:
+              allow_install: bool = False, dialed: Mapping[str, str] | None = None) -> ProvisionReport:
     """Run each host's steps (``HostSpec.steps``) on all hosts in parallel; never raises per host.
 
     ``state_dir`` is the stack's state folder: its ``known_hosts`` records SSH host keys, and
     ``provision.json`` records how each host was reached so ``fogiac logs``/``ssh`` find it.
+    ``dialed``: host -> the address the edge dials (a certificate may name it); unset, the SSH address.
     """
     started = time.monotonic()
-    options = Options(certs_dir=certs_dir, health_timeout=health_timeout, allow_install=allow_install)
+    options = Options(certs_dir=certs_dir, health_timeout=health_timeout, allow_install=allow_install,
+                      dialed=dict(dialed or {}))
     known_hosts = state_dir / KNOWN_HOSTS
     record_access(state_dir, plan, hosts, {})  # first: an interrupted run's hosts are found again
     outcomes = _for_each(plan, hosts, lambda spec, access: _provision_one(

@@ -328,12 +328,13 @@ def relay_stats(where: Where) -> str:
     return f"{where.layout.run}/relay-cloud.stats.json"
 
 
-def autostop_service(plan: Plan, spec: HostSpec, where: Where) -> Service | None:
-    """The idle watchdog (:mod:`fogiac.provision.autostop`), when the plan has autostop on."""
+def autostop_service(plan: Plan, spec: HostSpec, where: Where, *, stats: str, after: str) -> Service | None:
+    """The idle watchdog (:mod:`fogiac.provision.autostop`), when the plan has autostop on: it reads
+    ``stats``, which the middleware's service ``after`` writes."""
     if plan.autostop is None:
         return None
     stop = plan.autostop
-    command = (f"{q(where.python)} -m fogiac.provision.autostop --stats {q(relay_stats(where))} "
+    command = (f"{q(where.python)} -m fogiac.provision.autostop --stats {q(stats)} "
                f"--run {q(where.layout.run)} --idle-s {stop.idle_s:g} --action {stop.action} --power {stop.power}")
     return _service("autostop", plan=plan, spec=spec, where=where, command=command, check="alive",
-                    python_path=where.code_root, after=unit_name(plan.stack, "relay-cloud"))
+                    python_path=where.code_root, after=unit_name(plan.stack, after))

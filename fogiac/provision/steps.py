@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -38,6 +38,7 @@ class Options:
     certs_dir: Path | None = None
     health_timeout: float = 30.0
     allow_install: bool = False
+    dialed: Mapping[str, str] = field(default_factory=dict)  # host -> the address the edge dials it at
 
 
 @dataclass
@@ -84,12 +85,24 @@ class HostRun:
     def carrier(self) -> Middleware:
         return middleware.get(self.plan.middleware)
 
+    @property
+    def dialed(self) -> str:
+        """The address the edge reaches this host at: the target's word (a private VPC address over the
+        VPN), else the one provisioning reaches it at."""
+        return self.options.dialed.get(self.spec.name) or self.access.location.rsplit(":", 1)[0].rpartition("@")[2]
+
     def services(self) -> tuple[svc.Service, ...]:
         """The middleware's host services (a ROS master, a router), then one per node."""
         where = self.where()
-        dialed = self.access.location.rsplit(":", 1)[0].rpartition("@")[2]  # the address the edge reaches
-        first = self.carrier.host_services(self.plan, self.spec, where, certs=self.options.certs_dir, dialed=dialed)
+        first = self.carrier.host_services(self.plan, self.spec, where, certs=self.options.certs_dir)
         return first + svc.node_services(self.plan, self.spec, where)
+
+    def credentials(self) -> bool:
+        """The middleware's credentials made on the host (its key never leaves it); True when they changed."""
+        certs = self.options.certs_dir
+        return certs is not None and self.carrier.host_credentials(
+            self.host, python=self.where().python, folder=self.layout.certs, certs_dir=certs, plan=self.plan,
+            spec=self.spec, dialed=self.dialed)
 
     def link_services(self) -> tuple[svc.Service, ...]:
         """What joins the host to the edge after its nodes (none without certificates or fogiac's code)."""
@@ -234,12 +247,14 @@ def step_images(run: HostRun) -> StepResult:
 
 
 def step_venv(run: HostRun) -> StepResult:
-    """A host that runs fogiac's pushed code gets fogiac's requirements (its relay imports them) in a
-    venv over the system's python3, plus its workload nodes' on a native host."""
+    """A host that runs fogiac's pushed code gets fogiac's requirements and its middleware's (the relay's
+    cloud end, the Zenoh router import them) in a venv over the system's python3, in either runtime (they
+    run on the host), plus its workload nodes' on a native host."""
     if not run.access.ship_code:
         return SKIPPED, "fogiac's code runs on its own interpreter"
     names = [n.workload for n in (run.plan.node(x) for x in run.spec.nodes) if n.workload is not None]
-    reqs = venv.requirements(names if run.runtime == svc.NATIVE else [], fogiac=True)
+    reqs = venv.requirements(names if run.runtime == svc.NATIVE else [], fogiac=True,
+                             middleware=run.carrier.host_requirements)
     marker = f"{run.layout.state}/venv.sha256"
     known = run.facts.marker(marker) if run.facts is not None else ""
     env = venv.ensure(run.host, root=f"{run.layout.base}/venv", marker=marker, known=known, reqs=reqs,
@@ -316,10 +331,11 @@ def step_services(run: HostRun) -> StepResult:
     env_changed = ensure_file(run, env.encode(), run.layout.env_file)
     manager = run.manager
     wanted = run.services()
+    made = run.carrier.credentials_first and run.credentials()  # a new certificate: its router restarts
     for service in wanted:
         for path, text, mode in service.files:
             ensure_file(run, text.encode(), path, mode=mode)
-    started = manager.ensure(run.host, run.layout, wanted, restart_all=env_changed, facts=run.facts)
+    started = manager.ensure(run.host, run.layout, wanted, restart_all=env_changed or made, facts=run.facts)
     kept = [s.name for s in wanted + run.carrier.link_services(run.plan, run.spec, run.where())]
     stopped = manager.prune(run.host, run.layout, keep=kept, facts=run.facts)
     if not started and not stopped and not env_changed:
@@ -349,8 +365,7 @@ def step_link(run: HostRun) -> StepResult:
         for service in wanted:
             ensure_file(run, service.script.encode(), f"{run.layout.services}/{service.name}.sh", mode=0o700)
         return SKIPPED, "fogiac's code is not on the host; service scripts rendered only"
-    made = run.carrier.host_credentials(run.host, python=run.access.python, folder=run.layout.certs,
-                                        certs_dir=certs, plan=run.plan, spec=run.spec)
+    made = not run.carrier.credentials_first and run.credentials()
     started = run.manager.ensure(run.host, run.layout, wanted, restart_all=bool(changed) or made, facts=run.facts)
     what = " and ".join(s.name for s in wanted)
     return (CHANGED, f"{what} started") if started or changed else (OK, f"{what} running")

@@ -1,8 +1,9 @@
-"""The virtual environment fogiac's pushed code runs in on a host: the relay, and native workload nodes.
+"""The virtual environment fogiac's pushed code runs in on a host: the middleware, and native workload nodes.
 
 Why: a host's system Python has ROS (rospy from Debian's or ROS's packages) but neither
-fogiac's own requirements (typer, cryptography, ...: the relay's cloud end imports them) nor
-the workloads' (numpy, OMPL, torch). Provisioning builds one virtual environment that sees the
+fogiac's own requirements (typer, cryptography, ...: the relay's cloud end imports them), nor
+the middleware's (eclipse-zenoh for a ROS 2 host's router), nor the workloads' (numpy, OMPL,
+torch). Provisioning builds one virtual environment that sees the
 system's packages (``--system-site-packages``) and holds both, named by a digest of the
 requirement lines: a second ``up`` with the same lines installs nothing, a changed one builds a
 fresh environment and removes the old.
@@ -39,9 +40,11 @@ def fogiac_requirements() -> tuple[str, ...]:
     return tuple(re.sub(r"\s+", "", r) for r in declared if "extra ==" not in r)
 
 
-def requirements(workloads: list[str], *, fogiac: bool = False) -> tuple[str, ...]:
-    """Every requirement of ``workloads`` (and fogiac's own, first, if asked), each once, in a stable order."""
+def requirements(workloads: list[str], *, fogiac: bool = False, middleware: tuple[str, ...] = ()) -> tuple[str, ...]:
+    """Every requirement of ``workloads`` (after fogiac's own, if asked, and the middleware's), each once,
+    in a stable order."""
     found: list[str] = list(fogiac_requirements()) if fogiac else []
+    found += [r for r in middleware if r not in found]
     for name in sorted(set(workloads)):
         for req in importlib.import_module(f"workloads.{name}.container").requirements():
             if req not in found:

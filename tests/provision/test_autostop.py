@@ -11,18 +11,30 @@ from typer.testing import CliRunner
 
 from fogiac.cli import app
 from fogiac.manifest.schema import load_manifest
-from fogiac.net.relay.stats import RelayStats, TopicStats
+from fogiac.net.relay.stats import RelayStats, TopicStats, write_stats
 from fogiac.orchestrate import autostop_line, stop_edge
 from fogiac.plan.compile import compile_plan
 from fogiac.procs import free_port
-from fogiac.provision.autostop import IdleClock
+from fogiac.provision.autostop import Activity, IdleClock, read_activity
 from tests.provision.conftest import make_workspace, ros_skip_reason
 
 
-def stats(*, connected: bool, msgs: int = 0) -> RelayStats:
-    topic = TopicStats("/chatter", "out", 0.0, 0.0, msgs, msgs * 10, 0, None, None, "none")
-    return RelayStats(role="cloud", connected=connected, rtt_ms=None, clock_offset_ms=0.0, reconnects=0,
-                      topics=(topic,))
+def stats(*, connected: bool, msgs: int = 0) -> Activity:
+    return Activity(connected=connected, msgs=msgs)
+
+
+def test_the_watchdog_reads_the_relays_stats_and_the_zenoh_routers(tmp_path: Path) -> None:
+    topics = (TopicStats("/chatter", "out", 0.0, 0.0, 7, 70, 0, None, None, "none"),
+              TopicStats("/scan", "in", 0.0, 0.0, 5, 50, 0, None, None, "none"))
+    relay = tmp_path / "relay-cloud.stats.json"
+    write_stats(relay, RelayStats(role="cloud", connected=True, rtt_ms=None, clock_offset_ms=0.0, reconnects=0,
+                                  topics=topics))
+    assert read_activity(relay) == Activity(connected=True, msgs=12)
+    router = tmp_path / "zenoh-router.stats.json"
+    router.write_text(json.dumps({"routers": [], "connected": False}))  # as the router writes it (router.serve)
+    assert read_activity(router) == Activity(connected=False, msgs=None)
+    router.write_text('{"routers": ["ab')  # half a file: no word from it, not "connected"
+    assert read_activity(router) is None and read_activity(tmp_path / "missing") is None
 
 
 def test_connected_edge_or_moving_counters_keep_a_host_in_use() -> None:

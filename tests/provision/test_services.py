@@ -9,6 +9,7 @@ import pytest
 from fogiac.plan.compile import compile_plan
 from fogiac.errors import ProvisionError
 from fogiac.manifest.schema import parse_manifest
+from fogiac.net import middleware
 from fogiac.plan.model import Plan
 from fogiac.provision import services as svc
 
@@ -159,8 +160,9 @@ def test_relay_cloud_end_command(plan: Plan) -> None:
 
 def test_autostop_watchdog_reads_the_relay_stats(plan: Plan) -> None:
     where = _where(svc.NATIVE)
-    watchdog = svc.autostop_service(plan, plan.host("talker"), where)
-    assert plan.autostop is not None and watchdog is not None
+    watchdog = next(s for s in middleware.get(plan.middleware).link_services(plan, plan.host("talker"), where)
+                    if s.name == "autostop")
+    assert plan.autostop is not None
     assert watchdog.script.splitlines()[-1] == (
         f"exec python3 -m fogiac.provision.autostop --stats {where.layout.run}/relay-cloud.stats.json "
         f"--run {where.layout.run} --idle-s {plan.autostop.idle_s:g} --action {plan.autostop.action} "

@@ -5,7 +5,8 @@ access control from the manifest) and the sandbox's node, a zenoh-ros2-sdk stand
 bare ``command`` with the router's endpoint from its environment; on the edge it starts the edge
 router (dialing out) and the monitor. A robot-side stand-in on the edge router exchanges the
 listed topics both ways; the unlisted ones do not cross; ``status`` shows the link and the
-figures; ``down`` leaves no process.
+figures; ``down`` leaves no process. With autostop on, a sandbox whose edge router goes away
+stops by itself, and ``status`` says so.
 """
 
 from __future__ import annotations
@@ -19,6 +20,9 @@ import pytest
 from typer.testing import CliRunner
 
 from fogiac.cli import app
+from fogiac.manifest.schema import load_manifest
+from fogiac.orchestrate import stop_edge
+from fogiac.plan.compile import compile_plan
 from fogiac.procs import free_port
 from tests.conftest import REPO
 from tests.net.zenoh.lab import ZenohLab, read_events
@@ -88,3 +92,58 @@ def test_ros2_manifest_up_exchanges_listed_topics_only_and_down_stops_everything
     left = [pid for pid in pids if alive(pid)]
     assert left == [], [Path(f"/proc/{p}/cmdline").read_bytes() for p in left]
     assert not (_state_dir / "ros2-local-dev" / "local").exists()
+
+
+IDLER = """\
+name: ros2-idler
+ros: {{distro: jazzy}}
+cloud: {{provider: local, runtime: native, autostop: {{idle_minutes: 0.15, action: stop}}}}
+edge: {{zenoh_router: "tcp/127.0.0.1:{edge_port}"}}
+nodes:
+  - name: detector
+    machine: t3.micro
+    command: [bash, -c, 'exec {python} -m tests.net.zenoh.ros2node "${{FOGIAC_ZENOH_ROUTER##*:}}" {out}
+              --pub /detections=String']
+    env: {{PYTHONPATH: "{repo}", RUST_LOG: error}}
+    topics: {{out: [/detections]}}
+"""
+
+
+def test_a_ros2_sandbox_whose_edge_router_leaves_stops_by_itself(tmp_path: Path, _state_dir: Path) -> None:
+    manifest = tmp_path / "fogiac.yaml"
+    manifest.write_text(IDLER.format(edge_port=free_port(), python=sys.executable, out=tmp_path / "cloud.jsonl",
+                                     repo=REPO))
+    plan = compile_plan(load_manifest(manifest))
+    assert plan.autostop is not None and plan.autostop.idle_s == 9.0
+    runner = CliRunner()
+
+    def host() -> dict:
+        shown = runner.invoke(app, ["status", str(manifest), "--json"])
+        assert shown.exit_code == 0, shown.output
+        (only,) = json.loads(shown.output)["hosts"]
+        return only
+
+    try:
+        up = runner.invoke(app, ["up", str(manifest), "--yes"])
+        assert up.exit_code == 0, up.output
+        deadline = time.monotonic() + 15  # the router tells its watchdog, within a second, that the edge is linked
+        seen = host()
+        while (seen["autostop"] or {}).get("idle_since") is not None or not seen["autostop"]:
+            assert time.monotonic() < deadline, f"the watchdog never saw the edge router: {seen}"
+            time.sleep(0.3)
+            seen = host()
+        assert seen["nodes"][0]["running"] is True
+
+        stop_edge(plan)  # the robot's side goes away: its router and monitor stop
+        deadline = time.monotonic() + 60
+        while not (seen["autostop"] or {}).get("stopped_at"):
+            assert time.monotonic() < deadline, f"the sandbox never stopped: {seen}"
+            time.sleep(0.5)
+            seen = host()
+        assert seen["autostop"]["idle_since"] is not None
+        assert seen["nodes"][0]["running"] is False
+        human = runner.invoke(app, ["status", str(manifest)])
+        assert "detector: stopped by autostop at" in human.output, human.output
+    finally:
+        down = runner.invoke(app, ["down", str(manifest), "--yes"])
+    assert down.exit_code == 0, down.output

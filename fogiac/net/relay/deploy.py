@@ -42,7 +42,7 @@ def host_services(plan: Plan, spec: HostSpec, where: svc.Where) -> tuple[svc.Ser
 
 
 def link_services(plan: Plan, spec: HostSpec, where: svc.Where) -> tuple[svc.Service, ...]:
-    watchdog = svc.autostop_service(plan, spec, where)
+    watchdog = svc.autostop_service(plan, spec, where, stats=svc.relay_stats(where), after="relay-cloud")
     return (svc.relay_service(plan, spec, where),) + ((watchdog,) if watchdog is not None else ())
 
 

@@ -25,6 +25,8 @@ class RelayMiddleware:
     cloud_side: str = "fogiac relay, cloud end"
     rule_description: str = "fogiac relay (mutual TLS)"
     needs_listed_topics: bool = False  # the relay discovers topics from both masters
+    credentials_first: bool = False  # the cloud end starts at link, after the nodes
+    host_requirements: tuple[str, ...] = ()  # the cloud end needs fogiac's own requirements only
 
     def edge_entry(self, edge: Edge) -> str:
         return edge.ros_master
@@ -32,8 +34,7 @@ class RelayMiddleware:
     def node_env(self, where: Where) -> Mapping[str, str]:
         return deploy.node_env(where)
 
-    def host_services(self, plan: Plan, spec: HostSpec, where: Where, *, certs: Path | None,
-                      dialed: str) -> tuple[Service, ...]:
+    def host_services(self, plan: Plan, spec: HostSpec, where: Where, *, certs: Path | None) -> tuple[Service, ...]:
         return deploy.host_services(plan, spec, where)
 
     def link_services(self, plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ...]:
@@ -43,7 +44,7 @@ class RelayMiddleware:
         return deploy.CERT_FILES
 
     def host_credentials(self, host: Host, *, python: str, folder: str, certs_dir: Path, plan: Plan,
-                         spec: HostSpec) -> bool:
+                         spec: HostSpec, dialed: str) -> bool:
         return deploy.host_credentials(host, python=python, folder=folder, certs_dir=certs_dir, plan=plan, spec=spec)
 
     def prepare_edge(self, plan: Plan, entry: str, *, folder: Path, start: bool) -> None:

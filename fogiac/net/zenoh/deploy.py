@@ -5,9 +5,12 @@ The Zenoh variant's answers to :class:`fogiac.net.middleware.Middleware`'s deplo
 - Each host runs its router (``python -m fogiac.net.zenoh.router``, supervised like any service)
   before its nodes: mutual TLS for the edge on the host's middleware port, plain TCP on loopback
   at the host's own ROS port for its nodes, access control from :func:`config.cloud_router`. Its
-  certificate comes from the stack's CA, one per host, issued once and kept beside the CA.
+  key is made on the host, as the relay's is (:mod:`fogiac.provision.relaycert`): the stack's CA
+  signs its CSR for the router's name and the address the edge dials, one certificate per host.
 - Nodes get ``RMW_IMPLEMENTATION=rmw_zenoh_cpp`` and that loopback endpoint
   (``ZENOH_CONFIG_OVERRIDE``; ``FOGIAC_ZENOH_ROUTER`` for clients that are not rmw_zenoh).
+- With autostop on, the host's watchdog reads the router's stats file: idle while no edge router
+  is linked (nothing can cross without one).
 - The edge router listens on loopback only (``edge.zenoh_router``) and dials every cloud router;
   the monitor publishes ``/fogros/latency`` and ``/fogros/throughput`` on it. ``up`` also writes
   the robot's own router's and zenoh-bridge-ros2dds's configs, pointing at that endpoint.
@@ -22,13 +25,13 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from fogiac.certs import KeyPair, load_or_create_bundle, write_private
+from fogiac.certs import KeyPair, load_bundle, load_or_create_bundle, write_private
 from fogiac.net.zenoh import tls
 from fogiac.net.zenoh.config import TlsFiles, cloud_router, edge_router
 from fogiac.plan.model import HostSpec, Plan
+from fogiac.provision import relaycert, supervise
 from fogiac.provision import services as svc
-from fogiac.provision import supervise
-from fogiac.provision.host import q
+from fogiac.provision.host import Host, q
 from fogiac.state import read_json
 
 ROUTER = "zenoh-router"
@@ -54,7 +57,7 @@ def node_env(where: svc.Where) -> Mapping[str, str]:
 
 
 def _issued(certs: Path, name: str, make: Any) -> KeyPair:
-    """A certificate issued once and kept under the stack's certs folder (re-used on every ``up``)."""
+    """The edge's certificate, issued once and kept under the stack's certs folder (re-used on every ``up``)."""
     folder = certs / "zenoh"
     cert, key = folder / f"{name}.pem", folder / f"{name}.key"
     if cert.exists() and key.exists():
@@ -66,26 +69,43 @@ def _issued(certs: Path, name: str, make: Any) -> KeyPair:
     return pair
 
 
-def host_services(plan: Plan, spec: HostSpec, where: svc.Where, *, certs: Path, dialed: str) -> tuple[svc.Service, ...]:
+def router_folder(certs_folder: str) -> str:
+    """The host's folder of its router's PEM files, under its certs folder (the relay's files stay apart)."""
+    return f"{certs_folder}/zenoh"
+
+
+def host_credentials(host: Host, *, python: str, folder: str, certs_dir: Path, plan: Plan, spec: HostSpec,
+                     dialed: str) -> bool:
+    """The router's key made on the host; the CA signs its CSR for the router's name and ``dialed``."""
+    for old in (certs_dir / "zenoh").glob(f"{spec.name}@*"):  # earlier versions made the host's key here
+        old.unlink()
+    return relaycert.ensure(host, python=python, folder=router_folder(folder), ca=load_bundle(certs_dir).ca,
+                            name=tls.host_name(plan.stack, spec.name), addresses=(dialed,), what="Zenoh router")
+
+
+def host_services(plan: Plan, spec: HostSpec, where: svc.Where, *, certs: Path) -> tuple[svc.Service, ...]:
     ca = load_or_create_bundle(plan.stack, certs).ca
-    pair = _issued(certs, f"{spec.name}@{dialed}", lambda: tls.host_pair(ca, stack=plan.stack, host=spec.name,
-                                                                          address=dialed))
-    remote = f"{where.layout.certs}/zenoh"
-    files = TlsFiles(ca=f"{remote}/ca.pem", cert=f"{remote}/router.pem", key=f"{remote}/router.key")
+    remote = router_folder(where.layout.certs)
+    files = TlsFiles(ca=f"{remote}/ca.pem", cert=f"{remote}/server.pem", key=f"{remote}/server.key")
     route = next(r for r in plan.relay if r.host == spec.name)
     listen = "127.0.0.1" if where.ros_address.startswith("127.") else "0.0.0.0"
     config = cloud_router(route, listen_host=listen, tls=files, edge_name=tls.edge_name(plan.stack),
                           local_port=where.master_port)
     config["id"] = router_id(plan.stack, spec.name)
     config["listen"]["endpoints"][0] = f"tls/{listen}:{where.relay_port}"
-    path = f"{where.layout.env}/zenoh-router.json"
-    command = f"{q(where.python)} -m fogiac.net.zenoh.router {q(path)}"
-    return (svc.make_service(ROUTER, plan=plan, spec=spec, where=where, command=command, check="alive",
-                             python_path=where.code_root, files=(
-                                 (path, json.dumps(config, indent=1, sort_keys=True), 0o600),
-                                 (files.ca, ca.cert_pem.decode(), 0o644),
-                                 (files.cert, pair.cert_pem.decode(), 0o644),
-                                 (files.key, pair.key_pem.decode(), 0o600))),)
+    path, stats = f"{where.layout.env}/zenoh-router.json", router_stats(where)
+    command = f"{q(where.python)} -m fogiac.net.zenoh.router {q(path)} --stats-file {q(stats)}"
+    router = svc.make_service(ROUTER, plan=plan, spec=spec, where=where, command=command, check="alive",
+                              python_path=where.code_root, files=(
+                                  (path, json.dumps(config, indent=1, sort_keys=True), 0o600),
+                                  (files.ca, ca.cert_pem.decode(), 0o644)))
+    watchdog = svc.autostop_service(plan, spec, where, stats=stats, after=ROUTER)
+    return (router,) + ((watchdog,) if watchdog is not None else ())
+
+
+def router_stats(where: svc.Where) -> str:
+    """Where the host's router writes whether the edge's router is linked, which the autostop watchdog reads."""
+    return f"{where.layout.run}/{ROUTER}.stats.json"
 
 
 def _port(endpoint: str) -> int:

@@ -27,7 +27,8 @@ class ZenohMiddleware:
     cloud_side: str = "Zenoh router per host (mutual TLS, access control: the manifest's topics only)"
     rule_description: str = "Zenoh router (mutual TLS)"
     needs_listed_topics: bool = True  # access control allows exactly the listed topics
-
+    credentials_first: bool = True  # the router starts before the nodes, with its certificate
+    host_requirements: tuple[str, ...] = ("eclipse-zenoh==1.10.2",)  # the router's; pyproject's ros2 extra pins it too
 
     def edge_entry(self, edge: Edge) -> str:
         return edge.zenoh_router
@@ -35,11 +36,10 @@ class ZenohMiddleware:
     def node_env(self, where: Where) -> Mapping[str, str]:
         return deploy.node_env(where)
 
-    def host_services(self, plan: Plan, spec: HostSpec, where: Where, *, certs: Path | None,
-                      dialed: str) -> tuple[Service, ...]:
+    def host_services(self, plan: Plan, spec: HostSpec, where: Where, *, certs: Path | None) -> tuple[Service, ...]:
         if certs is None:
             raise ProvisionError(f"{spec.name}: the Zenoh router needs the stack's certificates")
-        return deploy.host_services(plan, spec, where, certs=certs, dialed=dialed)
+        return deploy.host_services(plan, spec, where, certs=certs)
 
     def link_services(self, plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ...]:
         return ()  # the host's router (host_services) is the link
@@ -48,8 +48,9 @@ class ZenohMiddleware:
         return ()
 
     def host_credentials(self, host: Host, *, python: str, folder: str, certs_dir: Path, plan: Plan,
-                         spec: HostSpec) -> bool:
-        return False  # the router's certificate is issued with its config (host_services)
+                         spec: HostSpec, dialed: str) -> bool:
+        return deploy.host_credentials(host, python=python, folder=folder, certs_dir=certs_dir, plan=plan, spec=spec,
+                                       dialed=dialed)
 
     def prepare_edge(self, plan: Plan, entry: str, *, folder: Path, start: bool) -> None:
         """Nothing to check: ROS 2 has no master, and the edge router is fogiac's own."""

@@ -32,7 +32,8 @@ def open_router(config: dict[str, Any]) -> Any:
 
 
 def serve(config_path: Path, *, stats: Path | None = None) -> None:
-    """Route until told to stop; with ``stats``, write the ids of the routers linked to it every second."""
+    """Route until told to stop; with ``stats``, write the ids of the routers linked to it every second
+    and whether there is one (``connected``: on a cloud host, the edge's router; autostop reads it)."""
     config = json.loads(config_path.read_text())
     stop = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
@@ -42,7 +43,8 @@ def serve(config_path: Path, *, stats: Path | None = None) -> None:
     try:
         while not stop.wait(STATS_PERIOD_S if stats is not None else None):
             if stats is not None:
-                write_json_atomic(stats, {"routers": sorted(str(z) for z in session.info.routers_zid())})
+                routers = sorted(str(z) for z in session.info.routers_zid())
+                write_json_atomic(stats, {"routers": routers, "connected": bool(routers)})
     finally:
         session.close()
 

@@ -1,13 +1,13 @@
 """Certificates for Zenoh routers: one per cloud host and one for the edge, all from fogiac's CA.
 
-A cloud router's certificate names the address the edge dials (the edge checks it:
-``verify_name_on_connect``); the edge's carries the common name the cloud routers' access
-control recognises. Keys are written 0600 (:func:`fogiac.certs.write_private`).
+A cloud router's key is made on its host and its certificate names the address the edge dials
+(the edge checks it: ``verify_name_on_connect``); see :mod:`fogiac.provision.relaycert`. The
+edge's carries the common name the cloud routers' access control recognises. Keys are written
+0600 (:func:`fogiac.certs.write_private`).
 """
 
 from __future__ import annotations
 
-import ipaddress
 from pathlib import Path
 
 from fogiac.certs import KeyPair, issue, write_private
@@ -20,22 +20,6 @@ def host_name(stack: str, host: str) -> str:
 
 def edge_name(stack: str) -> str:
     return f"edge.router.{stack}.fogiac"
-
-
-def _is_ip(address: str) -> bool:
-    try:
-        ipaddress.ip_address(address)
-    except ValueError:
-        return False
-    return True
-
-
-def host_pair(ca: KeyPair, *, stack: str, host: str, address: str) -> KeyPair:
-    """The cloud router's certificate for ``host``, valid for ``address`` (an IP or a DNS name)."""
-    name = host_name(stack, host)
-    ips = (address,) if _is_ip(address) else ()
-    dns = (name,) if ips else (name, address)
-    return issue(ca, name, server=True, dns_names=dns, ip_addresses=ips)
 
 
 def edge_pair(ca: KeyPair, *, stack: str) -> KeyPair:

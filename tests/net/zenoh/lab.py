@@ -2,7 +2,9 @@
 
 A :class:`ZenohLab` writes fogiac's rendered configs and certificates under ``tmp_path``, runs
 each router with ``python -m fogiac.net.zenoh.router`` and each "ROS 2 node" with
-``python -m tests.net.zenoh.ros2node``; every process it started is stopped on exit.
+``python -m tests.net.zenoh.ros2node``; every process it started is stopped on exit. The cloud
+router's key is made as on a real host: in a :class:`LocalHost` folder, by the same code that
+makes every host's key (:mod:`fogiac.provision.relaycert`), only its CSR signed by the lab's CA.
 """
 
 from __future__ import annotations
@@ -18,8 +20,11 @@ from typing import Any
 from fogiac.certs import KeyPair, new_ca
 from fogiac.net.zenoh import tls
 from fogiac.net.zenoh.config import TlsFiles, cloud_router, edge_router
+from fogiac.net.zenoh.deploy import router_folder
 from fogiac.plan.model import RelayRoute
 from fogiac.procs import free_port, poll, stop_tree
+from fogiac.provision import relaycert
+from fogiac.provision.local import LocalHost
 
 REPO = Path(__file__).resolve().parents[3]
 STACK = "ros2-test"
@@ -76,9 +81,18 @@ class ZenohLab:
     def files(self, name: str, pair: KeyPair, ca: KeyPair | None = None) -> TlsFiles:
         return tls.write_files(self.root / name, name, pair, ca or self.ca)
 
+    def host_files(self, host: str, *, address: str = "127.0.0.1") -> TlsFiles:
+        """The router's files on ``host``'s folder: its key made there, its certificate for ``address``."""
+        machine = LocalHost(name=host, base=str(self.root / "hosts" / host))
+        machine.connect()
+        folder = router_folder(f"{machine.base}/certs")
+        relaycert.ensure(machine, python=sys.executable, folder=folder, ca=self.ca, name=tls.host_name(STACK, host),
+                         addresses=(address,), what="Zenoh router")
+        machine.put(self.ca.cert_pem, f"{folder}/ca.pem")
+        return TlsFiles(ca=f"{folder}/ca.pem", cert=f"{folder}/server.pem", key=f"{folder}/server.key")
+
     def cloud_config(self, rt: RelayRoute, *, local_port: int) -> dict[str, Any]:
-        pair = tls.host_pair(self.ca, stack=STACK, host=rt.host, address="127.0.0.1")
-        return cloud_router(rt, listen_host="127.0.0.1", tls=self.files("cloud", pair),
+        return cloud_router(rt, listen_host="127.0.0.1", tls=self.host_files(rt.host),
                             edge_name=tls.edge_name(STACK), local_port=local_port)
 
     def edge_config(self, cloud: list[tuple[str, int]], *, local_port: int,

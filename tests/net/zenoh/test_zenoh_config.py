@@ -2,22 +2,19 @@
 
 from __future__ import annotations
 
-import ipaddress
 from pathlib import Path
 
 import pytest
-from cryptography import x509
+import tomllib
 
-from fogiac.certs import new_ca
 from fogiac.errors import ManifestError, PlanError
 from fogiac.manifest.schema import load_manifest, parse_manifest
 from fogiac.net import middleware
-from fogiac.net.zenoh import tls
 from fogiac.net.zenoh.config import TlsFiles, access_control, cloud_router, edge_router, topic_key
 from fogiac.net.zenoh.middleware import ROUTER_PORT
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.model import OPERATOR
-from tests.conftest import EXAMPLES
+from tests.conftest import EXAMPLES, REPO
 from tests.net.zenoh.lab import route
 
 FILES = TlsFiles(ca="/etc/fogiac/ca.pem", cert="/etc/fogiac/router.pem", key="/etc/fogiac/router.key")
@@ -68,17 +65,6 @@ def test_the_cloud_router_listens_with_mutual_tls_and_the_edge_router_only_dials
         assert config["scouting"]["gossip"]["autoconnect"]["router"] == []  # routers dial only what they are told
 
 
-def test_one_certificate_per_host_naming_the_address_the_edge_dials(tmp_path: Path) -> None:
-    ca = new_ca("fogiac CA s")
-    pair = tls.host_pair(ca, stack="s", host="gpu", address="203.0.113.7")
-    cert = x509.load_pem_x509_certificate(pair.cert_pem)
-    san = cert.extensions.get_extension_for_class(x509.SubjectAlternativeName).value
-    assert san.get_values_for_type(x509.IPAddress) == [ipaddress.ip_address("203.0.113.7")]
-    assert pair.common_name == "gpu.router.s.fogiac" != tls.host_pair(ca, stack="s", host="b", address="h").common_name
-    files = tls.write_files(tmp_path, "gpu", pair, ca)
-    assert Path(files.key).stat().st_mode & 0o777 == 0o600
-
-
 def test_a_ros2_plan_says_zenoh_and_opens_the_router_port_to_ssh_from_or_the_vpn_only() -> None:
     manifest = load_manifest(EXAMPLES / "ros2-zenoh.yaml")
     plan = compile_plan(manifest)
@@ -98,3 +84,10 @@ def test_ros2_nodes_must_list_their_topics(tmp_path: Path) -> None:
     text = "name: r\nros:\n  distro: humble\nnodes:\n  - name: a\n    machine: c5.large\n    image: x\n"
     with pytest.raises(ManifestError, match=r"<manifest>:5: nodes\[0\].topics: ROS humble crosses through zenoh"):
         parse_manifest(text)
+
+
+def test_the_hosts_router_requirement_is_pyprojects_pin() -> None:
+    extras = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["optional-dependencies"]
+    (pin,) = middleware.get("zenoh").host_requirements
+    assert pin in extras["ros2"] and pin.startswith("eclipse-zenoh==")
+    assert middleware.get("relay").host_requirements == ()

@@ -16,9 +16,11 @@ import pytest
 
 from fogiac.certs import new_ca
 from fogiac.errors import ZenohError
+from fogiac.net.zenoh import tls
+from fogiac.net.zenoh.config import cloud_router
 from fogiac.net.zenoh.router import open_router
 from fogiac.procs import poll
-from tests.net.zenoh.lab import ZenohLab, free_ports, read_events, route
+from tests.net.zenoh.lab import STACK, ZenohLab, free_ports, read_events, route
 
 zenoh = pytest.importorskip("zenoh", reason="needs eclipse-zenoh (pip install 'fogiac[ros2]')")
 pytest.importorskip("zenoh_ros2_sdk", reason="needs zenoh-ros2-sdk (pip install 'fogiac[ros2]')")
@@ -59,20 +61,32 @@ def test_listed_topics_cross_byte_exact_both_ways_and_unlisted_ones_do_not(tmp_p
             assert event["sha256"] == sent[(event["topic"], event["seq"])], event
 
 
+def _client(config: dict) -> dict:  # a client fails at open when it cannot connect, a router retries
+    return dict(config, mode="client", listen={"endpoints": []},
+                connect={"endpoints": config["connect"]["endpoints"], "timeout_ms": 3000})
+
+
 def test_an_edge_with_a_certificate_from_another_ca_is_refused(tmp_path: Path) -> None:
     with ZenohLab(tmp_path) as lab:
         tls_port, cloud_local, edge_local = free_ports(3)
         lab.router("cloud-router", lab.cloud_config(route(tls_port), local_port=cloud_local))
-
-        def client(config: dict) -> dict:  # a client fails at open when it cannot connect, a router retries
-            return dict(config, mode="client", listen={"endpoints": []},
-                        connect={"endpoints": config["connect"]["endpoints"], "timeout_ms": 3000})
-
-        good = open_router(client(lab.edge_config([("127.0.0.1", tls_port)], local_port=edge_local)))
+        good = open_router(_client(lab.edge_config([("127.0.0.1", tls_port)], local_port=edge_local)))
         good.close()
         stranger = lab.edge_config([("127.0.0.1", tls_port)], local_port=edge_local, ca=new_ca("another CA"))
         with pytest.raises(ZenohError, match="Unable to connect"):
-            open_router(client(stranger))
+            open_router(_client(stranger))
+
+
+def test_an_edge_refuses_a_router_whose_certificate_names_another_address(tmp_path: Path) -> None:
+    """Why the certificate must name what the edge dials (a VPC's private address over the VPN)."""
+    with ZenohLab(tmp_path) as lab:
+        tls_port, cloud_local, edge_local = free_ports(3)
+        files = lab.host_files("elsewhere", address="10.10.1.5")  # the edge dials 127.0.0.1 below
+        lab.router("cloud-router", cloud_router(route(tls_port), listen_host="127.0.0.1", tls=files,
+                                                edge_name=tls.edge_name(STACK), local_port=cloud_local))
+        with pytest.raises(ZenohError, match="Unable to connect"):
+            open_router(_client(lab.edge_config([("127.0.0.1", tls_port)], local_port=edge_local)))
+        assert Path(files.key).stat().st_mode & 0o777 == 0o600
 
 
 def test_the_flow_resumes_when_the_cloud_router_restarts_without_touching_the_edge(tmp_path: Path) -> None:

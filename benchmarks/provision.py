@@ -22,10 +22,10 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-from fogiac.plan.compile import compile_plan  # noqa: E402
 from fogiac.manifest.schema import load_manifest  # noqa: E402
+from fogiac.plan.compile import compile_plan  # noqa: E402
 from fogiac.provision import ProvisionReport, provision, teardown  # noqa: E402
-from fogiac.targets.hosts import HOSTS  # noqa: E402
+from fogiac.targets.hosts.target import HOSTS  # noqa: E402
 from tests.provision.conftest import hosts_manifest, make_workspace, ros_skip_reason  # noqa: E402
 from tests.provision.sshlab import LabHost, lab_skip_reason, ssh_lab  # noqa: E402
 

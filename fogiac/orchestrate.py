@@ -50,7 +50,7 @@ def edge_dir(plan: Plan) -> Path:
 
 def ensure_edge_master(plan: Plan, uri: str, *, start: bool) -> None:
     """The robot's side must be there before anything is provisioned (the middleware says what that means)."""
-    middleware.get(plan.middleware).prepare_edge(plan, uri, folder=edge_dir(plan), start=start)
+    middleware.deployment(plan.middleware).prepare_edge(plan, uri, folder=edge_dir(plan), start=start)
 
 
 def dialed_addresses(connect: Mapping[str, str]) -> dict[str, str]:
@@ -73,7 +73,7 @@ def provision_and_connect(plan: Plan, *, access: Mapping[str, Any], connect: Map
     report = provision(plan, hosts=access, state_dir=folder, certs_dir=certs, progress=progress,
                        dialed=dialed_addresses(connect))
     relays = {o.host: connect[o.host] for o in report.hosts if o.ok and o.host in connect}
-    notes = middleware.get(plan.middleware).edge_up(plan, entry=master, connect=relays, certs=certs,
+    notes = middleware.deployment(plan.middleware).edge_up(plan, entry=master, connect=relays, certs=certs,
                                                      folder=edge_dir(plan)) if relays else []
     deployment = folder / DEPLOYMENT_FILE
     write_json_atomic(deployment, {
@@ -245,7 +245,7 @@ class ExistingMachines:
                   "nodes": self.node_states(plan, spec, recorded.get(spec.name)),
                   "autostop": self.autostop_state(plan, spec, recorded.get(spec.name))} for spec in plan.hosts]
         saved = (read_json(folder / DEPLOYMENT_FILE) or {}) if folder.exists() else {}
-        relays = middleware.get(plan.middleware).edge_links(plan, folder=edge_dir(plan),
+        relays = middleware.deployment(plan.middleware).edge_links(plan, folder=edge_dir(plan),
                                                             connect=saved.get("relays", {}))
         edge = [supervise.status(edge_dir(plan), name) for name in edge_services(plan)]
         return {**head, "deployed": True, "partial": record is None or record.partial,

@@ -6,9 +6,11 @@
     zenoh/   ROS 2 (humble, jazzy, kilted): a Zenoh router per cloud host (mutual TLS, per-topic
              access control) and an edge router that dials out to them
 
-The ROS distribution picks the middleware (:func:`for_distro`). A variant is one
-:class:`Middleware` in its own folder, listed in :data:`BUILTIN`; nothing else in fogiac names it,
-so compile, the targets' firewalls, plan, cost and graph ask it for its port and its words.
+The ROS distribution picks the middleware (:func:`for_distro`). A variant is one folder with two
+halves: its :class:`Middleware` (what compile, the targets' firewalls, plan, cost and graph ask: its
+port and its words; listed in :data:`BUILTIN`) and its :class:`Deployment` (what ``up``, ``down`` and
+provisioning ask; listed in :data:`DEPLOYMENTS`). The halves load apart, so compiling never imports
+provisioning, certificates or templates. Nothing else in fogiac names a variant.
 """
 
 from __future__ import annotations
@@ -60,11 +62,14 @@ class Middleware(Protocol):
     @property
     def host_requirements(self) -> tuple[str, ...]: ...  # pinned PyPI packages its cloud side imports on a host
 
-    # -- deploying it: provisioning asks for a host's services, ``up``/``down``/``status`` for the edge's --
-
     def edge_entry(self, edge: Edge) -> str:
         """What the robot's side is reached at (``Plan.edge_master``): a master URI, a router endpoint."""
         ...
+
+
+class Deployment(Protocol):
+    """How a middleware is deployed: provisioning asks for a host's services, ``up``/``down``/``status``
+    for the edge's."""
 
     def node_env(self, where: Where) -> Mapping[str, str]:
         """The environment every node on a host gets (its env file, its containers)."""
@@ -106,22 +111,36 @@ class Middleware(Protocol):
 
 # The built-in middlewares, imported when first asked for.
 BUILTIN: dict[str, str] = {"relay": "fogiac.net.relay.middleware:RELAY", "zenoh": "fogiac.net.zenoh.middleware:ZENOH"}
+DEPLOYMENTS: dict[str, str] = {"relay": "fogiac.net.relay.deploy:DEPLOYMENT",
+                               "zenoh": "fogiac.net.zenoh.deploy:DEPLOYMENT"}
 _REGISTRY: dict[str, Middleware] = {}
+_DEPLOYED: dict[str, Deployment] = {}
 
 
-def register(middleware: Middleware) -> Middleware:
+def register(middleware: Middleware, deployment: Deployment) -> Middleware:
     _REGISTRY[middleware.name] = middleware
+    _DEPLOYED[middleware.name] = deployment
     return middleware
 
 
 def get(name: str) -> Middleware:
-    found = _REGISTRY.get(name)
-    if found is None and name in BUILTIN:
-        module, attr = BUILTIN[name].split(":")
-        found = register(getattr(importlib.import_module(module), attr))
-    if found is None:
+    if name not in _REGISTRY:
+        _REGISTRY[name] = _builtin(name, BUILTIN)
+    return _REGISTRY[name]
+
+
+def deployment(name: str) -> Deployment:
+    """How ``name`` is deployed (imported on first use: see the module docstring)."""
+    if name not in _DEPLOYED:
+        _DEPLOYED[name] = _builtin(name, DEPLOYMENTS)
+    return _DEPLOYED[name]
+
+
+def _builtin(name: str, table: Mapping[str, str]) -> Any:
+    if name not in table:
         raise PlanError(f"unknown middleware {name!r}; valid: {', '.join(sorted(set(_REGISTRY) | set(BUILTIN)))}")
-    return found
+    module, attr = table[name].split(":")
+    return getattr(importlib.import_module(module), attr)
 
 
 def for_distro(distro: str) -> Middleware:

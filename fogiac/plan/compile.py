@@ -40,11 +40,12 @@ def stack_name(manifest: Manifest, environment: str = "dev") -> str:
 
 def compile_plan(manifest: Manifest, *, target: str | None = None, environment: str = "dev") -> Plan:
     """Compile ``manifest`` for ``target`` (default: the manifest's own provider)."""
-    chosen = targets.get(target or manifest.cloud.provider)
+    name = target or manifest.cloud.provider
+    place = targets.placer(name)  # loads only what the target decides at compile time
     carrier = middleware.for_distro(manifest.ros.distro)
     stack = stack_name(manifest, environment)
     tags = (("fogiac:stack", stack), ("fogiac:manifest", manifest.name)) + tuple(sorted(manifest.tags.items()))
-    placed = chosen.place(manifest, stack=stack, tags=tags)
+    placed = place(manifest, stack=stack, tags=tags)
     for group in placed.security_groups:
         check_ingress(group.name, group.ingress)
     nodes = tuple(_node(node, placed.node_hosts[node.name]) for node in manifest.nodes)
@@ -52,7 +53,7 @@ def compile_plan(manifest: Manifest, *, target: str | None = None, environment: 
         stack=stack,
         manifest_name=manifest.name,
         environment=environment,
-        target=chosen.name,
+        target=name,
         region=manifest.cloud.region,
         zone=manifest.cloud.zone or f"{manifest.cloud.region}a",
         zone_chosen=manifest.cloud.zone is not None,

@@ -160,7 +160,7 @@ def env_file_text(env: tuple[tuple[str, str], ...]) -> str:
 def ros_env(plan: Plan, where: Where) -> tuple[tuple[str, str], ...]:
     """The middleware's environment for nodes (ROS_MASTER_URI and ROS_IP; RMW_IMPLEMENTATION and the
     router): what every container on the host is given."""
-    return tuple(middleware.get(plan.middleware).node_env(where).items())
+    return tuple(middleware.deployment(plan.middleware).node_env(where).items())
 
 
 def _built(node: NodeSpec, where: Where) -> str:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from fogiac.errors import ProvisionError
 from fogiac.net import middleware
-from fogiac.net.middleware import Middleware
+from fogiac.net.middleware import Deployment, Middleware
 from fogiac.plan.model import HostSpec, Plan
 from fogiac.provision import images, venv
 from fogiac.provision import services as svc
@@ -86,6 +86,10 @@ class HostRun:
         return middleware.get(self.plan.middleware)
 
     @property
+    def deploying(self) -> Deployment:
+        return middleware.deployment(self.plan.middleware)
+
+    @property
     def dialed(self) -> str:
         """The address the edge reaches this host at: the target's word (a private VPC address over the
         VPN), else the one provisioning reaches it at."""
@@ -94,13 +98,13 @@ class HostRun:
     def services(self) -> tuple[svc.Service, ...]:
         """The middleware's host services (a ROS master, a router), then one per node."""
         where = self.where()
-        first = self.carrier.host_services(self.plan, self.spec, where, certs=self.options.certs_dir)
+        first = self.deploying.host_services(self.plan, self.spec, where, certs=self.options.certs_dir)
         return first + svc.node_services(self.plan, self.spec, where)
 
     def credentials(self) -> bool:
         """The middleware's credentials made on the host (its key never leaves it); True when they changed."""
         certs = self.options.certs_dir
-        return certs is not None and self.carrier.host_credentials(
+        return certs is not None and self.deploying.host_credentials(
             self.host, python=self.where().python, folder=self.layout.certs, certs_dir=certs, plan=self.plan,
             spec=self.spec, dialed=self.dialed)
 
@@ -108,7 +112,7 @@ class HostRun:
         """What joins the host to the edge after its nodes (none without certificates or fogiac's code)."""
         if self.options.certs_dir is None or not relay_available(self):
             return ()
-        return self.carrier.link_services(self.plan, self.spec, self.where())
+        return self.deploying.link_services(self.plan, self.spec, self.where())
 
 
 StepResult = tuple[str, str]  # (CHANGED | OK | SKIPPED, detail)
@@ -327,7 +331,7 @@ def step_env_script(run: HostRun) -> StepResult:
 
 
 def step_services(run: HostRun) -> StepResult:
-    env = svc.env_script(run.carrier.node_env(run.where()), host=run.spec.name)
+    env = svc.env_script(run.deploying.node_env(run.where()), host=run.spec.name)
     env_changed = ensure_file(run, env.encode(), run.layout.env_file)
     manager = run.manager
     wanted = run.services()
@@ -336,7 +340,7 @@ def step_services(run: HostRun) -> StepResult:
         for path, text, mode in service.files:
             ensure_file(run, text.encode(), path, mode=mode)
     started = manager.ensure(run.host, run.layout, wanted, restart_all=env_changed or made, facts=run.facts)
-    kept = [s.name for s in wanted + run.carrier.link_services(run.plan, run.spec, run.where())]
+    kept = [s.name for s in wanted + run.deploying.link_services(run.plan, run.spec, run.where())]
     stopped = manager.prune(run.host, run.layout, keep=kept, facts=run.facts)
     if not started and not stopped and not env_changed:
         return OK, f"{len(wanted)} service(s) running ({manager.name})"
@@ -356,10 +360,10 @@ def step_link(run: HostRun) -> StepResult:
     certs = run.options.certs_dir
     if certs is None:
         return SKIPPED, "no certificates given"
-    wanted = run.carrier.link_services(run.plan, run.spec, run.where())
+    wanted = run.deploying.link_services(run.plan, run.spec, run.where())
     if not wanted:
         return OK, "the host's services carry the link"
-    changed = [name for name, mode in run.carrier.link_files()
+    changed = [name for name, mode in run.deploying.link_files()
                if ensure_file(run, (certs / name).read_bytes(), f"{run.layout.certs}/{name}", mode=mode)]
     if not relay_available(run):
         for service in wanted:

@@ -3,8 +3,8 @@
 ::
 
     aws/      EC2 machines, VPC and Client VPN through Pulumi (the only user of boto3, pulumi, stacks/)
-    hosts.py  machines that already exist, reached over SSH (a lab GPU server is fog too)
-    local.py  sandboxes on this machine, one ROS master each (demos, CI)
+    hosts/    machines that already exist, reached over SSH (a lab GPU server is fog too)
+    local/    sandboxes on this machine, one ROS master each (demos, CI)
 
 A new target is one :class:`~fogiac.targets.base.Target` passed to :func:`register`; nothing
 else in fogiac names a target.
@@ -13,13 +13,20 @@ else in fogiac names a target.
 from __future__ import annotations
 
 import importlib
+from collections.abc import Callable
 
 from fogiac.errors import PlanError
+from fogiac.plan.placement import Placement
 from fogiac.targets.base import Target
 
+Place = Callable[..., Placement]  # place(manifest, *, stack, tags) -> Placement, as Target.place
+
 # The built-in targets, imported when first asked for: compiling for ``local`` loads nothing of ``aws``.
-BUILTIN: dict[str, str] = {"aws": "fogiac.targets.aws:AWS", "hosts": "fogiac.targets.hosts:HOSTS",
-                           "local": "fogiac.targets.local:LOCAL"}
+BUILTIN: dict[str, str] = {"aws": "fogiac.targets.aws.target:AWS", "hosts": "fogiac.targets.hosts.target:HOSTS",
+                           "local": "fogiac.targets.local.target:LOCAL"}
+# Where a built-in target's placement lives apart from its lifecycle, so that compiling (``validate``,
+# ``plan``, ``graph``) loads what the target decides at compile time and not its provisioning and engine.
+PLACEMENT: dict[str, str] = {name: f"fogiac.targets.{name}.placement:place" for name in BUILTIN}
 _REGISTRY: dict[str, Target] = {}
 
 
@@ -42,6 +49,15 @@ def get(name: str) -> Target:
     if found is None:
         raise PlanError(f"unknown target {name!r}; valid: {', '.join(names())}")
     return found
+
+
+def placer(name: str) -> Place:
+    """``name``'s ``place``: from its placement module when it has one and is not loaded yet."""
+    if name not in _REGISTRY and name in PLACEMENT:
+        module, attr = PLACEMENT[name].split(":")
+        found: Place = getattr(importlib.import_module(module), attr)
+        return found
+    return get(name).place
 
 
 def names() -> tuple[str, ...]:

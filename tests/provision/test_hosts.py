@@ -8,8 +8,8 @@ host failing alone, and teardown.
 from __future__ import annotations
 
 import json
-import signal
 import os
+import signal
 import sys
 import time
 from dataclasses import replace
@@ -19,13 +19,14 @@ from typing import Iterator
 import pytest
 
 from fogiac.certs import load_or_create_bundle, relay_name
-from fogiac.plan.compile import compile_plan
 from fogiac.manifest.schema import load_manifest
+from fogiac.plan.compile import compile_plan
 from fogiac.plan.model import Plan
 from fogiac.provision import ProvisionReport, SshAccess, provision, teardown
-from fogiac.targets.hosts import HOSTS, stack_ports
+from fogiac.targets.hosts.placement import stack_ports
+from fogiac.targets.hosts.target import HOSTS
 from tests.provision.conftest import hosts_manifest, make_workspace, ros_skip_reason
-from tests.provision.sshlab import LabHost, fingerprint_of, ssh_lab, lab_skip_reason
+from tests.provision.sshlab import LabHost, fingerprint_of, lab_skip_reason, ssh_lab
 from tests.support.tls import dial, private_keys_under, public_der
 
 pytestmark = [pytest.mark.root, pytest.mark.ros]

@@ -21,8 +21,9 @@ from fogiac.plan.compile import compile_plan
 from fogiac.provision import SshAccess, idle
 from fogiac.provision.runner import RECORD
 from fogiac.state import stack_dir, write_json_atomic
-from fogiac.targets.aws import AWS, HOST_KEYS_FILE, api, watchdogs
+from fogiac.targets.aws import api
 from fogiac.targets.aws.api import InstanceStatus
+from fogiac.targets.aws.target import AWS, HOST_KEYS_FILE, watchdogs
 from tests.provision.sshlab import LabHost, fingerprint_of, lab_skip_reason, ssh_lab
 
 REPO = Path(__file__).resolve().parents[2]

@@ -18,10 +18,9 @@ import pytest
 from fogiac.errors import ProvisionError
 from fogiac.manifest.schema import load_manifest
 from fogiac.plan.compile import compile_plan
-from fogiac.provision import provision, teardown
-from fogiac.provision import venv
+from fogiac.provision import provision, teardown, venv
 from fogiac.provision.local import LocalHost
-from fogiac.targets.hosts import HOSTS
+from fogiac.targets.hosts.target import HOSTS
 from tests.provision.conftest import ros_skip_reason
 from tests.provision.sshlab import lab_skip_reason, ssh_lab
 

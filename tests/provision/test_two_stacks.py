@@ -22,7 +22,8 @@ from fogiac.procs import poll
 from fogiac.provision import SshAccess, provision, teardown
 from fogiac.provision import services as svc
 from fogiac.provision.managers import Systemd
-from fogiac.targets.hosts import HOSTS, stack_ports
+from fogiac.targets.hosts.placement import stack_ports
+from fogiac.targets.hosts.target import HOSTS
 from tests.provision.conftest import hosts_manifest, make_workspace, ros_skip_reason
 from tests.provision.sshlab import LabHost, lab_skip_reason, ssh_lab
 

@@ -22,7 +22,7 @@ from fogiac.plan.compile import compile_plan
 from fogiac.procs import free_port, poll
 from fogiac.provision import teardown
 from fogiac.state import read_json
-from fogiac.targets.hosts import HOSTS
+from fogiac.targets.hosts.target import HOSTS
 from tests.provision.conftest import ros_skip_reason
 from tests.provision.sshlab import lab_skip_reason, ssh_lab
 

@@ -115,3 +115,37 @@ def edge_links(folder: Path, connect: Mapping[str, str]) -> list[dict[str, Any]]
                   for t in stats.get("topics", [])]
         links.append({"host": host, "connect": address, **stats, "topics": topics})
     return links
+
+
+class RelayDeployment:
+    """The relay as a :class:`fogiac.net.middleware.Deployment`."""
+
+    def node_env(self, where: svc.Where) -> Mapping[str, str]:
+        return node_env(where)
+
+    def host_services(self, plan: Plan, spec: HostSpec, where: svc.Where, *,
+                      certs: Path | None) -> tuple[svc.Service, ...]:
+        return host_services(plan, spec, where)
+
+    def link_services(self, plan: Plan, spec: HostSpec, where: svc.Where) -> tuple[svc.Service, ...]:
+        return link_services(plan, spec, where)
+
+    def link_files(self) -> tuple[tuple[str, int], ...]:
+        return CERT_FILES
+
+    def host_credentials(self, host: Host, *, python: str, folder: str, certs_dir: Path, plan: Plan,
+                         spec: HostSpec, dialed: str) -> bool:
+        return host_credentials(host, python=python, folder=folder, certs_dir=certs_dir, plan=plan, spec=spec)
+
+    def prepare_edge(self, plan: Plan, entry: str, *, folder: Path, start: bool) -> None:
+        prepare_edge(entry, folder=folder, start=start)
+
+    def edge_up(self, plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path,
+                folder: Path) -> list[str]:
+        return edge_up(plan, entry=entry, connect=connect, certs=certs, folder=folder)
+
+    def edge_links(self, plan: Plan, *, folder: Path, connect: Mapping[str, str]) -> list[dict[str, Any]]:
+        return edge_links(folder, connect)
+
+
+DEPLOYMENT = RelayDeployment()

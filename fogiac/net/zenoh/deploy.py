@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from fogiac.certs import KeyPair, load_bundle, load_or_create_bundle, write_private
+from fogiac.errors import ProvisionError
 from fogiac.net.zenoh import tls
 from fogiac.net.zenoh.config import TlsFiles, cloud_router, edge_router
 from fogiac.plan.model import HostSpec, Plan
@@ -152,3 +153,40 @@ def edge_links(plan: Plan, *, folder: Path, connect: Mapping[str, str]) -> list[
         links.append({"host": route.host, "connect": connect[route.host],
                       "connected": router_id(plan.stack, route.host) in linked, "topics": mine})
     return links
+
+
+class ZenohDeployment:
+    """Zenoh as a :class:`fogiac.net.middleware.Deployment`."""
+
+    def node_env(self, where: svc.Where) -> Mapping[str, str]:
+        return node_env(where)
+
+    def host_services(self, plan: Plan, spec: HostSpec, where: svc.Where, *,
+                      certs: Path | None) -> tuple[svc.Service, ...]:
+        if certs is None:
+            raise ProvisionError(f"{spec.name}: the Zenoh router needs the stack's certificates")
+        return host_services(plan, spec, where, certs=certs)
+
+    def link_services(self, plan: Plan, spec: HostSpec, where: svc.Where) -> tuple[svc.Service, ...]:
+        return ()  # the host's router (host_services) is the link
+
+    def link_files(self) -> tuple[tuple[str, int], ...]:
+        return ()
+
+    def host_credentials(self, host: Host, *, python: str, folder: str, certs_dir: Path, plan: Plan,
+                         spec: HostSpec, dialed: str) -> bool:
+        return host_credentials(host, python=python, folder=folder, certs_dir=certs_dir, plan=plan, spec=spec,
+                                       dialed=dialed)
+
+    def prepare_edge(self, plan: Plan, entry: str, *, folder: Path, start: bool) -> None:
+        """Nothing to check: ROS 2 has no master, and the edge router is fogiac's own."""
+
+    def edge_up(self, plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path,
+                folder: Path) -> list[str]:
+        return edge_up(plan, entry=entry, connect=connect, certs=certs, folder=folder)
+
+    def edge_links(self, plan: Plan, *, folder: Path, connect: Mapping[str, str]) -> list[dict[str, Any]]:
+        return edge_links(plan, folder=folder, connect=connect)
+
+
+DEPLOYMENT = ZenohDeployment()

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from fogiac.targets.aws import cost_guard
 from fogiac.targets.aws.api import InstanceStatus
+from fogiac.targets.aws.target import cost_guard
 from tests.plan.test_guard import HOUR, NOW, _plan
 
 

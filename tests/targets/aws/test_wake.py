@@ -16,8 +16,8 @@ from typer.testing import CliRunner
 
 from fogiac.cli import app
 from fogiac.state import stack_dir
-from fogiac.targets.aws import HOST_KEYS_FILE, pinned_host_keys
 from fogiac.targets.aws.engine import OUTPUTS_FILE
+from fogiac.targets.aws.target import HOST_KEYS_FILE, pinned_host_keys
 
 from .harness import Harness
 from .plans import write_manifest

@@ -24,8 +24,8 @@ from fogiac.orchestrate import dialed_addresses
 from fogiac.plan.compile import compile_plan
 from fogiac.provision.local import LocalAccess
 from fogiac.provision.steps import HostRun, Options
-from fogiac.targets.aws import access_from_outputs
 from fogiac.targets.aws.offline import declare
+from fogiac.targets.aws.target import access_from_outputs
 from tests.conftest import EXAMPLES
 
 PUBLIC, PRIVATE = "203.0.113.10", "10.10.1.10"

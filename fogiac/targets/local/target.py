@@ -1,8 +1,4 @@
-"""The ``local`` target: one sandbox folder and one ROS master per host, on this machine.
-
-Demos and CI deploy the same manifest without any machine: every planned host becomes a
-sandbox under the stack's state folder (:mod:`fogiac.provision.local`), reached on loopback.
-"""
+"""The ``local`` target's lifecycle (its placement is :mod:`.placement`)."""
 
 from __future__ import annotations
 
@@ -15,10 +11,11 @@ from typing import Any
 from fogiac.manifest.schema import Manifest
 from fogiac.orchestrate import ExistingMachines
 from fogiac.plan.model import HostSpec, Plan
-from fogiac.plan.placement import Placement, Tags, autostop_for, host_per_node
+from fogiac.plan.placement import Placement, Tags
 from fogiac.provision import LocalAccess, supervise
 from fogiac.provision.local import PORTS_FILE, local_access, sandbox_root
 from fogiac.targets.base import Check
+from fogiac.targets.local import placement
 
 
 class LocalTarget(ExistingMachines):
@@ -26,10 +23,7 @@ class LocalTarget(ExistingMachines):
     summary = "sandboxes on this machine, one ROS master each (demos, CI)"
 
     def place(self, manifest: Manifest, *, stack: str, tags: Tags) -> Placement:
-        hosts, node_hosts = host_per_node(manifest, stack=stack, tags=tags, address="127.0.0.1",
-                                          runtime=manifest.cloud.runtime)
-        return Placement(hosts=hosts, node_hosts=node_hosts, mode="relay", connect_via="loopback",
-                         autostop=autostop_for(manifest, power="services", default_minutes=None))
+        return placement.place(manifest, stack=stack, tags=tags)
 
     def access(self, plan: Plan, *, state_dir: Path) -> Mapping[str, LocalAccess]:
         return local_access(plan, state_dir=state_dir)

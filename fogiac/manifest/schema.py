@@ -257,6 +257,9 @@ class Launch(_Model):
     file: str = Field(description="Launch file name, e.g. planner.launch.")
     workspace: PlainPath = Field(description="Workspace folder to push, relative to the manifest.")
     env_script: PlainPath | None = Field(default=None, description="Script run once per change to set the host up.")
+    requirements: PlainPath | None = Field(
+        default=None, description="pip requirements file of the package's Python nodes, relative to the manifest: "
+        "installed in the host's virtual environment (native) or in the node's image (container).")
 
 
 class Build(_Model):
@@ -502,6 +505,7 @@ def _resolve_paths(data: dict, base: Path) -> list[tuple[tuple, str]]:
         if isinstance(node, dict) and isinstance(node.get("launch"), dict):
             fix(node["launch"], "workspace", ("nodes", i, "launch"), folder=True)
             fix(node["launch"], "env_script", ("nodes", i, "launch"), folder=False)
+            fix(node["launch"], "requirements", ("nodes", i, "launch"), folder=False)
         if isinstance(node, dict) and isinstance(node.get("build"), dict):
             fix(node["build"], "context", ("nodes", i, "build"), folder=True)
     cloud = data.get("cloud")

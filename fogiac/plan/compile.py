@@ -88,6 +88,7 @@ def _node(node: Node, host: str) -> NodeSpec:
                 file=node.launch.file,
                 workspace=str(node.launch.workspace),
                 env_script=str(node.launch.env_script) if node.launch.env_script else None,
+                requirements=str(node.launch.requirements) if node.launch.requirements else None,
             )
             if node.launch
             else None

@@ -113,6 +113,7 @@ class LaunchSpec:
     file: str
     workspace: str
     env_script: str | None
+    requirements: str | None = None  # a pip requirements file, read when the host is provisioned
 
 
 @dataclass(frozen=True)

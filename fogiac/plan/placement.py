@@ -65,8 +65,8 @@ def ssh_sources(manifest: Manifest) -> tuple[str, ...]:
 def steps_for(nodes: Sequence[Node]) -> tuple[str, ...]:
     """The provisioning steps a host runs for ``nodes``, in order."""
     steps = ["connect", "runtime"]
-    if any(n.workload or n.build for n in nodes):
-        steps.append("images")
+    if any(n.workload or n.build or (n.launch and n.launch.requirements) for n in nodes):
+        steps.append("images")  # a launch package's requirements make an image on a container host
     steps.append("venv")  # fogiac's own requirements for the relay, and native workload nodes'
     if any(n.launch is not None for n in nodes):
         steps += ["workspace", "env_script"]

@@ -4,6 +4,11 @@ Why on the host: no registry stands between this machine and the hosts, and the 
 keeps the layers. Each image is tagged by a digest of what goes into it (the Dockerfile, every
 file of the context, the base image's id), so an unchanged node builds nothing and a changed
 file rebuilds that node's image only, as ``docker compose build`` would.
+
+A lab's hosts often reach no public index: their admins point pip at a mirror in the login
+environment (``PIP_INDEX_URL`` and friends). The build's pip steps see the same settings as build
+arguments, so an image installs from the mirror the host's own pip uses. They are not part of the
+digest: a mirror serves the same pins.
 """
 
 from __future__ import annotations
@@ -12,16 +17,21 @@ import hashlib
 import importlib
 import re
 import shutil
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
 from fogiac.errors import ProvisionError
 from fogiac.plan.model import NodeSpec, Plan
+from fogiac.provision import venv
 from fogiac.provision.host import Host, q
 from fogiac.provision.sync import push_tree
+from fogiac.render import render
 from fogiac.resources import package_dir
 
 _BUILD_LOG_LINES = ("STEP ", "#")  # podman/buildah prints "STEP 3/7: RUN ...", BuildKit "#5 [3/7] RUN ..."
+# The host's pip settings a build passes on; the shipped recipes declare each as an ARG.
+PIP_SETTINGS = ("PIP_INDEX_URL", "PIP_EXTRA_INDEX_URL", "PIP_FIND_LINKS", "PIP_NO_INDEX", "PIP_TRUSTED_HOST")
 
 
 @dataclass(frozen=True)
@@ -50,7 +60,9 @@ def workload_repo(workload: str) -> str:
 
 
 def needs_image(node: NodeSpec) -> bool:
-    return node.kind == "workload" or node.build is not None
+    """Workload and ``build:`` nodes run their own image; so does a launch node whose package names requirements."""
+    launch_reqs = node.launch is not None and node.launch.requirements is not None
+    return node.kind == "workload" or node.build is not None or launch_reqs
 
 
 def workload_context(node: NodeSpec, *, flavour: str, into: Path) -> Recipe:
@@ -68,20 +80,35 @@ def workload_context(node: NodeSpec, *, flavour: str, into: Path) -> Recipe:
     return Recipe(node=node.name, repo=workload_repo(name), context=into, dockerfile="Dockerfile")
 
 
+def launch_context(node: NodeSpec, *, plan: Plan, into: Path) -> Recipe:
+    """A launch node's image: the ROS image plus its package's requirements (the workspace is mounted, as without)."""
+    assert node.launch is not None and node.launch.requirements is not None
+    into.mkdir(parents=True)
+    lines = venv.file_requirements(node.launch.requirements)
+    (into / "requirements.txt").write_text("".join(f"{line}\n" for line in lines))
+    (into / "Dockerfile").write_text(render("provision/launch_image.Dockerfile.j2", base_image=base_image(plan)))
+    return Recipe(node=node.name, repo=f"fogiac/{plan.stack}-{node.name}", context=into, dockerfile="Dockerfile")
+
+
 def user_context(node: NodeSpec, *, stack: str) -> Recipe:
     assert node.build is not None
     return Recipe(node=node.name, repo=f"fogiac/{stack}-{node.name}", context=Path(node.build.context),
                   dockerfile=node.build.dockerfile)
 
 
-def build(host: Host, recipe: Recipe, *, engine: str, base_id: str, dest: str, tmp_dir: str, log: str) -> Built:
-    """Push the context, then build it unless an image tagged with its digest is there already."""
+def build(host: Host, recipe: Recipe, *, engine: str, base_id: str, dest: str, tmp_dir: str, log: str,
+          build_args: Mapping[str, str] | None = None) -> Built:
+    """Push the context, then build it unless an image tagged with its digest is there already.
+
+    ``build_args``: ``--build-arg`` values (the host's pip settings); they do not change the digest.
+    """
     pushed = push_tree(host, recipe.context, dest, tmp_dir=tmp_dir)
     digest = hashlib.sha256(f"{pushed.digest}\n{recipe.dockerfile}\n{base_id}\n".encode()).hexdigest()
     tag = f"{recipe.repo}:{digest[:16]}"
     if host.run(f"{engine} image inspect {q(tag)} >/dev/null 2>&1", check=False).ok:
         return Built(node=recipe.node, tag=tag, built=False)
-    done = host.run(f"{engine} build --network host -t {q(tag)} -f {q(dest + '/' + recipe.dockerfile)} {q(dest)} "
+    args = "".join(f" --build-arg {q(f'{key}={value}')}" for key, value in sorted((build_args or {}).items()))
+    done = host.run(f"{engine} build --network host{args} -t {q(tag)} -f {q(dest + '/' + recipe.dockerfile)} {q(dest)} "
                     f">{q(log)} 2>&1", check=False, timeout=3600)
     if not done.ok:
         step = last_step(host.run(f"tail -n 400 {q(log)}", check=False).stdout)

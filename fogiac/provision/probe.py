@@ -11,6 +11,7 @@ import json
 from dataclasses import dataclass, field
 
 from fogiac.provision.host import Host
+from fogiac.provision.images import PIP_SETTINGS
 from fogiac.provision.services import Layout
 from fogiac.render import render
 
@@ -31,6 +32,7 @@ class Facts:
     checksum_lists: dict[str, list[str]] = field(default_factory=dict)
     markers: dict[str, str] = field(default_factory=dict)
     status: dict[str, dict] = field(default_factory=dict)
+    pip: dict[str, str] = field(default_factory=dict)  # the login environment's pip settings (images.PIP_SETTINGS)
 
     def _rel(self, path: str) -> str:
         prefix = self.base.rstrip("/") + "/"
@@ -55,7 +57,7 @@ def gather(host: Host, layout: Layout, *, relay_cli: str, engines: tuple[str, ..
     folders = (layout.bin, layout.run, layout.services, layout.ws, layout.env, layout.state, layout.certs,
                layout.ros_home, layout.tmp)
     script = render("provision/probe.sh.j2", folders=folders, relay_cli=relay_cli, base=layout.base,
-                    supervisor=layout.supervisor, run_dir=layout.run, engines=engines)
+                    supervisor=layout.supervisor, run_dir=layout.run, engines=engines, pip_settings=PIP_SETTINGS)
     facts = Facts(base=layout.base)
     for line in host.run(script, check=False).stdout.splitlines():
         key, _, rest = line.partition(" ")
@@ -75,6 +77,9 @@ def gather(host: Host, layout: Layout, *, relay_cli: str, engines: tuple[str, ..
         elif key == "marker":
             path, _, value = rest.partition(" ")
             facts.markers[path] = value.strip()
+        elif key == "pip":
+            name, _, value = rest.partition("=")
+            facts.pip[name] = value
         elif key == "status":
             try:
                 info = json.loads(rest)

@@ -104,6 +104,7 @@ class Where:
     engine: str = "docker"  # the container engine's command on the host (runtime CONTAINER)
     images: tuple[tuple[str, str], ...] = ()  # (node, tag) of images built on the host
     workload_python: str = ""  # interpreter of workload nodes on a native host ('' : python)
+    launch_bin: str = ""  # a venv's bin folder put first on native launch nodes' PATH ('' : none)
 
 
 @dataclass(frozen=True)
@@ -183,7 +184,7 @@ def docker_run(node: NodeSpec, *, plan: Plan, spec: HostSpec, where: Where) -> s
     elif node.kind == "command":
         image, command = ros_image(plan), node.command
     elif node.kind == "launch" and node.launch is not None:
-        image = ros_image(plan)
+        image = _built(node, where) if node.launch.requirements else ros_image(plan)
         command = ("bash", "-c", f"{_SOURCE_DEVEL}exec roslaunch --wait \"$0\" \"$1\"",
                    node.launch.package, node.launch.file)
         volumes = ((where.layout.workspace(node.launch.workspace), _WS_MOUNT, "ro"),)
@@ -221,6 +222,7 @@ class _NodeRun:
     package_path: str = ""
     python_path: str = ""
     cwd: str = ""
+    bin_path: str = ""
 
 
 def _container_node(node: NodeSpec, plan: Plan, spec: HostSpec, where: Where) -> _NodeRun:
@@ -241,8 +243,10 @@ def _native_node(node: NodeSpec, plan: Plan, spec: HostSpec, where: Where) -> _N
         return _NodeRun(command=" ".join(q(arg) for arg in node.command), check="alive")
     if node.kind == "launch" and node.launch is not None:
         ws = where.layout.workspace(node.launch.workspace)
+        # A node script run by `#!/usr/bin/env python3` (ROS's convention) finds the venv's python first.
         return _NodeRun(command=f"roslaunch --wait {q(node.launch.package)} {q(node.launch.file)}",
-                        package_path=f"{ws}/src:{ws}", check="node", cwd=ws)
+                        package_path=f"{ws}/src:{ws}", check="node", cwd=ws,
+                        bin_path=where.launch_bin if node.launch.requirements else "")
     python = where.workload_python or where.python
     return _NodeRun(command=f"{q(python)} -m workloads.{node.workload} node", python_path=where.code_root,
                     check="node")
@@ -257,7 +261,7 @@ _NODE_RUNTIMES: dict[str, Callable[[NodeSpec, Plan, HostSpec, Where], _NodeRun]]
 def _service(name: str, *, plan: Plan, spec: HostSpec, where: Where, command: str, check: str,
              env: tuple[tuple[str, str], ...] = (), pre: tuple[str, ...] = (), package_path: str = "",
              python_path: str = "", cwd: str = "", notes: tuple[str, ...] = (), after: str = "",
-             files: tuple[tuple[str, str, int], ...] = ()) -> Service:
+             files: tuple[tuple[str, str, int], ...] = (), bin_path: str = "") -> Service:
     layout = where.layout
     # A file the script reads is named with its digest, so changing it restarts the service.
     notes += tuple(f"{path} sha256 {hashlib.sha256(text.encode()).hexdigest()}" for path, text, _ in files)
@@ -265,7 +269,7 @@ def _service(name: str, *, plan: Plan, spec: HostSpec, where: Where, command: st
     script = render(
         "provision/service.sh.j2", name=name, host=spec.name, stack=plan.stack, notes=notes,
         env_file=layout.env_file, ros_home=layout.ros_home, env=env, package_path=package_path,
-        python_path=python_path, cwd=cwd or layout.base, pre=pre, command=command,
+        python_path=python_path, cwd=cwd or layout.base, pre=pre, command=command, bin_path=bin_path,
     )
     unit = render("provision/systemd.service.j2", name=name, host=spec.name, stack=plan.stack, user=where.user,
                   script=script_path, after=after)
@@ -305,7 +309,7 @@ def node_services(plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ..
             f"node-{name}", plan=plan, spec=spec, where=where, command=parts.command, check=parts.check,
             env=() if in_container else node.env, pre=parts.pre, package_path=parts.package_path,
             python_path=parts.python_path, cwd=parts.cwd, notes=notes, after=unit_name(plan.stack, "ros-master"),
-            files=files,
+            files=files, bin_path=parts.bin_path,
         ))
     return tuple(out)
 

@@ -55,6 +55,7 @@ class HostRun:
     engine: str = ""  # the container engine's command, when runtime is CONTAINER
     images: dict[str, str] = field(default_factory=dict)  # node -> image tag built on the host
     venv_python: str = ""  # the virtual environment's interpreter (fogiac's code, native workload nodes)
+    launch_bin: str = ""  # that environment's bin folder, when native launch nodes asked for requirements
     facts: Facts | None = None
     systemd: bool | None = None  # whether the runtime step's probe saw systemd as PID 1; None: not probed
     files_pushed: int = 0
@@ -79,7 +80,7 @@ class HostRun:
                          python=self.venv_python or self.access.python, code_root=code_root, user=self.access.user,
                          workspace_digests=tuple(sorted(self.digests.items())), engine=self.engine or "docker",
                          images=tuple(sorted(self.images.items())),
-                         workload_python=self.venv_python or self.access.python)
+                         workload_python=self.venv_python or self.access.python, launch_bin=self.launch_bin)
 
     @property
     def carrier(self) -> Middleware:
@@ -240,31 +241,51 @@ def step_images(run: HostRun) -> StepResult:
                 flavour = flavour or host.run(f"{engine} run --rm --network none -- {q(base)} "
                                               "sh -c '. /etc/os-release && echo $ID'").stdout.strip()
                 recipe = images.workload_context(node, flavour=flavour, into=Path(tmp) / node.name)
+            elif node.launch is not None:
+                recipe = images.launch_context(node, plan=run.plan, into=Path(tmp) / node.name)
             else:
                 recipe = images.user_context(node, stack=run.plan.stack)
             done = images.build(host, recipe, engine=engine, base_id=base_id, dest=f"{layout.build}/{node.name}",
-                                tmp_dir=layout.tmp, log=f"{layout.build}/{node.name}.log")
+                                tmp_dir=layout.tmp, log=f"{layout.build}/{node.name}.log",
+                                build_args=run.facts.pip if run.facts is not None else None)
             run.images[node.name] = done.tag
             if done.built:
                 built.append(f"{node.name} ({done.tag})")
     return (CHANGED, f"built {', '.join(built)}") if built else (OK, f"{len(run.images)} image(s) up to date")
 
 
+def _launch_requirements(run: HostRun) -> tuple[str, ...]:
+    """What the launch packages on a native host ask for in their requirements files, each once."""
+    if run.runtime != svc.NATIVE:
+        return ()  # a container host installs them in the node's image
+    found: list[str] = []
+    for node in (run.plan.node(x) for x in run.spec.nodes):
+        if node.launch is not None and node.launch.requirements is not None:
+            found += [r for r in venv.file_requirements(node.launch.requirements) if r not in found]
+    return tuple(found)
+
+
 def step_venv(run: HostRun) -> StepResult:
     """A host that runs fogiac's pushed code gets fogiac's requirements and its middleware's (the relay's
     cloud end, the Zenoh router import them) in a venv over the system's python3, in either runtime (they
-    run on the host), plus its workload nodes' on a native host."""
-    if not run.access.ship_code:
+    run on the host), plus its workload nodes' on a native host; launch packages' own requirements go in
+    the same venv, whose bin folder leads their nodes' PATH."""
+    launch = _launch_requirements(run)
+    if not run.access.ship_code and not launch:
         return SKIPPED, "fogiac's code runs on its own interpreter"
     names = [n.workload for n in (run.plan.node(x) for x in run.spec.nodes) if n.workload is not None]
     reqs = venv.requirements(names if run.runtime == svc.NATIVE else [], fogiac=True,
-                             middleware=run.carrier.host_requirements)
+                             middleware=run.carrier.host_requirements) if run.access.ship_code else ()
+    reqs += tuple(r for r in launch if r not in reqs)
     marker = f"{run.layout.state}/venv.sha256"
     known = run.facts.marker(marker) if run.facts is not None else ""
     env = venv.ensure(run.host, root=f"{run.layout.base}/venv", marker=marker, known=known, reqs=reqs,
                       python=run.access.python, allow_install=run.options.allow_install,
                       log=f"{run.layout.run}/venv-install.log")
-    run.venv_python = env.python
+    if run.access.ship_code:
+        run.venv_python = env.python
+    if launch:
+        run.launch_bin = env.python.rsplit("/", 1)[0]
     return (CHANGED, f"installed {', '.join(reqs)}") if env.built else \
         (OK, f"requirements installed already ({env.digest[:12]})")
 

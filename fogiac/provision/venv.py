@@ -16,6 +16,7 @@ import importlib
 import importlib.metadata
 import re
 from dataclasses import dataclass
+from pathlib import Path
 
 from fogiac.errors import ProvisionError
 from fogiac.provision.host import Host, q
@@ -49,6 +50,28 @@ def requirements(workloads: list[str], *, fogiac: bool = False, middleware: tupl
         for req in importlib.import_module(f"workloads.{name}.container").requirements():
             if req not in found:
                 found.append(req)
+    return tuple(found)
+
+
+def file_requirements(path: str) -> tuple[str, ...]:
+    """The requirement lines of a launch package's requirements file (comments and blank lines dropped).
+
+    Only package specifiers: pip options (``-r``, ``--index-url``, ...) would escape the digest, and the
+    index comes from the host's own pip settings.
+    """
+    try:
+        lines = Path(path).read_text().splitlines()
+    except OSError as err:
+        raise ProvisionError(f"{path}: cannot read the requirements file ({err.strerror})") from None
+    found: list[str] = []
+    for number, line in enumerate(lines, 1):
+        spec = line.split(" #", 1)[0].strip()
+        if not spec or spec.startswith("#"):
+            continue
+        if spec.startswith("-"):
+            raise ProvisionError(f"{path}:{number}: {spec.split()[0]}: only package specifiers are allowed here; "
+                                 "the host's pip settings choose the index")
+        found.append(re.sub(r"\s+", "", spec))
     return tuple(found)
 
 

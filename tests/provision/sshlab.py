@@ -115,6 +115,12 @@ def _octet_base() -> int:
     return (os.getpid() % 27) * 9
 
 
+def gateway(index: int = 0) -> str:
+    """This machine's address on host ``index``'s link: where the lab's own services (a package mirror)
+    listen for its hosts. Known before the lab starts, so the hosts' login environment can name it."""
+    return f"10.232.{_octet_base() + index}.1"
+
+
 @contextmanager
 def ssh_lab(root: Path, count: int, *, dead: int = 0,
             env: dict[str, str] | None = None) -> Iterator[tuple[list[LabHost], Path]]:
@@ -135,8 +141,8 @@ def ssh_lab(root: Path, count: int, *, dead: int = 0,
         for i in range(count + dead):
             octet = _octet_base() + i
             ns = lab.namespace(f"h{i}")
-            lab.link(None, ns, a_addr=f"10.232.{octet}.1/24", b_addr=f"10.232.{octet}.2/24")
-            ns.add_route("default", via=f"10.232.{octet}.1")
+            lab.link(None, ns, a_addr=f"{gateway(i)}/24", b_addr=f"10.232.{octet}.2/24")
+            ns.add_route("default", via=gateway(i))
             address = f"10.232.{octet}.2"
             folder = root / f"h{i}"
             folder.mkdir(exist_ok=True)
@@ -160,7 +166,13 @@ def ssh_lab(root: Path, count: int, *, dead: int = 0,
             # bind-mounted in sshd's private mount namespace (made by `ip netns exec`) only.
             (folder / "bashrc").write_text("# fogiac test host: non-interactive shells do nothing\n")
             start = f"mount --bind {folder / 'bashrc'} {Path.home() / '.bashrc'} 2>/dev/null; exec {SSHD} -D -e -f {config}"
-            daemons.append(ns.popen(["sh", "-c", start], stdout=open(folder / "sshd.log", "w")))
+            # Only the network namespace is the host's own: `ip netns exec` would also mount a fresh /sys
+            # without this machine's cgroup hierarchies, where runc cannot start a container. A mount
+            # namespace of its own keeps the bind mount above private to sshd.
+            daemons.append(subprocess.Popen(
+                ["nsenter", f"--net=/run/netns/{ns.name}", "unshare", "--mount", "--propagation", "private",
+                 "sh", "-c", start], stdout=open(folder / "sshd.log", "w"), stderr=subprocess.STDOUT,
+                stdin=subprocess.DEVNULL, start_new_session=True, text=True))
         try:
             for host in hosts[:count]:
                 _wait_port(host.address, 22)

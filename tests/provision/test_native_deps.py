@@ -9,6 +9,7 @@ mirror, their sessions set PIP_INDEX_URL to this machine's package folder (pip f
 
 from __future__ import annotations
 
+import os
 import subprocess
 from dataclasses import replace
 from pathlib import Path
@@ -21,10 +22,11 @@ from fogiac.plan.compile import compile_plan
 from fogiac.provision import provision, teardown, venv
 from fogiac.provision.local import LocalHost
 from fogiac.targets.hosts.target import HOSTS
-from tests.provision.conftest import ros_skip_reason
+from tests.provision.conftest import make_workspace, ros_skip_reason
 from tests.provision.sshlab import lab_skip_reason, ssh_lab
 
 SYSTEM_PYTHON = "/usr/bin/python3"
+WHEELS = Path("/var/cache/fogiac-ci/lab-wheels")  # the lab's mirror (.ci/lab-wheels.sh)
 
 
 def test_a_python_without_venv_support_is_named_with_the_command(tmp_path: Path) -> None:
@@ -77,6 +79,76 @@ nodes:
             assert f"exec {host.base_dir}/venv/" in script and "/bin/python -m workloads.grasp_planning node" in script
 
             again = provision(plan, hosts=access, state_dir=tmp_path, health_timeout=120)
+            assert again.no_changes, [(s.name, s.status, s.detail) for s in again.hosts[0].steps]
+            assert next(s for s in again.hosts[0].steps if s.name == "venv").status == "ok"
+        finally:
+            teardown(plan, hosts=access, state_dir=tmp_path)
+
+
+LAUNCH_TALKER = """#!/usr/bin/env python3
+import rospy
+import shellingham
+from std_msgs.msg import String
+
+rospy.init_node("fog_talker")
+pub = rospy.Publisher("/chatter", String, queue_size=1)
+rate = rospy.Rate(5)
+while not rospy.is_shutdown():
+    pub.publish("shellingham " + shellingham.__version__)
+    rate.sleep()
+"""
+
+
+def test_a_requirements_file_with_pip_options_is_refused_naming_the_line(tmp_path: Path) -> None:
+    reqs = tmp_path / "requirements.txt"
+    reqs.write_text("# the package's own\nshellingham==1.5.4  # shells\n\n--index-url http://elsewhere/simple\n")
+    with pytest.raises(ProvisionError, match=rf"^{reqs}:4: --index-url: only package specifiers are allowed here; "
+                                             "the host's pip settings choose the index$"):
+        venv.file_requirements(str(reqs))
+    reqs.write_text("# the package's own\nshellingham == 1.5.4  # shells\n\n")
+    assert venv.file_requirements(str(reqs)) == ("shellingham==1.5.4",)
+
+
+@pytest.mark.root
+@pytest.mark.ros
+@pytest.mark.skipif(bool(lab_skip_reason() or ros_skip_reason()), reason=lab_skip_reason() or ros_skip_reason() or "")
+def test_a_launch_packages_requirements_go_in_the_hosts_venv_once(tmp_path: Path) -> None:
+    if subprocess.run([SYSTEM_PYTHON, "-c", "import shellingham"], capture_output=True).returncode == 0:
+        pytest.skip("the system python3 has shellingham already: nothing would show the venv is used")
+    if not (WHEELS / ".stamp").exists():
+        pytest.skip(f"needs the lab's package mirror ({WHEELS}: bash .ci/lab-wheels.sh)")
+    ws = make_workspace(tmp_path / "ws")
+    talker = ws / "src" / "fogtest" / "scripts" / "talker.py"
+    talker.write_text(LAUNCH_TALKER)
+    (tmp_path / "requirements.txt").write_text("shellingham==1.5.4\n")
+    with ssh_lab(tmp_path / "lab", 1, env={"PIP_NO_INDEX": "1", "PIP_FIND_LINKS": str(WHEELS)}) as (hosts, key):
+        (host,) = hosts
+        manifest = tmp_path / "fogiac.yaml"
+        manifest.write_text(f"""name: launchreqs
+cloud:
+  provider: hosts
+  runtime: native
+  hosts:
+    - {{name: {host.name}, address: {host.address}, user: root, key: {key}}}
+nodes:
+  - name: talker
+    machine: t3.small
+    launch: {{package: fogtest, file: talker.launch, workspace: ws, requirements: requirements.txt}}
+""")
+        plan = compile_plan(load_manifest(manifest))
+        access = {n: replace(a, base_dir=str(host.base_dir))
+                  for n, a in HOSTS.access(plan, state_dir=tmp_path, python=SYSTEM_PYTHON).items()}
+        try:
+            first = provision(plan, hosts=access, state_dir=tmp_path, health_timeout=60)
+            (outcome,) = first.hosts
+            assert outcome.ok, outcome.error
+            assert "shellingham==1.5.4" in next(s for s in outcome.steps if s.name == "venv").detail
+            env = {**os.environ, "ROS_MASTER_URI": f"http://127.0.0.1:{plan.hosts[0].master_port}",
+                   "ROS_HOSTNAME": "127.0.0.1"}
+            echoed = host.ns.run(["rostopic", "echo", "-n", "1", "/chatter"], env=env, timeout=60).stdout
+            assert echoed.startswith('data: "shellingham 1.5.4"'), echoed
+
+            again = provision(plan, hosts=access, state_dir=tmp_path, health_timeout=60)
             assert again.no_changes, [(s.name, s.status, s.detail) for s in again.hosts[0].steps]
             assert next(s for s in again.hosts[0].steps if s.name == "venv").status == "ok"
         finally:

@@ -52,6 +52,24 @@ def _why_not() -> str | None:
 pytestmark = [pytest.mark.root, pytest.mark.ros, pytest.mark.skipif(_why_not() is not None, reason=_why_not() or "")]
 
 
+def ask_grasp(edge_port: int, *, cwd: Path) -> dict:
+    """The robot's side: one depth image published on the edge master at ``edge_port``; the grasp that answers."""
+    from workloads.grasp_planning.data import TEST_SEED, bench_scene
+
+    scene = bench_scene(TEST_SEED + 7, height=240, width=320)
+    np.save(cwd / "depth.npy", scene.depth)
+    intr = scene.intr
+    env = {**os.environ, "ROS_MASTER_URI": f"http://127.0.0.1:{edge_port}", "ROS_HOSTNAME": "127.0.0.1",
+           "PYTHONPATH": str(REPO)}
+    grasped = subprocess.run(
+        [sys.executable, str(GRASP_CLIENT), str(cwd / "depth.npy"), str(intr.fx), str(intr.fy),
+         str(intr.cx), str(intr.cy), "120", "32FC1"],
+        env=env, capture_output=True, text=True, timeout=180, cwd=cwd)
+    assert grasped.returncode == 0, grasped.stderr[-3000:]
+    (grasp,) = [json.loads(line) for line in grasped.stdout.splitlines() if line.startswith("{")]
+    return grasp
+
+
 def _uids(pids: list[int]) -> set[int]:
     found = set()
     for pid in pids:
@@ -114,17 +132,7 @@ nodes:
             answer = json.loads(planned.stdout.strip().splitlines()[-1])
             assert answer["solved"] and answer["poses"] >= 2 and answer["free"], answer
 
-            from workloads.grasp_planning.data import TEST_SEED, bench_scene
-
-            scene = bench_scene(TEST_SEED + 7, height=240, width=320)
-            np.save(tmp_path / "depth.npy", scene.depth)
-            intr = scene.intr
-            grasped = subprocess.run(
-                [sys.executable, str(GRASP_CLIENT), str(tmp_path / "depth.npy"), str(intr.fx), str(intr.fy),
-                 str(intr.cx), str(intr.cy), "120", "32FC1"],
-                env=env, capture_output=True, text=True, timeout=180, cwd=tmp_path)
-            assert grasped.returncode == 0, grasped.stderr[-3000:]
-            (grasp,) = [json.loads(line) for line in grasped.stdout.splitlines() if line.startswith("{")]
+            grasp = ask_grasp(edge_port, cwd=tmp_path)
             assert "error" not in grasp and 0.0 <= grasp["quality"] <= 1.0, grasp
 
             log_before = install_log.stat().st_mtime_ns

@@ -4,7 +4,8 @@ Each node runs in a container on the host network beside its sandbox's master co
 edge relay carries its topic to a robot-side roscore started by fogiac. Covered: an ``image:``
 node, a ``build:`` node (its image built on the host from a Dockerfile, its env through a 0600
 file, rebuilt alone when one of its files changes), a
-``launch:`` node (a catkin package built inside the ROS image, its env script sourced there), a
+``launch:`` node (a catkin package built inside the ROS image, its env script sourced there, its
+Python requirements in an image of its own), a
 second stack beside the first, a no-change ``up``, loopback-only sockets, and ``down`` leaving no
 container. The base image comes from ``.ci/containers.sh``.
 """
@@ -75,16 +76,17 @@ find_package(catkin REQUIRED)
 catkin_package()
 """
 
-CAT_TALKER = """#!/usr/bin/python3
+CAT_TALKER = """#!/usr/bin/env python3
 import pathlib
 import rospy
+import shellingham
 from std_msgs.msg import String
 rospy.init_node("cat_talker")
 word = (pathlib.Path(__file__).parent / "word.txt").read_text().strip()
 pub = rospy.Publisher("/cat", String, queue_size=1)
 rate = rospy.Rate(5)
 while not rospy.is_shutdown():
-    pub.publish(String(data="cat says " + word))
+    pub.publish(String(data="cat says " + word + " on shellingham " + shellingham.__version__))
     rate.sleep()
 """
 
@@ -112,6 +114,7 @@ def _project(root: Path, *, name: str, edge_port: int) -> Path:
         "cmake_minimum_required(VERSION 3.10)\nproject(Project)\ninclude(/usr/share/catkin/cmake/toplevel.cmake)\n")
     # Sourced inside the ROS image before catkin_make: what it writes, the node reads.
     (root / "setup.sh").write_text("echo meow > src/fogcat/scripts/word.txt\n")
+    (root / "requirements.txt").write_text("# the package's own Python requirements\nshellingham==1.5.4\n")
     manifest = root / f"{name}.yaml"
     manifest.write_text(f"""name: {name}
 cloud: {{provider: local, runtime: container}}
@@ -129,7 +132,8 @@ nodes:
     topics: {{out: [/plain]}}
   - name: cat
     machine: t3.small
-    launch: {{package: fogcat, file: talker.launch, workspace: ws, env_script: setup.sh}}
+    launch: {{package: fogcat, file: talker.launch, workspace: ws, env_script: setup.sh,
+              requirements: requirements.txt}}
     topics: {{out: [/cat]}}
 """)
     return manifest
@@ -199,7 +203,7 @@ def test_build_and_launch_nodes_in_podman_two_stacks_and_down(tmp_path: Path, _s
         assert "3 of 3 host(s) changed" in up.output
         assert _echo(edge, "/built").startswith('data: "built says hello from a private file"')
         assert _echo(edge, "/plain").startswith('data: "plain image"')
-        assert _echo(edge, "/cat").startswith('data: "cat says meow"')
+        assert _echo(edge, "/cat").startswith('data: "cat says meow on shellingham 1.5.4"')
         assert _containers("ctra-dev") == ["fogiac-ctra-dev-built", "fogiac-ctra-dev-built-ros-master",
                                            "fogiac-ctra-dev-cat", "fogiac-ctra-dev-cat-ros-master",
                                            "fogiac-ctra-dev-plain", "fogiac-ctra-dev-plain-ros-master"]
@@ -209,6 +213,9 @@ def test_build_and_launch_nodes_in_podman_two_stacks_and_down(tmp_path: Path, _s
         script = (sandbox / "built" / "services" / "node-built.sh").read_text()
         assert "hello from a private file" not in script and " --env-file " in script
         assert list((sandbox / "cat" / "ws").glob("*/devel/setup.bash")), "catkin_make did not run in the container"
+        cat_image = subprocess.run(["podman", "inspect", "--format", "{{.ImageName}}", "fogiac-ctra-dev-cat"],
+                                   capture_output=True, text=True, check=True).stdout.strip()
+        assert re.fullmatch(r"localhost/fogiac/ctra-dev-cat:[0-9a-f]{16}", cat_image), "its requirements' image"
 
         # Every listener in fogiac's containers is on loopback, except the one roscpp's rosout
         # always binds to every interface (its TCPROS server; roscpp has no bind setting).
@@ -235,7 +242,7 @@ def test_build_and_launch_nodes_in_podman_two_stacks_and_down(tmp_path: Path, _s
         assert down2.exit_code == 0 and "nothing left" in down2.output, down2.output
         assert _containers("ctrb-dev") == []
         assert len(_containers("ctra-dev")) == 6
-        assert _echo(edge, "/cat").startswith('data: "cat says meow"')
+        assert _echo(edge, "/cat").startswith('data: "cat says meow on shellingham 1.5.4"')
     finally:
         for manifest in manifests:
             runner.invoke(app, ["down", str(manifest), "--target", "local", "--yes"])

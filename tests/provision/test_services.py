@@ -160,7 +160,7 @@ def test_relay_cloud_end_command(plan: Plan) -> None:
 
 def test_autostop_watchdog_reads_the_relay_stats(plan: Plan) -> None:
     where = _where(svc.NATIVE)
-    watchdog = next(s for s in middleware.get(plan.middleware).link_services(plan, plan.host("talker"), where)
+    watchdog = next(s for s in middleware.deployment(plan.middleware).link_services(plan, plan.host("talker"), where)
                     if s.name == "autostop")
     assert plan.autostop is not None
     assert watchdog.script.splitlines()[-1] == (

@@ -75,7 +75,7 @@ nodes:
             assert f"exec {venv_python} -m fogiac.net.zenoh.router" in script.replace("'", "")
             assert (host.base_dir / "certs" / "zenoh" / "server.key").stat().st_mode & 0o777 == 0o600
 
-            carrier = middleware.get(plan.middleware)
+            carrier = middleware.deployment(plan.middleware)
             linked = poll(lambda: [link for link in carrier.edge_links(plan, folder=edge_dir(plan), connect=done.relays)
                                    if link["connected"]] or None, timeout=30)
             assert linked, f"the edge router never linked to {connect}"

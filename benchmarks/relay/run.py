@@ -23,7 +23,7 @@ import time
 import xmlrpc.client
 from pathlib import Path
 
-from fogiac.procs import free_port
+from fogiac.procs import cpu_seconds, free_port
 
 ROOT = Path(__file__).resolve().parents[2]
 NODE = Path(__file__).with_name("node.py")
@@ -91,12 +91,6 @@ def steady(arrivals: list[tuple[float, float, int, int]]) -> list[tuple[float, f
     """Arrivals after the first WARMUP_S (connections settling)."""
     start = arrivals[0][0] + WARMUP_S
     return [a for a in arrivals if a[0] >= start] or arrivals
-
-
-def cpu_seconds(pid: int) -> float:
-    """User + system CPU of a process, all its threads (from /proc: no extra package)."""
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def pct(values: list[float], q: float) -> float:

@@ -14,10 +14,10 @@ requests (problem name, start, goal, limits) over its own pipe until it is close
   that dies during a race counts as a loser of that race.
 - OMPL seeds once per process, so a warm worker is seeded when it starts (``seed + index``),
   not per request: runs repeat as a sequence, not one by one.
-- ``mode="share"`` shares the work after the race: the first path is cut into a
+- ``mode="share"`` (the default) shares the work after the race: the first path is cut into a
   piece per worker and every worker simplifies and proves its piece (``share.py``); when a piece
   cannot be proven, one worker finishes the whole path in the time left (:attr:`refinished`);
-  ``mode="race"`` (the default) leaves that to the winner alone. With one worker the two are the same.
+  ``mode="race"`` leaves that to the winner alone. With one worker the two are the same.
 """
 
 from __future__ import annotations

@@ -63,6 +63,15 @@ def _ppid(pid: int) -> int | None:
         return None
 
 
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU seconds a live process has used, all its threads; 0.0 when it is gone."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return 0.0
+
+
 def descendants(root: int) -> list[int]:
     """Every live process below ``root`` (children, their children, ...), read from /proc."""
     children: dict[int, list[int]] = {}

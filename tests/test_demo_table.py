@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+
 import pytest
 
-from workloads.motion_planning.demo import Row, geometric_mean, table
+from fogiac.procs import cpu_seconds, poll
+from workloads.motion_planning.demo import CoresUsed, Row, _runs_node, geometric_mean, table
 
 
 def test_row_splits_network_from_compute_and_computes_speedup() -> None:
@@ -19,3 +24,21 @@ def test_row_splits_network_from_compute_and_computes_speedup() -> None:
 def test_geometric_mean_of_speedups() -> None:
     assert geometric_mean([2.0, 0.5, 1.0]) == pytest.approx(1.0)
     assert geometric_mean([]) == 0.0
+
+
+def test_the_cloud_node_is_found_by_its_command_line_and_its_cores_counted() -> None:
+    # python -c leaves the rest of argv alone: a busy process that looks like the node to /proc
+    node = subprocess.Popen([sys.executable, "-c", "while True: pass", "-m", "workloads.motion_planning", "node"])
+    try:
+        assert poll(lambda: _runs_node(node.pid) or None, timeout=30, interval=0.05) is True
+        assert not _runs_node(os.getpid())
+        used = CoresUsed(lambda: [node.pid])
+        with used.measure() as walls:
+            start = cpu_seconds(node.pid)
+            poll(lambda: cpu_seconds(node.pid) >= start + 0.05 or None, timeout=60, interval=0.05)
+            walls.append(1.0)
+        assert used.cpu_s > 0 and used.cores == used.cpu_s
+    finally:
+        node.kill()
+        node.wait()
+    assert CoresUsed(list).cores is None  # no process seen: unknown, not zero

@@ -10,7 +10,7 @@ from pathlib import Path
 import signal
 import time
 
-from fogiac.procs import _ephemeral_low, descendants, free_port, pid_alive, poll, stop_tree
+from fogiac.procs import _ephemeral_low, cpu_seconds, descendants, free_port, pid_alive, poll, stop_tree
 
 
 def test_free_port_is_bindable_and_outside_the_ephemeral_range() -> None:
@@ -68,3 +68,13 @@ def test_stop_tree_ends_a_process_and_its_children_even_one_that_ignores_term() 
     parent.wait(timeout=10)
     assert parent.returncode == -signal.SIGKILL  # TERM was ignored, so the grace ran out
     assert all(not pid_alive(pid) for pid in children)
+
+
+def test_cpu_seconds_counts_a_busy_process_and_is_zero_once_it_is_gone() -> None:
+    child = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        assert poll(lambda: cpu_seconds(child.pid) >= 0.05 or None, timeout=60, interval=0.05) is True
+    finally:
+        child.kill()
+        child.wait()
+    assert cpu_seconds(child.pid) == 0.0

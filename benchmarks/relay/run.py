@@ -23,7 +23,7 @@ import time
 import xmlrpc.client
 from pathlib import Path
 
-from fogiac.procs import free_port
+from fogiac.procs import cpu_seconds, free_port
 
 ROOT = Path(__file__).resolve().parents[2]
 NODE = Path(__file__).with_name("node.py")
@@ -84,7 +84,11 @@ def run_pair(bench: Bench, pub_env: dict[str, str], sub_env: dict[str, str], top
     sub.wait(timeout=30)
     if not line:
         raise RuntimeError(f"no messages on {topic}")
-    arrivals = json.loads(line)["arrivals"]
+    return json.loads(line)["arrivals"]
+
+
+def steady(arrivals: list[tuple[float, float, int, int]]) -> list[tuple[float, float, int, int]]:
+    """Arrivals after the first WARMUP_S (connections settling)."""
     start = arrivals[0][0] + WARMUP_S
     return [a for a in arrivals if a[0] >= start] or arrivals
 
@@ -162,27 +166,37 @@ def main() -> None:
         subprocess.run([*fogiac, "certs", str(certs)], cwd=ROOT, check=True, capture_output=True)
         port = free_port()
         common = ["--certs", str(certs), "--ros-host", "127.0.0.1"]
-        bench.spawn([*fogiac, "relay", "cloud", "--listen", f"127.0.0.1:{port}", "--master", cloud["ROS_MASTER_URI"],
-                     *common], cloud, log="cloud.log")
-        bench.spawn([*fogiac, "relay", "edge", "--connect", f"127.0.0.1:{port}", "--master", edge["ROS_MASTER_URI"],
-                     "--stats-file", str(home / "edge.json"), *common], edge, log="edge.log")
+        cloud_end = bench.spawn([*fogiac, "relay", "cloud", "--listen", f"127.0.0.1:{port}", "--master",
+                                 cloud["ROS_MASTER_URI"], *common], cloud, log="cloud.log")
+        edge_end = bench.spawn([*fogiac, "relay", "edge", "--connect", f"127.0.0.1:{port}", "--master",
+                                edge["ROS_MASTER_URI"], "--stats-file", str(home / "edge.json"), *common],
+                               edge, log="edge.log")
         rows = []
+        cpu_ms_per_mb: dict[str, list[float]] = {}
         only = sys.argv[sys.argv.index("--only") + 1].split(",") if "--only" in sys.argv else list(SIZES)
         for label, size in ((k, v) for k, v in SIZES.items() if k.replace(" ", "") in [o.replace(" ", "") for o in only]):
             tag = label.replace(" ", "").lower()
             result = {}
             modes = (("direct", edge), ("relay", cloud))
             best = {mode: 0.0 for mode, _ in modes}
+            ends = (edge_end.pid, cloud_end.pid)
+            relay_cpu, relay_bytes = [0.0, 0.0], 0
             for rep in range(THR_REPEATS):  # interleaved, best of each: other load on the box hurts both
                 for mode, sub_env in modes:
+                    before = [cpu_seconds(pid) for pid in ends]
                     thr = run_pair(bench, edge, sub_env, f"/bench/{mode}_thr_{tag}_{rep}", size, 0.0, THR_SECONDS)
-                    best[mode] = max(best[mode], throughput(thr))
+                    if mode == "relay":  # what each end spends per byte it carries: load does not stretch it
+                        after = [cpu_seconds(pid) for pid in ends]
+                        relay_cpu = [c + a - b for c, a, b in zip(relay_cpu, after, before, strict=True)]
+                        relay_bytes += sum(a[2] for a in thr)
+                    best[mode] = max(best[mode], throughput(steady(thr)))
+            cpu_ms_per_mb[label] = [1e3 * c / (relay_bytes / 1e6) if relay_bytes else 0.0 for c in relay_cpu]
             samples: dict[str, list[float]] = {mode: [] for mode, _ in modes}
             for rep in range(LAT_REPEATS):  # interleaved and pooled, for the same reason
                 for mode, sub_env in modes:
                     lat = run_pair(bench, edge, sub_env, f"/bench/{mode}_lat_{tag}_{rep}", size, LAT_RATE[label],
                                    LAT_SECONDS)
-                    samples[mode] += [1000 * a[1] for a in lat]
+                    samples[mode] += [1000 * a[1] for a in steady(lat)]
             for mode, _ in modes:
                 ms = samples[mode]
                 result[mode] = (statistics.median(ms), pct(ms, 0.99), best[mode], len(ms))
@@ -193,6 +207,8 @@ def main() -> None:
         print("\nsize     added median ms  added p99 ms  throughput relay/direct  (direct MB/s, relay MB/s)")
         for label, add_med, add_p99, ratio, d, r in rows:
             print(f"{label:8} {add_med:15.3f} {add_p99:13.3f} {ratio:24.2f}  ({d[2] / 1e6:.1f}, {r[2] / 1e6:.1f})")
+        print("relay CPU per MB carried in the throughput runs (user + system, all threads): "
+              + ", ".join(f"{label} edge {e:.2f} ms, cloud {c:.2f} ms" for label, (e, c) in cpu_ms_per_mb.items()))
         stats = json.loads((home / "edge.json").read_text())
         print(f"relay reconnects during the run: {stats['reconnects']}; "
               f"load average at the end {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")

@@ -7,7 +7,9 @@ problems from a robot-side client through the relay to the cloud node (all cores
 drifts hits both sides alike; prints a table in the shape of the FogROS paper's (edge vs cloud,
 compute and network time apart, load average beside it), and tears everything down with
 ``fogiac down``, also when something failed. Both sides plan warm: the robot's planner is a
-long-lived 1-worker :class:`WarmPlanner`, as a robot's own planning node would be.
+long-lived 1-worker :class:`WarmPlanner`, as a robot's own planning node would be. Each run's
+times are printed as they come, and at the end how many cores each side's planner processes
+actually got while planning (on a machine shared with other jobs, fewer than it has).
 """
 
 from __future__ import annotations
@@ -18,6 +20,8 @@ import os
 import statistics
 import subprocess
 import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import urlparse
@@ -25,6 +29,7 @@ from urllib.parse import urlparse
 import rospy
 
 from fogiac.manifest.schema import load_manifest
+from fogiac.procs import cpu_seconds, descendants
 from workloads.motion_planning.client import request_paths, shipped_problems
 from workloads.motion_planning.planner import Solution, warm_up
 from workloads.motion_planning.pool import WarmPlanner
@@ -61,8 +66,49 @@ def edge_run(robot: WarmPlanner, names: list[str], *, time_limit: float | None) 
     return [robot.solve(name, time_limit=time_limit) for name in names]
 
 
-def interleaved_runs(names: list[str], *, runs: int,
-                     time_limit: float | None) -> tuple[dict[str, list], dict[str, list]]:
+class CoresUsed:
+    """CPU seconds a side's planner processes used over the wall seconds it spent planning: how many
+    cores it actually got, which other jobs on a shared machine decide as much as its own count."""
+
+    def __init__(self, pids: Callable[[], list[int]]) -> None:
+        self._pids, self.cpu_s, self.wall_s, self.seen = pids, 0.0, 0.0, True
+
+    @contextmanager
+    def measure(self) -> Iterator[list[float]]:
+        """CPU over the block; the block appends the wall seconds of its requests (not the set-up between)."""
+        pids = self._pids()
+        self.seen = self.seen and bool(pids)
+        cpu = sum(map(cpu_seconds, pids))
+        walls: list[float] = []
+        yield walls
+        self.cpu_s += sum(map(cpu_seconds, pids)) - cpu
+        self.wall_s += sum(walls)
+
+    @property
+    def cores(self) -> float | None:
+        return self.cpu_s / self.wall_s if self.wall_s > 0 and self.seen else None
+
+
+def cloud_planner_pids() -> list[int]:
+    """The cloud node and its workers, when exactly one motion-planning node runs on this machine."""
+    nodes = [pid for pid in _pids() if _runs_node(pid)]
+    return [nodes[0], *descendants(nodes[0])] if len(nodes) == 1 else []
+
+
+def _pids() -> list[int]:
+    return [int(entry.name) for entry in Path("/proc").iterdir() if entry.name.isdigit()]
+
+
+def _runs_node(pid: int) -> bool:
+    try:
+        args = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
+    except OSError:
+        return False
+    return any(args[i:i + 3] == [b"-m", b"workloads.motion_planning", b"node"] for i in range(len(args)))
+
+
+def interleaved_runs(names: list[str], *, runs: int, time_limit: float | None
+                     ) -> tuple[dict[str, list], dict[str, list], tuple[CoresUsed, CoresUsed]]:
     """Run after run: every problem on the robot, then every problem in the cloud through the relay."""
     rospy.init_node("fogiac_demo_client", anonymous=True, disable_signals=True)
     edge: dict[str, list] = {name: [] for name in names}
@@ -70,13 +116,22 @@ def interleaved_runs(names: list[str], *, runs: int,
     problems = {name: load_problem(PROBLEMS_DIR / f"{name}.cfg") for name in names}
     warm_up()
     with WarmPlanner(problems, workers=1) as robot:
+        used = CoresUsed(robot.pids), CoresUsed(cloud_planner_pids)
         for run in range(runs):
-            for name, solution in zip(names, edge_run(robot, names, time_limit=time_limit), strict=True):
+            with used[0].measure() as walls:
+                solutions = edge_run(robot, names, time_limit=time_limit)
+                walls += [s.solve_time_s for s in solutions]
+            for name, solution in zip(names, solutions, strict=True):
                 edge[name].append(solution)
-            for timing in request_paths(names, timeout=300, connect_timeout=120):
+            with used[1].measure() as walls:
+                timings = request_paths(names, timeout=300, connect_timeout=120)
+                walls += [t.round_trip_s for t in timings]
+            for timing in timings:
                 cloud[timing.name].append(timing)
-            print(f"   run {run + 1}/{runs} done, load average {os.getloadavg()[0]:.2f}", flush=True)
-    return edge, cloud
+            print(f"   run {run + 1}/{runs}: " + ", ".join(
+                f"{n} {edge[n][-1].solve_time_s:.2f}s/{cloud[n][-1].round_trip_s:.2f}s" for n in names)
+                + f" (robot/cloud), load average {os.getloadavg()[0]:.2f}", flush=True)
+    return edge, cloud, used
 
 
 def geometric_mean(values: list[float]) -> float:
@@ -112,7 +167,7 @@ def main(argv: list[str] | None = None) -> int:
         os.environ.update(ROS_MASTER_URI=edge_master, ROS_HOSTNAME="127.0.0.1")
         print(f"== {args.runs} run(s), each: every problem on the robot (1 core), then in the 'cloud' "
               "through the relay", flush=True)
-        edge, cloud = interleaved_runs(names, runs=args.runs, time_limit=args.time_limit)
+        edge, cloud, used = interleaved_runs(names, runs=args.runs, time_limit=args.time_limit)
         _fogiac("status", str(args.manifest), "--target", "local")
     finally:
         print("== fogiac down", flush=True)
@@ -128,6 +183,11 @@ def main(argv: list[str] | None = None) -> int:
     ]
     print(table(rows, cloud_cores=os.cpu_count() or 1))
     print(f"load average (1, 5, 15 min) at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    robot_cores, cloud_cores = (u.cores for u in used)
+    print("cores the planners got while planning (CPU seconds / wall seconds): robot "
+          + (f"{robot_cores:.2f} of 1" if robot_cores is not None else "unknown") + ", cloud "
+          + (f"{cloud_cores:.2f} of {os.cpu_count()}" if cloud_cores is not None
+             else "unknown (not exactly one motion-planning node on this machine)"))
     return 0 if all(r.cloud_solved for r in rows) else 1
 
 

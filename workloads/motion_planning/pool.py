@@ -14,9 +14,10 @@ requests (problem name, start, goal, limits) over its own pipe until it is close
   that dies during a race counts as a loser of that race.
 - OMPL seeds once per process, so a warm worker is seeded when it starts (``seed + index``),
   not per request: runs repeat as a sequence, not one by one.
-- ``mode="share"`` shares the work after the race: the first path is cut into a
-  piece per worker and every worker simplifies and proves its piece (``share.py``);
-  ``mode="race"`` (the default) leaves that to the winner alone. With one worker the two are the same.
+- ``mode="share"`` (the default) shares the work after the race: the first path is cut into a
+  piece per worker and every worker simplifies and proves its piece (``share.py``); when a piece
+  cannot be proven, one worker finishes the whole path in the time left (:attr:`refinished`);
+  ``mode="race"`` leaves that to the winner alone. With one worker the two are the same.
 """
 
 from __future__ import annotations
@@ -74,6 +75,7 @@ class WarmPlanner:
         self._conns: list[Connection | None] = [None] * self.workers
         self._request_id = 0
         self.replaced = 0  # workers started again after dying
+        self.refinished = 0  # shared requests whose pieces failed, finished whole by one worker
         try:
             for i in range(self.workers):
                 self._start(i)
@@ -124,7 +126,10 @@ class WarmPlanner:
 
     def _finish_shared(self, name: str, first: dict[str, Any], request: dict[str, Any], *, left: float,
                        deadline: float) -> dict[str, Any]:
-        """Every worker simplifies and proves one piece of the first path; the pieces joined."""
+        """Every worker simplifies and proves one piece of the first path; the pieces joined (or, when
+        a piece cannot be proven, the whole path finished by one worker: pieces get half the time left,
+        so that finish keeps the other half)."""
+        end = time.perf_counter() + left
         path = [Pose(*p) for p in first["path"]]
         radius = self.problems[name].robot.radius()
         pieces = split_path(path, self.workers, radius=radius)
@@ -132,9 +137,22 @@ class WarmPlanner:
         self._flag.value = 0
         for i, share in enumerate(simplify_shares(pieces, request["simplify_time"], radius=radius)):
             self._send(i, {"id": self._request_id, "name": name, "piece": pieces[i],
-                           "resolution": request["resolution"], "time_limit": max(1e-3, left), "simplify_time": share})
+                           "resolution": request["resolution"], "time_limit": max(1e-3, left / 2),
+                           "simplify_time": share})
         reports = self._gather(self._request_id, len(pieces), deadline=deadline)
-        return join_reports(first, reports)
+        joined = join_reports(first, reports)
+        left = end - time.perf_counter()
+        if joined["solved"] or len(pieces) < 2 or any(r is None for r in reports) or left <= 0:
+            return joined
+        # A cut pose stays in the answer (no piece may shortcut past it), and one next to a wall can
+        # leave its piece unprovable: then one worker finishes the whole path, as the race does.
+        self.refinished += 1
+        self._request_id += 1
+        self._send(0, {"id": self._request_id, "name": name, "piece": path, "resolution": request["resolution"],
+                       "time_limit": left, "simplify_time": request["simplify_time"]})
+        whole = join_reports(first, self._gather(self._request_id, 1, deadline=deadline))
+        spent = max((r.get("cpu_s", 0.0) for r in reports if r), default=0.0)
+        return {**whole, "cpu_s": whole["cpu_s"] + spent, "pieces": len(pieces) + 1}
 
     def _gather(self, request_id: int, count: int, *, deadline: float) -> list[dict[str, Any] | None]:
         """Workers 0..count-1's reports on this request, in order; None for one that died or hung."""

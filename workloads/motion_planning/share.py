@@ -24,10 +24,9 @@ from workloads.motion_planning.geometry import rotation_angle
 from workloads.motion_planning.problem import Pose
 
 MODES = ("race", "share")
-# race stays the default: in one benchmark run share answered "no path" once in five on cubicles and on
-# the maze (not reproduced in 20 more requests, never an unproven path); until that is understood, share
-# is opt-in (node param ~mode, benchmark columns).
-DEFAULT_MODE = "race"
+# share is the default: with a failed piece finished whole (pool.py) it answered every request race did,
+# and faster on cubicles and the maze, as fast on twisty (README, "Sharing the work").
+DEFAULT_MODE = "share"
 
 
 def sweep(a: Pose, b: Pose, radius: float) -> float:

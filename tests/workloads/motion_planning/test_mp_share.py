@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import time
 
 import pytest
 from tests.workloads.motion_planning.mp_support import PROBLEMS
@@ -10,6 +11,7 @@ from tests.workloads.motion_planning.mp_support import PROBLEMS
 from fogiac.errors import WorkloadError
 from workloads.motion_planning import Pose, load_problem, path_is_collision_free
 from workloads.motion_planning.pool import WarmPlanner
+from workloads.motion_planning.problem import validity_resolution
 from workloads.motion_planning.share import join_reports, simplify_shares, split_path
 
 
@@ -62,6 +64,24 @@ def test_both_modes_answer_proven_paths(mode: str) -> None:
         assert path_is_collision_free(problem, s.path, resolution=s.resolution / 5)
     # a free straight move is answered without a search: two poses, one piece
     assert straight.solved and straight.path == (problem.start, Pose(-2.0, 1.0, 0.0)) and straight.pieces == 1
+
+
+def test_a_piece_that_cannot_be_proven_is_finished_whole() -> None:
+    # The cut falls on the first path's middle pose, here inside the wall: neither piece can be
+    # proven (a cut pose stays in the answer), the whole path can once it is shortcut past that pose.
+    problem = load_problem(PROBLEMS / "easy.cfg")
+    start, inside, goal = Pose(-2.0, 2.0, 0.0), Pose(-0.25, 2.0, 0.0), Pose(-2.0, 1.0, 0.0)
+    assert not path_is_collision_free(problem, [inside], resolution=0.1)
+    first = {"plan_time_s": 0.0, "checks": 0, "cpu_s": 0.0, "index": 0,
+             "path": [(p.x, p.y, p.z, p.qx, p.qy, p.qz, p.qw) for p in (start, inside, goal)]}
+    request = {"resolution": validity_resolution(problem), "simplify_time": 0.5}
+    with WarmPlanner({"easy": problem}, workers=2, seed=3, mode="share") as planner:
+        report = planner._finish_shared("easy", first, request, left=2.0, deadline=time.perf_counter() + 60)
+        assert planner.refinished == 1
+    path = [Pose(*p) for p in report["path"]]
+    assert report["solved"] and report["pieces"] == 3
+    assert path[0] == start and path[-1] == goal and inside not in path
+    assert path_is_collision_free(problem, path, resolution=report["resolution"] / 5)
 
 
 def test_an_unknown_mode_is_named() -> None:

@@ -7,8 +7,8 @@ import os
 from pathlib import Path
 
 from fogiac.manifest.schema import load_manifest
-from fogiac.plan.catalog import catalog
 from fogiac.orchestrate import edge_dir, edge_idle_since
+from fogiac.plan.catalog import catalog
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.guard import Billed, duration, guard, render, up_summary
 from fogiac.plan.model import Plan

@@ -49,6 +49,10 @@ def _show(doc: Mapping[str, Any], report: Any) -> None:
         out.print(f"  ${line['total']:.4f}/h  {line['item']}")
     total = doc["cost"]["hourly_usd"]
     out.print(f"[bold]cost: ${total:.4f} per hour[/] (about ${per_month(total):.2f} per {MONTH} if left running)")
+    spot = doc["cost"].get("spot_hourly_usd")
+    if spot is not None:
+        out.print(f"with spot: about ${spot:.4f} per hour (the catalogue's spot estimate of "
+                  f"{doc['cost']['spot_prices']['as_of']}; never more than on-demand)")
 
 
 @contextmanager
@@ -126,7 +130,7 @@ def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str |
         typer.echo(f"{name}: {host.get('instance_id')} {host.get('machine')} public {host.get('public_ip')} "
                    f"private {host.get('private_ip')}")
     typer.echo(f"applied: {result.applied}")
-    typer.echo(up_summary(plan))
+    typer.echo(up_summary(result.plan or plan))
 
 
 def _interrupted(manifest: Path, plan: Plan, chosen: Target) -> None:

@@ -22,8 +22,9 @@ from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_deployed, compile_
 from fogiac.errors import FogiacError
 from fogiac.manifest.revision import load_revision
 from fogiac.plan import drift, review
+from fogiac.plan.catalog import catalog
 from fogiac.plan.compile import compile_plan
-from fogiac.plan.cost import MONTH, per_month, saving_pct
+from fogiac.plan.cost import MONTH, menu_line, per_month, saving_pct
 from fogiac.plan.diff import PlanDiff, annotate, diff_documents, with_drift
 from fogiac.plan.document import APPLIED_FILE, document, plan_document
 from fogiac.state import read_json, stack_dir, write_json_atomic
@@ -115,9 +116,7 @@ def render(doc: Mapping[str, Any]) -> None:
     out.print(hosts)
     for h in doc["hosts"]:
         if h["chosen_for"]:
-            others = ", ".join(f"{o['machine']} (${o['usd_per_hour']:.4f}/h)" for o in h["alternatives"]) or "none"
-            out.print(f"{h['name']}: {h['machine']} (${h['usd_per_hour']:.4f}/h) is the cheapest with "
-                      f"{escape(h['chosen_for'])}; next: {others}", highlight=False)
+            out.print(escape(menu_line(h, spot_as_of=catalog().spot_as_of)), highlight=False)
     nodes = table("nodes", "node", "host", "kind", "runs", "GPU")
     for n in doc["nodes"]:
         nodes.add_row(n["name"], n["host"], n["kind"], escape(n["runs"]), "yes" if n["gpu"] else "no")

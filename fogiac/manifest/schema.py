@@ -395,14 +395,15 @@ class Node(_Model):
             )
         return self
 
-    def machine_choice(self, region: str) -> Choice:
-        """The instance type this node runs on in ``region``: the named one, or the cheapest that fits."""
+    def machine_choice(self, region: str, *, spot: bool = False) -> Choice:
+        """The instance type this node runs on in ``region``: the named one, or the cheapest that fits
+        (at the spot estimate when ``spot``: the target buys the node's machine as spot)."""
         named = self.machine if isinstance(self.machine, str) else self.machine.type
         if named is not None:
             return Choice(machine=named, usd_per_hour=catalog().types[named].usd_per_hour.get(region, 0.0),
                           alternatives=())
         assert isinstance(self.machine, Machine)
-        return choose(self.machine.requirement(gpu=self.gpu), region)
+        return choose(self.machine.requirement(gpu=self.gpu), region, spot=spot)
 
     @property
     def needs_gpu(self) -> bool:
@@ -467,7 +468,7 @@ class Manifest(_Model):
                 raise FieldProblem(f"duplicate node name {name!r}", field=f"nodes[{i}].name")
         for i, node in enumerate(self.nodes):
             try:
-                node.machine_choice(self.cloud.region)
+                node.machine_choice(self.cloud.region, spot=node.spot)
             except NoMachine as err:
                 raise FieldProblem(str(err), field=f"nodes[{i}].machine") from None
         host_names = [h.name for h in self.cloud.hosts]

@@ -7,6 +7,7 @@ instance also carries the catalogue's spot estimate, and the plan its total with
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 from fogiac.plan.catalog import catalog
@@ -46,12 +47,27 @@ def cost(plan: Plan) -> dict[str, Any]:
     return out
 
 
+def menu_line(row: Mapping[str, Any], *, spot_as_of: str) -> str:
+    """A host compile chose by requirement: the choice and the runners-up, at the price that ranked them."""
+    def each(option: Mapping[str, Any]) -> str:
+        if row["ranked_by"] == "spot" and option.get("spot_usd_per_hour") is not None:
+            return f"${option['spot_usd_per_hour']:.4f}/h spot est., ${option['usd_per_hour']:.4f}/h on-demand"
+        return f"${option['usd_per_hour']:.4f}/h"
+
+    by = f"spot estimates ({spot_as_of})" if row["ranked_by"] == "spot" else "on-demand prices"
+    others = ", ".join(f"{o['machine']} ({each(o)})" for o in row["alternatives"]) or "none"
+    return (f"{row['name']}: {row['machine']} ({each(row)}) is the cheapest at {by} with {row['chosen_for']}; "
+            f"next: {others}")
+
+
 def host_row(host: HostSpec) -> dict[str, Any]:
     return {
         "name": host.name,
         "machine": host.machine,
         "chosen_for": host.chosen_for,
-        "alternatives": [{"machine": o.name, "usd_per_hour": o.usd_per_hour} for o in host.alternatives],
+        "ranked_by": host.ranked_by,
+        "alternatives": [{"machine": o.name, "usd_per_hour": o.usd_per_hour, "spot_usd_per_hour": o.spot_usd_per_hour}
+                         for o in host.alternatives],
         "vcpus": host.vcpus,
         "gpus": host.gpus,
         "memory_gib": host.memory_gib,

@@ -77,11 +77,14 @@ class PlanDiff:
     topics: Section
     security_rules: Section
     settings: tuple[tuple[str, Any, Any], ...]
-    cost_before: float
+    cost_before: float  # on-demand throughout
     cost_after: float
     exposure: tuple[str, ...]  # changes that open something up, each one line
     drift: tuple[Drift, ...] = ()  # against the applied document: what the last refresh found changed outside fogiac
     refreshed_at: str = ""  # when that refresh ran
+    spot_before: float | None = None  # the hour with spot hosts at the spot estimate; None: no spot host that side
+    spot_after: float | None = None
+    spot_as_of: str = ""  # the spot estimates' date (the catalogue's Spot Instance Advisor snapshot)
 
     def count(self, action: Action) -> int:
         return sum(1 for r in self.resources if r.action == action)
@@ -94,7 +97,20 @@ class PlanDiff:
     def empty(self) -> bool:
         sections = (self.hosts, self.nodes, self.topics, self.security_rules)
         return (not self.changed_resources and all(s.empty for s in sections) and not self.settings
-                and self.cost_before == self.cost_after and not self.drift)
+                and self.cost_before == self.cost_after and self.spot_before == self.spot_after and not self.drift)
+
+    @property
+    def has_spot(self) -> bool:
+        return self.spot_before is not None or self.spot_after is not None
+
+    @property
+    def expected_before(self) -> float:
+        """The hour as it is expected to cost: spot hosts at their estimate, everything else on-demand."""
+        return self.cost_before if self.spot_before is None else self.spot_before
+
+    @property
+    def expected_after(self) -> float:
+        return self.cost_after if self.spot_after is None else self.spot_after
 
     def summary(self) -> str:
         """Terraform's line: a replacement counts once to add and once to destroy; then the drift, if any."""
@@ -120,7 +136,9 @@ class PlanDiff:
             "hosts": section(self.hosts), "nodes": section(self.nodes), "topics": section(self.topics),
             "security_rules": section(self.security_rules),
             "settings": [{"name": k, "before": b, "after": a} for k, b, a in self.settings],
-            "cost": {"hourly_usd_before": self.cost_before, "hourly_usd_after": self.cost_after},
+            "cost": {"hourly_usd_before": self.cost_before, "hourly_usd_after": self.cost_after,
+                     **({"spot_hourly_usd_before": self.spot_before, "spot_hourly_usd_after": self.spot_after,
+                         "spot_as_of": self.spot_as_of} if self.has_spot else {})},
             "exposure": list(self.exposure),
             "drift": [d.to_dict() for d in self.drift], "refreshed_at": self.refreshed_at or None,
         }
@@ -254,7 +272,15 @@ def diff_documents(before: Mapping[str, Any] | None, after: Mapping[str, Any], *
         cost_before=float(before.get("cost", {}).get("hourly_usd", 0.0)),
         cost_after=float(after.get("cost", {}).get("hourly_usd", 0.0)),
         exposure=_exposure(rules, topics),
+        spot_before=_spot_hourly(before), spot_after=_spot_hourly(after),
+        spot_as_of=str((after.get("cost", {}).get("spot_prices") or before.get("cost", {}).get("spot_prices")
+                        or {}).get("as_of", "")),
     )
+
+
+def _spot_hourly(doc: Mapping[str, Any]) -> float | None:
+    spot = doc.get("cost", {}).get("spot_hourly_usd")
+    return None if spot is None else float(spot)
 
 
 def with_drift(diff: PlanDiff, drift: tuple[Drift, ...], *, refreshed_at: str) -> PlanDiff:

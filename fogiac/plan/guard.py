@@ -3,8 +3,9 @@ warning when it has had no edge for longer than its autostop time yet still runs
 
 Pure: a target gathers the facts (its instances and their state, the network stack's age, when
 an edge was last seen) and this module does the sums and the wording, the same for every
-target. Prices are the catalogue's on-demand ones, like the plan's; a stopped instance's disk is
-not in the catalogue and is not counted.
+target. Prices are the catalogue's: on-demand, except that an instance running as spot (what the
+target got, after any fallback) is priced at the catalogue's spot estimate and labelled so, with
+the estimate's date; a stopped instance's disk is not in the catalogue and is not counted.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from fogiac.plan.catalog import catalog
 from fogiac.plan.model import Plan
 
 
@@ -24,6 +26,7 @@ class Billed:
     usd_per_hour: float  # what it costs now (0 while stopped, or on a machine with no price)
     since: float | None  # epoch seconds this rate has applied since; None: unknown, nothing counted so far
     running: bool = True  # a stopped host is kept (its disk) but does not run
+    spot_estimate: bool = False  # the rate is the catalogue's spot estimate (a spot instance), not a list price
 
 
 def duration(seconds: float) -> str:
@@ -36,7 +39,8 @@ def duration(seconds: float) -> str:
 
 def guard(billed: Sequence[Billed], *, now: float, autostop_s: float | None,
           edge_idle_since: float | None) -> dict[str, Any]:
-    """``{lines, usd_per_hour, cost_usd, no_edge_s, warning}`` for ``fogiac status`` (JSON-ready).
+    """``{lines, usd_per_hour, cost_usd, no_edge_s, warning, spot_estimate_as_of}`` for ``fogiac status``
+    (JSON-ready); ``spot_estimate_as_of`` is the spot estimates' date, None when no line is one.
 
     ``edge_idle_since``: since when no edge has been connected, as far as the target can tell
     (None: one is connected now, or nobody knows). The warning fires when that is longer than
@@ -44,8 +48,9 @@ def guard(billed: Sequence[Billed], *, now: float, autostop_s: float | None,
     it cannot stop (the Client VPN association) is still billed.
     """
     lines: list[dict[str, Any]] = [{"item": b.item, "usd_per_hour": b.usd_per_hour, "running": b.running,
-              "since": b.since, "cost_usd": round(max(0.0, now - b.since) / 3600 * b.usd_per_hour, 4)
-              if b.since is not None else None} for b in billed]
+              "spot_estimate": b.spot_estimate, "since": b.since,
+              "cost_usd": round(max(0.0, now - b.since) / 3600 * b.usd_per_hour, 4) if b.since is not None else None}
+             for b in billed]
     hourly = round(sum(b.usd_per_hour for b in billed), 4)
     no_edge = now - edge_idle_since if edge_idle_since is not None else None
     warning = ""
@@ -54,31 +59,48 @@ def guard(billed: Sequence[Billed], *, now: float, autostop_s: float | None,
         running = [b.item for b in billed if b.running]
         head = f"no edge for {duration(no_edge)}, longer than autostop's {duration(autostop_s)}"
         if costly:
-            warning = (f"{head}, and this stack still costs ${hourly:.2f}/h ({', '.join(costly)}): "
+            about = "about " if any(b.spot_estimate and b.usd_per_hour > 0 for b in billed) else ""
+            warning = (f"{head}, and this stack still costs {about}${hourly:.2f}/h ({', '.join(costly)}): "
                        "`fogiac down` removes it")
         elif running:
             warning = (f"{head}, yet {', '.join(running)} still run: the autostop watchdog did not stop them "
                        "(see its log on the host)")
     return {"lines": lines, "usd_per_hour": hourly,
             "cost_usd": round(sum(line["cost_usd"] or 0.0 for line in lines), 4),
-            "no_edge_s": round(no_edge) if no_edge is not None else None, "warning": warning}
+            "no_edge_s": round(no_edge) if no_edge is not None else None, "warning": warning,
+            "spot_estimate_as_of": catalog().spot_as_of if any(b.spot_estimate for b in billed) else None}
+
+
+def _prices(spot_as_of: str | None) -> str:
+    if spot_as_of is None:
+        return "on-demand catalogue prices"
+    return f"on-demand catalogue prices, spot instances at the catalogue's spot estimate of {spot_as_of}"
 
 
 def render(doc: dict[str, Any]) -> list[str]:
     """The guard's lines under a status table: the totals, then the warning if any."""
     out = [f"cost: ${doc['usd_per_hour']:.4f}/h now, ${doc['cost_usd']:.2f} so far "
-           "(on-demand catalogue prices; stopped hosts' disks not counted)"]
+           f"({_prices(doc.get('spot_estimate_as_of'))}; stopped hosts' disks not counted)"]
     for line in doc["lines"]:
         so_far = "-" if line["cost_usd"] is None else f"${line['cost_usd']:.2f}"
-        out.append(f"  ${line['usd_per_hour']:.4f}/h  {so_far:>8} so far  {line['item']}")
+        estimate = " (spot estimate)" if line.get("spot_estimate") else ""
+        out.append(f"  ${line['usd_per_hour']:.4f}/h  {so_far:>8} so far  {line['item']}{estimate}")
     if doc["warning"]:
         out.append(f"warning: {doc['warning']}")
     return out
 
 
 def up_summary(plan: Plan) -> str:
-    """``up``'s last word on money: what the stack costs while up and what autostop does about it."""
+    """``up``'s last word on money: what the stack costs while up and what autostop does about it.
+
+    ``plan`` is the plan as applied: a spot host that fell back to on-demand is on-demand there.
+    Spot hosts count at the catalogue's spot estimate, labelled, with on-demand as the ceiling.
+    """
+    spot = plan.spot_hourly_usd
     head = f"cost: ${plan.hourly_usd:.4f}/h while up"
+    if spot is not None:
+        head = (f"cost: about ${spot:.4f}/h while up (spot hosts at the catalogue's spot estimate of "
+                f"{catalog().spot_as_of}; ${plan.hourly_usd:.4f}/h at on-demand prices, the most spot costs)")
     if plan.autostop is None:
         return f"{head}; autostop is off: it costs this until `fogiac down`"
     stop = plan.autostop

@@ -5,6 +5,9 @@ instead of naming a type. Compile resolves that here, against the checked-in cat
 manifest's region, so the choice is the same on every machine and shows in ``fogiac plan`` with
 the next alternatives and their prices, the way FogROS2-Config offers a menu. Pure: no network.
 
+A spot node is ranked by the catalogue's spot estimate (on-demand less the Spot Instance
+Advisor's saving), since that is what it is expected to cost; the saving differs by type, so the
+cheapest on-demand type is not always the cheapest spot one. The choice says which price ranked it.
 Ties on price go to the smaller machine (fewer vCPUs, then less memory), then to the name in
 alphabetical order, so equal manifests always resolve to the same type.
 """
@@ -15,6 +18,7 @@ import operator
 import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import Literal
 
 from fogiac.plan.catalog import InstanceType, catalog
 
@@ -24,6 +28,7 @@ _OPS: Mapping[str, Callable[[float, float], bool]] = {
 }
 _STRICT_MISS = 0.01  # what a value on the wrong side of a strict bound misses by, at least
 ALTERNATIVES = 2  # how many runners-up a plan shows beside the choice
+RankedBy = Literal["on-demand", "spot"]  # which catalogue price put the types in order
 
 
 @dataclass(frozen=True)
@@ -108,7 +113,8 @@ def _same_gpu(asked: str, model: str | None) -> bool:
 @dataclass(frozen=True)
 class Option:
     name: str
-    usd_per_hour: float
+    usd_per_hour: float  # on-demand
+    spot_usd_per_hour: float | None = None  # the spot estimate, when spot prices ranked the menu
 
 
 @dataclass(frozen=True)
@@ -116,9 +122,11 @@ class Choice:
     """The resolved type and the next cheapest ones that also fit."""
 
     machine: str
-    usd_per_hour: float
+    usd_per_hour: float  # on-demand
     alternatives: tuple[Option, ...]
     chosen_for: str | None = None  # the requirement, in words; None when the manifest named the type
+    ranked_by: RankedBy | None = None  # None when the manifest named the type
+    spot_usd_per_hour: float | None = None  # the chosen type's spot estimate, when spot prices ranked it
 
 
 class NoMachine(ValueError):
@@ -130,24 +138,38 @@ def offered(region: str) -> list[InstanceType]:
     return [spec for spec in catalog().types.values() if region in spec.usd_per_hour]
 
 
-def _rank(spec: InstanceType, region: str) -> tuple[float, int, float, str]:
-    return (spec.usd_per_hour[region], spec.vcpus, spec.memory_gib, spec.name)
+def _spot(spec: InstanceType, region: str, by: RankedBy) -> float | None:
+    return spec.spot_usd_per_hour(region) if by == "spot" else None
 
 
-def _label(spec: InstanceType, region: str) -> str:
+def price(spec: InstanceType, region: str, by: RankedBy) -> float:
+    """The price ``by`` ranks with; a type without a spot estimate ranks at on-demand, the most spot costs."""
+    spot = _spot(spec, region, by)
+    return spec.usd_per_hour[region] if spot is None else spot
+
+
+def _rank(spec: InstanceType, region: str, by: RankedBy) -> tuple[float, int, float, str]:
+    return (price(spec, region, by), spec.vcpus, spec.memory_gib, spec.name)
+
+
+def _label(spec: InstanceType, region: str, by: RankedBy) -> str:
     gpu = f"{spec.gpus}x {spec.gpu_model}, " if spec.has_gpu else ""
-    return f"{spec.name} ({gpu}{spec.vcpus} vCPU, {spec.memory_gib:g} GiB, ${spec.usd_per_hour[region]:g}/h)"
+    spot = _spot(spec, region, by)
+    cost = f"${spec.usd_per_hour[region]:g}/h" + (f", spot about ${spot:g}/h" if spot is not None else "")
+    return f"{spec.name} ({gpu}{spec.vcpus} vCPU, {spec.memory_gib:g} GiB, {cost})"
 
 
-def choose(req: Requirement, region: str) -> Choice:
-    """The cheapest type in ``region`` that meets ``req``; raises :class:`NoMachine` if none does."""
+def choose(req: Requirement, region: str, *, spot: bool = False) -> Choice:
+    """The cheapest type in ``region`` that meets ``req``, at the spot estimate when ``spot``;
+    raises :class:`NoMachine` if none fits."""
+    by: RankedBy = "spot" if spot else "on-demand"
     types = offered(region)
-    fits = sorted((s for s in types if req.miss(s) == 0.0), key=lambda s: _rank(s, region))
+    fits = sorted((s for s in types if req.miss(s) == 0.0), key=lambda s: _rank(s, region, by))
     if not fits:
-        closest = sorted(types, key=lambda s: (req.miss(s),) + _rank(s, region))[:3]
+        closest = sorted(types, key=lambda s: (req.miss(s),) + _rank(s, region, by))[:3]
         raise NoMachine(f"no instance type in {region} has {req.describe()}; closest: "
-                        + ", ".join(_label(s, region) for s in closest))
+                        + ", ".join(_label(s, region, by) for s in closest))
     best, rest = fits[0], fits[1:1 + ALTERNATIVES]
     return Choice(machine=best.name, usd_per_hour=best.usd_per_hour[region],
-                  alternatives=tuple(Option(s.name, s.usd_per_hour[region]) for s in rest),
-                  chosen_for=req.describe())
+                  alternatives=tuple(Option(s.name, s.usd_per_hour[region], _spot(s, region, by)) for s in rest),
+                  chosen_for=req.describe(), ranked_by=by, spot_usd_per_hour=_spot(best, region, by))

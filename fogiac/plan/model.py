@@ -15,7 +15,7 @@ from typing import Any, Literal
 
 from fogiac.errors import PlanError
 from fogiac.net.relay.config import RELAY_PORT as RELAY_PORT  # re-exported: the ports a plan opens, in one place
-from fogiac.plan.machines import Option
+from fogiac.plan.machines import Option, RankedBy
 
 # Ports. ROS 1 masters listen on 11311; nodes on ephemeral ports, which Linux takes from
 # 32768-60999 by default; the relay's cloud end on RELAY_PORT.
@@ -157,6 +157,7 @@ class HostSpec:
     image: ImageQuery | None = None
     chosen_for: str | None = None  # the node's requirement in words, when compile chose the machine
     alternatives: tuple[Option, ...] = ()  # the next cheapest types that also fit
+    ranked_by: RankedBy | None = None  # which price chose the machine (spot for a spot host); None: named
     spot_usd_per_hour: float | None = None  # a spot host's catalogue spot estimate (None: on-demand, or unknown)
     address: str | None = None
     user: str | None = None

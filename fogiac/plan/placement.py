@@ -86,11 +86,12 @@ def host_per_node(manifest: Manifest, *, stack: str, tags: Tags,
     types = catalog().types
     hosts = []
     for node in manifest.nodes:
-        choice = node.machine_choice(manifest.cloud.region)
+        choice = node.machine_choice(manifest.cloud.region, spot=node.spot and spot)
         spec = types[choice.machine]
         hosts.append(HostSpec(
             name=node.name, machine=choice.machine, alternatives=choice.alternatives,
-            chosen_for=choice.chosen_for, vcpus=spec.vcpus, gpus=spec.gpus, memory_gib=spec.memory_gib,
+            chosen_for=choice.chosen_for, ranked_by=choice.ranked_by,
+            vcpus=spec.vcpus, gpus=spec.gpus, memory_gib=spec.memory_gib,
             usd_per_hour=usd_per_hour(spec), spot=node.spot and spot,
             spot_usd_per_hour=spot_usd_per_hour(spec) if node.spot and spot else None,
             disk_gb=node.disk_gb, nodes=(node.name,),

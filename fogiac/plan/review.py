@@ -64,7 +64,10 @@ def _topic(row: Mapping[str, Any]) -> str:
 
 
 def _host(row: Mapping[str, Any]) -> str:
-    return f"{row['name']} ({row['machine']}, ${row['usd_per_hour']:.4f}/h)"
+    spot = row.get("spot_usd_per_hour") if row.get("spot") else None
+    if spot is None:
+        return f"{row['name']} ({row['machine']}, ${row['usd_per_hour']:.4f}/h)"
+    return f"{row['name']} ({row['machine']}, spot, about ${spot:.4f}/h est., ${row['usd_per_hour']:.4f}/h on-demand)"
 
 
 def _node(row: Mapping[str, Any]) -> str:
@@ -88,9 +91,16 @@ def drift_lines(drift: Drift) -> list[str]:
 
 
 def cost_line(diff: PlanDiff) -> str:
-    delta = diff.cost_after - diff.cost_before
+    """The hour before and after; with spot hosts on either side, at their spot estimate (dated) and
+    at on-demand, the most they cost."""
+    before, after = diff.expected_before, diff.expected_after
+    delta = after - before
     sign = "+" if delta >= 0 else "-"
-    return f"hourly cost: ${diff.cost_before:.4f} -> ${diff.cost_after:.4f} ({sign}${abs(delta):.4f})"
+    line = f"hourly cost: ${before:.4f} -> ${after:.4f} ({sign}${abs(delta):.4f})"
+    if not diff.has_spot:
+        return line
+    return (f"{line}, spot hosts at the catalogue's spot estimate of {diff.spot_as_of}; "
+            f"at on-demand prices ${diff.cost_before:.4f} -> ${diff.cost_after:.4f}")
 
 
 def sections(diff: PlanDiff) -> list[tuple[str, list[str]]]:
@@ -99,7 +109,8 @@ def sections(diff: PlanDiff) -> list[tuple[str, list[str]]]:
            (f"drift (the cloud as refreshed at {diff.refreshed_at})",
             [line for d in diff.drift for line in drift_lines(d)]),
            ("security rules", section_lines(diff.security_rules, _rule)),
-           ("cost", [cost_line(diff)] if diff.cost_before != diff.cost_after else []),
+           ("cost", [cost_line(diff)] if (diff.cost_before, diff.spot_before) != (diff.cost_after, diff.spot_after)
+            else []),
            ("resources", [line for r in diff.changed_resources for line in resource_lines(r)]),
            ("hosts", section_lines(diff.hosts, _host)),
            ("nodes", section_lines(diff.nodes, _node)),

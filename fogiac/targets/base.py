@@ -42,6 +42,7 @@ class UpResult:
     report: Any = None  # the provisioning report (fogiac.provision.runner.ProvisionReport), if any
     relays: Mapping[str, str] = field(default_factory=dict)  # host -> HOST:PORT the edge relay dials
     edge_master: str = ""
+    plan: Plan | None = None  # the plan as applied, where the target changed it (a spot host fell back to on-demand)
 
 
 @dataclass(frozen=True)

@@ -39,6 +39,8 @@ GRASP = """\
     gpu: true
 """
 
+SPOT_PLANNER = BASE.replace("    workload: motion_planning\n", "    workload: motion_planning\n    spot: true\n")
+
 
 @dataclass(frozen=True)
 class Pair:
@@ -80,6 +82,15 @@ PAIRS = (
           "-/+ aws:ec2/instance:Instance review-dev-host-planner",
           "subnetId: <review-dev-subnet-hosts.id> -> (known after apply)  # forces replacement",
           "~ aws:ec2/internetGateway:InternetGateway review-dev-igw")),
+    Pair("spot turned on is priced at the spot estimate, on-demand beside", BASE, SPOT_PLANNER, 2,
+         "Plan: 1 to add, 0 to change, 1 to destroy.",
+         ("hourly cost: $0.2350 -> $0.1789 (-$0.0561), spot hosts at the catalogue's spot estimate of 2025-06-28; "
+          "at on-demand prices $0.2350 -> $0.2350", "spot: false -> true",
+          "instanceMarketOptions.marketType: null -> spot  # forces replacement")),
+    Pair("spot node added", BASE, BASE + GRASP + "    spot: true\n", 2, "Plan: 1 to add, 0 to change, 0 to destroy.",
+         ("hourly cost: $0.2350 -> $0.4244 (+$0.1894), spot hosts at the catalogue's spot estimate of 2025-06-28; "
+          "at on-demand prices $0.2350 -> $0.7610",
+          "+ grasp (g4dn.xlarge, spot, about $0.1894/h est., $0.5260/h on-demand)")),
     Pair("no change", BASE, BASE, 0, "", ("No changes. Your infrastructure matches the configuration.",),
          ("Plan:",)),
 )
@@ -116,7 +127,7 @@ def test_json_v2_carries_action_before_and_after(tmp_path: Path) -> None:
     changes = doc["changes"]
     assert changes["summary"] == "Plan: 0 to add, 1 to change, 0 to destroy." and changes["against"] == "manifest"
     assert (changes["add"], changes["change"], changes["destroy"]) == (0, 1, 0)
-    assert changes["cost"] == {"hourly_usd_before": 0.235, "hourly_usd_after": 0.32}
+    assert changes["cost"] == {"hourly_usd_before": 0.235, "hourly_usd_after": 0.32}  # no spot: on-demand only
     assert all("[secret]" == r["inputs"]["privateKey"] for r in doc["resources"] if "privateKey" in r["inputs"])
 
 
@@ -156,3 +167,21 @@ def test_bad_base_is_one_line(against: str, error: str, tmp_path: Path, monkeypa
     result = runner.invoke(app, ["plan", "fogiac.yaml", "--against", against])
     assert result.exit_code == 1
     assert result.output.strip() == error
+
+
+def test_markdown_comment_prices_spot_at_the_estimate(tmp_path: Path) -> None:
+    """The pull-request comment's cost line and host rows for a spot host: the estimate, dated, and on-demand."""
+    (tmp_path / "base.yaml").write_text(BASE)
+    (tmp_path / "head.yaml").write_text(SPOT_PLANNER + GRASP + "    spot: true\n")
+    head, base = str(tmp_path / "head.yaml"), str(tmp_path / "base.yaml")
+    result = runner.invoke(app, ["plan", head, "--against", base, "--markdown"])
+    assert result.exit_code == 0, result.output
+    lines = result.output.splitlines()
+    assert lines[3] == ("hourly cost: $0.2350 -> $0.3683 (+$0.1333), spot hosts at the catalogue's spot estimate of "
+                        "2025-06-28; at on-demand prices $0.2350 -> $0.7610")
+    assert "+ grasp (g4dn.xlarge, spot, about $0.1894/h est., $0.5260/h on-demand)" in lines
+    cost = json.loads(runner.invoke(app, ["plan", head, "--against", base, "--json"]).output)["changes"]["cost"]
+    assert cost == {"hourly_usd_before": 0.235, "hourly_usd_after": 0.761, "spot_hourly_usd_before": None,
+                    "spot_hourly_usd_after": 0.3683, "spot_as_of": "2025-06-28"}
+    same = runner.invoke(app, ["plan", head, "--against", head, "--detailed-exitcode"])
+    assert same.exit_code == 0, same.output  # equal spot totals: nothing to report

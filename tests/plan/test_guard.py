@@ -8,6 +8,7 @@ from pathlib import Path
 
 from fogiac.manifest.schema import load_manifest
 from fogiac.orchestrate import edge_dir, edge_idle_since
+from fogiac.plan.catalog import catalog
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.guard import Billed, duration, guard, render, up_summary
 from fogiac.plan.model import Plan
@@ -16,11 +17,11 @@ NOW = 1_800_000_000.0
 HOUR = 3600.0
 
 
-def _plan(tmp_path: Path, *, autostop: str = "", mode: str = "vpn", target: str = "aws") -> Plan:
+def _plan(tmp_path: Path, *, autostop: str = "", mode: str = "vpn", target: str = "aws", spot: bool = False) -> Plan:
     path = tmp_path / "g.yaml"
     path.write_text(f"name: guarded\ncloud:\n  provider: {target}\n  region: us-west-2\n{autostop}"
                     f"network:\n  mode: {mode}\nnodes:\n  - name: planner\n    machine: g4dn.xlarge\n"
-                    "    gpu: true\n    image: ros:noetic-ros-core\n")
+                    "    gpu: true\n    image: ros:noetic-ros-core\n" + ("    spot: true\n" if spot else ""))
     return compile_plan(load_manifest(path))
 
 
@@ -73,3 +74,28 @@ def test_up_summary_says_what_autostop_does_about_the_cost(tmp_path: Path) -> No
     off = _plan(tmp_path, autostop="  autostop: off\n", mode="proxy")
     assert up_summary(off) == "cost: $0.5260/h while up; autostop is off: it costs this until `fogiac down`"
     assert duration(59) == "0m 59s" and duration(7260) == "2h 01m"
+
+
+def test_spot_lines_are_priced_at_the_estimate_and_say_so() -> None:
+    billed = [Billed("instance a (g4dn.xlarge, spot, running)", 0.1894, NOW - 2 * HOUR, spot_estimate=True),
+              Billed("Client VPN subnet association", 0.1, NOW - 2 * HOUR)]
+    doc = guard(billed, now=NOW, autostop_s=1800, edge_idle_since=NOW - HOUR)
+    assert (doc["usd_per_hour"], doc["cost_usd"], doc["spot_estimate_as_of"]) == (0.2894, 0.5788, "2025-06-28")
+    assert render(doc)[:3] == [
+        "cost: $0.2894/h now, $0.58 so far (on-demand catalogue prices, spot instances at the catalogue's spot "
+        "estimate of 2025-06-28; stopped hosts' disks not counted)",
+        "  $0.1894/h     $0.38 so far  instance a (g4dn.xlarge, spot, running) (spot estimate)",
+        "  $0.1000/h     $0.20 so far  Client VPN subnet association"]
+    assert doc["warning"].startswith("no edge for 1h 00m, longer than autostop's 30m 00s, and this stack still "
+                                     "costs about $0.29/h (instance a")
+    plain = guard(billed[1:], now=NOW, autostop_s=None, edge_idle_since=None)
+    assert plain["spot_estimate_as_of"] is None and "spot" not in render(plain)[0]
+
+
+def test_up_summary_prices_spot_hosts_at_the_estimate_with_on_demand_as_the_ceiling(tmp_path: Path) -> None:
+    spot = catalog().types["g4dn.xlarge"].spot_usd_per_hour("us-west-2")
+    assert spot is not None
+    assert up_summary(_plan(tmp_path, spot=True)) == (
+        f"cost: about ${spot + 0.15:.4f}/h while up (spot hosts at the catalogue's spot estimate of 2025-06-28; "
+        "$0.6760/h at on-demand prices, the most spot costs); autostop stops the hosts after 30m 00s without an "
+        "edge; the Client VPN association is billed until `fogiac down`")

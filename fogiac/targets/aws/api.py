@@ -292,7 +292,8 @@ class InstanceStatus:
     usd_per_hour: float = 0.0  # what it costs now (0 while stopped; its disk is not in the catalogue)
     stopped_at: _dt.datetime | None = None
     stopped_by: str = ""  # "the instance" (autostop's poweroff), "a user", or "" while running
-    spot: bool = False  # bought on the spot market (priced here at most the on-demand rate)
+    spot: bool = False  # bought on the spot market, as EC2 reports it (after any fallback to on-demand)
+    spot_estimate: bool = False  # usd_per_hour and cost_usd are the catalogue's spot estimate, not a list price
 
 
 _STOPPED_AT = re.compile(r"\((\d{4}-\d\d-\d\d \d\d:\d\d:\d\d) (?:GMT|UTC)\)")  # AWS says GMT, moto UTC
@@ -315,7 +316,9 @@ def stop_time(inst: dict[str, Any]) -> tuple[_dt.datetime | None, str]:
 
 def status(stack: str, *, region: str, ec2: Any = None,
            now: _dt.datetime | None = None) -> list[InstanceStatus]:
-    """The stack's instances (not terminated), with uptime and cost so far at catalogue prices."""
+    """The stack's instances (not terminated), with uptime and cost so far at catalogue prices: a spot
+    instance (EC2's ``InstanceLifecycle``, so one that fell back to on-demand is not) at the spot
+    estimate, any other, or a spot type without an estimate, at on-demand."""
     ec2 = ec2 or client("ec2", region=region)
     now = now or _dt.datetime.now(_dt.timezone.utc)
     prices = catalog().types
@@ -329,7 +332,10 @@ def status(stack: str, *, region: str, ec2: Any = None,
             running = state in {"pending", "running", "stopping"}
             uptime = max(0.0, (now - launched).total_seconds()) if running else 0.0
             known = prices.get(inst["InstanceType"])
-            price = known.usd_per_hour.get(region, 0.0) if known is not None else 0.0
+            spot = inst.get("InstanceLifecycle") == "spot"
+            on_demand = known.usd_per_hour.get(region, 0.0) if known is not None else 0.0
+            estimate = known.spot_usd_per_hour(region) if known is not None and spot else None
+            price = on_demand if estimate is None else estimate
             tags = tags_of(inst)
             stopped_at, stopped_by = stop_time(inst)
             rows.append(InstanceStatus(
@@ -337,7 +343,7 @@ def status(stack: str, *, region: str, ec2: Any = None,
                 state=state, machine=inst["InstanceType"], public_ip=inst.get("PublicIpAddress"),
                 private_ip=inst.get("PrivateIpAddress"), launched=launched, uptime_s=uptime,
                 cost_usd=round(uptime / 3600 * price, 4), usd_per_hour=price if running else 0.0,
-                stopped_at=stopped_at, stopped_by=stopped_by, spot=inst.get("InstanceLifecycle") == "spot"))
+                stopped_at=stopped_at, stopped_by=stopped_by, spot=spot, spot_estimate=estimate is not None))
     return sorted(rows, key=lambda r: (r.name, r.instance_id))
 
 

@@ -73,7 +73,9 @@ class AwsTarget:
             opts.show(doc, report)
             if plan.vpn is not None:
                 opts.announce(engine.VPN_NOTICE)
-            question = f"Create these resources in {plan.region} (${plan.hourly_usd:.4f}/h)?"
+            spot_hourly = plan.spot_hourly_usd
+            price = f"${plan.hourly_usd:.4f}/h" + (f", about ${spot_hourly:.4f}/h with spot" if spot_hourly else "")
+            question = f"Create these resources in {plan.region} ({price})?"
             if not opts.yes and not opts.confirm(question):
                 raise FogiacError("not applied: nothing was changed")
             master = opts.edge_master or plan.edge_master
@@ -96,10 +98,10 @@ class AwsTarget:
             write_json_atomic(folder / APPLIED_FILE, doc)
             deployment.finish(plan, opts.manifest_path, plan_digest=doc["plan_digest"])
             if opts.infra_only:
-                return UpResult(outputs=outputs, applied=folder / APPLIED_FILE)
+                return UpResult(outputs=outputs, applied=folder / APPLIED_FILE, plan=plan)
             done = self._connect(plan, outputs, master=master, announce=opts.announce)
             return UpResult(outputs=outputs, applied=folder / APPLIED_FILE, report=done.report,
-                            relays=done.relays, edge_master=master)
+                            relays=done.relays, edge_master=master, plan=plan)
 
     def _apply(self, plan: Plan, operator_cidrs: tuple[str, ...], fallen: Collection[str],
                opts: UpOptions) -> tuple[Plan, dict[str, Any]]:
@@ -298,9 +300,10 @@ def cost_guard(plan: Plan, rows: list[api.InstanceStatus], outputs: Mapping[str,
     so the edge has been gone since at least then; the edge relays' stats files say when this
     machine last ran one.
     """
-    billed = [guard.Billed(f"instance {r.name} ({r.machine}, {r.state})", r.usd_per_hour,
+    billed = [guard.Billed(f"instance {r.name} ({r.machine}{', spot' if r.spot else ''}, {r.state})", r.usd_per_hour,
                            r.launched.timestamp() if r.usd_per_hour else None,
-                           running=r.state in {"pending", "running", "stopping"}) for r in rows]
+                           running=r.state in {"pending", "running", "stopping"},
+                           spot_estimate=r.spot_estimate and r.usd_per_hour > 0) for r in rows]
     if plan.vpn is not None and outputs.get("network", {}).get("vpn_endpoint_id"):
         billed.append(guard.Billed("Client VPN subnet association", catalog().vpn_association_usd_per_hour,
                                    outputs.get(NETWORK_SINCE)))

@@ -1,7 +1,9 @@
 """Spot with fallback against LocalStack: the harness refuses spot launches as AWS does with no capacity.
 
 fogiac then makes the host on-demand, says so, keeps it on-demand on later ups (switching market
-would replace it) and leaves no instance and no spot request after down. LocalStack records a
+would replace it) and leaves no instance and no spot request after down. What the stack costs
+(``up``'s last line, ``status``'s cost guard) follows what EC2 gave: a spot instance at the
+catalogue's spot estimate, labelled with its date, a fallen-back one at on-demand. LocalStack records a
 spot launch as an instance with lifecycle "spot" and makes no spot request object, so "no stray
 request" is checked as far as the emulator can show it.
 """
@@ -16,6 +18,7 @@ import pytest
 from typer.testing import CliRunner
 
 from fogiac.cli import app
+from fogiac.plan.catalog import catalog
 from fogiac.state import stack_dir
 from fogiac.targets.aws.engine import OUTPUTS_FILE
 from fogiac.targets.aws.spot import ON_DEMAND, no_capacity
@@ -65,13 +68,20 @@ def test_no_spot_capacity_falls_back_to_on_demand_and_says_so(engine_is_harness:
                                                 Attribute="instanceInitiatedShutdownBehavior")
     assert behaviour["InstanceInitiatedShutdownBehavior"]["Value"] == "stop"
     assert json.loads((stack_dir("nospot-dev") / OUTPUTS_FILE).read_text())[ON_DEMAND] == ["planner"]
+    # priced as what it runs as: on-demand, though the manifest asked for spot
+    assert result.stdout.splitlines()[-1].startswith("cost: $0.2350/h while up; autostop stops the hosts")
     status = json.loads(fogiac("status", str(path), "--json").stdout)
     assert [(h["host"], h["market"]) for h in status["hosts"]] == [("planner", "on-demand")]
+    line = status["cost"]["lines"][0]
+    assert (line["item"], line["usd_per_hour"], line["spot_estimate"]) == ("instance planner (c5.large, running)",
+                                                                           0.085, False)
+    assert status["cost"]["spot_estimate_as_of"] is None and status["cost"]["usd_per_hour"] == 0.185
 
     engine_is_harness.spot_capacity = True  # capacity came back: the running on-demand host is kept, not replaced
     again = fogiac("up", str(path), "--yes", "--infra-only")
     assert again.exit_code == 0, again.output
     assert engine_is_harness.created == [] and _instance(ec2, "nospot-dev")["InstanceId"] == instance["InstanceId"]
+    assert again.stdout.splitlines()[-1].startswith("cost: $0.2350/h while up;")  # still on-demand, still priced so
 
     assert fogiac("down", str(path), "--yes").exit_code == 0
     assert _tagged(ec2, "nospot-dev") == {"vpcs": [], "instances": [], "keys": []}
@@ -90,8 +100,20 @@ def test_spot_when_there_is_capacity(engine_is_harness: Harness, ec2: Any, tmp_p
                                                 Attribute="instanceInitiatedShutdownBehavior")
     assert behaviour["InstanceInitiatedShutdownBehavior"]["Value"] == "terminate"  # one-time spot cannot stop
     assert ON_DEMAND not in json.loads((stack_dir("gotspot-dev") / OUTPUTS_FILE).read_text())
+    spot = catalog().types["c5.large"].spot_usd_per_hour("us-west-2")
+    assert spot is not None and spot < 0.085
+    assert result.stdout.splitlines()[-1].startswith(
+        f"cost: about ${spot + 0.15:.4f}/h while up (spot hosts at the catalogue's spot estimate of "
+        f"{catalog().spot_as_of}; $0.2350/h at on-demand prices, the most spot costs); autostop")
     status = fogiac("status", str(path))
     assert "c5.large (spot)" in status.stdout
+    text = " ".join(status.stdout.split())
+    assert (f"(on-demand catalogue prices, spot instances at the catalogue's spot estimate of "
+            f"{catalog().spot_as_of}; stopped hosts' disks not counted)") in text
+    assert f"${spot:.4f}/h" in text and "instance planner (c5.large, spot, running) (spot estimate)" in text
+    doc = json.loads(fogiac("status", str(path), "--json").stdout)["cost"]
+    assert (doc["lines"][0]["usd_per_hour"], doc["lines"][0]["spot_estimate"]) == (spot, True)
+    assert doc["usd_per_hour"] == round(spot + 0.1, 4) and doc["spot_estimate_as_of"] == catalog().spot_as_of
     assert fogiac("down", str(path), "--yes").exit_code == 0
     assert _tagged(ec2, "gotspot-dev") == {"vpcs": [], "instances": [], "keys": []}
     _no_stray_spot_request(ec2, [instance["InstanceId"]])

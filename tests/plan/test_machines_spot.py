@@ -1,0 +1,100 @@
+"""Machines by requirement for spot nodes: ranked by the catalogue's spot estimate, and saying so.
+
+The Spot Instance Advisor's saving differs by type and region, so the cheapest spot type is often
+not the cheapest on-demand one; each row below is a case where the catalogue (spot block dated
+2025-06-28) makes them differ, or checks that they agree.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from fogiac.cli import app
+from fogiac.manifest.schema import parse_manifest
+from fogiac.plan.catalog import catalog
+from fogiac.plan.compile import compile_plan
+from fogiac.plan.machines import NoMachine, Requirement, choose
+
+from .test_machines import manifest, req
+
+# (requirement, region, chosen at spot, its two alternatives at spot, chosen at on-demand)
+SPOT_CHEAPEST = [
+    (req(gpu="NVIDIA A10G", memory="32"), "us-west-2", "g5.4xlarge", ("g5.2xlarge", "g5.8xlarge"), "g5.2xlarge"),
+    (req(vcpus=">=64"), "us-east-1", "c5.18xlarge", ("m5.16xlarge", "c6i.16xlarge"), "c6i.16xlarge"),
+    (req(vcpus="==4", memory="<=8"), "us-west-2", "c6i.xlarge", ("c5.xlarge",), "c5.xlarge"),
+    (req(vcpus=">=4"), "us-east-1", "m5.xlarge", ("t3.xlarge", "c6i.xlarge"), "t3.xlarge"),
+    (req(vcpus=">=4"), "us-west-2", "t3.xlarge", ("m5.xlarge", "c6i.xlarge"), "t3.xlarge"),  # same pick, new menu
+    (req(gpu=True), "us-west-2", "g4dn.xlarge", ("g4dn.2xlarge", "g4dn.4xlarge"), "g4dn.xlarge"),
+    (req(gpu="T4", vcpus=">=8", memory=">=16"), "us-west-2", "g4dn.2xlarge", ("g4dn.4xlarge", "g4dn.8xlarge"),
+     "g4dn.2xlarge"),
+]
+
+
+@pytest.mark.parametrize(("requirement", "region", "chosen", "alternatives", "on_demand"), SPOT_CHEAPEST)
+def test_spot_ranks_by_the_spot_estimate(requirement: Requirement, region: str, chosen: str,
+                                         alternatives: tuple[str, ...], on_demand: str) -> None:
+    choice = choose(requirement, region, spot=True)
+    assert (choice.machine, tuple(o.name for o in choice.alternatives)) == (chosen, alternatives)
+    assert choice.ranked_by == "spot"
+    types = catalog().types
+    estimates = [choice.spot_usd_per_hour] + [o.spot_usd_per_hour for o in choice.alternatives]
+    assert estimates == [types[n].spot_usd_per_hour(region) for n in (chosen, *alternatives)]
+    assert estimates == sorted(estimates)  # type: ignore[type-var]
+    assert choice.usd_per_hour == types[chosen].usd_per_hour[region]  # on-demand still carried: spot's ceiling
+    plain = choose(requirement, region)
+    assert (plain.machine, plain.ranked_by, plain.spot_usd_per_hour) == (on_demand, "on-demand", None)
+
+
+# Equal spot estimates: the smaller machine first, then the name, as at on-demand.
+SPOT_TIES = [
+    (req(vcpus=">=48", memory="<=96"), "us-east-1", "c5.12xlarge", ("c6i.12xlarge",)),  # both $0.6732/h spot
+]
+
+
+@pytest.mark.parametrize(("requirement", "region", "chosen", "alternatives"), SPOT_TIES)
+def test_spot_ties_go_to_the_smaller_then_the_name(requirement: Requirement, region: str, chosen: str,
+                                                   alternatives: tuple[str, ...]) -> None:
+    choice = choose(requirement, region, spot=True)
+    assert (choice.machine, tuple(o.name for o in choice.alternatives)) == (chosen, alternatives)
+    assert {choice.spot_usd_per_hour} == {o.spot_usd_per_hour for o in choice.alternatives}  # a real tie
+
+
+def test_nothing_fits_names_the_closest_with_their_spot_estimates() -> None:
+    with pytest.raises(NoMachine, match=r"^no instance type in us-west-2 has gpu A100; closest: g4dn\.xlarge "
+                                        r"\(1x NVIDIA T4, 4 vCPU, 16 GiB, \$0\.526/h, spot about \$0\.1894/h\), "):
+        choose(req(gpu="A100"), "us-west-2", spot=True)
+
+
+@pytest.mark.parametrize(("target", "machine", "ranked_by", "spot_each"), [
+    ("aws", "g5.4xlarge", "spot", 0.4872),  # the target buys it as spot: ranked by the estimate
+    ("local", "g5.2xlarge", "on-demand", None),  # no spot on this machine: on-demand ranks, as without spot
+])
+def test_compile_ranks_a_spot_node_by_what_the_target_buys(target: str, machine: str, ranked_by: str,
+                                                          spot_each: float | None) -> None:
+    text = manifest("{gpu: A10G, memory_gib: 32}", extra="    spot: true\n")
+    host = compile_plan(parse_manifest(text), target=target).host("planner")
+    assert (host.machine, host.ranked_by, host.spot_usd_per_hour) == (machine, ranked_by, spot_each)
+
+
+def test_plain_type_with_spot_keeps_working() -> None:
+    host = compile_plan(parse_manifest(manifest("g5.xlarge", extra="    spot: true\n"))).host("planner")
+    assert (host.machine, host.chosen_for, host.ranked_by, host.alternatives) == ("g5.xlarge", None, None, ())
+    assert host.spot and host.spot_usd_per_hour == catalog().types["g5.xlarge"].spot_usd_per_hour("us-west-2")
+
+
+def test_plan_shows_which_price_ranked_the_menu(tmp_path: Path) -> None:
+    path = tmp_path / "req.yaml"
+    path.write_text(manifest("{gpu: A10G, memory_gib: 32}", extra="    spot: true\n"))
+    shown = CliRunner().invoke(app, ["plan", str(path)])
+    assert shown.exit_code == 0, shown.output
+    assert (f"planner: g5.4xlarge ($0.4872/h spot est., $1.6240/h on-demand) is the cheapest at spot estimates "
+            f"({catalog().spot_as_of}) with gpu A10G, memory_gib >= 32; next: g5.2xlarge ($0.4969/h spot est., "
+            "$1.2120/h on-demand), g5.8xlarge ($0.7344/h spot est., $2.4480/h on-demand)") \
+        in " ".join(shown.output.split())
+    path.write_text(manifest("{gpu: A10G, memory_gib: 32}"))
+    shown = CliRunner().invoke(app, ["plan", str(path)])
+    assert ("planner: g5.2xlarge ($1.2120/h) is the cheapest at on-demand prices with gpu A10G, memory_gib >= 32; "
+            "next: g5.4xlarge ($1.6240/h), g5.8xlarge ($2.4480/h)") in " ".join(shown.output.split())

@@ -70,5 +70,6 @@ mkdir -p "$work/ros2/wheels"
 printf '%s\n' "$dockerfile" > "$work/ros2/Dockerfile"
 old=$(podman image inspect --format '{{.Id}}' "$IMAGE2" 2>/dev/null || true)
 as_root podman build --quiet --pull=never --network none -t "$IMAGE2" "$work/ros2" >/dev/null
-if [ -n "$old" ]; then as_root podman rmi "$old" >/dev/null 2>&1 || true; fi  # the stand-in it replaced
+new=$(podman image inspect --format '{{.Id}}' "$IMAGE2")
+if [ -n "$old" ] && [ "$old" != "$new" ]; then as_root podman rmi "$old" >/dev/null 2>&1 || true; fi  # the one it replaced
 echo "$want2" | as_root tee "$stamp2" >/dev/null

@@ -60,6 +60,9 @@ class Middleware(Protocol):
     def credentials_first(self) -> bool: ...  # True: host_credentials before host_services start, else at link
 
     @property
+    def node_master(self) -> bool: ...  # True: nodes register with a ROS master, which health checks ask
+
+    @property
     def host_requirements(self) -> tuple[str, ...]: ...  # pinned PyPI packages its cloud side imports on a host
 
     def edge_entry(self, edge: Edge) -> str:

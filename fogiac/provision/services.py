@@ -293,8 +293,10 @@ def master_service(plan: Plan, spec: HostSpec, where: Where) -> Service:
 
 
 def node_services(plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ...]:
-    """One service per node placed on ``spec``, in plan order."""
+    """One service per node placed on ``spec``, in plan order. Without a ROS master (ROS 2) a node's
+    health is its process running: there is nothing to register with."""
     digests = dict(where.workspace_digests)
+    master = middleware.get(plan.middleware).node_master
     out = []
     for name in spec.nodes:
         node = plan.node(name)
@@ -306,7 +308,8 @@ def node_services(plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ..
         files = ((node_env_file(where.layout, name), env_file_text(node.env), 0o600),) if in_container and node.env \
             else ()
         out.append(_service(
-            f"node-{name}", plan=plan, spec=spec, where=where, command=parts.command, check=parts.check,
+            f"node-{name}", plan=plan, spec=spec, where=where, command=parts.command,
+            check=parts.check if master else "alive",
             env=() if in_container else node.env, pre=parts.pre, package_path=parts.package_path,
             python_path=parts.python_path, cwd=parts.cwd, notes=notes, after=unit_name(plan.stack, "ros-master"),
             files=files, bin_path=parts.bin_path,

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -70,12 +71,30 @@ class Middleware(Protocol):
         ...
 
 
+@dataclass(frozen=True)
+class NativeRos:
+    """What a native host must have for a middleware's nodes, how to tell, and how to get it."""
+
+    needs: str  # in words, for the refusal: "roscore, roslaunch, rospy"
+    check: str  # a shell command that exits 0 when the host has it all
+    packages: tuple[str, ...]  # what installs it
+    install: str  # the script that installs them (run as root), rendered
+    by_hand: str  # the command a person runs instead, for the refusal
+    origin: str = ""  # where the packages come from, when not the OS's own archive
+    setup: str = ""  # a script the nodes' environment sources first, when the host has it
+    probed: tuple[str, ...] = ()  # probe flags that, all present, answer ``check`` at no cost
+
+
 class Deployment(Protocol):
     """How a middleware is deployed: provisioning asks for a host's services, ``up``/``down``/``status``
     for the edge's."""
 
     def node_env(self, where: Where) -> Mapping[str, str]:
         """The environment every node on a host gets (its env file, its containers)."""
+        ...
+
+    def native_ros(self, distro: str) -> NativeRos:
+        """What a host on the native runtime needs before this middleware's nodes can run there."""
         ...
 
     def host_services(self, plan: Plan, spec: HostSpec, where: Where, *, certs: Path | None) -> tuple[Service, ...]:

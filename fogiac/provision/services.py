@@ -144,9 +144,11 @@ def node_env_file(layout: Layout, node: str) -> str:
     return f"{layout.env}/node-{node}.env"
 
 
-def env_script(env: Mapping[str, str], *, host: str) -> str:
-    """The env file every service script on a host sources: the middleware's environment for nodes."""
-    return f"# fogiac: environment of the nodes on {host}. Source it: . ros.sh\n" + "".join(
+def env_script(env: Mapping[str, str], *, host: str, setup: str = "") -> str:
+    """The env file every service script on a host sources: the middleware's environment for nodes,
+    after ``setup`` (the ROS installation's own script, when the host has it)."""
+    first = f"if [ -f {q(setup)} ]; then . {q(setup)}; fi\n" if setup else ""
+    return f"# fogiac: environment of the nodes on {host}. Source it: . ros.sh\n" + first + "".join(
         f"export {key}={q(value)}\n" for key, value in env.items())
 
 

@@ -28,7 +28,6 @@ from fogiac.resources import package_dir
 
 CHANGED, OK, SKIPPED = "changed", "ok", "skipped"
 _CODE_IGNORE = ("tests/", "*.npz", "*.ipynb")  # the planner's problems (0.1 MB) and the grasp model (0.2 MB) go along
-_ROS_PACKAGES = ("ros-core", "python3-rospy", "python3-std-msgs")
 
 
 @dataclass(frozen=True)
@@ -205,18 +204,19 @@ def _container_runtime(run: HostRun, facts: Facts) -> list[str]:
 
 
 def _native_runtime(run: HostRun, facts: Facts) -> list[str]:
-    if facts.has_ros:
+    """What the plan's middleware needs on the host (ROS 1's roscore and rospy; ROS 2's setup.bash, ros2
+    and rmw_zenoh_cpp): there already, installed when allowed, else one line saying what to install."""
+    native = run.deploying.native_ros(run.plan.ros_distro)
+    if native.probed and set(native.probed) <= facts.flags:
         return []
-    rospy = "import importlib.util as u, sys; sys.exit(u.find_spec('rospy') is None)"
-    if "roscore" in facts.flags and run.host.run(f"python3 -c {q(rospy)}", check=False).ok:
-        return []  # an older supervisor on the host did not answer the rospy question
+    if run.host.run(native.check, check=False).ok:
+        return []
     if not run.options.allow_install:
         raise ProvisionError(
-            f"{run.spec.name}: no ROS {run.plan.ros_distro} (roscore, roslaunch, rospy) and no container engine; "
-            f"install {' '.join(_ROS_PACKAGES)} or allow fogiac to install them"
-        )
-    script = render("provision/ros_native.sh.j2", distro=run.plan.ros_distro, packages=_ROS_PACKAGES)
-    run.host.put(script.encode(), f"{run.layout.tmp}/ros-native.sh", mode=0o700)
+            f"{run.spec.name}: no ROS {run.plan.ros_distro} ({native.needs}) and no container engine; install "
+            f"{' '.join(native.packages)}{' from ' + native.origin if native.origin else ''} with `{native.by_hand}`, "
+            "or let fogiac install them (`fogiac provision --allow-install`)")
+    run.host.put(native.install.encode(), f"{run.layout.tmp}/ros-native.sh", mode=0o700)
     run.host.sudo(f"bash {q(run.layout.tmp + '/ros-native.sh')}", timeout=1800)
     return ["installed ROS packages"]
 
@@ -352,7 +352,8 @@ def step_env_script(run: HostRun) -> StepResult:
 
 
 def step_services(run: HostRun) -> StepResult:
-    env = svc.env_script(run.deploying.node_env(run.where()), host=run.spec.name)
+    setup = run.deploying.native_ros(run.plan.ros_distro).setup if run.runtime == svc.NATIVE else ""
+    env = svc.env_script(run.deploying.node_env(run.where()), host=run.spec.name, setup=setup)
     env_changed = ensure_file(run, env.encode(), run.layout.env_file)
     manager = run.manager
     wanted = run.services()

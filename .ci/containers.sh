@@ -48,7 +48,9 @@ fi
 
 # No ROS 2 image or package can be had here: the ROS 2 stand-in answers to the name fogiac runs
 # ROS 2 nodes in (images.base_image), and is the base above plus zenoh-ros2-sdk (rmw_zenoh's key
-# expressions, and its ZENOH_CONFIG_OVERRIDE / ZENOH_SESSION_CONFIG_URI), at the ros2 extra's pins.
+# expressions, and its ZENOH_CONFIG_OVERRIDE / ZENOH_SESSION_CONFIG_URI), at the ros2 extra's pins,
+# and at /opt/ros/jazzy the stand-in ROS 2 of tests/support/ros2.py (`ros2 pkg prefix rmw_zenoh_cpp`
+# answers, as in an image that has rmw_zenoh_cpp).
 # Its wheels come through the host's pip (its cache or mirror); the build itself has no network.
 # There is no git in it: the SDK's message fetcher stays quiet (nodes pass their definitions).
 IMAGE2=docker.io/library/ros:jazzy-ros-core
@@ -56,17 +58,21 @@ mapfile -t pins < <(.venv/bin/python -c '
 import tomllib
 print("\n".join(tomllib.load(open("pyproject.toml", "rb"))["project"]["optional-dependencies"]["ros2"]))')
 dockerfile="FROM $IMAGE
+COPY ros /opt/ros/jazzy
 COPY wheels /tmp/wheels
 RUN python3 -m pip install --quiet --root-user-action=ignore --break-system-packages --no-index --find-links /tmp/wheels ${pins[*]} && rm -rf /tmp/wheels
 ENV ROS_DISTRO=jazzy GIT_PYTHON_REFRESH=quiet"
 stamp2="$stamp_dir/ros2-standin.stamp"
-want2=$(printf '%s\n%s\n%s\n' "$IMAGE2" "$want" "$dockerfile" | sha256sum | cut -d' ' -f1)
+want2=$(printf '%s\n%s\n%s\n%s\n' "$IMAGE2" "$want" "$dockerfile" "$(sha256sum tests/support/ros2.py)" \
+    | sha256sum | cut -d' ' -f1)
 if [ "$(cat "$stamp2" 2>/dev/null)" = "$want2" ] && podman image exists "$IMAGE2"; then
     exit 0
 fi
 echo "containers: building the ROS 2 stand-in $IMAGE2 (zenoh-ros2-sdk over $IMAGE)"
 mkdir -p "$work/ros2/wheels"
 .venv/bin/pip download -q --only-binary=:all: -d "$work/ros2/wheels" "${pins[@]}" 2> >(grep -v "is ignored: it is neither" >&2)
+.venv/bin/python -c 'import sys; from pathlib import Path; from tests.support.ros2 import standin_ros2
+standin_ros2(Path(sys.argv[1]))' "$work/ros2/ros"
 printf '%s\n' "$dockerfile" > "$work/ros2/Dockerfile"
 old=$(podman image inspect --format '{{.Id}}' "$IMAGE2" 2>/dev/null || true)
 as_root podman build --quiet --pull=never --network none -t "$IMAGE2" "$work/ros2" >/dev/null

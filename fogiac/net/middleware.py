@@ -82,6 +82,7 @@ class NativeRos:
     by_hand: str  # the command a person runs instead, for the refusal
     origin: str = ""  # where the packages come from, when not the OS's own archive
     setup: str = ""  # a script the nodes' environment sources first, when the host has it
+    image_layer: str = ""  # Dockerfile lines that add it to the ROS image when that lacks it ('' : never needed)
     probed: tuple[str, ...] = ()  # probe flags that, all present, answer ``check`` at no cost
 
 

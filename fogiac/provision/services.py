@@ -105,6 +105,7 @@ class Where:
     images: tuple[tuple[str, str], ...] = ()  # (node, tag) of images built on the host
     workload_python: str = ""  # interpreter of workload nodes on a native host ('' : python)
     launch_bin: str = ""  # a venv's bin folder put first on native launch nodes' PATH ('' : none)
+    ros_image: str = ""  # the ROS image nodes run in on this host, when not the plan's own (see node_image)
 
 
 @dataclass(frozen=True)
@@ -138,6 +139,12 @@ def unit_name(stack: str, name: str) -> str:
 
 def ros_image(plan: Plan) -> str:
     return f"ros:{plan.ros_distro}-ros-core"
+
+
+def node_image(plan: Plan, where: Where) -> str:
+    """The ROS image nodes run in on the host: the plan's, or the one provisioning gave what the
+    middleware needs (rmw_zenoh_cpp), which the official image lacks."""
+    return where.ros_image or ros_image(plan)
 
 
 def node_env_file(layout: Layout, node: str) -> str:
@@ -184,9 +191,9 @@ def docker_run(node: NodeSpec, *, plan: Plan, spec: HostSpec, where: Where) -> s
     if node.kind == "image":
         image, command = (node.image or _built(node, where)), node.command
     elif node.kind == "command":
-        image, command = ros_image(plan), node.command
+        image, command = node_image(plan, where), node.command
     elif node.kind == "launch" and node.launch is not None:
-        image = _built(node, where) if node.launch.requirements else ros_image(plan)
+        image = _built(node, where) if node.launch.requirements else node_image(plan, where)
         command = ("bash", "-c", f"{_SOURCE_DEVEL}exec roslaunch --wait \"$0\" \"$1\"",
                    node.launch.package, node.launch.file)
         volumes = ((where.layout.workspace(node.launch.workspace), _WS_MOUNT, "ro"),)
@@ -211,7 +218,7 @@ def workspace_build_command(plan: Plan, where: Where, workspace: str, scripts: t
     steps = [f". {q(_WS_MOUNT + '/.fogiac-setup/' + s)}" for s in scripts]
     steps.append("if [ -f src/CMakeLists.txt ]; then catkin_make >/dev/null; fi")
     return (f"{where.engine} run --rm --network host --volume {q(where.layout.workspace(workspace) + ':' + _WS_MOUNT)} "
-            f"--workdir {_WS_MOUNT} -- {q(ros_image(plan))} bash -ec {q('; '.join(steps))}")
+            f"--workdir {_WS_MOUNT} -- {q(node_image(plan, where))} bash -ec {q('; '.join(steps))}")
 
 
 @dataclass(frozen=True)

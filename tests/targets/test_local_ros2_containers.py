@@ -6,7 +6,9 @@ be pulled here). Its command names no router: it finds the sandbox's Zenoh route
 fogiac gives the container, ``RMW_IMPLEMENTATION=rmw_zenoh_cpp`` and ``ZENOH_CONFIG_OVERRIDE``, read
 over rmw_zenoh's default session config as rmw_zenoh_cpp reads them. A robot-side stand-in on the
 edge router exchanges the listed topics both ways; the unlisted ones cross in neither direction;
-``down`` leaves no container.
+``down`` leaves no container. The official ROS images lack rmw_zenoh_cpp: a ``command`` node runs in
+the plan's image when it has it (the stand-in answers ``ros2 pkg prefix rmw_zenoh_cpp``), and
+fogiac layers ``ros-<distro>-rmw-zenoh-cpp`` over one that does not.
 """
 
 from __future__ import annotations
@@ -85,12 +87,23 @@ nodes:
     build: {{context: app}}
     env: {{RUST_LOG: error}}
     topics: {{in: [/camera], out: [/detections]}}
+  - name: idle
+    machine: t3.micro
+    command: [sleep, "3600"]
+    topics: {{out: [/idle]}}
 """)
     runner = CliRunner()
     try:
         up = runner.invoke(app, ["up", str(manifest), "--target", "local", "--yes"])
         assert up.exit_code == 0, up.output
-        assert _containers("ros2-ctr-dev") == ["fogiac-ros2-ctr-dev-detector"]
+        assert _containers("ros2-ctr-dev") == ["fogiac-ros2-ctr-dev-detector", "fogiac-ros2-ctr-dev-idle"]
+        idle_image = subprocess.run(["podman", "inspect", "--format", "{{.ImageName}}", "fogiac-ros2-ctr-dev-idle"],
+                                    capture_output=True, text=True, check=True).stdout.strip()
+        assert idle_image == BASE  # it has rmw_zenoh_cpp: nothing layered over it
+        marker = _state_dir / "ros2-ctr-dev" / "local" / "idle" / "state" / "ros-image.sha256"
+        assert marker.read_text().split()[1] == "ros:jazzy-ros-core"
+        again = runner.invoke(app, ["up", str(manifest), "--target", "local", "--yes"])
+        assert again.exit_code == 0 and "no changes" in again.output, again.output
         inspected = json.loads(subprocess.run(["podman", "inspect", "fogiac-ros2-ctr-dev-detector"],
                                               capture_output=True, text=True, check=True).stdout)[0]
         env = dict(e.split("=", 1) for e in inspected["Config"]["Env"])
@@ -116,3 +129,38 @@ nodes:
     assert down.exit_code == 0, down.output
     assert "nothing left" in down.output
     assert _containers("ros2-ctr-dev") == []
+
+
+HUMBLE = "docker.io/library/ros:humble-ros-core"
+
+
+def test_a_ros_image_without_rmw_zenoh_gets_it_layered_on_and_a_failed_layer_is_one_line(
+        tmp_path: Path, _state_dir: Path) -> None:
+    """Here humble's image is the Debian base (ROS 1 only): fogiac builds ros-humble-rmw-zenoh-cpp over
+    it, which Debian's archive does not have, so the build stops at that step, in one line."""
+    if subprocess.run(["podman", "image", "exists", HUMBLE], capture_output=True).returncode == 0:
+        pytest.skip(f"{HUMBLE} exists on this machine: the test would not know what it holds")
+    subprocess.run(["podman", "tag", "docker.io/library/ros:noetic-ros-core", HUMBLE], check=True)
+    manifest = tmp_path / "fogiac.yaml"
+    manifest.write_text(f"""name: ros2-bare
+ros: {{distro: humble}}
+cloud: {{provider: local, runtime: container}}
+edge: {{zenoh_router: "tcp/127.0.0.1:{free_port()}"}}
+nodes:
+  - {{name: idle, machine: t3.micro, command: [sleep, "3600"], topics: {{out: [/idle]}}}}
+""")
+    runner = CliRunner()
+    try:
+        up = runner.invoke(app, ["up", str(manifest), "--target", "local", "--yes"])
+        assert up.exit_code == 1, up.output
+        (error,) = [line for line in up.output.splitlines() if line.startswith("error:")]
+        log = _state_dir / "ros2-bare-dev" / "local" / "idle" / "build" / "ros-image.log"
+        assert error.startswith("error: idle: idle: node the ROS image (ros-humble-rmw-zenoh-cpp): image build failed "
+                                "at STEP 2/2: RUN apt-get update && apt-get install -y --no-install-recommends "
+                                "ros-humble-rmw-zenoh-cpp"), error
+        assert f"; log: {log}" in error and "STEP 2/2: RUN apt-get update" in log.read_text()
+        assert _containers("ros2-bare-dev") == []
+    finally:
+        runner.invoke(app, ["down", str(manifest), "--target", "local", "--yes"])
+        # that name only: `podman untag IMAGE` alone would strip every name of the image, noetic's too
+        subprocess.run(["podman", "untag", HUMBLE, HUMBLE], capture_output=True)

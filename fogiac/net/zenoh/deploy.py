@@ -76,7 +76,10 @@ def native_ros(distro: str) -> NativeRos:
     return NativeRos(needs=f"{setup} or ros2 on PATH, rmw_zenoh_cpp", check=f"bash -c {q(found)}",
                      packages=packages, install=render("provision/ros2_native.sh.j2", distro=distro, packages=packages),
                      by_hand=f"sudo apt-get install -y {' '.join(packages)}",
-                     origin=f"packages.ros.org (apt source: {docs})", setup=setup)
+                     origin=f"packages.ros.org (apt source: {docs})", setup=setup,
+                     # The official ROS images carry packages.ros.org's apt source, not rmw_zenoh_cpp.
+                     image_layer=(f"RUN apt-get update && apt-get install -y --no-install-recommends {packages[1]} "
+                                  "&& rm -rf /var/lib/apt/lists/*"))
 
 
 def _issued(certs: Path, name: str, make: Any) -> KeyPair:

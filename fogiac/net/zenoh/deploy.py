@@ -54,6 +54,8 @@ def local_endpoint(where: svc.Where) -> str:
 
 
 def node_env(where: svc.Where) -> Mapping[str, str]:
+    """What rmw_zenoh_cpp reads to find the host's router: ZENOH_CONFIG_OVERRIDE over its default session
+    config (rmw_zenoh 0.1.2 on humble and later, jazzy, kilted); nodes share the host's network."""
     endpoint = local_endpoint(where)
     return {"RMW_IMPLEMENTATION": "rmw_zenoh_cpp", "ZENOH_CONFIG_OVERRIDE": f'connect/endpoints=["{endpoint}"]',
             "FOGIAC_ZENOH_ROUTER": endpoint}

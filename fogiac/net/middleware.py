@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -60,11 +61,29 @@ class Middleware(Protocol):
     def credentials_first(self) -> bool: ...  # True: host_credentials before host_services start, else at link
 
     @property
+    def node_master(self) -> bool: ...  # True: nodes register with a ROS master, which health checks ask
+
+    @property
     def host_requirements(self) -> tuple[str, ...]: ...  # pinned PyPI packages its cloud side imports on a host
 
     def edge_entry(self, edge: Edge) -> str:
         """What the robot's side is reached at (``Plan.edge_master``): a master URI, a router endpoint."""
         ...
+
+
+@dataclass(frozen=True)
+class NativeRos:
+    """What a native host must have for a middleware's nodes, how to tell, and how to get it."""
+
+    needs: str  # in words, for the refusal: "roscore, roslaunch, rospy"
+    check: str  # a shell command that exits 0 when the host has it all
+    packages: tuple[str, ...]  # what installs it
+    install: str  # the script that installs them (run as root), rendered
+    by_hand: str  # the command a person runs instead, for the refusal
+    origin: str = ""  # where the packages come from, when not the OS's own archive
+    setup: str = ""  # a script the nodes' environment sources first, when the host has it
+    image_layer: str = ""  # Dockerfile lines that add it to the ROS image when that lacks it ('' : never needed)
+    probed: tuple[str, ...] = ()  # probe flags that, all present, answer ``check`` at no cost
 
 
 class Deployment(Protocol):
@@ -73,6 +92,10 @@ class Deployment(Protocol):
 
     def node_env(self, where: Where) -> Mapping[str, str]:
         """The environment every node on a host gets (its env file, its containers)."""
+        ...
+
+    def native_ros(self, distro: str) -> NativeRos:
+        """What a host on the native runtime needs before this middleware's nodes can run there."""
         ...
 
     def host_services(self, plan: Plan, spec: HostSpec, where: Where, *, certs: Path | None) -> tuple[Service, ...]:

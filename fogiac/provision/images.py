@@ -80,13 +80,15 @@ def workload_context(node: NodeSpec, *, flavour: str, into: Path) -> Recipe:
     return Recipe(node=node.name, repo=workload_repo(name), context=into, dockerfile="Dockerfile")
 
 
-def launch_context(node: NodeSpec, *, plan: Plan, into: Path) -> Recipe:
-    """A launch node's image: the ROS image plus its package's requirements (the workspace is mounted, as without)."""
+def launch_context(node: NodeSpec, *, plan: Plan, into: Path, base: str = "") -> Recipe:
+    """A launch node's image: the ROS image (``base``, else the plan's) plus its package's requirements
+    (the workspace is mounted, as without)."""
     assert node.launch is not None and node.launch.requirements is not None
     into.mkdir(parents=True)
     lines = venv.file_requirements(node.launch.requirements)
     (into / "requirements.txt").write_text("".join(f"{line}\n" for line in lines))
-    (into / "Dockerfile").write_text(render("provision/launch_image.Dockerfile.j2", base_image=base_image(plan)))
+    dockerfile = render("provision/launch_image.Dockerfile.j2", base_image=base or base_image(plan))
+    (into / "Dockerfile").write_text(dockerfile)
     return Recipe(node=node.name, repo=f"fogiac/{plan.stack}-{node.name}", context=into, dockerfile="Dockerfile")
 
 

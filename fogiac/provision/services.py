@@ -105,6 +105,7 @@ class Where:
     images: tuple[tuple[str, str], ...] = ()  # (node, tag) of images built on the host
     workload_python: str = ""  # interpreter of workload nodes on a native host ('' : python)
     launch_bin: str = ""  # a venv's bin folder put first on native launch nodes' PATH ('' : none)
+    ros_image: str = ""  # the ROS image nodes run in on this host, when not the plan's own (see node_image)
 
 
 @dataclass(frozen=True)
@@ -140,13 +141,21 @@ def ros_image(plan: Plan) -> str:
     return f"ros:{plan.ros_distro}-ros-core"
 
 
+def node_image(plan: Plan, where: Where) -> str:
+    """The ROS image nodes run in on the host: the plan's, or the one provisioning gave what the
+    middleware needs (rmw_zenoh_cpp), which the official image lacks."""
+    return where.ros_image or ros_image(plan)
+
+
 def node_env_file(layout: Layout, node: str) -> str:
     return f"{layout.env}/node-{node}.env"
 
 
-def env_script(env: Mapping[str, str], *, host: str) -> str:
-    """The env file every service script on a host sources: the middleware's environment for nodes."""
-    return f"# fogiac: environment of the nodes on {host}. Source it: . ros.sh\n" + "".join(
+def env_script(env: Mapping[str, str], *, host: str, setup: str = "") -> str:
+    """The env file every service script on a host sources: the middleware's environment for nodes,
+    after ``setup`` (the ROS installation's own script, when the host has it)."""
+    first = f"if [ -f {q(setup)} ]; then . {q(setup)}; fi\n" if setup else ""
+    return f"# fogiac: environment of the nodes on {host}. Source it: . ros.sh\n" + first + "".join(
         f"export {key}={q(value)}\n" for key, value in env.items())
 
 
@@ -182,9 +191,9 @@ def docker_run(node: NodeSpec, *, plan: Plan, spec: HostSpec, where: Where) -> s
     if node.kind == "image":
         image, command = (node.image or _built(node, where)), node.command
     elif node.kind == "command":
-        image, command = ros_image(plan), node.command
+        image, command = node_image(plan, where), node.command
     elif node.kind == "launch" and node.launch is not None:
-        image = _built(node, where) if node.launch.requirements else ros_image(plan)
+        image = _built(node, where) if node.launch.requirements else node_image(plan, where)
         command = ("bash", "-c", f"{_SOURCE_DEVEL}exec roslaunch --wait \"$0\" \"$1\"",
                    node.launch.package, node.launch.file)
         volumes = ((where.layout.workspace(node.launch.workspace), _WS_MOUNT, "ro"),)
@@ -209,7 +218,7 @@ def workspace_build_command(plan: Plan, where: Where, workspace: str, scripts: t
     steps = [f". {q(_WS_MOUNT + '/.fogiac-setup/' + s)}" for s in scripts]
     steps.append("if [ -f src/CMakeLists.txt ]; then catkin_make >/dev/null; fi")
     return (f"{where.engine} run --rm --network host --volume {q(where.layout.workspace(workspace) + ':' + _WS_MOUNT)} "
-            f"--workdir {_WS_MOUNT} -- {q(ros_image(plan))} bash -ec {q('; '.join(steps))}")
+            f"--workdir {_WS_MOUNT} -- {q(node_image(plan, where))} bash -ec {q('; '.join(steps))}")
 
 
 @dataclass(frozen=True)
@@ -293,8 +302,10 @@ def master_service(plan: Plan, spec: HostSpec, where: Where) -> Service:
 
 
 def node_services(plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ...]:
-    """One service per node placed on ``spec``, in plan order."""
+    """One service per node placed on ``spec``, in plan order. Without a ROS master (ROS 2) a node's
+    health is its process running: there is nothing to register with."""
     digests = dict(where.workspace_digests)
+    master = middleware.get(plan.middleware).node_master
     out = []
     for name in spec.nodes:
         node = plan.node(name)
@@ -306,7 +317,8 @@ def node_services(plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ..
         files = ((node_env_file(where.layout, name), env_file_text(node.env), 0o600),) if in_container and node.env \
             else ()
         out.append(_service(
-            f"node-{name}", plan=plan, spec=spec, where=where, command=parts.command, check=parts.check,
+            f"node-{name}", plan=plan, spec=spec, where=where, command=parts.command,
+            check=parts.check if master else "alive",
             env=() if in_container else node.env, pre=parts.pre, package_path=parts.package_path,
             python_path=parts.python_path, cwd=parts.cwd, notes=notes, after=unit_name(plan.stack, "ros-master"),
             files=files, bin_path=parts.bin_path,

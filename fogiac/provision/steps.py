@@ -28,7 +28,6 @@ from fogiac.resources import package_dir
 
 CHANGED, OK, SKIPPED = "changed", "ok", "skipped"
 _CODE_IGNORE = ("tests/", "*.npz", "*.ipynb")  # the planner's problems (0.1 MB) and the grasp model (0.2 MB) go along
-_ROS_PACKAGES = ("ros-core", "python3-rospy", "python3-std-msgs")
 
 
 @dataclass(frozen=True)
@@ -56,6 +55,7 @@ class HostRun:
     images: dict[str, str] = field(default_factory=dict)  # node -> image tag built on the host
     venv_python: str = ""  # the virtual environment's interpreter (fogiac's code, native workload nodes)
     launch_bin: str = ""  # that environment's bin folder, when native launch nodes asked for requirements
+    ros_image: str = ""  # the ROS image with what the middleware needs, when the plan's lacks it
     facts: Facts | None = None
     systemd: bool | None = None  # whether the runtime step's probe saw systemd as PID 1; None: not probed
     files_pushed: int = 0
@@ -80,7 +80,8 @@ class HostRun:
                          python=self.venv_python or self.access.python, code_root=code_root, user=self.access.user,
                          workspace_digests=tuple(sorted(self.digests.items())), engine=self.engine or "docker",
                          images=tuple(sorted(self.images.items())),
-                         workload_python=self.venv_python or self.access.python, launch_bin=self.launch_bin)
+                         workload_python=self.venv_python or self.access.python, launch_bin=self.launch_bin,
+                         ros_image=self.ros_image)
 
     @property
     def carrier(self) -> Middleware:
@@ -201,22 +202,54 @@ def _container_runtime(run: HostRun, facts: Facts) -> list[str]:
     if not run.host.run(f"{engine} image inspect {q(image)} >/dev/null 2>&1", check=False).ok:
         run.host.run(f"{engine} pull -q {q(image)}", timeout=900)
         changes.append(f"pulled {image}")
+    return changes + _middleware_image(run, image)
+
+
+def _middleware_image(run: HostRun, image: str) -> list[str]:
+    """The ROS image with what the middleware's nodes need (rmw_zenoh_cpp): the image itself when it has
+    it, else one built over it on the host. Remembered per base image id, so an unchanged base costs no
+    container run on the next ``up``."""
+    native = run.deploying.native_ros(run.plan.ros_distro)
+    if not native.image_layer:
+        return []
+    host, engine = run.host, run.engine
+    base_id = host.run(f"{engine} image inspect --format '{{{{.Id}}}}' {q(image)}").stdout.strip()
+    marker = f"{run.layout.state}/ros-image.sha256"
+    known = (run.facts.marker(marker) if run.facts is not None else "").split()
+    if len(known) == 2 and known[0] == base_id and host.run(f"{engine} image inspect {q(known[1])} >/dev/null 2>&1",
+                                                           check=False).ok:
+        run.ros_image = known[1]
+        return []
+    changes = []
+    if host.run(f"{engine} run --rm --network none -- {q(image)} {native.check}", check=False).ok:
+        run.ros_image = image
+    else:
+        with tempfile.TemporaryDirectory(prefix="fogiac-ros-image-") as tmp:
+            (Path(tmp) / "Dockerfile").write_text(f"FROM {image}\n{native.image_layer}\n")
+            recipe = images.Recipe(node=f"the ROS image ({', '.join(native.packages[1:])})",
+                                   repo=f"fogiac/ros-{run.plan.ros_distro}", context=Path(tmp), dockerfile="Dockerfile")
+            done = images.build(host, recipe, engine=engine, base_id=base_id, dest=f"{run.layout.build}/ros-image",
+                                tmp_dir=run.layout.tmp, log=f"{run.layout.build}/ros-image.log")
+        run.ros_image = done.tag
+        changes.append(f"built {done.tag}")
+    host.put(f"{base_id} {run.ros_image}\n".encode(), marker, mode=0o600)
     return changes
 
 
 def _native_runtime(run: HostRun, facts: Facts) -> list[str]:
-    if facts.has_ros:
+    """What the plan's middleware needs on the host (ROS 1's roscore and rospy; ROS 2's setup.bash, ros2
+    and rmw_zenoh_cpp): there already, installed when allowed, else one line saying what to install."""
+    native = run.deploying.native_ros(run.plan.ros_distro)
+    if native.probed and set(native.probed) <= facts.flags:
         return []
-    rospy = "import importlib.util as u, sys; sys.exit(u.find_spec('rospy') is None)"
-    if "roscore" in facts.flags and run.host.run(f"python3 -c {q(rospy)}", check=False).ok:
-        return []  # an older supervisor on the host did not answer the rospy question
+    if run.host.run(native.check, check=False).ok:
+        return []
     if not run.options.allow_install:
         raise ProvisionError(
-            f"{run.spec.name}: no ROS {run.plan.ros_distro} (roscore, roslaunch, rospy) and no container engine; "
-            f"install {' '.join(_ROS_PACKAGES)} or allow fogiac to install them"
-        )
-    script = render("provision/ros_native.sh.j2", distro=run.plan.ros_distro, packages=_ROS_PACKAGES)
-    run.host.put(script.encode(), f"{run.layout.tmp}/ros-native.sh", mode=0o700)
+            f"{run.spec.name}: no ROS {run.plan.ros_distro} ({native.needs}) and no container engine; install "
+            f"{' '.join(native.packages)}{' from ' + native.origin if native.origin else ''} with `{native.by_hand}`, "
+            "or let fogiac install them (`fogiac provision --allow-install`)")
+    run.host.put(native.install.encode(), f"{run.layout.tmp}/ros-native.sh", mode=0o700)
     run.host.sudo(f"bash {q(run.layout.tmp + '/ros-native.sh')}", timeout=1800)
     return ["installed ROS packages"]
 
@@ -230,7 +263,7 @@ def step_images(run: HostRun) -> StepResult:
     if run.runtime != svc.CONTAINER:
         return SKIPPED, "native runtime: nodes run from the pushed code"
     host, engine, layout = run.host, run.engine, run.layout
-    base = images.base_image(run.plan)
+    base = run.ros_image or images.base_image(run.plan)
     base_id = host.run(f"{engine} image inspect --format '{{{{.Id}}}}' {q(base)}").stdout.strip()
     flavour, built = "", []
     with tempfile.TemporaryDirectory(prefix="fogiac-build-") as tmp:
@@ -242,7 +275,7 @@ def step_images(run: HostRun) -> StepResult:
                                               "sh -c '. /etc/os-release && echo $ID'").stdout.strip()
                 recipe = images.workload_context(node, flavour=flavour, into=Path(tmp) / node.name)
             elif node.launch is not None:
-                recipe = images.launch_context(node, plan=run.plan, into=Path(tmp) / node.name)
+                recipe = images.launch_context(node, plan=run.plan, into=Path(tmp) / node.name, base=base)
             else:
                 recipe = images.user_context(node, stack=run.plan.stack)
             done = images.build(host, recipe, engine=engine, base_id=base_id, dest=f"{layout.build}/{node.name}",
@@ -352,7 +385,8 @@ def step_env_script(run: HostRun) -> StepResult:
 
 
 def step_services(run: HostRun) -> StepResult:
-    env = svc.env_script(run.deploying.node_env(run.where()), host=run.spec.name)
+    setup = run.deploying.native_ros(run.plan.ros_distro).setup if run.runtime == svc.NATIVE else ""
+    env = svc.env_script(run.deploying.node_env(run.where()), host=run.spec.name, setup=setup)
     env_changed = ensure_file(run, env.encode(), run.layout.env_file)
     manager = run.manager
     wanted = run.services()

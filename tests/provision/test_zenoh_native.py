@@ -25,10 +25,12 @@ from fogiac.state import read_json
 from fogiac.targets.hosts.target import HOSTS
 from tests.provision.conftest import ros_skip_reason
 from tests.provision.sshlab import lab_skip_reason, ssh_lab
+from tests.support.ros2 import standin_ros2
 
 SYSTEM_PYTHON = "/usr/bin/python3"
 WHEELS = Path("/var/cache/fogiac-ci/lab-wheels")
 MIRROR = {"PIP_INDEX_URL": "file:///opt/pypi/simple", "PIP_FIND_LINKS": str(WHEELS)}
+SYSTEM_PATH = "/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin"
 
 
 def _why_not() -> str | None:
@@ -47,7 +49,9 @@ pytestmark = [pytest.mark.root, pytest.mark.zenoh, pytest.mark.skipif(_why_not()
 
 def test_the_router_runs_from_the_venv_and_the_edge_links_to_it(tmp_path: Path, _state_dir: Path) -> None:
     pytest.importorskip("zenoh", reason="needs eclipse-zenoh here for the edge router")
-    with ssh_lab(tmp_path / "lab", 1, env=MIRROR) as (hosts, key):
+    # ROS 2 in the host's login environment (a stand-in: tests.support.ros2), as its admins would set it up.
+    login = dict(MIRROR, PATH=f"{standin_ros2(tmp_path / 'ros2')}:{SYSTEM_PATH}")
+    with ssh_lab(tmp_path / "lab", 1, env=login) as (hosts, key):
         (host,) = hosts
         manifest = tmp_path / "fogiac.yaml"
         manifest.write_text(f"""name: zlab

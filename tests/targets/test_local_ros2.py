@@ -12,6 +12,7 @@ stops by itself, and ``status`` says so.
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -27,8 +28,15 @@ from fogiac.procs import free_port
 from tests.conftest import REPO
 from tests.net.zenoh.lab import ZenohLab, read_events
 from tests.support.procs import alive, started_pids
+from tests.support.ros2 import standin_ros2
 
 pytest.importorskip("zenoh_ros2_sdk", reason="needs zenoh-ros2-sdk (pip install zenoh-ros2-sdk)")
+
+
+@pytest.fixture(autouse=True)
+def _ros2_on_path(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The sandbox is this machine: ROS 2 (a stand-in, see tests.support.ros2) in its login environment."""
+    monkeypatch.setenv("PATH", f"{standin_ros2(tmp_path / 'ros2')}:{os.environ['PATH']}")
 
 MANIFEST = """\
 name: ros2-local

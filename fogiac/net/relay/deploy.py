@@ -18,12 +18,14 @@ from urllib.parse import urlparse
 
 from fogiac.certs import load_bundle, relay_name
 from fogiac.errors import FogiacError
+from fogiac.net.middleware import NativeRos
 from fogiac.net.rosenv import side_env
 from fogiac.plan.model import HostSpec, Plan, RelayRoute
 from fogiac.procs import poll
 from fogiac.provision import relaycert, supervise
 from fogiac.provision import services as svc
-from fogiac.provision.host import Host
+from fogiac.provision.host import Host, q
+from fogiac.render import render
 from fogiac.state import read_json
 
 EDGE_MASTER = "edge-master"
@@ -117,11 +119,27 @@ def edge_links(folder: Path, connect: Mapping[str, str]) -> list[dict[str, Any]]
     return links
 
 
+# ROS 1 from the OS's own packages (Debian's names; Ubuntu's universe has the same).
+_ROS_PACKAGES = ("ros-core", "python3-rospy", "python3-std-msgs")
+_ROSPY = "import importlib.util as u, sys; sys.exit(u.find_spec('rospy') is None)"
+
+
+def native_ros(distro: str) -> NativeRos:
+    found = f"command -v roscore >/dev/null && command -v roslaunch >/dev/null && python3 -c {q(_ROSPY)}"
+    return NativeRos(needs="roscore, roslaunch, rospy", check=found,
+                     packages=_ROS_PACKAGES, probed=("ros", "roscore"),
+                     install=render("provision/ros_native.sh.j2", distro=distro, packages=_ROS_PACKAGES),
+                     by_hand=f"sudo apt-get install -y {' '.join(_ROS_PACKAGES)}")
+
+
 class RelayDeployment:
     """The relay as a :class:`fogiac.net.middleware.Deployment`."""
 
     def node_env(self, where: svc.Where) -> Mapping[str, str]:
         return node_env(where)
+
+    def native_ros(self, distro: str) -> NativeRos:
+        return native_ros(distro)
 
     def host_services(self, plan: Plan, spec: HostSpec, where: svc.Where, *,
                       certs: Path | None) -> tuple[svc.Service, ...]:

@@ -19,6 +19,7 @@ class RelayMiddleware:
     rule_description: str = "fogiac relay (mutual TLS)"
     needs_listed_topics: bool = False  # the relay discovers topics from both masters
     credentials_first: bool = False  # the cloud end starts at link, after the nodes
+    node_master: bool = True  # a node is up once it registers with the host's roscore
     host_requirements: tuple[str, ...] = ()  # the cloud end needs fogiac's own requirements only
 
     def edge_entry(self, edge: Edge) -> str:

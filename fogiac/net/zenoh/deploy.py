@@ -27,12 +27,14 @@ from typing import Any
 
 from fogiac.certs import KeyPair, load_bundle, load_or_create_bundle, write_private
 from fogiac.errors import ProvisionError
+from fogiac.net.middleware import NativeRos
 from fogiac.net.zenoh import tls
 from fogiac.net.zenoh.config import TlsFiles, cloud_router, edge_router
 from fogiac.plan.model import HostSpec, Plan
 from fogiac.provision import relaycert, supervise
 from fogiac.provision import services as svc
 from fogiac.provision.host import Host, q
+from fogiac.render import render
 from fogiac.state import read_json
 
 ROUTER = "zenoh-router"
@@ -52,9 +54,34 @@ def local_endpoint(where: svc.Where) -> str:
 
 
 def node_env(where: svc.Where) -> Mapping[str, str]:
+    """What rmw_zenoh_cpp reads to find the host's router: ZENOH_CONFIG_OVERRIDE over its default session
+    config (rmw_zenoh 0.1.2 on humble and later, jazzy, kilted); nodes share the host's network."""
     endpoint = local_endpoint(where)
     return {"RMW_IMPLEMENTATION": "rmw_zenoh_cpp", "ZENOH_CONFIG_OVERRIDE": f'connect/endpoints=["{endpoint}"]',
             "FOGIAC_ZENOH_ROUTER": endpoint}
+
+
+def native_packages(distro: str) -> tuple[str, ...]:
+    """ROS 2 and its Zenoh middleware, as packages.ros.org names them."""
+    return (f"ros-{distro}-ros-base", f"ros-{distro}-rmw-zenoh-cpp")
+
+
+def native_ros(distro: str) -> NativeRos:
+    """A ROS 2 node on a native host needs ``ros2`` and rmw_zenoh_cpp (its RMW_IMPLEMENTATION): from the
+    login environment (a source build, a sourced overlay) or the distro's setup.bash, which the nodes'
+    environment then sources; they come from packages.ros.org, for Ubuntu."""
+    setup = f"/opt/ros/{distro}/setup.bash"
+    found = (f"{{ command -v ros2 >/dev/null || . {setup} 2>/dev/null; }} && command -v ros2 >/dev/null "
+             "&& ros2 pkg prefix rmw_zenoh_cpp >/dev/null 2>&1")
+    packages = native_packages(distro)
+    docs = f"docs.ros.org/en/{distro}/Installation/Ubuntu-Install-Debs.html"
+    return NativeRos(needs=f"{setup} or ros2 on PATH, rmw_zenoh_cpp", check=f"bash -c {q(found)}",
+                     packages=packages, install=render("provision/ros2_native.sh.j2", distro=distro, packages=packages),
+                     by_hand=f"sudo apt-get install -y {' '.join(packages)}",
+                     origin=f"packages.ros.org (apt source: {docs})", setup=setup,
+                     # The official ROS images carry packages.ros.org's apt source, not rmw_zenoh_cpp.
+                     image_layer=(f"RUN apt-get update && apt-get install -y --no-install-recommends {packages[1]} "
+                                  "&& rm -rf /var/lib/apt/lists/*"))
 
 
 def _issued(certs: Path, name: str, make: Any) -> KeyPair:
@@ -160,6 +187,9 @@ class ZenohDeployment:
 
     def node_env(self, where: svc.Where) -> Mapping[str, str]:
         return node_env(where)
+
+    def native_ros(self, distro: str) -> NativeRos:
+        return native_ros(distro)
 
     def host_services(self, plan: Plan, spec: HostSpec, where: svc.Where, *,
                       certs: Path | None) -> tuple[svc.Service, ...]:

@@ -20,6 +20,7 @@ class ZenohMiddleware:
     rule_description: str = "Zenoh router (mutual TLS)"
     needs_listed_topics: bool = True  # access control allows exactly the listed topics
     credentials_first: bool = True  # the router starts before the nodes, with its certificate
+    node_master: bool = False  # ROS 2 has no master: a node is up while its process runs
     host_requirements: tuple[str, ...] = ("eclipse-zenoh==1.10.2",)  # the router's; pyproject's ros2 extra pins it too
 
     def edge_entry(self, edge: Edge) -> str:

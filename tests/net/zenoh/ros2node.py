@@ -2,7 +2,9 @@
 
     python -m tests.net.zenoh.ros2node PORT OUT.jsonl --pub /topic=Type ... --sub /topic=Type ...
 
-It connects to the router on 127.0.0.1:PORT the way an rmw_zenoh node does, publishes every
+It connects to the router on 127.0.0.1:PORT the way an rmw_zenoh node does; with PORT 0 it is told
+nothing and finds its router as rmw_zenoh does, from ``ZENOH_CONFIG_OVERRIDE`` (or
+``ZENOH_SESSION_CONFIG_URI``) over the default session config. It publishes every
 listed topic every 100 ms (message ``seq`` is deterministic: :func:`message`), and appends one JSON
 line per message sent or received: ``{"event", "topic", "seq", "sha256"}``, where sha256 is over
 the message's CDR bytes. Message definitions are always passed in (the SDK would fetch them from
@@ -72,7 +74,9 @@ def main() -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(text)
     get_registry(str(messages))  # local definitions only: never a download
-    session = ZenohSession.get_instance("127.0.0.1", args.port)
+    # PORT 0: the SDK's defaults (rmw_zenoh's session config), which the environment overrides.
+    router = {"router_ip": "127.0.0.1", "router_port": args.port} if args.port else {}
+    session = ZenohSession.get_instance(**router)
     for name in ("builtin_interfaces/msg/Time", "std_msgs/msg/Header"):
         session.register_message_type(DEFINITIONS[name], name)
     store = session.store
@@ -98,13 +102,13 @@ def main() -> None:
                 record("received", topic, _seq(kind, msg), cdr)
 
         subs.append(ROS2Subscriber(topic=topic, msg_type=TYPES[kind], msg_definition=DEFINITIONS[TYPES[kind]],
-                                   callback=on_message, router_ip="127.0.0.1", router_port=args.port))
+                                   callback=on_message, **router))
     pubs = []
     for spec in args.pub:
         topic, kind = spec.split("=")
         pubs.append((topic, kind, ROS2Publisher(topic=topic, msg_type=TYPES[kind],
                                                 msg_definition=DEFINITIONS[TYPES[kind]],
-                                                router_ip="127.0.0.1", router_port=args.port)))
+                                                **router)))
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     print("ready", flush=True)

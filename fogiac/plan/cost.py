@@ -7,6 +7,7 @@ instance also carries the catalogue's spot estimate, and the plan its total with
 
 from __future__ import annotations
 
+import shlex
 from collections.abc import Mapping
 from typing import Any
 
@@ -82,12 +83,16 @@ def host_row(host: HostSpec) -> dict[str, Any]:
 
 
 def node_row(node: NodeSpec) -> dict[str, Any]:
-    if node.image is not None:
+    if node.build is not None:
+        runs = f"build {node.build.context} ({node.build.dockerfile})"
+    elif node.image is not None:
         runs = node.image
     elif node.launch is not None:
         runs = f"{node.launch.package}/{node.launch.file}"
-    else:
+    elif node.workload is not None:
         runs = f"workload {node.workload}"
+    else:
+        runs = shlex.join(node.command)  # in the plan's ROS image
     return {"name": node.name, "host": node.host, "kind": node.kind, "runs": runs, "gpu": node.gpu}
 
 

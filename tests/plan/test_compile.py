@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from fogiac.plan.compile import compile_plan
+from fogiac.plan.cost import node_row
 from fogiac.plan.model import check_ingress
 from fogiac.targets.aws.placement import NVIDIA, UBUNTU
 from fogiac.errors import PlanError
@@ -143,3 +144,18 @@ def test_hosts_target_needs_hosts() -> None:
 def test_unknown_target_lists_the_valid_ones() -> None:
     with pytest.raises(PlanError, match=r"^unknown target 'gcp'; valid: aws, hosts, local$"):
         compile_plan(example("minimal"), target="gcp")
+
+
+def test_plan_table_says_what_each_kind_of_node_runs(tmp_path: Path) -> None:
+    (tmp_path / "app").mkdir()
+    (tmp_path / "app" / "Dockerfile").write_text("FROM ros:noetic-ros-core\n")
+    text = (
+        "name: kinds\ncloud: {provider: local}\nnodes:\n"
+        "  - {name: built, machine: c5.large, build: {context: app}}\n"
+        "  - {name: pulled, machine: c5.large, image: 'ros:noetic-ros-core'}\n"
+        "  - {name: cmd, machine: c5.large, command: [rostopic, pub, /chatter, std_msgs/String, 'data: hi there']}\n"
+        "  - {name: planner, machine: c5.large, workload: motion_planning}\n"
+    )
+    rows = {row["name"]: row["runs"] for row in map(node_row, compile_plan(parse_manifest(text, base=tmp_path)).nodes)}
+    assert rows == {"built": f"build {tmp_path / 'app'} (Dockerfile)", "pulled": "ros:noetic-ros-core",
+                    "cmd": "rostopic pub /chatter std_msgs/String 'data: hi there'", "planner": "workload motion_planning"}

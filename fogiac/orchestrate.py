@@ -81,7 +81,7 @@ def provision_and_connect(plan: Plan, *, access: Mapping[str, Any], connect: Map
         "started_edge_master": started_edge_master, "nodes": {n.name: n.host for n in plan.nodes},
     })
     if not report.ok:
-        lines = [f"{o.host}: {o.error}" for o in report.failed]
+        lines = [o.error or f"{o.host}: failed" for o in report.failed]
         raise ProvisionError("; ".join(lines) + " (the other hosts are up; `fogiac down` removes everything)")
     return FleetUp(report=report, relays=relays, edge_master=master, deployment=deployment, notes=tuple(notes))
 
@@ -210,7 +210,7 @@ class ExistingMachines:
             stop_edge(plan, keep_master=True)
             try:
                 report = teardown(plan, hosts=self.access(plan, state_dir=folder), state_dir=folder)
-                errors += [f"{o.host}: {o.error}" for o in report.failed]
+                errors += [o.error or f"{o.host}: failed" for o in report.failed]
                 deleted += [f"{o.host} process {name}" for o in report.hosts for name in o.stopped]
             except FogiacError as err:
                 errors.append(str(err))

@@ -103,8 +103,8 @@ def _provision_one(plan: Plan, spec: HostSpec, access: HostAccess, *, known_host
                 progress(spec.name, name, "running")
             try:
                 status, detail = step(name)(run)
-            except FogiacError as err:
-                error = str(err)
+            except FogiacError as err:  # named by its host once, whether the step named it or not
+                error = str(err) if str(err).startswith((f"{spec.name}: ", f"{spec.name} (")) else f"{spec.name}: {err}"
             except Exception as err:  # a host's unexpected failure must not hide the others
                 error = f"{spec.name}: {name}: {type(err).__name__}: {err}"
             if error is not None:

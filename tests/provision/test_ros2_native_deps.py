@@ -25,7 +25,7 @@ from fogiac.procs import free_port
 from fogiac.provision import services as svc
 from tests.support.ros2 import standin_ros2
 
-REFUSAL = (r"^error: detector: detector: no ROS jazzy \(/opt/ros/jazzy/setup\.bash or ros2 on PATH, rmw_zenoh_cpp\) and no "
+REFUSAL = (r"^error: detector: no ROS jazzy \(/opt/ros/jazzy/setup\.bash or ros2 on PATH, rmw_zenoh_cpp\) and no "
            r"container engine; install ros-jazzy-ros-base ros-jazzy-rmw-zenoh-cpp from packages\.ros\.org \(apt "
            r"source: docs\.ros\.org/en/jazzy/Installation/Ubuntu-Install-Debs\.html\) with `sudo apt-get install -y "
            r"ros-jazzy-ros-base ros-jazzy-rmw-zenoh-cpp`, or let fogiac install them "

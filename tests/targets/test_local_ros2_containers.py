@@ -155,7 +155,7 @@ nodes:
         assert up.exit_code == 1, up.output
         (error,) = [line for line in up.output.splitlines() if line.startswith("error:")]
         log = _state_dir / "ros2-bare-dev" / "local" / "idle" / "build" / "ros-image.log"
-        assert error.startswith("error: idle: idle: node the ROS image (ros-humble-rmw-zenoh-cpp): image build failed "
+        assert error.startswith("error: idle: node the ROS image (ros-humble-rmw-zenoh-cpp): image build failed "
                                 "at STEP 2/2: RUN apt-get update && apt-get install -y --no-install-recommends "
                                 "ros-humble-rmw-zenoh-cpp"), error
         assert f"; log: {log}" in error and "STEP 2/2: RUN apt-get update" in log.read_text()

@@ -66,9 +66,35 @@ class Middleware(Protocol):
     @property
     def host_requirements(self) -> tuple[str, ...]: ...  # pinned PyPI packages its cloud side imports on a host
 
+    @property
+    def launching(self) -> Launching: ...  # how its ROS generation builds a workspace and runs a launch file
+
     def edge_entry(self, edge: Edge) -> str:
         """What the robot's side is reached at (``Plan.edge_master``): a master URI, a router endpoint."""
         ...
+
+
+@dataclass(frozen=True)
+class Launching:
+    """How a ROS generation builds a pushed workspace and runs one package's launch file from it."""
+
+    command: tuple[str, ...]  # what comes before PACKAGE FILE: ("roslaunch", "--wait"), ("ros2", "launch")
+    has_packages: str  # a shell test, in the workspace's root: it has packages to build
+    tool: str  # the build tool's command
+    build: str  # the build, run in the workspace's root after its env scripts
+    overlay: str  # the setup script a build leaves, relative to the workspace's root
+    package_path: bool  # True: packages are found through ROS_PACKAGE_PATH (natively, that alone)
+    image_has_tool: bool  # True: the ROS image always carries ``tool``; else the build asks first
+
+    def build_in_image(self) -> str:
+        """The build inside the ROS image, when the workspace has packages."""
+        test = self.has_packages if self.image_has_tool else f"{self.has_packages} && command -v {self.tool} >/dev/null"
+        return f"if {test}; then {self.build} >/dev/null; fi"
+
+    def build_native(self, env_file: str) -> str:
+        """The build on a native host, in the nodes' environment, when it has packages and the tool."""
+        return (f"if {self.has_packages} && command -v {self.tool} >/dev/null; "
+                f"then . {env_file} && {self.build} >/dev/null; fi")
 
 
 @dataclass(frozen=True)

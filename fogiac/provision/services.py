@@ -194,10 +194,12 @@ def docker_run(node: NodeSpec, *, plan: Plan, spec: HostSpec, where: Where) -> s
         image, command = node_image(plan, where), node.command
     elif node.kind == "launch" and node.launch is not None:
         image = _built(node, where) if node.launch.requirements else node_image(plan, where)
-        command = ("bash", "-c", f"{_SOURCE_DEVEL}exec roslaunch --wait \"$0\" \"$1\"",
-                   node.launch.package, node.launch.file)
+        launching = middleware.get(plan.middleware).launching
+        command = ("bash", "-c", f"{_source_overlay(_WS_MOUNT, launching.overlay)}; exec "
+                   f"{' '.join(launching.command)} \"$0\" \"$1\"", node.launch.package, node.launch.file)
         volumes = ((where.layout.workspace(node.launch.workspace), _WS_MOUNT, "ro"),)
-        env += (("ROS_PACKAGE_PATH", f"{_WS_MOUNT}/src:{_WS_MOUNT}"),)
+        if launching.package_path:
+            env += (("ROS_PACKAGE_PATH", f"{_WS_MOUNT}/src:{_WS_MOUNT}"),)
         workdir = _WS_MOUNT
     else:
         image, command = _built(node, where), ("python", "-m", f"workloads.{node.workload}", "node")
@@ -207,16 +209,17 @@ def docker_run(node: NodeSpec, *, plan: Plan, spec: HostSpec, where: Where) -> s
                   workdir=workdir, image=image, command=command).strip()
 
 
-# A catkin workspace built in the container leaves devel/setup.bash; sourcing it puts the
-# package's built messages and scripts where roslaunch finds them.
-_SOURCE_DEVEL = f"if [ -f {_WS_MOUNT}/devel/setup.bash ]; then . {_WS_MOUNT}/devel/setup.bash; fi; "
+def _source_overlay(ws: str, overlay: str) -> str:
+    """Source what the workspace's build left (catkin's devel/, colcon's install/), when it built."""
+    setup = q(f"{ws}/{overlay}")
+    return f"if [ -f {setup} ]; then . {setup}; fi"
 
 
 def workspace_build_command(plan: Plan, where: Where, workspace: str, scripts: tuple[str, ...]) -> str:
     """Build a pushed workspace inside the ROS image, the way FogROS built on the cloud: each env
-    script sourced in order, then ``catkin_make`` when the workspace has a top-level CMakeLists."""
+    script sourced in order, then the ROS generation's build (catkin_make, colcon) when it has packages."""
     steps = [f". {q(_WS_MOUNT + '/.fogiac-setup/' + s)}" for s in scripts]
-    steps.append("if [ -f src/CMakeLists.txt ]; then catkin_make >/dev/null; fi")
+    steps.append(middleware.get(plan.middleware).launching.build_in_image())
     return (f"{where.engine} run --rm --network host --volume {q(where.layout.workspace(workspace) + ':' + _WS_MOUNT)} "
             f"--workdir {_WS_MOUNT} -- {q(node_image(plan, where))} bash -ec {q('; '.join(steps))}")
 
@@ -240,8 +243,6 @@ def _container_node(node: NodeSpec, plan: Plan, spec: HostSpec, where: Where) ->
                     pre=(f"{where.engine} rm -f {name} >/dev/null 2>&1 || true",), check="any")
 
 
-# roslaunch --wait: without it, a roslaunch that starts before the host's master service would
-# start a master of its own on the same port and make the real one crash-loop.
 def _native_node(node: NodeSpec, plan: Plan, spec: HostSpec, where: Where) -> _NodeRun:
     if node.kind == "image":
         raise ProvisionError(
@@ -252,9 +253,13 @@ def _native_node(node: NodeSpec, plan: Plan, spec: HostSpec, where: Where) -> _N
         return _NodeRun(command=" ".join(q(arg) for arg in node.command), check="alive")
     if node.kind == "launch" and node.launch is not None:
         ws = where.layout.workspace(node.launch.workspace)
+        launching = middleware.get(plan.middleware).launching
+        # ROS 1 finds the package through ROS_PACKAGE_PATH; ROS 2 through its build's overlay, sourced
+        # over the distro's setup.bash (the env file) and the env scripts' build.
         # A node script run by `#!/usr/bin/env python3` (ROS's convention) finds the venv's python first.
-        return _NodeRun(command=f"roslaunch --wait {q(node.launch.package)} {q(node.launch.file)}",
-                        package_path=f"{ws}/src:{ws}", check="node", cwd=ws,
+        return _NodeRun(command=" ".join((*launching.command, q(node.launch.package), q(node.launch.file))),
+                        package_path=f"{ws}/src:{ws}" if launching.package_path else "", check="node", cwd=ws,
+                        pre=() if launching.package_path else (_source_overlay(ws, launching.overlay),),
                         bin_path=where.launch_bin if node.launch.requirements else "")
     python = where.workload_python or where.python
     return _NodeRun(command=f"{q(python)} -m workloads.{node.workload} node", python_path=where.code_root,

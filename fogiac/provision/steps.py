@@ -347,7 +347,7 @@ def step_workspace(run: HostRun) -> StepResult:
 
 
 def step_env_script(run: HostRun) -> StepResult:
-    """Run each workspace's env scripts (and a catkin build) once per content hash."""
+    """Run each workspace's env scripts (and its build: catkin_make, colcon) once per content hash."""
     ran = []
     for local in _workspaces(run):
         scripts = sorted({n.launch.env_script for n in (run.plan.node(x) for x in run.spec.nodes)
@@ -373,21 +373,27 @@ def step_env_script(run: HostRun) -> StepResult:
                 raise ProvisionError(f"{run.spec.name}: workspace {Path(local).name}: build in "
                                      f"{svc.ros_image(run.plan)} failed ({tail}); log: {log}")
         else:
+            # The nodes' env file as the services step will write it: on a first run it is not there yet.
+            env = f"{run.layout.tmp}/ros-env.sh"
+            run.host.put(_node_env(run).encode(), env, mode=0o600)
             for i, body in enumerate(bodies):
                 path = f"{run.layout.tmp}/setup-{i}.sh"
                 run.host.put(body, path, mode=0o700)
-                run.host.run(f"cd {q(dest)} && . {q(run.layout.env_file)} && bash {q(path)}", timeout=1800)
-            run.host.run(f"cd {q(dest)} && if [ -f src/CMakeLists.txt ] && command -v catkin_make >/dev/null; "
-                         f"then . {q(run.layout.env_file)} && catkin_make >/dev/null; fi", timeout=1800)
+                run.host.run(f"cd {q(dest)} && . {q(env)} && bash {q(path)}", timeout=1800)
+            run.host.run(f"cd {q(dest)} && {run.carrier.launching.build_native(q(env))}", timeout=1800)
         run.host.put(key.encode() + b"\n", marker, mode=0o600)
         ran.append(Path(local).name)
     return (CHANGED, f"set up {', '.join(ran)}") if ran else (OK, "set up already")
 
 
-def step_services(run: HostRun) -> StepResult:
+def _node_env(run: HostRun) -> str:
+    """The env file every service script on the host sources (the distro's setup, the middleware's env)."""
     setup = run.deploying.native_ros(run.plan.ros_distro).setup if run.runtime == svc.NATIVE else ""
-    env = svc.env_script(run.deploying.node_env(run.where()), host=run.spec.name, setup=setup)
-    env_changed = ensure_file(run, env.encode(), run.layout.env_file)
+    return svc.env_script(run.deploying.node_env(run.where()), host=run.spec.name, setup=setup)
+
+
+def step_services(run: HostRun) -> StepResult:
+    env_changed = ensure_file(run, _node_env(run).encode(), run.layout.env_file)
     manager = run.manager
     wanted = run.services()
     made = run.carrier.credentials_first and run.credentials()  # a new certificate: its router restarts

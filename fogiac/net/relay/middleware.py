@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from fogiac.manifest.schema import Edge
+from fogiac.net.middleware import Launching
 from fogiac.net.relay.config import RELAY_PORT
 
 
@@ -21,6 +22,12 @@ class RelayMiddleware:
     credentials_first: bool = False  # the cloud end starts at link, after the nodes
     node_master: bool = True  # a node is up once it registers with the host's roscore
     host_requirements: tuple[str, ...] = ()  # the cloud end needs fogiac's own requirements only
+    # roslaunch --wait: without it, a roslaunch that starts before the host's master service would
+    # start a master of its own on the same port and make the real one crash-loop. catkin_make
+    # leaves devel/setup.bash, which puts the package's built messages and scripts where roslaunch looks.
+    launching: Launching = Launching(command=("roslaunch", "--wait"), has_packages="[ -f src/CMakeLists.txt ]",
+                                     tool="catkin_make", build="catkin_make", overlay="devel/setup.bash",
+                                     package_path=True, image_has_tool=True)
 
     def edge_entry(self, edge: Edge) -> str:
         return edge.ros_master

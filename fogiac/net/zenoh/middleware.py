@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from fogiac.manifest.schema import Edge
+from fogiac.net.middleware import Launching
 from fogiac.net.zenoh.config import LOCAL_PORT as LOCAL_PORT  # re-exported: the ports in one place
 from fogiac.net.zenoh.config import ROUTER_PORT
 
@@ -22,6 +23,11 @@ class ZenohMiddleware:
     credentials_first: bool = True  # the router starts before the nodes, with its certificate
     node_master: bool = False  # ROS 2 has no master: a node is up while its process runs
     host_requirements: tuple[str, ...] = ("eclipse-zenoh==1.10.2",)  # the router's; pyproject's ros2 extra pins it too
+    # colcon installs each package under install/, whose setup.bash (over the distro's) lets
+    # `ros2 launch` find it; the ros-core images lack colcon (ros-base has it).
+    launching: Launching = Launching(
+        command=("ros2", "launch"), has_packages='[ -n "$(find src -name package.xml -print -quit 2>/dev/null)" ]',
+        tool="colcon", build="colcon build", overlay="install/setup.bash", package_path=False, image_has_tool=False)
 
     def edge_entry(self, edge: Edge) -> str:
         return edge.zenoh_router

@@ -16,6 +16,7 @@ provisioning, certificates or templates. Nothing else in fogiac names a variant.
 from __future__ import annotations
 
 import importlib
+import shlex
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -87,9 +88,14 @@ class Launching:
     image_has_tool: bool  # True: the ROS image always carries ``tool``; else the build asks first
 
     def build_in_image(self) -> str:
-        """The build inside the ROS image, when the workspace has packages."""
-        test = self.has_packages if self.image_has_tool else f"{self.has_packages} && command -v {self.tool} >/dev/null"
-        return f"if {test}; then {self.build} >/dev/null; fi"
+        """The build inside the ROS image, when the workspace has packages; an image without the build
+        tool fails here in one line rather than leaving the node to fail at launch ("package not found")."""
+        if self.image_has_tool:
+            return f"if {self.has_packages}; then {self.build} >/dev/null; fi"
+        missing = (f"the ROS image has no {self.tool} to build this workspace's packages; "
+                   f"use an image that has it (a ros-base image)")
+        return (f"if {self.has_packages}; then command -v {self.tool} >/dev/null || "
+                f"{{ echo {shlex.quote(missing)} >&2; exit 1; }}; {self.build} >/dev/null; fi")
 
     def build_native(self, env_file: str) -> str:
         """The build on a native host, in the nodes' environment, when it has packages and the tool."""

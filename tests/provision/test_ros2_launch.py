@@ -4,6 +4,8 @@ builds with colcon, sources its install/ overlay and runs ``ros2 launch``."""
 
 from __future__ import annotations
 
+import shlex
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -12,6 +14,7 @@ from fogiac.manifest.schema import parse_manifest
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.model import Plan
 from fogiac.provision import services as svc
+from tests.support.ros2 import standin_ros2
 
 MANIFEST = """
 name: fleet
@@ -66,15 +69,30 @@ def test_a_container_ros2_launch_node_sources_its_overlay_in_the_mounted_workspa
     assert "ROS_PACKAGE_PATH" not in line and "--env RMW_IMPLEMENTATION=rmw_zenoh_cpp" in line
 
 
-def test_a_ros2_workspace_builds_with_colcon_in_the_ros_image_when_it_has_packages_and_colcon(plan: Plan) -> None:
+def test_a_ros2_workspace_builds_with_colcon_in_the_ros_image_and_an_image_without_colcon_fails_in_one_line(
+        plan: Plan, tmp_path: Path) -> None:
     where = _where(svc.CONTAINER)
     ws = where.layout.workspace("ws")
-    assert svc.workspace_build_command(plan, where, "ws", ("0.sh",)) == (
-        f"docker run --rm --network host --volume {ws}:/fogiac/ws --workdir /fogiac/ws -- ros:jazzy-ros-core "
-        "bash -ec '. /fogiac/ws/.fogiac-setup/0.sh; "
-        "if [ -n \"$(find src -name package.xml -print -quit 2>/dev/null)\" ] && command -v colcon >/dev/null; "
-        "then colcon build >/dev/null; fi'"
-    )
+    line = svc.workspace_build_command(plan, where, "ws", ("0.sh",))
+    prefix = (f"docker run --rm --network host --volume {ws}:/fogiac/ws --workdir /fogiac/ws -- ros:jazzy-ros-core "
+              "bash -ec ")
+    assert line.startswith(prefix)
+    script = shlex.split(line[len(prefix):])[0].replace(". /fogiac/ws/.fogiac-setup/0.sh; ", "")
+    work = tmp_path / "work"
+    (work / "src" / "fogtest").mkdir(parents=True)
+    (work / "src" / "fogtest" / "package.xml").write_text("<package><name>fogtest</name></package>\n")
+    bare = {"PATH": "/usr/bin:/bin"}  # an image without colcon
+    done = subprocess.run(["bash", "-ec", script], cwd=work, env=bare, capture_output=True, text=True, check=False)
+    assert done.returncode == 1
+    assert done.stderr == ("the ROS image has no colcon to build this workspace's packages; "
+                           "use an image that has it (a ros-base image)\n")
+    tools = standin_ros2(tmp_path / "ros")  # an image with colcon builds, quietly
+    done = subprocess.run(["bash", "-ec", script], cwd=work, env={"PATH": f"{tools}:/usr/bin:/bin"},
+                          capture_output=True, text=True, check=False)
+    assert (done.returncode, done.stderr) == (0, "")
+    assert (work / "install" / "share" / "fogtest" / "package.xml").is_file()
+    (work / "src" / "fogtest" / "package.xml").unlink()  # no packages: nothing to build, no colcon needed
+    assert subprocess.run(["bash", "-ec", script], cwd=work, env=bare, check=False).returncode == 0
 
 
 def test_a_ros1_workspace_still_builds_with_catkin_make(tmp_path: Path) -> None:

@@ -27,21 +27,16 @@ from fogiac.procs import free_port
 from fogiac.provision import images
 from fogiac.provision.local import LocalHost
 from tests.conftest import EXAMPLES
+from tests.support.podman import podman_missing
 from tests.targets.test_local import ask_planner
 
 BASE = "docker.io/library/ros:noetic-ros-core"
 
 
 def _why_not() -> str | None:
-    if os.geteuid() != 0:
-        return "runs podman as root"
-    if shutil.which("podman") is None:
-        return "needs podman (apt-get install podman runc podman-docker)"
-    if subprocess.run(["podman", "image", "exists", BASE], capture_output=True).returncode:
-        return f"needs the test base image {BASE} (bash .ci/containers.sh builds it)"
     if shutil.which("roscore") is None:
         return "needs Debian's ros-core for the edge master"
-    return None
+    return podman_missing(BASE, "the test base image")
 
 
 pytestmark = [pytest.mark.ros, pytest.mark.skipif(_why_not() is not None, reason=_why_not() or "")]

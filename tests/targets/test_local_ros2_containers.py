@@ -14,7 +14,6 @@ fogiac layers ``ros-<distro>-rmw-zenoh-cpp`` over one that does not.
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import subprocess
 import time
@@ -27,22 +26,14 @@ from typer.testing import CliRunner
 from fogiac.cli import app
 from fogiac.procs import free_port
 from tests.net.zenoh.lab import ZenohLab
+from tests.support.podman import podman_missing
 
 BASE = "docker.io/library/ros:jazzy-ros-core"
 NODE = Path(__file__).resolve().parents[1] / "net" / "zenoh" / "ros2node.py"
 
 
-def _why_not() -> str | None:
-    if os.geteuid() != 0:
-        return "runs podman as root"
-    if shutil.which("podman") is None:
-        return "needs podman (apt-get install podman runc podman-docker)"
-    if subprocess.run(["podman", "image", "exists", BASE], capture_output=True).returncode:
-        return f"needs the ROS 2 stand-in image {BASE} (bash .ci/containers.sh builds it)"
-    return None
-
-
-pytestmark = [pytest.mark.zenoh, pytest.mark.skipif(_why_not() is not None, reason=_why_not() or "")]
+_MISSING = podman_missing(BASE, "the ROS 2 stand-in image")
+pytestmark = [pytest.mark.zenoh, pytest.mark.skipif(_MISSING is not None, reason=_MISSING or "")]
 pytest.importorskip("zenoh_ros2_sdk", reason="needs zenoh-ros2-sdk (pip install zenoh-ros2-sdk) for the robot side")
 
 # PORT 0: the node is told no router; it writes its events to its stdout (the service's log).

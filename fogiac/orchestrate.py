@@ -154,14 +154,14 @@ class ExistingMachines:
     def node_states(self, plan: Plan, spec: HostSpec, entry: Any) -> list[dict[str, Any]]:
         return [{"node": n} for n in spec.nodes]
 
-    def autostop_state(self, plan: Plan, spec: HostSpec, entry: Any) -> dict[str, Any] | None:
-        """The host's idle watchdog's last word (idle_since, stops_at, stopped_at), read on the host the
-        way provisioning reaches it; ``{"unreachable": why}`` when it does not answer."""
-        if entry is None or plan.autostop is None:
-            return None
-        access, base = entry[0], entry[1]
-        return idle.read(access, name=spec.name, base=base, known_hosts=stack_dir(plan.stack) / KNOWN_HOSTS,
-                         stack=plan.stack)
+    def autostop_states(self, plan: Plan, recorded: Mapping[str, Any]) -> dict[str, dict[str, Any] | None]:
+        """Each host's idle watchdog's last word (idle_since, stops_at, stopped_at), read on the hosts the
+        way provisioning reaches them, all at once; ``{"unreachable": why}`` for one that does not answer."""
+        if plan.autostop is None:
+            return {}
+        ask = {spec.name: (recorded[spec.name][0], recorded[spec.name][1]) for spec in plan.hosts
+               if recorded.get(spec.name) is not None}
+        return idle.read_all(ask, known_hosts=stack_dir(plan.stack) / KNOWN_HOSTS, stack=plan.stack)
 
     def declare(self, plan: Plan) -> tuple[Mapping[str, Any], ...]:
         return ()  # nothing is created: the machines exist
@@ -239,11 +239,12 @@ class ExistingMachines:
         if record is None and not recorded:
             return {**head, "deployed": False, "hosts": [], "relays": [], "edge": []}
         uptime = max(0.0, time.time() - record.since_epoch) if record else 0.0
+        watched = self.autostop_states(plan, recorded)
         hosts = [{"host": spec.name, "machine": spec.machine,
                   "address": self.host_address(plan, spec, recorded.get(spec.name)),
                   "uptime_s": round(uptime), "cost_usd": round(spec.usd_per_hour * uptime / 3600, 4),
                   "nodes": self.node_states(plan, spec, recorded.get(spec.name)),
-                  "autostop": self.autostop_state(plan, spec, recorded.get(spec.name))} for spec in plan.hosts]
+                  "autostop": watched.get(spec.name)} for spec in plan.hosts]
         saved = (read_json(folder / DEPLOYMENT_FILE) or {}) if folder.exists() else {}
         relays = middleware.deployment(plan.middleware).edge_links(plan, folder=edge_dir(plan),
                                                             connect=saved.get("relays", {}))

@@ -17,6 +17,7 @@ from typing import Any
 
 from fogiac.provision import autostop
 from fogiac.provision.host import HostAccess, q
+from fogiac.provision.services import Layout
 
 READ_TIMEOUT_S = 5.0  # connecting and reading, each: status stays quick when a host is gone
 UNREACHABLE = "unreachable"  # the key a reading carries instead of the watchdog's state
@@ -24,7 +25,7 @@ UNREACHABLE = "unreachable"  # the key a reading carries instead of the watchdog
 
 def state_path(base: str) -> str:
     """The watchdog's state file under a host's fogiac folder (its run folder, as the supervisor's)."""
-    return f"{base}/run/{autostop.STATE_FILE}"
+    return f"{Layout(base).run}/{autostop.STATE_FILE}"
 
 
 def _quick(access: HostAccess, timeout: float) -> HostAccess:

@@ -74,7 +74,7 @@ def provision_and_connect(plan: Plan, *, access: Mapping[str, Any], connect: Map
                        dialed=dialed_addresses(connect))
     relays = {o.host: connect[o.host] for o in report.hosts if o.ok and o.host in connect}
     notes = middleware.deployment(plan.middleware).edge_up(plan, entry=master, connect=relays, certs=certs,
-                                                     folder=edge_dir(plan)) if relays else []
+                                                           folder=edge_dir(plan)) if relays else []
     deployment = folder / DEPLOYMENT_FILE
     write_json_atomic(deployment, {
         "target": plan.target, "edge_master": master, "relays": relays,
@@ -247,7 +247,7 @@ class ExistingMachines:
                   "autostop": watched.get(spec.name)} for spec in plan.hosts]
         saved = (read_json(folder / DEPLOYMENT_FILE) or {}) if folder.exists() else {}
         relays = middleware.deployment(plan.middleware).edge_links(plan, folder=edge_dir(plan),
-                                                            connect=saved.get("relays", {}))
+                                                                   connect=saved.get("relays", {}))
         edge = [supervise.status(edge_dir(plan), name) for name in edge_services(plan)]
         return {**head, "deployed": True, "partial": record is None or record.partial,
                 "edge_master": saved.get("edge_master", plan.edge_master), "hosts": hosts, "relays": relays,

@@ -371,7 +371,7 @@ def step_env_script(run: HostRun) -> StepResult:
             if not built.ok:
                 tail = run.host.run(f"tail -n 1 {q(log)}", check=False).last_line()
                 raise ProvisionError(f"{run.spec.name}: workspace {Path(local).name}: build in "
-                                     f"{svc.ros_image(run.plan)} failed ({tail}); log: {log}")
+                                     f"{svc.node_image(run.plan, run.where())} failed ({tail}); log: {log}")
         else:
             # The nodes' env file as the services step will write it: on a first run it is not there yet.
             env = f"{run.layout.tmp}/ros-env.sh"

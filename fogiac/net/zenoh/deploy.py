@@ -206,7 +206,7 @@ class ZenohDeployment:
     def host_credentials(self, host: Host, *, python: str, folder: str, certs_dir: Path, plan: Plan,
                          spec: HostSpec, dialed: str) -> bool:
         return host_credentials(host, python=python, folder=folder, certs_dir=certs_dir, plan=plan, spec=spec,
-                                       dialed=dialed)
+                                dialed=dialed)
 
     def prepare_edge(self, plan: Plan, entry: str, *, folder: Path, start: bool) -> None:
         """Nothing to check: ROS 2 has no master, and the edge router is fogiac's own."""

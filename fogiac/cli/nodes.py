@@ -84,7 +84,10 @@ def register(app: typer.Typer) -> None:
         try:
             host.connect()
             command = manager_for(host).logs_command(Layout(base or host.base, plan.stack), f"node-{node}", lines=lines)
-            typer.echo(host.run(command).stdout, nl=False)
+            text = host.run(command, check=False).stdout
+            typer.echo(text, nl=False)
+            if not text.strip():  # a node still loading has nothing to show yet; say so rather than print nothing
+                typer.echo(f"(node {node} on {name} has written nothing yet)", err=True)
         finally:
             host.close()
 

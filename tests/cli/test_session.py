@@ -85,7 +85,9 @@ def test_1_status_down_logs_ssh_follow_the_target_up_recorded(deployed: tuple[Se
     assert code == 0 and any("motion-planning-dev (local)" in line for line in out), out
     assert any(re.search(r"planner .* running", line) for line in out), out
     code, out = session("logs", "planner", m)
-    assert code == 0 and out and not out[0].startswith("error"), out  # the node's own log lines
+    assert code == 0 and out and not out[0].startswith("error"), out
+    ready = _wait_for_log(session, "planner", "motion_planning: ready")  # the node's own line, once it has loaded
+    assert ready, out
     code, out = session("logs", "plannr", m)
     assert (code, out) == (1, [f"error: {m} has no node 'plannr'; its nodes: planner"])
     code, out = session("ssh", "planner", m, "--print")
@@ -95,6 +97,17 @@ def test_1_status_down_logs_ssh_follow_the_target_up_recorded(deployed: tuple[Se
                                "drop --target, or `fogiac down` it first"])
     code, out = session("down", m, "--target", "aws", "--yes")
     assert code == 1 and len(out) == 1 and "deployed to target local, not aws" in out[0], out
+
+
+def _wait_for_log(session: Session, node: str, text: str, *, attempts: int = 120) -> list[str]:
+    """`fogiac logs NODE` until a line holds TEXT (the planner loads its problems before it says ready)."""
+    for _ in range(attempts):
+        code, out = session("logs", node, str(session.manifest))
+        assert code == 0, out
+        if any(text in line for line in out):
+            return out
+        time.sleep(0.5)
+    return []
 
 
 def test_3_another_manifest_with_the_same_stack_name_is_refused(deployed: tuple[Session, list[str]],

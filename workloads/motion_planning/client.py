@@ -22,7 +22,7 @@ from std_msgs.msg import Float64
 
 from fogiac.errors import WorkloadError
 from fogiac.procs import poll
-from workloads.motion_planning.node import pose_from_msg, pose_to_msg
+from workloads.motion_planning.node import pose_from_msg, pose_to_msg, request_name
 from workloads.motion_planning.problem import PROBLEMS_DIR, Pose
 
 REQUEST_TOPIC = "/motion_planning/request"
@@ -50,8 +50,12 @@ def shipped_problems() -> list[str]:
 
 
 def request_paths(names: Sequence[str], *, timeout: float = 120.0,
-                  endpoints: dict[str, tuple[Pose, Pose]] | None = None, connect_timeout: float = 30.0) -> list[Timing]:
-    """Send one request per problem name, in turn, and wait for each path. Needs rospy.init_node done."""
+                  endpoints: dict[str, tuple[Pose, Pose]] | None = None, connect_timeout: float = 30.0,
+                  seeds: dict[str, int] | None = None) -> list[Timing]:
+    """Send one request per problem name, in turn, and wait for each path. Needs rospy.init_node done.
+
+    ``seeds`` names a problem's seed, for a repeatable search (``node.request_name``).
+    """
     cond = threading.Condition()
     paths: dict[tuple[str, int], Any] = {}
     # The node publishes a request's compute time, then its path, on two topics: two connections,
@@ -83,11 +87,11 @@ def request_paths(names: Sequence[str], *, timeout: float = 120.0,
         timings = []
         for name in names:
             request = PoseArray()
-            request.header.frame_id = name
+            request.header.frame_id = request_name(name, (seeds or {}).get(name))
             request.header.stamp = rospy.Time.now()
             if endpoints and name in endpoints:
                 request.poses = [pose_to_msg(p) for p in endpoints[name]]
-            key = (name, request.header.stamp.to_nsec())
+            key = (request.header.frame_id, request.header.stamp.to_nsec())
             sent = time.perf_counter()
             pub.publish(request)
             with cond:

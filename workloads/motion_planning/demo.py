@@ -10,6 +10,12 @@ compute and network time apart, load average beside it), and tears everything do
 long-lived 1-worker :class:`WarmPlanner`, as a robot's own planning node would be. Each run's
 times are printed as they come, and at the end how many cores each side's planner processes
 actually got while planning (on a machine shared with other jobs, fewer than it has).
+
+Each request carries a seed, the same for the robot and the cloud (common random numbers): the
+cloud's worker 0 searches exactly as the robot does and its other workers make other draws, so
+a run compares one core and N cores on the same luck, not on two separate lucks. Each side on
+its own is as random as ever (a fresh base seed per demo unless ``--seed``); only the noise in
+their ratio shrinks.
 """
 
 from __future__ import annotations
@@ -17,6 +23,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import random
 import statistics
 import subprocess
 import sys
@@ -61,9 +68,15 @@ def _fogiac(*args: str) -> None:
     subprocess.run([sys.executable, "-m", "fogiac", *args], check=True)
 
 
-def edge_run(robot: WarmPlanner, names: list[str], *, time_limit: float | None) -> list[Solution]:
+def edge_run(robot: WarmPlanner, names: list[str], *, time_limit: float | None,
+             seeds: dict[str, int]) -> list[Solution]:
     """Plan on the robot itself: one core, as a robot without a big computer would."""
-    return [robot.solve(name, time_limit=time_limit) for name in names]
+    return [robot.solve(name, time_limit=time_limit, seed=seeds[name]) for name in names]
+
+
+def run_seeds(base: int, run: int, names: list[str]) -> dict[str, int]:
+    """Each request's seed in one run: a thousand apart, so N workers' ``seed + i`` never meet."""
+    return {name: base + 1000 * (run * len(names) + i) for i, name in enumerate(names)}
 
 
 class CoresUsed:
@@ -107,7 +120,7 @@ def _runs_node(pid: int) -> bool:
     return any(args[i:i + 3] == [b"-m", b"workloads.motion_planning", b"node"] for i in range(len(args)))
 
 
-def interleaved_runs(names: list[str], *, runs: int, time_limit: float | None
+def interleaved_runs(names: list[str], *, runs: int, time_limit: float | None, seed: int
                      ) -> tuple[dict[str, list], dict[str, list], tuple[CoresUsed, CoresUsed]]:
     """Run after run: every problem on the robot, then every problem in the cloud through the relay."""
     rospy.init_node("fogiac_demo_client", anonymous=True, disable_signals=True)
@@ -118,13 +131,14 @@ def interleaved_runs(names: list[str], *, runs: int, time_limit: float | None
     with WarmPlanner(problems, workers=1) as robot:
         used = CoresUsed(robot.pids), CoresUsed(cloud_planner_pids)
         for run in range(runs):
+            seeds = run_seeds(seed, run, names)
             with used[0].measure() as walls:
-                solutions = edge_run(robot, names, time_limit=time_limit)
+                solutions = edge_run(robot, names, time_limit=time_limit, seeds=seeds)
                 walls += [s.solve_time_s for s in solutions]
             for name, solution in zip(names, solutions, strict=True):
                 edge[name].append(solution)
             with used[1].measure() as walls:
-                timings = request_paths(names, timeout=300, connect_timeout=120)
+                timings = request_paths(names, timeout=300, connect_timeout=120, seeds=seeds)
                 walls += [t.round_trip_s for t in timings]
             for timing in timings:
                 cloud[timing.name].append(timing)
@@ -157,7 +171,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--problems", default=",".join(p for p in shipped_problems() if p != "easy"))
     parser.add_argument("--time-limit", type=float, default=None, help="per solve; default: the .cfg's")
+    parser.add_argument("--seed", type=int, default=None, help="base seed of the requests; default: a fresh one")
     args = parser.parse_args(argv)
+    seed = args.seed if args.seed is not None else random.SystemRandom().randrange(2**30)
     names = [n for n in args.problems.split(",") if n]
     edge_master = _edge_master(args.manifest)
 
@@ -166,8 +182,8 @@ def main(argv: list[str] | None = None) -> int:
         _fogiac("up", str(args.manifest), "--target", "local", "--yes", "--start-edge-master")
         os.environ.update(ROS_MASTER_URI=edge_master, ROS_HOSTNAME="127.0.0.1")
         print(f"== {args.runs} run(s), each: every problem on the robot (1 core), then in the 'cloud' "
-              "through the relay", flush=True)
-        edge, cloud, used = interleaved_runs(names, runs=args.runs, time_limit=args.time_limit)
+              f"through the relay; both sides search with the same seed per request (--seed {seed})", flush=True)
+        edge, cloud, used = interleaved_runs(names, runs=args.runs, time_limit=args.time_limit, seed=seed)
         _fogiac("status", str(args.manifest), "--target", "local")
     finally:
         print("== fogiac down", flush=True)

@@ -3,8 +3,8 @@
 Topics (node name ``motion_planning``, so ``~x`` is ``/motion_planning/x``; remap as usual):
 
 - in  ``~request``       geometry_msgs/PoseArray: ``header.frame_id`` names a problem (a ``.cfg``
-  in ``~problem_dir``, without extension); ``poses`` is ``[start, goal]`` or empty for the
-  file's own endpoints.
+  in ``~problem_dir``, without extension), optionally followed by ``;seed=N`` for a repeatable
+  search (see ``pool.py``); ``poses`` is ``[start, goal]`` or empty for the file's own endpoints.
 - out ``~compute_time``  std_msgs/Float64: seconds :func:`solve` took (published first).
 - out ``~path``          geometry_msgs/PoseArray: the simplified path, start to goal, with the
   request's header (frame_id and stamp; rospy renumbers ``seq`` itself, so match on stamp).
@@ -51,6 +51,22 @@ def pose_to_msg(pose: Pose) -> Any:
     return PoseMsg(Point(pose.x, pose.y, pose.z), Quaternion(pose.qx, pose.qy, pose.qz, pose.qw))
 
 
+def request_name(name: str, seed: int | None = None) -> str:
+    """A request's ``header.frame_id``: the problem's name, and its seed when it has one."""
+    return name if seed is None else f"{name};seed={seed}"
+
+
+def parse_request_name(frame_id: str) -> tuple[str, int | None]:
+    """(problem name, seed or None) from a request's ``header.frame_id``; a bad seed is one line."""
+    name, sep, option = frame_id.partition(";")
+    if not sep:
+        return name, None
+    key, _, value = option.partition("=")
+    if key != "seed" or not value.isdigit():
+        raise WorkloadError(f"request {frame_id!r}: after ';' only 'seed=N' (N a whole number) is understood")
+    return name, int(value)
+
+
 class PlannerNode:
     """A warm planner over every problem in ``problem_dir``; answers each request in turn."""
 
@@ -69,11 +85,12 @@ class PlannerNode:
         """(compute seconds, path) for one PoseArray request; an empty path on any failure."""
         name = request.header.frame_id
         try:
+            name, seed = parse_request_name(name)
             if len(request.poses) not in (0, 2):
                 raise WorkloadError(f"request has {len(request.poses)} poses; send [start, goal] or none")
             start, goal = (pose_from_msg(p) for p in request.poses) if request.poses else (None, None)
             solution = self.planner.solve(name, start=start, goal=goal, time_limit=self.time_limit,
-                                          resolution=self.resolution)
+                                          resolution=self.resolution, seed=seed)
         except WorkloadError as err:
             rospy.logerr(f"motion_planning: {err}")
             return 0.0, []

@@ -12,8 +12,10 @@ requests (problem name, start, goal, limits) over its own pipe until it is close
   others stop within one planner iteration and report, so the next request starts clean.
 - **a dead worker is replaced** before the next request (its problems loaded again); a worker
   that dies during a race counts as a loser of that race.
-- OMPL seeds once per process, so a warm worker is seeded when it starts (``seed + index``),
-  not per request: runs repeat as a sequence, not one by one.
+- a warm worker is seeded when it starts (``seed + index``), so runs repeat as a sequence; a
+  request that names its own ``seed`` is repeatable alone: worker i draws from ``seed + i``
+  whatever it did before, so one worker's search is the same on a 1-worker planner and as
+  worker 0 of a larger one (the demo compares the robot and the cloud on the same draws).
 - ``mode="share"`` (the default) shares the work after the race: the first path is cut into a
   piece per worker and every worker simplifies and proves its piece (``share.py``); when a piece
   cannot be proven, one worker finishes the whole path in the time left (:attr:`refinished`);
@@ -95,8 +97,11 @@ class WarmPlanner:
 
     def solve(self, name: str, *, start: Pose | None = None, goal: Pose | None = None,
               time_limit: float | None = None, resolution: float | None = None,
-              simplify_time: float | None = None) -> Solution:
-        """Plan on a known problem (its own endpoints unless given); waits while another request runs."""
+              simplify_time: float | None = None, seed: int | None = None) -> Solution:
+        """Plan on a known problem (its own endpoints unless given); waits while another request runs.
+
+        ``seed`` makes the request repeatable: worker i searches with ``seed + i`` (see the module doc).
+        """
         if name not in self.problems:
             raise WorkloadError(f"unknown problem {name!r}; known: {', '.join(sorted(self.problems))}")
         problem = self.problems[name]
@@ -107,7 +112,8 @@ class WarmPlanner:
             simplify = self.simplify_time if simplify_time is None else simplify_time
             sharing = self.mode == "share" and self.workers > 1
             request = {"name": name, "start": start or problem.start, "goal": goal or problem.goal,
-                       "resolution": res, "time_limit": limit, "simplify_time": simplify, "finish": not sharing}
+                       "resolution": res, "time_limit": limit, "simplify_time": simplify, "finish": not sharing,
+                       "seed": seed}
             t0 = time.perf_counter()
             winner, statuses = self._race(request, deadline=t0 + limit + simplify + 30.0)
             if winner is not None and sharing:
@@ -317,10 +323,12 @@ def _serve(problems: Mapping[str, Problem], planner: str, seed: int, index: int,
                 report = search.finish(request["piece"], planner=planner, resolution=request["resolution"],
                                        time_limit=request["time_limit"], simplify_time=request["simplify_time"])
             else:
+                seed = request.get("seed")
                 report = search.run(
                     request["start"], request["goal"], planner=planner, resolution=request["resolution"],
                     time_limit=request["time_limit"], simplify_time=request["simplify_time"], cancelled=cancelled,
-                    on_first_path=first_path, finish=request["finish"])
+                    on_first_path=first_path, finish=request["finish"],
+                    seed=None if seed is None else ompl_seed(seed + index))
         except Exception as err:  # report, do not hang the parent
             report = {"solved": False, "status": f"worker error: {err}"}
         conn.send({**report, "id": request["id"], "index": index})

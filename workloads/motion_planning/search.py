@@ -84,17 +84,19 @@ class Search:
 
     def run(self, start: Pose, goal: Pose, *, planner: str, resolution: float, time_limit: float,
             simplify_time: float, cancelled: Callable[[], bool], on_first_path: Callable[[], None],
-            finish: bool = True) -> dict[str, Any]:
+            finish: bool = True, seed: int | None = None) -> dict[str, Any]:
         """Plan, simplify, prove; a report dict (``solved``, ``status``, ``path``, timings, counts).
 
         ``planner`` is a class name in ``ompl.geometric`` (``RRTConnect``, ...). With
         ``finish=False`` the first path is reported as planned (status ``first path``), for the
         parent to share its simplifying and proving out among the workers (:meth:`finish`).
+        ``seed`` (OMPL's range) makes the search repeatable: see :func:`seed_request`.
         """
         self.checker.checks = 0
         self.certifier.queries = 0
         deadline, cpu = _Clock(time_limit), time.process_time()
-        found = self._plan(start, goal, planner=planner, resolution=resolution, ptc=_ptc(deadline, cancelled))
+        found = self._plan(start, goal, planner=planner, resolution=resolution, ptc=_ptc(deadline, cancelled),
+                           seed=seed)
         if found is None or cancelled():  # another worker's path came first: do not simplify ours too
             status = "cancelled" if cancelled() else str(self.setup.getLastPlannerStatus()).lower()
             return {"solved": False, "status": status}
@@ -128,7 +130,7 @@ class Search:
         return {**report, "solved": True, "status": "exact solution", "path": _tuples(proven)}
 
     def _plan(self, start: Pose, goal: Pose, *, planner: str, resolution: float, ptc: Any,
-              straight: bool = True) -> list[Pose] | None:
+              straight: bool = True, seed: int | None = None) -> list[Pose] | None:
         """The planner's path, or the straight move when it is free and ``straight`` (not in a repair:
         there the straight move is the segment that could not be proven)."""
         self.set_resolution(resolution)
@@ -143,6 +145,8 @@ class Search:
         if straight and si.isValid(a) and si.checkMotion(a, b):  # the straight move is free: no search needed
             self.plan_time_s = time.perf_counter() - started
             return [start, goal]
+        if seed is not None:  # right before the planner and its sampler are made: nothing else draws a seed
+            seed_request(seed)
         self.setup.setPlanner(getattr(og, planner)(si))
         self.setup.solve(ptc)
         self.plan_time_s = time.perf_counter() - started
@@ -220,6 +224,23 @@ def seed_process(seed: int) -> None:
 
 
 _SEEDED = False
+
+
+def seed_request(seed: int) -> None:
+    """Seed the random generators OMPL makes from now on: the request's planner and its sampler.
+
+    A :class:`Search` makes a new planner for every request, and reseeds just before, so a
+    request that names its seed draws the same samples in any warm worker, whatever that worker
+    did before (the simplifier's generator, made once per worker, is not reseeded: simplifying
+    is bounded by time anyway).
+    OMPL reseeds but logs an error after its first seed; that line is silenced here.
+    """
+    level = ou.getLogLevel()
+    ou.setLogLevel(ou.LOG_NONE)
+    try:
+        ou.RNG.setSeed(seed)
+    finally:
+        ou.setLogLevel(level)
 
 
 class _Clock:

@@ -25,6 +25,14 @@ ends = {"easy": (Pose(-2.0, -1.0, 1.0), Pose(2.0, 1.0, -1.0, 0.0, 0.0, math.sin(
 print(json.dumps([t.as_dict() for t in request_paths(["easy"], timeout=60, endpoints=ends)]))
 """
 
+SEEDED_CLIENT = """
+import json, rospy
+from workloads.motion_planning.client import request_paths
+rospy.init_node("mp_test_client", anonymous=True, disable_signals=True)
+timings = request_paths(["easy"], timeout=60, seeds={"easy": 42}) + request_paths(["easy;sed=1"], timeout=60)
+print(json.dumps([t.as_dict() for t in timings]))
+"""
+
 
 @pytest.fixture
 def node_env(tmp_path: Path) -> Iterator[dict[str, str]]:
@@ -72,3 +80,12 @@ def test_request_brings_its_own_endpoints(node_env: dict[str, str]) -> None:
     assert (path[-1].x, path[-1].y, path[-1].z) == pytest.approx((2.0, 1.0, -1.0), abs=1e-6)
     problem = load_problem(PROBLEMS / "easy.cfg").with_endpoints(path[0], path[-1])
     assert path_is_collision_free(problem, path, resolution=0.01)
+
+
+def test_a_request_may_name_its_seed_and_a_bad_one_is_named(node_env: dict[str, str], tmp_path: Path) -> None:
+    result = _client(node_env, "-c", SEEDED_CLIENT)
+    assert result.returncode == 0, result.stderr
+    seeded, bad = json.loads(result.stdout)
+    assert (seeded["name"], seeded["solved"], bad["name"], bad["solved"]) == ("easy", True, "easy;sed=1", False)
+    log = (tmp_path / "node.log").read_text()
+    assert "request 'easy;sed=1': after ';' only 'seed=N' (N a whole number) is understood" in log, log

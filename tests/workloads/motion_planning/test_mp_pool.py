@@ -69,3 +69,16 @@ def test_closing_leaves_no_worker_behind() -> None:
     assert len(planner.pids()) == 2 and set(planner.pids()) <= descendants(os.getpid()) - before
     planner.close()
     assert descendants(os.getpid()) <= before
+
+
+def test_a_seeded_request_draws_the_same_search_in_any_worker() -> None:
+    """A request's seed fixes its search: worker 0 of two planners with other histories (and other
+    start-up seeds) needs exactly the same collision checks to its first path; another seed, others."""
+    problems = {"cubicles": load_problem(PROBLEMS / "cubicles.cfg")}
+    with WarmPlanner(problems, workers=1, seed=5) as a, WarmPlanner(problems, workers=1, seed=6) as b:
+        a.solve("cubicles", time_limit=30)  # a's worker has planned before; b's has not
+        first, again = a.solve("cubicles", time_limit=30, seed=77), b.solve("cubicles", time_limit=30, seed=77)
+        other = b.solve("cubicles", time_limit=30, seed=78)
+    assert first.solved and again.solved and other.solved
+    assert first.collision_checks == again.collision_checks > 0
+    assert other.collision_checks != first.collision_checks

@@ -19,6 +19,7 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationErr
 from fogiac.errors import ManifestError
 from fogiac.manifest.crossfield import cross_field_problems
 from fogiac.manifest.problems import FieldProblem, format_errors, line_index, parse_yaml
+from fogiac.manifest.requirements import RequirementsProblem, specifiers
 from fogiac.net import middleware
 from fogiac.plan.catalog import catalog
 from fogiac.plan.machines import Choice, NoMachine, Requirement, choose, parse_bound
@@ -500,6 +501,13 @@ def _resolve_paths(data: dict, base: Path) -> list[tuple[tuple, str]]:
         container[key] = str(path)
         if not (path.is_dir() if folder else path.is_file()):
             missing.append((loc + (key,), f"{value!r} does not exist (looked for {path})"))
+        elif key == "requirements":  # refused here already, not only when `up` reaches the host
+            try:
+                specifiers(path.read_text(errors="replace"), where=value)
+            except RequirementsProblem as err:
+                missing.append((loc + (key,), str(err)))
+            except OSError as err:
+                missing.append((loc + (key,), f"{value!r} cannot be read ({err.strerror})"))
 
     nodes = data.get("nodes")
     for i, node in enumerate(nodes if isinstance(nodes, list) else []):

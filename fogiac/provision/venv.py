@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from fogiac.errors import ProvisionError
+from fogiac.manifest.requirements import RequirementsProblem, specifiers
 from fogiac.provision.host import Host, q
 
 _HAS_VENV = "import ensurepip, venv"  # Debian's python3 has venv but not ensurepip without python3-venv
@@ -54,25 +55,13 @@ def requirements(workloads: list[str], *, fogiac: bool = False, middleware: tupl
 
 
 def file_requirements(path: str) -> tuple[str, ...]:
-    """The requirement lines of a launch package's requirements file (comments and blank lines dropped).
-
-    Only package specifiers: pip options (``-r``, ``--index-url``, ...) would escape the digest, and the
-    index comes from the host's own pip settings.
-    """
+    """The requirement lines of a launch package's requirements file (``manifest.requirements``)."""
     try:
-        lines = Path(path).read_text().splitlines()
+        return specifiers(Path(path).read_text(), where=path)
     except OSError as err:
         raise ProvisionError(f"{path}: cannot read the requirements file ({err.strerror})") from None
-    found: list[str] = []
-    for number, line in enumerate(lines, 1):
-        spec = line.split(" #", 1)[0].strip()
-        if not spec or spec.startswith("#"):
-            continue
-        if spec.startswith("-"):
-            raise ProvisionError(f"{path}:{number}: {spec.split()[0]}: only package specifiers are allowed here; "
-                                 "the host's pip settings choose the index")
-        found.append(re.sub(r"\s+", "", spec))
-    return tuple(found)
+    except RequirementsProblem as err:
+        raise ProvisionError(str(err)) from None
 
 
 def pins_digest(reqs: tuple[str, ...], python: str) -> str:

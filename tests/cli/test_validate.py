@@ -76,3 +76,18 @@ def test_cost_lists_instances_and_client_vpn_per_hour_day_month() -> None:
     assert "instance planner (c5.24xlarge)" in result.output
     assert "Client VPN subnet association" in result.output
     assert "4.2300" in result.output and "101.52" in result.output and "3087.90" in result.output  # 730 h
+
+
+def test_a_requirements_file_with_a_pip_option_is_refused_by_validate(tmp_path: Path) -> None:
+    """The same one line `up` would give on the host, before anything is planned or created."""
+    (tmp_path / "ws" / "src").mkdir(parents=True)
+    (tmp_path / "requirements.txt").write_text("shellingham==1.5.4\n--index-url http://elsewhere/simple\n")
+    manifest = tmp_path / "fogiac.yaml"
+    manifest.write_text("name: rq\nedge: {ros_master: http://localhost:11311}\nnodes:\n  - name: talker\n"
+                        "    machine: t3.small\n    launch: {package: p, file: t.launch, workspace: ws, "
+                        "requirements: requirements.txt}\n")
+    result = runner.invoke(app, ["validate", str(manifest)])
+    assert result.exit_code == 1
+    assert result.output.strip().splitlines() == [
+        f"{manifest}:6: nodes[0].launch.requirements: requirements.txt:2: --index-url: only package specifiers "
+        "are allowed here; the host's pip settings choose the index"]

@@ -11,7 +11,9 @@ segment), cold and warm: what a request costs beyond planning.
 Runs are paired and interleaved: run i uses seed ``seed + 1000 i`` on 1 core and, right after,
 the same seed for worker 0 of the multi-core race (the others take the next seeds), so a
 multi-core run is never a worse draw than its 1-core twin, only a luckier one or a slower one
-through contention, and load that drifts during the benchmark hits both sides alike.
+through contention, and load that drifts during the benchmark hits both sides alike. Warm
+requests carry the same seed (``WarmPlanner.solve(seed=)``), so warm worker 0 repeats the 1-core
+search too.
 Failed runs count with their elapsed time (about the time limit), so medians stay honest.
 Figures are ratios against the 1-core baseline measured in the same run. "work speedup" is
 the ratio of median collision checks the winner needed before its first path: what the race
@@ -59,7 +61,8 @@ def measure(name: str, problem: Problem, warm: dict[tuple[str, int], WarmPlanner
             results[("cold", c)].append(solve(problem, cores=c, time_limit=time_limit, seed=seed + 1000 * i))
             for mode in ("warm", "share"):
                 if (mode, c) in warm:
-                    results[(mode, c)].append(warm[(mode, c)].solve(name, time_limit=time_limit))
+                    results[(mode, c)].append(warm[(mode, c)].solve(name, time_limit=time_limit,
+                                                                    seed=seed + 1000 * i))
     rows = []
     for (mode, c), done in results.items():
         times = tuple(r.solve_time_s for r in done)

@@ -65,6 +65,9 @@ class Middleware(Protocol):
     def node_master(self) -> bool: ...  # True: nodes register with a ROS master, which health checks ask
 
     @property
+    def nodes_after(self) -> str: ...  # the host service a node's unit starts after (its master or router)
+
+    @property
     def host_requirements(self) -> tuple[str, ...]: ...  # pinned PyPI packages its cloud side imports on a host
 
     @property

@@ -310,7 +310,8 @@ def node_services(plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ..
     """One service per node placed on ``spec``, in plan order. Without a ROS master (ROS 2) a node's
     health is its process running: there is nothing to register with."""
     digests = dict(where.workspace_digests)
-    master = middleware.get(plan.middleware).node_master
+    chosen = middleware.get(plan.middleware)
+    master, after = chosen.node_master, unit_name(plan.stack, chosen.nodes_after)
     out = []
     for name in spec.nodes:
         node = plan.node(name)
@@ -325,7 +326,7 @@ def node_services(plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ..
             f"node-{name}", plan=plan, spec=spec, where=where, command=parts.command,
             check=parts.check if master else "alive",
             env=() if in_container else node.env, pre=parts.pre, package_path=parts.package_path,
-            python_path=parts.python_path, cwd=parts.cwd, notes=notes, after=unit_name(plan.stack, "ros-master"),
+            python_path=parts.python_path, cwd=parts.cwd, notes=notes, after=after,
             files=files, bin_path=parts.bin_path,
         ))
     return tuple(out)

@@ -168,3 +168,13 @@ def test_autostop_watchdog_reads_the_relay_stats(plan: Plan) -> None:
         f"--run {where.layout.run} --idle-s {plan.autostop.idle_s:g} --action {plan.autostop.action} "
         f"--power {plan.autostop.power}"
     )
+
+
+def test_a_ros2_nodes_unit_starts_after_its_hosts_zenoh_router_not_a_master(tmp_path: Path) -> None:
+    text = ("name: fleet\nros: {distro: jazzy}\ncloud: {provider: aws, region: us-west-2}\nnodes:\n"
+            "  - name: talker\n    machine: t3.small\n    image: ros:jazzy-ros-core\n"
+            "    command: [ros2, topic, pub, /chatter, std_msgs/msg/String, 'data: hi']\n    topics: {out: [/chatter]}\n")
+    plan = compile_plan(parse_manifest(text, base=tmp_path))
+    (service,) = svc.node_services(plan, plan.host("talker"), _where(svc.CONTAINER))
+    assert "After=network-online.target fogiac-fleet-dev-zenoh-router.service\n" in service.unit
+    assert "ros-master" not in service.unit

@@ -30,6 +30,7 @@ from fogiac.errors import ProvisionError
 from fogiac.net.middleware import NativeRos
 from fogiac.net.zenoh import tls
 from fogiac.net.zenoh.config import TlsFiles, cloud_router, edge_router
+from fogiac.net.zenoh.middleware import ROUTER
 from fogiac.plan.model import HostSpec, Plan
 from fogiac.provision import relaycert, supervise
 from fogiac.provision import services as svc
@@ -37,7 +38,6 @@ from fogiac.provision.host import Host, q
 from fogiac.render import render
 from fogiac.state import read_json
 
-ROUTER = "zenoh-router"
 EDGE_ROUTER = "zenoh-edge-router"
 EDGE_MONITOR = "zenoh-edge-monitor"
 BRIDGE_NOTE = ("zenoh-bridge-ros2dds is not installed by fogiac: for a DDS robot install it on the robot and "

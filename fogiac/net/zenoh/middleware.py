@@ -9,6 +9,8 @@ from fogiac.net.middleware import Launching
 from fogiac.net.zenoh.config import LOCAL_PORT as LOCAL_PORT  # re-exported: the ports in one place
 from fogiac.net.zenoh.config import ROUTER_PORT
 
+ROUTER = "zenoh-router"  # the host's router service, which nodes start after
+
 
 @dataclass(frozen=True)
 class ZenohMiddleware:
@@ -22,6 +24,7 @@ class ZenohMiddleware:
     needs_listed_topics: bool = True  # access control allows exactly the listed topics
     credentials_first: bool = True  # the router starts before the nodes, with its certificate
     node_master: bool = False  # ROS 2 has no master: a node is up while its process runs
+    nodes_after: str = ROUTER  # rmw_zenoh nodes find their host's router at start
     host_requirements: tuple[str, ...] = ("eclipse-zenoh==1.10.2",)  # the router's; pyproject's ros2 extra pins it too
     # colcon installs each package under install/, whose setup.bash (over the distro's) lets
     # `ros2 launch` find it; the ros-core images lack colcon (ros-base has it).

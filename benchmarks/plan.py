@@ -58,7 +58,8 @@ try:
     app(["validate", sys.argv[1]])
 except SystemExit:
     pass
-print("imports:" + ",".join(sorted({m.split(".")[0] for m in sys.modules} & {"pulumi", "pulumi_aws", "boto3", "botocore"})))
+heavy = {"pulumi", "pulumi_aws", "boto3", "botocore"}
+print("imports:" + ",".join(sorted({m.split(".")[0] for m in sys.modules} & heavy)))
 """
 
 

@@ -19,6 +19,7 @@ import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 import xmlrpc.client
 from pathlib import Path
@@ -39,7 +40,8 @@ class Bench:
     def spawn(self, argv: list[str], env: dict[str, str], *, log: str | None = None) -> subprocess.Popen:
         out = open(self.home / log, "w") if log else subprocess.DEVNULL  # noqa: SIM115
         proc = subprocess.Popen(argv, env=env, cwd=ROOT, start_new_session=True, text=True,
-                                stdout=subprocess.PIPE if log is None else out, stderr=subprocess.STDOUT if log else subprocess.DEVNULL)
+                                stdout=subprocess.PIPE if log is None else out,
+                                stderr=subprocess.STDOUT if log else subprocess.DEVNULL)
         self.procs.append(proc)
         return proc
 
@@ -68,6 +70,37 @@ class Bench:
             except subprocess.TimeoutExpired:
                 os.killpg(proc.pid, signal.SIGKILL)
                 proc.wait()
+
+
+def cpu_jiffies() -> tuple[int, int]:
+    """(idle, total) jiffies of the whole machine so far, from /proc/stat."""
+    fields = [int(x) for x in Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:]]
+    return fields[3] + fields[4], sum(fields[:8])
+
+
+class IdleSampler:
+    """The machine's idle jiffies every 0.2 s, on the monotonic clock the subscriber stamps arrivals with,
+    so a throughput run's idle share is taken over its steady part only (not start-up and settling)."""
+
+    def __init__(self) -> None:
+        self.samples: list[tuple[float, int, int]] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.wait(0.2):
+            self.samples.append((time.monotonic(), *cpu_jiffies()))
+
+    def idle_between(self, start: float, end: float) -> tuple[int, int]:
+        inside = [s for s in self.samples if start <= s[0] <= end]
+        if len(inside) < 2:
+            return 0, 0
+        return inside[-1][1] - inside[0][1], inside[-1][2] - inside[0][2]
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join()
 
 
 def run_pair(bench: Bench, pub_env: dict[str, str], sub_env: dict[str, str], topic: str, size: int,
@@ -173,18 +206,26 @@ def main() -> None:
                                edge, log="edge.log")
         rows = []
         cpu_ms_per_mb: dict[str, list[float]] = {}
+        idle: dict[str, dict[str, list[int]]] = {}  # size -> mode -> (idle, total) jiffies while messages flowed
+        sampler = IdleSampler()
         only = sys.argv[sys.argv.index("--only") + 1].split(",") if "--only" in sys.argv else list(SIZES)
-        for label, size in ((k, v) for k, v in SIZES.items() if k.replace(" ", "") in [o.replace(" ", "") for o in only]):
+        wanted = [o.replace(" ", "") for o in only]
+        for label, size in ((k, v) for k, v in SIZES.items() if k.replace(" ", "") in wanted):
             tag = label.replace(" ", "").lower()
             result = {}
             modes = (("direct", edge), ("relay", cloud))
             best = {mode: 0.0 for mode, _ in modes}
             ends = (edge_end.pid, cloud_end.pid)
             relay_cpu, relay_bytes = [0.0, 0.0], 0
+            idle[label] = {mode: [0, 0] for mode, _ in modes}
             for rep in range(THR_REPEATS):  # interleaved, best of each: other load on the box hurts both
                 for mode, sub_env in modes:
                     before = [cpu_seconds(pid) for pid in ends]
                     thr = run_pair(bench, edge, sub_env, f"/bench/{mode}_thr_{tag}_{rep}", size, 0.0, THR_SECONDS)
+                    window = steady(thr)
+                    idle[label][mode] = [a + b for a, b in zip(idle[label][mode],
+                                                               sampler.idle_between(window[0][0], window[-1][0]),
+                                                               strict=True)]
                     if mode == "relay":  # what each end spends per byte it carries: load does not stretch it
                         after = [cpu_seconds(pid) for pid in ends]
                         relay_cpu = [c + a - b for c, a, b in zip(relay_cpu, after, before, strict=True)]
@@ -209,6 +250,20 @@ def main() -> None:
             print(f"{label:8} {add_med:15.3f} {add_p99:13.3f} {ratio:24.2f}  ({d[2] / 1e6:.1f}, {r[2] / 1e6:.1f})")
         print("relay CPU per MB carried in the throughput runs (user + system, all threads): "
               + ", ".join(f"{label} edge {e:.2f} ms, cloud {c:.2f} ms" for label, (e, c) in cpu_ms_per_mb.items()))
+        # Busy CPUs are the limit when the machine is not idle during the throughput runs: then direct
+        # ROS's publisher and subscriber spend (CPUs / direct rate) per MB together, and the relay adds
+        # its two ends' CPU per MB to the same CPUs, which caps relay/direct at a / (a + ends).
+        ncpu = os.cpu_count() or 1
+        sampler.stop()
+        for label, _, _, ratio, d, _ in rows:
+            if label in cpu_ms_per_mb and d[2]:
+                pub_sub = 1e3 * ncpu / (d[2] / 1e6)
+                ceiling = pub_sub / (pub_sub + sum(cpu_ms_per_mb[label]))
+                spare = ", ".join(f"{mode} {100 * i / t:.0f}%" if t else f"{mode} unknown"
+                                  for mode, (i, t) in idle[label].items())
+                print(f"{label}: relay/direct {ratio:.2f}; machine idle while messages flowed: {spare}; if direct "
+                      f"was CPU-bound (idle near 0), relay/direct is at most {ceiling:.2f} here (publisher + "
+                      f"subscriber {pub_sub:.2f} ms per MB, relay ends {sum(cpu_ms_per_mb[label]):.2f})")
         stats = json.loads((home / "edge.json").read_text())
         print(f"relay reconnects during the run: {stats['reconnects']}; "
               f"load average at the end {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")

@@ -80,6 +80,15 @@ def test_proxy_mode_opens_the_relay_to_ssh_from_only() -> None:
     assert plan.relay[0].connect_via == "public"
 
 
+def test_a_ros2_stack_opens_only_ssh_and_the_zenoh_router() -> None:
+    """No ROS 1 master or node ports on a ROS 2 host: its traffic crosses only the router's port."""
+    plan = compile_plan(example("ros2-zenoh"))
+    ports = {(r.from_port, r.to_port, r.cidr) for r in plan.security_groups[0].ingress}
+    assert ports == {(22, 22, "198.51.100.0/24"), (7448, 7448, "10.10.0.0/16"), (7448, 7448, "198.51.100.0/24")}
+    ros1 = {(r.from_port, r.to_port) for r in compile_plan(example("proxy")).security_groups[0].ingress}
+    assert {(11311, 11311), (32768, 60999)} <= ros1  # ROS 1 over a VPN reaches the master and its nodes
+
+
 def test_hosts_hardware_image_and_tags() -> None:
     grasp = compile_plan(example("grasp-planning"))
     (host,) = grasp.hosts

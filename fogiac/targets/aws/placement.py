@@ -52,8 +52,9 @@ def _network(manifest: Manifest) -> NetworkSpec:
 
 
 def _firewall(manifest: Manifest, ssh_from: tuple[str, ...], *, vpn_mode: bool) -> tuple[SecurityGroup, ...]:
-    """Least privilege: SSH from ssh_from only; ROS and the middleware's port from the VPC (and VPN
-    clients); in proxy mode the middleware's port also from ssh_from, never from the world."""
+    """Least privilege: SSH from ssh_from only; the middleware's port (and, for ROS 1, the master's and
+    the nodes') from the VPC and VPN clients; in proxy mode the middleware's port also from ssh_from,
+    never from the world. ROS 2 traffic leaves a host only through its Zenoh router."""
     carrier = middleware.for_distro(manifest.ros.distro)
     port, what = carrier.port, carrier.rule_description
     inside = [str(manifest.network.vpc_cidr)]
@@ -61,11 +62,12 @@ def _firewall(manifest: Manifest, ssh_from: tuple[str, ...], *, vpn_mode: bool) 
         inside.append(str(manifest.network.client_cidr))
     ingress = [Rule("tcp", SSH_PORT, SSH_PORT, cidr, "SSH from the operator") for cidr in ssh_from]
     for cidr in inside:
-        ingress += [
-            Rule("tcp", ROS_MASTER_PORT, ROS_MASTER_PORT, cidr, "ROS master"),
-            Rule("tcp", ROS_EPHEMERAL[0], ROS_EPHEMERAL[1], cidr, "ROS node ports (TCPROS, XML-RPC)"),
-            Rule("tcp", port, port, cidr, what),
-        ]
+        if carrier.node_master:  # ROS 1 over the VPN reaches the master and its nodes; ROS 2 crosses only the router
+            ingress += [
+                Rule("tcp", ROS_MASTER_PORT, ROS_MASTER_PORT, cidr, "ROS master"),
+                Rule("tcp", ROS_EPHEMERAL[0], ROS_EPHEMERAL[1], cidr, "ROS node ports (TCPROS, XML-RPC)"),
+            ]
+        ingress.append(Rule("tcp", port, port, cidr, what))
     if not vpn_mode:
         ingress += [Rule("tcp", port, port, cidr, f"{what} from the edge") for cidr in ssh_from]
     hosts = SecurityGroup(

@@ -28,11 +28,12 @@ import ompl.geometric as og
 import ompl.util as ou
 
 from workloads.motion_planning.certify import Certifier, as_poses
-from workloads.motion_planning.geometry import CollisionChecker
+from workloads.motion_planning.geometry import CollisionChecker, rotation_angle, slerp
 from workloads.motion_planning.problem import Pose, Problem, space_extent
 
 CHECK_DIVISOR = 10  # the certifier's finest piece, relative to the planning resolution
 MAX_REPAIR_DEPTH = 3
+_LIFT_STEPS = 3  # gradient steps to lift a vertex that nearly touches a wall
 _REPAIR_SHRINK = 4.0
 
 ou.setLogLevel(ou.LOG_ERROR)
@@ -101,6 +102,7 @@ class Search:
             status = "cancelled" if cancelled() else str(self.setup.getLastPlannerStatus()).lower()
             return {"solved": False, "status": status}
         on_first_path()
+        found = self.lift(found, resolution)
         first = {"plan_time_s": self.plan_time_s, "checks": self.checker.checks,
                  "cpu_s": time.process_time() - cpu}
         if not finish:
@@ -119,7 +121,7 @@ class Search:
         self.certifier.queries = 0
         deadline, cpu = _Clock(time_limit), time.process_time()
         self.set_resolution(resolution)
-        simplified = self._simplify(self._geometric(path), simplify_time, resolution)
+        simplified = self.lift(self._simplify(self._geometric(path), simplify_time, resolution), resolution)
         floor = resolution / CHECK_DIVISOR
         proven, repairs = self._prove(simplified, planner=planner, resolution=resolution, floor=floor, depth=0,
                                       deadline=deadline)
@@ -136,10 +138,8 @@ class Search:
         self.set_resolution(resolution)
         self.setup.clear()
         a, b = self.space.allocState(), self.space.allocState()
-        for state, pose in ((a, start), (b, goal)):
-            state.setXYZ(pose.x, pose.y, pose.z)
-            rot = state.rotation()
-            rot.w, rot.x, rot.y, rot.z = (float(v) for v in pose.quaternion())
+        _set_state(a, start)
+        _set_state(b, goal)
         self.setup.setStartAndGoalStates(a, b)
         si, started = self.setup.getSpaceInformation(), time.perf_counter()
         if straight and si.isValid(a) and si.checkMotion(a, b):  # the straight move is free: no search needed
@@ -154,13 +154,76 @@ class Search:
             return None
         return as_poses(self.setup.getSolutionPath().getStates())
 
+    def lift(self, path: list[Pose], resolution: float) -> list[Pose]:
+        """The path with its inner vertices that nearly touch a wall pushed out to half a step of clearance.
+
+        The planner's vertices need only be valid, simplifying keeps them, and its subdividing puts new
+        vertices halfway between checked poses, where the clearance can be near nothing: a vertex that
+        grazes a wall leaves its segments unprovable, and then each is re-planned (0.3-2 s a repair; one
+        request in ten on the maze, some answered "no path"). A vertex under ``resolution / 2`` of
+        clearance is moved (position only) along its clearance's gradient, as long as both of its
+        segments stay valid; one that cannot be lifted so stays where it was. The ends never move.
+        Used on the first path (so the poses where a shared request is cut are lifted too) and on
+        every simplified path before it is proven.
+        """
+        self.set_resolution(resolution)
+        out = list(path)
+        for i in range(1, len(out) - 1):
+            lifted = self._lifted(out[i - 1], out[i], out[i + 1], margin=resolution / 2)
+            if lifted is not None:
+                out[i] = lifted
+        return out
+
+    def _lifted(self, before: Pose, pose: Pose, after: Pose, *, margin: float) -> Pose | None:
+        clearance, q = self.certifier.clearance, pose.quaternion()
+        position = pose.position()
+        clear = clearance(position, q)
+        if clear >= margin:
+            return None
+        h = margin / 4
+        for _ in range(_LIFT_STEPS):
+            grad = np.array([clearance(position + h * e, q) - clearance(position - h * e, q) for e in np.eye(3)])
+            norm = float(np.linalg.norm(grad))
+            if norm == 0.0:
+                return None  # deep in a wall, or flat all round: nothing says which way is out
+            position = position + grad / norm * (margin - clear + h)
+            clear = clearance(position, q)
+            if clear >= margin:
+                break
+        else:
+            return None
+        moved = Pose(float(position[0]), float(position[1]), float(position[2]), pose.qx, pose.qy, pose.qz, pose.qw)
+        si = self.setup.getSpaceInformation()
+        a, b, c = self.space.allocState(), self.space.allocState(), self.space.allocState()
+        for state, p in ((a, before), (b, moved), (c, after)):
+            _set_state(state, p)
+        return moved if si.checkMotion(a, b) and si.checkMotion(b, c) else None
+
+    def _bend(self, a: Pose, b: Pose, *, resolution: float, floor: float) -> list[Pose] | None:
+        """[m, b]: the segment's pose nearest a wall, lifted to half a step of clearance, when both
+        halves then prove; None otherwise. A segment the planner left (checked for validity only, not
+        for clearance) can graze a wall between two free ends; this costs a few clearance queries
+        where a re-plan of the segment costs 0.3-2 s."""
+        p0, p1, q0, q1 = a.position(), b.position(), a.quaternion(), b.quaternion()
+        sweep = float(np.linalg.norm(p1 - p0)) + self.certifier.radius * rotation_angle(q0, q1)
+        steps = max(2, math.ceil(sweep / resolution))
+        inner = [(t, p0 + (p1 - p0) * t, slerp(q0, q1, t)) for t in (i / steps for i in range(1, steps))]
+        _, position, q = min(inner, key=lambda pose: self.certifier.clearance(pose[1], pose[2]))
+        nearest = Pose(float(position[0]), float(position[1]), float(position[2]), float(q[1]), float(q[2]),
+                       float(q[3]), float(q[0]))
+        moved = self._lifted(a, nearest, b, margin=resolution / 2)
+        if moved is None and self.certifier.clearance(nearest.position(), q) >= resolution / 2:
+            moved = nearest  # clear enough already: a bend there may prove where the straight segment did not
+        if moved is None or not (self.certifier.segment_is_free(a, moved, floor=floor)
+                                 and self.certifier.segment_is_free(moved, b, floor=floor)):
+            return None
+        return [moved, b]
+
     def _geometric(self, poses: list[Pose]) -> Any:
         path = og.PathGeometric(self.setup.getSpaceInformation())
         state = self.space.allocState()
         for pose in poses:
-            state.setXYZ(pose.x, pose.y, pose.z)
-            rot = state.rotation()
-            rot.w, rot.x, rot.y, rot.z = (float(v) for v in pose.quaternion())
+            _set_state(state, pose)
             path.append(state)  # copied
         return path
 
@@ -191,6 +254,10 @@ class Search:
             if self.certifier.segment_is_free(a, b, floor=floor):
                 out.append(b)
                 continue
+            bent = self._bend(a, b, resolution=resolution, floor=floor)
+            if bent is not None:  # a segment that grazes a wall midway, bent away from it: no re-plan
+                out += bent
+                continue
             if depth >= MAX_REPAIR_DEPTH or deadline.left() <= 0:
                 return None, repairs
             repairs += 1
@@ -199,7 +266,8 @@ class Search:
                                straight=False)
             if piece is None:
                 return None, repairs
-            piece = self._simplify(self._geometric(piece), min(0.2, max(0.0, deadline.left())), finer)
+            piece = self.lift(self._simplify(self._geometric(piece), min(0.2, max(0.0, deadline.left())), finer),
+                              finer)
             fixed, more = self._prove(piece, planner=planner, resolution=finer, floor=floor,
                                       depth=depth + 1, deadline=deadline)
             repairs += more
@@ -209,6 +277,12 @@ class Search:
         if len(path) == 1 and not self.certifier.segment_is_free(path[0], path[0], floor=floor):
             return None, repairs
         return out, repairs
+
+
+def _set_state(state: Any, pose: Pose) -> None:
+    state.setXYZ(pose.x, pose.y, pose.z)
+    rot = state.rotation()
+    rot.w, rot.x, rot.y, rot.z = (float(v) for v in pose.quaternion())
 
 
 def _tuples(path: list[Pose]) -> list[tuple[float, ...]]:

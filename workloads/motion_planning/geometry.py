@@ -76,11 +76,13 @@ def rotation_angle(q0: np.ndarray, q1: np.ndarray) -> float:
     return 2.0 * math.acos(min(1.0, abs(float(np.dot(q0, q1)))))
 
 
-def interpolate(a: Pose, b: Pose, *, max_step: float, radius: float) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Poses from a to b (both included) such that no robot point moves more than ``max_step``."""
+def interpolate(a: Pose, b: Pose, *, max_step: float, radius: float,
+                min_steps: int = 1) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Poses from a to b (both included) such that no robot point moves more than ``max_step``,
+    in at least ``min_steps`` steps."""
     p0, p1, q0, q1 = a.position(), b.position(), a.quaternion(), b.quaternion()
     sweep = float(np.linalg.norm(p1 - p0)) + radius * rotation_angle(q0, q1)
-    n = max(1, math.ceil(sweep / max_step))
+    n = max(min_steps, math.ceil(sweep / max_step))
     return [(p0 + (p1 - p0) * (i / n), slerp(q0, q1, i / n)) for i in range(n + 1)]
 
 

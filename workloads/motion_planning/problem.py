@@ -57,6 +57,13 @@ class Pose:
     qw: float = 1.0
 
     @classmethod
+    def from_arrays(cls, position: np.ndarray, quaternion: np.ndarray) -> Pose:
+        """The inverse of :meth:`position` and :meth:`quaternion` (w, x, y, z)."""
+        x, y, z = (float(v) for v in position)
+        w, qx, qy, qz = (float(v) for v in quaternion)
+        return cls(x, y, z, qx, qy, qz, w)
+
+    @classmethod
     def from_axis_angle(cls, x: float, y: float, z: float, *, axis: tuple[float, float, float], theta: float) -> Pose:
         norm = math.sqrt(sum(a * a for a in axis))
         if norm == 0.0:

@@ -28,7 +28,7 @@ import ompl.geometric as og
 import ompl.util as ou
 
 from workloads.motion_planning.certify import Certifier, as_poses
-from workloads.motion_planning.geometry import CollisionChecker, rotation_angle, slerp
+from workloads.motion_planning.geometry import CollisionChecker, interpolate
 from workloads.motion_planning.problem import Pose, Problem, space_extent
 
 CHECK_DIVISOR = 10  # the certifier's finest piece, relative to the planning resolution
@@ -204,16 +204,12 @@ class Search:
         halves then prove; None otherwise. A segment the planner left (checked for validity only, not
         for clearance) can graze a wall between two free ends; this costs a few clearance queries
         where a re-plan of the segment costs 0.3-2 s."""
-        p0, p1, q0, q1 = a.position(), b.position(), a.quaternion(), b.quaternion()
-        sweep = float(np.linalg.norm(p1 - p0)) + self.certifier.radius * rotation_angle(q0, q1)
-        steps = max(2, math.ceil(sweep / resolution))
-        inner = [(t, p0 + (p1 - p0) * t, slerp(q0, q1, t)) for t in (i / steps for i in range(1, steps))]
-        _, position, q = min(inner, key=lambda pose: self.certifier.clearance(pose[1], pose[2]))
-        nearest = Pose(float(position[0]), float(position[1]), float(position[2]), float(q[1]), float(q[2]),
-                       float(q[3]), float(q[0]))
-        moved = self._lifted(a, nearest, b, margin=resolution / 2)
-        if moved is None and self.certifier.clearance(nearest.position(), q) >= resolution / 2:
-            moved = nearest  # clear enough already: a bend there may prove where the straight segment did not
+        inner = interpolate(a, b, max_step=resolution, radius=self.certifier.radius, min_steps=2)[1:-1]
+        clear, i = min((self.certifier.clearance(*pose), i) for i, pose in enumerate(inner))
+        nearest = Pose.from_arrays(*inner[i])
+        # clear enough already, a bend there may prove where the straight segment did not; else lift it
+        margin = resolution / 2
+        moved = nearest if clear >= margin else self._lifted(a, nearest, b, margin=margin)
         if moved is None or not (self.certifier.segment_is_free(a, moved, floor=floor)
                                  and self.certifier.segment_is_free(moved, b, floor=floor)):
             return None

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 from fogiac.errors import ProvisionError
 from fogiac.net import middleware
+from fogiac.net.relay.middleware import MASTER
 from fogiac.plan.model import HostSpec, NodeSpec, Plan
 from fogiac.provision.host import q
 from fogiac.render import render
@@ -296,14 +297,14 @@ make_service = _service  # for the middlewares' own services (fogiac.net.<varian
 def master_service(plan: Plan, spec: HostSpec, where: Where) -> Service:
     if where.runtime == CONTAINER:
         # ROS_IP in the container: the master advertises (and, on loopback, binds) the host's ROS address.
-        name = container_name(plan.stack, f"{spec.name}-ros-master")
+        name = container_name(plan.stack, f"{spec.name}-{MASTER}")
         command = render("provision/docker_run.j2", engine=where.engine, stack=plan.stack, host=spec.name, gpus=False,
                          container=name, env=ros_env(plan, where), env_file="", volumes=(), workdir="",
                          image=ros_image(plan), command=("roscore", "-p", str(where.master_port))).strip()
         pre: tuple[str, ...] = (f"{where.engine} rm -f {name} >/dev/null 2>&1 || true",)
     else:
         command, pre = f"roscore -p {where.master_port}", ()
-    return _service("ros-master", plan=plan, spec=spec, where=where, command=command, check="master", pre=pre)
+    return _service(MASTER, plan=plan, spec=spec, where=where, command=command, check="master", pre=pre)
 
 
 def node_services(plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ...]:
@@ -342,7 +343,7 @@ def relay_service(plan: Plan, spec: HostSpec, where: Where) -> Service:
                f"--master {master_uri(where)} --certs {q(where.layout.certs)} --stats-file {q(relay_stats(where))} "
                f"{policy}").rstrip()
     return _service("relay-cloud", plan=plan, spec=spec, where=where, command=command, check="alive",
-                    python_path=where.code_root, after=unit_name(plan.stack, "ros-master"))
+                    python_path=where.code_root, after=unit_name(plan.stack, MASTER))
 
 
 def relay_stats(where: Where) -> str:

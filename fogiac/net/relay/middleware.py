@@ -8,6 +8,8 @@ from fogiac.manifest.schema import Edge
 from fogiac.net.middleware import Launching
 from fogiac.net.relay.config import RELAY_PORT
 
+MASTER = "ros-master"  # the host's roscore service, which nodes and the relay's cloud end start after
+
 
 @dataclass(frozen=True)
 class RelayMiddleware:
@@ -21,7 +23,7 @@ class RelayMiddleware:
     needs_listed_topics: bool = False  # the relay discovers topics from both masters
     credentials_first: bool = False  # the cloud end starts at link, after the nodes
     node_master: bool = True  # a node is up once it registers with the host's roscore
-    nodes_after: str = "ros-master"
+    nodes_after: str = MASTER
     host_requirements: tuple[str, ...] = ()  # the cloud end needs fogiac's own requirements only
     # roslaunch --wait: without it, a roslaunch that starts before the host's master service would
     # start a master of its own on the same port and make the real one crash-loop. catkin_make

@@ -13,12 +13,14 @@ import os
 import subprocess
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from fogiac.errors import ProvisionError
 from fogiac.manifest.schema import load_manifest
 from fogiac.plan.compile import compile_plan
+from fogiac.plan.model import Plan
 from fogiac.provision import provision, teardown, venv
 from fogiac.provision.local import LocalHost
 from fogiac.targets.hosts.target import HOSTS
@@ -27,6 +29,28 @@ from tests.provision.sshlab import lab_skip_reason, ssh_lab
 
 SYSTEM_PYTHON = "/usr/bin/python3"
 WHEELS = Path("/var/cache/fogiac-ci/lab-wheels")  # the lab's mirror (.ci/lab-wheels.sh)
+
+
+def _lab_plan(tmp_path: Path, host: Any, key: Path, *, name: str, nodes: str) -> tuple[Plan, dict[str, Any]]:
+    """A native hosts-target plan on one namespace host as root, and its access for Debian's python3."""
+    manifest = tmp_path / "fogiac.yaml"
+    manifest.write_text(f"""name: {name}
+cloud:
+  provider: hosts
+  runtime: native
+  hosts:
+    - {{name: {host.name}, address: {host.address}, user: root, key: {key}}}
+nodes:
+{nodes}""")
+    plan = compile_plan(load_manifest(manifest))
+    return plan, {n: replace(a, base_dir=str(host.base_dir))
+                  for n, a in HOSTS.access(plan, state_dir=tmp_path, python=SYSTEM_PYTHON).items()}
+
+
+def _second_up_installs_nothing(plan: Plan, access: dict[str, Any], tmp_path: Path, *, health_timeout: float) -> None:
+    again = provision(plan, hosts=access, state_dir=tmp_path, health_timeout=health_timeout)
+    assert again.no_changes, [(s.name, s.status, s.detail) for s in again.hosts[0].steps]
+    assert next(s for s in again.hosts[0].steps if s.name == "venv").status == "ok"
 
 
 def test_a_python_without_venv_support_is_named_with_the_command(tmp_path: Path) -> None:
@@ -55,19 +79,8 @@ def test_grasp_workload_runs_on_the_system_python_in_a_venv_built_once(tmp_path:
         pytest.skip("the system python3 has numpy already: nothing would show the venv is used")
     with ssh_lab(tmp_path / "lab", 1, env={"PIP_INDEX_URL": "file:///opt/pypi/simple"}) as (hosts, key):
         (host,) = hosts
-        manifest = tmp_path / "fogiac.yaml"
-        manifest.write_text(f"""name: venvtest
-cloud:
-  provider: hosts
-  runtime: native
-  hosts:
-    - {{name: {host.name}, address: {host.address}, user: root, key: {key}}}
-nodes:
-  - {{name: grasp, machine: t3.small, workload: grasp_planning}}
-""")
-        plan = compile_plan(load_manifest(manifest))
-        access = {n: replace(a, base_dir=str(host.base_dir))
-                  for n, a in HOSTS.access(plan, state_dir=tmp_path, python=SYSTEM_PYTHON).items()}
+        plan, access = _lab_plan(tmp_path, host, key, name="venvtest",
+                                 nodes="  - {name: grasp, machine: t3.small, workload: grasp_planning}\n")
         try:
             first = provision(plan, hosts=access, state_dir=tmp_path, health_timeout=120)
             (outcome,) = first.hosts
@@ -77,10 +90,7 @@ nodes:
             assert "torch==2.13.0" in venv_step.detail
             script = next(host.base_dir.glob("services/node-grasp.sh")).read_text()
             assert f"exec {host.base_dir}/venv/" in script and "/bin/python -m workloads.grasp_planning node" in script
-
-            again = provision(plan, hosts=access, state_dir=tmp_path, health_timeout=120)
-            assert again.no_changes, [(s.name, s.status, s.detail) for s in again.hosts[0].steps]
-            assert next(s for s in again.hosts[0].steps if s.name == "venv").status == "ok"
+            _second_up_installs_nothing(plan, access, tmp_path, health_timeout=120)
         finally:
             teardown(plan, hosts=access, state_dir=tmp_path)
 
@@ -123,21 +133,9 @@ def test_a_launch_packages_requirements_go_in_the_hosts_venv_once(tmp_path: Path
     (tmp_path / "requirements.txt").write_text("shellingham==1.5.4\n")
     with ssh_lab(tmp_path / "lab", 1, env={"PIP_NO_INDEX": "1", "PIP_FIND_LINKS": str(WHEELS)}) as (hosts, key):
         (host,) = hosts
-        manifest = tmp_path / "fogiac.yaml"
-        manifest.write_text(f"""name: launchreqs
-cloud:
-  provider: hosts
-  runtime: native
-  hosts:
-    - {{name: {host.name}, address: {host.address}, user: root, key: {key}}}
-nodes:
-  - name: talker
-    machine: t3.small
-    launch: {{package: fogtest, file: talker.launch, workspace: ws, requirements: requirements.txt}}
-""")
-        plan = compile_plan(load_manifest(manifest))
-        access = {n: replace(a, base_dir=str(host.base_dir))
-                  for n, a in HOSTS.access(plan, state_dir=tmp_path, python=SYSTEM_PYTHON).items()}
+        plan, access = _lab_plan(tmp_path, host, key, name="launchreqs", nodes=(
+            "  - name: talker\n    machine: t3.small\n"
+            "    launch: {package: fogtest, file: talker.launch, workspace: ws, requirements: requirements.txt}\n"))
         try:
             first = provision(plan, hosts=access, state_dir=tmp_path, health_timeout=60)
             (outcome,) = first.hosts
@@ -147,9 +145,6 @@ nodes:
                    "ROS_HOSTNAME": "127.0.0.1"}
             echoed = host.ns.run(["rostopic", "echo", "-n", "1", "/chatter"], env=env, timeout=60).stdout
             assert echoed.startswith('data: "shellingham 1.5.4"'), echoed
-
-            again = provision(plan, hosts=access, state_dir=tmp_path, health_timeout=60)
-            assert again.no_changes, [(s.name, s.status, s.detail) for s in again.hosts[0].steps]
-            assert next(s for s in again.hosts[0].steps if s.name == "venv").status == "ok"
+            _second_up_installs_nothing(plan, access, tmp_path, health_timeout=60)
         finally:
             teardown(plan, hosts=access, state_dir=tmp_path)

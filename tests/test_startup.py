@@ -16,7 +16,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 # Modules that only ``up``, ``down``, ``status`` and provisioning need.
-LIFECYCLE = ("fogiac.provision", "fogiac.orchestrate", "fogiac.certs", "fogiac.render", "fogiac.net.relay.deploy",
+LIFECYCLE = ("fogiac.provision", "fogiac.lifecycle.sequence", "fogiac.certs", "fogiac.render", "fogiac.net.relay.deploy",
              "fogiac.net.zenoh.deploy", "fogiac.targets.aws.target", "fogiac.targets.hosts.target",
              "fogiac.targets.local.target", "boto3", "pulumi", "pulumi_aws", "stacks", "jinja2", "paramiko")
 

@@ -1,8 +1,8 @@
 """``fogiac up | down | refresh | status | sweep | doctor``: apply a manifest and undo it.
 
-Thin: each command compiles the manifest, asks the plan's target (:mod:`fogiac.targets`) and
-renders with rich. Applying and deleting ask first unless ``--yes``; with no terminal to ask on
-they refuse at once.
+Thin: each command compiles the manifest, hands the plan's target (:mod:`fogiac.targets`) to
+the lifecycle (:mod:`fogiac.lifecycle`), which runs the sequence, and renders with rich. Applying
+and deleting ask first unless ``--yes``; with no terminal to ask on they refuse at once.
 """
 
 from __future__ import annotations
@@ -22,26 +22,28 @@ from fogiac import deployment, targets
 from fogiac.cli._common import ENV, FORCE, MANIFEST, TARGET, YES, compile_deployed, compile_for, need_yes
 from fogiac.cli.plan import render
 from fogiac.errors import FogiacError, PreflightError
+from fogiac.lifecycle import sequence
+from fogiac.lifecycle.driver import DownOptions, Feature, Target, UpOptions
+from fogiac.lifecycle.events import Progress, Timers
+from fogiac.lifecycle.report import render_status
 from fogiac.plan.cost import MONTH, per_month
 from fogiac.plan.guard import up_summary
 from fogiac.plan.model import Plan
 from fogiac.plan.saved import check_saved_plan
 from fogiac.provision.report import report_table
 from fogiac.tables import console, table
-from fogiac.targets.aws.engine import Timers
-from fogiac.targets.base import DownOptions, Target, UpOptions
 
 INTERRUPTED = 130  # 128 + SIGINT, as a shell reports it
 
 
-def _show(doc: Mapping[str, Any], report: Any) -> None:
-    """The plan before the question: the cloud's preflight summary, or (no preflight) the plan itself."""
-    if report is None:
+def _show(doc: Mapping[str, Any], summary: tuple[str, ...] | None) -> None:
+    """The plan before the question: the target's preflight summary, or (no preflight) the plan itself."""
+    if summary is None:
         render(doc)
         return
     out = console()
-    out.print(f"[bold]{doc['stack']}[/]: {report.region} zone {report.zone}, account {report.account}, "
-              f"SSH from {', '.join(report.operator_cidrs)}")
+    for line in summary:
+        out.print(line, markup=False, highlight=False)
     for stack in doc["stacks"]:
         counts = Counter(r["type"].rsplit(":", 1)[-1] for r in doc["resources"] if r["stack"] == stack)
         out.print(f"  {stack}: " + ", ".join(f"{n} {kind}" for kind, n in sorted(counts.items())))
@@ -84,8 +86,8 @@ class _Progress:
             out.add_row(mark, f"{row.op} {row.name}", row.type, f"{row.elapsed(now):5.0f}s")
         return out
 
-    def __call__(self, event: Any) -> None:
-        """The engine's on_event: the display starts with the first event, after any question."""
+    def __call__(self, event: Progress) -> None:
+        """The lifecycle's on_event: the display starts with the first event, after any question."""
         if not self.live.is_started:
             self.live.start()
         self.timers(event)
@@ -104,7 +106,7 @@ def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str |
        start_edge_master: bool = typer.Option(False, "--start-edge-master",
                                               help="local/hosts: run the edge's roscore too if none answers (demos)."),
        edge_master: str | None = typer.Option(None, "--edge-master", help="Override edge.ros_master."),
-       infra_only: bool = typer.Option(False, "--infra-only", help="aws: create the stacks only; provision nothing."),
+       infra_only: bool = typer.Option(False, "--infra-only", help="Create the machines only; provision nothing (targets that create machines)."),
        force: bool = FORCE) -> None:
     """Check, show the plan and its cost, ask, then create the machines and start the nodes."""
     plan = compile_deployed(manifest, env, target, force=force, has_force=True, creating=True)
@@ -114,7 +116,7 @@ def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str |
         check_saved_plan(plan_file, manifest=manifest, stack=plan.stack, target=plan.target)
     try:
         with _one_line_each(), _Progress() as progress:
-            result = chosen.up(plan, UpOptions(
+            result = sequence.up(chosen, plan, UpOptions(
                 manifest_path=manifest, yes=yes, ssh_from=ssh_from, show=_show,
                 confirm=lambda q: typer.confirm(q, default=False), announce=lambda line: typer.echo(line, err=True),
                 on_event=progress, start_edge_master=start_edge_master, edge_master=edge_master,
@@ -125,10 +127,8 @@ def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str |
         console().print(report_table(result.report))
     for host, connect in sorted(result.relays.items()):
         typer.echo(f"{host}: relay {connect} <-> edge {result.edge_master}")
-    hosts = result.outputs.get("compute", {}).get("hosts", {})
-    for name, host in sorted(hosts.items()):
-        typer.echo(f"{name}: {host.get('instance_id')} {host.get('machine')} public {host.get('public_ip')} "
-                   f"private {host.get('private_ip')}")
+    for made in result.machines:
+        typer.echo(f"{made.host}: {made.id} {made.machine} public {made.public} private {made.private}")
     typer.echo(f"applied: {result.applied}")
     typer.echo(up_summary(result.plan or plan))
 
@@ -141,7 +141,7 @@ def _interrupted(manifest: Path, plan: Plan, chosen: Target) -> None:
         raise typer.Exit(INTERRUPTED)
     typer.echo(f"interrupted: up of {plan.stack} stopped part-way; this is what it left:", err=True)
     try:
-        console(stderr=True).print(*chosen.render_status(chosen.status(plan)), sep="\n")
+        console(stderr=True).print(*render_status(chosen, sequence.status(chosen, plan)), sep="\n")
     except FogiacError as err:
         typer.echo(f"(cannot list it: {err})", err=True)
     typer.echo(f"`fogiac down {manifest}` removes it; `fogiac up {manifest}` completes it", err=True)
@@ -158,7 +158,7 @@ def down(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str
     if not yes and not typer.confirm(f"Destroy everything of stack {plan.stack}?", default=False):
         raise typer.Exit(1)
     with _Progress() as progress:
-        result = chosen.down(plan, DownOptions(keep_network=keep_network, on_event=progress))
+        result = sequence.down(chosen, plan, DownOptions(keep_network=keep_network, on_event=progress))
     if not result.existed:
         typer.echo(f"{plan.stack}: not deployed; nothing to remove")
         return
@@ -171,9 +171,8 @@ def down(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str
         typer.echo(f"not checked: {item}", err=True)
     for item in result.left:
         typer.echo(f"could not delete: {item}", err=True)
-    if result.kept_usd_per_hour is not None:
-        typer.echo(f"kept the network stack: ${result.kept_usd_per_hour:.2f}/h while kept "
-                   f"(Client VPN association; VPC, subnets and gateway are free)")
+    if result.kept:
+        typer.echo(result.kept)
     removed = f"removed {len(result.deleted)} ({', '.join(result.deleted)}); " if result.deleted else ""
     typer.echo(f"{plan.stack}: {removed}{'nothing left' if result.clean else f'{len(result.left)} left'}")
     if not result.clean:
@@ -195,11 +194,11 @@ def status(manifest: Path = MANIFEST, env: str = ENV, target: str | None = TARGE
     """The stack's hosts: state, type, addresses, uptime and cost so far."""
     plan = compile_deployed(manifest, env, target)
     chosen = targets.get(plan.target)
-    doc = chosen.status(plan)
+    doc = sequence.status(chosen, plan)
     if as_json:
         typer.echo(json.dumps(doc, indent=2, sort_keys=True))
         return
-    console().print(*chosen.render_status(doc), sep="\n")  # each line of a target on its own line
+    console().print(*render_status(chosen, doc), sep="\n")  # each line of a target on its own line
 
 
 def sweep(manifest: Path = MANIFEST, env: str = ENV, target: str | None = TARGET, yes: bool = YES,
@@ -207,7 +206,7 @@ def sweep(manifest: Path = MANIFEST, env: str = ENV, target: str | None = TARGET
     """Delete every resource tagged with the stack, even ones outside fogiac's state."""
     plan = compile_for(manifest, env, target)
     chosen = targets.get(plan.target)
-    if not dry_run and chosen.makes_resources:
+    if not dry_run and Feature.CREATES_MACHINES in chosen.features:
         need_yes(yes, "sweep")
         if not yes and not typer.confirm(f"Delete everything tagged fogiac:stack={plan.stack}?", default=False):
             raise typer.Exit(1)

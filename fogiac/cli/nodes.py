@@ -18,7 +18,7 @@ from fogiac import targets
 from fogiac.certs import load_or_create_bundle
 from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_deployed, compile_for
 from fogiac.errors import ProvisionError
-from fogiac.orchestrate import ExistingMachines
+from fogiac.lifecycle.driver import Created, Feature
 from fogiac.plan.model import Plan
 from fogiac.provision import LocalAccess, provision, recorded_access
 from fogiac.provision import teardown as tear_down
@@ -53,14 +53,14 @@ def register(app: typer.Typer) -> None:
         """Provision an existing set of hosts (no cloud resources): ROS, code, nodes, relay."""
         plan = compile_for(manifest, env, target)
         chosen = targets.get(plan.target)
-        if not isinstance(chosen, ExistingMachines):
-            usable = ", ".join(n for n in targets.names() if isinstance(targets.get(n), ExistingMachines))
+        if Feature.CREATES_MACHINES in chosen.features:
+            usable = ", ".join(n for n in targets.names() if Feature.CREATES_MACHINES not in targets.get(n).features)
             raise ProvisionError(f"`fogiac provision` is for targets whose machines exist ({usable}); "
                                  f"{plan.target} hosts are provisioned by `fogiac up`")
         state = stack_dir(plan.stack)
         screen = console()
         with stack_lock(plan.stack, operation="teardown" if teardown else "provision"):
-            hosts = chosen.access(plan, state_dir=state)
+            hosts = chosen.reach(plan, Created(plan=plan), announce=lambda line: None).access
             if teardown:
                 report = tear_down(plan, hosts=hosts, state_dir=state)
             else:

@@ -12,7 +12,8 @@ from typer.testing import CliRunner
 from fogiac.cli import app
 from fogiac.manifest.schema import load_manifest
 from fogiac.net.relay.stats import RelayStats, TopicStats, write_stats
-from fogiac.orchestrate import autostop_line, stop_edge
+from fogiac.lifecycle.edge import stop_edge
+from fogiac.lifecycle.report import autostop_line
 from fogiac.plan.compile import compile_plan
 from fogiac.procs import free_port
 from fogiac.provision.autostop import Activity, IdleClock, read_activity

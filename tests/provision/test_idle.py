@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from fogiac.manifest.schema import parse_manifest
-from fogiac.orchestrate import autostop_line
+from fogiac.lifecycle.report import autostop_line
 from fogiac.plan.compile import compile_plan
 from fogiac.provision import SshAccess, idle
 from fogiac.provision.runner import RECORD

@@ -17,7 +17,7 @@ import pytest
 
 from fogiac.manifest.schema import load_manifest
 from fogiac.net import middleware
-from fogiac.orchestrate import edge_dir, provision_and_connect, stop_edge
+from fogiac.lifecycle.edge import edge_dir, provision_and_connect, stop_edge
 from fogiac.plan.compile import compile_plan
 from fogiac.procs import free_port, poll
 from fogiac.provision import teardown

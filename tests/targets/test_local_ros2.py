@@ -22,7 +22,7 @@ from typer.testing import CliRunner
 
 from fogiac.cli import app
 from fogiac.manifest.schema import load_manifest
-from fogiac.orchestrate import stop_edge
+from fogiac.lifecycle.edge import stop_edge
 from fogiac.plan.compile import compile_plan
 from fogiac.procs import free_port
 from tests.conftest import REPO

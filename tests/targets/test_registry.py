@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import json
 import shutil
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -21,15 +21,18 @@ from fogiac.plan.compile import compile_plan
 from fogiac.plan.model import Plan, Rule, SecurityGroup
 from fogiac.plan.placement import Placement, Tags, host_per_node
 from fogiac.state import read_json, stack_dir, write_json_atomic
+from fogiac.lifecycle.events import OnEvent
 from fogiac.targets.base import (
     Check,
+    Created,
+    Destroyed,
     DownOptions,
-    DownResult,
+    Feature,
+    Prepared,
+    Reach,
     Refreshed,
     SweepOutcome,
     Target,
-    UpOptions,
-    UpResult,
 )
 from tests.conftest import EXAMPLES
 from tests.test_fogros_import import make_workspace
@@ -38,11 +41,11 @@ runner = CliRunner()
 
 
 class FakeTarget:
-    """A target that "creates" one record per host in a file of the stack's state folder."""
+    """A target that "creates" one record per host in a file of the stack's state folder (up --infra-only)."""
 
     name = "fake"
     summary = "records in a file, for tests"
-    makes_resources = True
+    features = frozenset({Feature.CREATES_MACHINES, Feature.INFRA_ONLY})
 
     def __init__(self, *, open_to_world: bool = False) -> None:
         self.open_to_world = open_to_world
@@ -61,21 +64,34 @@ class FakeTarget:
     def _file(self, plan: Plan) -> Path:
         return stack_dir(plan.stack) / "fake.json"
 
-    def up(self, plan: Plan, opts: UpOptions) -> UpResult:
-        if not opts.yes and not opts.confirm(f"Make {len(plan.hosts)} fake machine(s)?"):
-            raise PlanError("not applied")
-        write_json_atomic(self._file(plan), {h.name: h.machine for h in plan.hosts})
-        return UpResult(outputs={}, applied=self._file(plan))
+    def ready(self, plan: Plan, *, verb: str) -> None:
+        return None
 
-    def down(self, plan: Plan, opts: DownOptions) -> DownResult:
+    def prepare(self, plan: Plan, *, ssh_from: str | None) -> Prepared:
+        return Prepared(plan=plan, question=f"Make {len(plan.hosts)} fake machine(s)?")
+
+    def create(self, plan: Plan, prepared: Prepared, *, announce: Callable[[str], None],
+               on_event: OnEvent | None) -> Created:
+        write_json_atomic(self._file(plan), {h.name: h.machine for h in plan.hosts})
+        return Created(plan=plan)
+
+    def reach(self, plan: Plan, created: Created, *, announce: Callable[[str], None]) -> Reach:
+        raise PlanError("fake machines cannot be reached")
+
+    def recorded(self, plan: Plan) -> bool:
+        return self._file(plan).exists()
+
+    def destroy(self, plan: Plan, opts: DownOptions) -> Destroyed:
         made = read_json(self._file(plan)) or {}
         self._file(plan).unlink(missing_ok=True)
-        return DownResult(engine_errors=(), left=(), not_checked=(), deleted=tuple(sorted(made)))
+        return Destroyed(deleted=tuple(sorted(made)))
 
-    def status(self, plan: Plan) -> dict[str, Any]:
+    def forget(self, plan: Plan, *, keep_network: bool) -> None:
+        return None
+
+    def describe(self, plan: Plan, *, now: float) -> dict[str, Any]:
         made = read_json(self._file(plan)) or {}
-        return {"stack": plan.stack, "target": self.name,
-                "hosts": [{"host": h, "machine": m} for h, m in sorted(made.items())]}
+        return {"hosts": [{"host": h, "machine": m} for h, m in sorted(made.items())]}
 
     def render_status(self, doc: Mapping[str, Any]) -> list[Any]:
         return [f"{h['host']} {h['machine']} fake" for h in doc["hosts"]] or [f"{doc['stack']}: nothing made"]
@@ -115,7 +131,7 @@ def test_up_status_down_through_the_real_cli(fake: FakeTarget, tmp_path: Path) -
     assert code == 0, out
     assert [r["type"] for r in json.loads(out)["resources"]] == ["fake:Machine"]
 
-    code, out = run("up", str(manifest), "--target", "fake", "--yes")
+    code, out = run("up", str(manifest), "--target", "fake", "--yes", "--infra-only")
     assert code == 0, out
     stack = compile_plan(load_manifest(manifest), target="fake").stack
     assert read_json(stack_dir(stack) / "fake.json") == {"planner": "c5.24xlarge"}

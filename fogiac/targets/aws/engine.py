@@ -22,6 +22,8 @@ from typing import Any
 from fogiac.certs import SSH_KEY, load_or_create_bundle, load_or_create_ssh_key, write_private
 from fogiac.errors import EngineError
 from fogiac.extras import need
+from fogiac.lifecycle.events import OnEvent, Progress
+from fogiac.lifecycle.events import Timers as _Timers
 from fogiac.plan.model import Plan
 from fogiac.state import read_json, stack_dir
 from stacks import LAYERS, PROJECT
@@ -138,9 +140,9 @@ class LayerResult:
 class Engine:
     """Runs one manifest's layers through the Automation API (the Pulumi CLI does the work)."""
 
-    def __init__(self, plan: Plan, *, on_event: Callable[[Any], None] | None = None) -> None:
+    def __init__(self, plan: Plan, *, on_event: OnEvent | None = None) -> None:
         self.plan = plan
-        self.on_event = on_event
+        self.on_event = translated(on_event)
         pulumi_cli()  # fail with the install line before touching any state
 
     def _options(self) -> Any:
@@ -254,48 +256,44 @@ def _last_error(err: Exception) -> str:
     return (errors or lines or ["unknown error"])[-1][:400]
 
 
-@dataclass
-class ResourceTimer:
-    urn: str
-    type: str
-    name: str
-    op: str
-    started: float
-    finished: float | None = None
-    failed: bool = False
+def progress(event: Any) -> Progress | None:
+    """A Pulumi engine event as the lifecycle's neutral :class:`Progress` (None: nothing to show)."""
+    pre = getattr(event, "resource_pre_event", None)
+    done = getattr(event, "res_outputs_event", None)
+    failed = getattr(event, "res_op_failed_event", None)
+    diag = getattr(event, "diagnostic_event", None)
+    if pre is not None and not pre.planning and _shown(pre.metadata):
+        meta = pre.metadata
+        return Progress("start", meta.urn, meta.urn.rsplit("::", 1)[-1], meta.type,
+                        str(getattr(meta.op, "value", meta.op)))
+    if done is not None:
+        return Progress("done", done.metadata.urn)
+    if failed is not None:
+        return Progress("failed", failed.metadata.urn)
+    if diag is not None and diag.severity == "error" and diag.message.strip():
+        return Progress("diagnostic", message=diag.message.strip().splitlines()[-1])
+    return None
 
-    def elapsed(self, now: float) -> float:
-        return (self.finished if self.finished is not None else now) - self.started
+
+def translated(on_event: OnEvent | None) -> Callable[[Any], None] | None:
+    """The engine's ``on_event``: each Pulumi event handed on as :class:`Progress`."""
+    if on_event is None:
+        return None
+
+    def hand_on(event: Any) -> None:
+        found = progress(event)
+        if found is not None:
+            on_event(found)
+    return hand_on
 
 
-class Timers:
-    """Per-resource timers fed by engine events (``on_event``); rendering is the CLI's job."""
-
-    def __init__(self, *, clock: Callable[[], float]) -> None:
-        self.clock = clock
-        self.rows: dict[str, ResourceTimer] = {}
-        self.diagnostics: list[str] = []
+class Timers(_Timers):
+    """The neutral timers fed straight from Pulumi engine events (tests and tools that hold raw events)."""
 
     def __call__(self, event: Any) -> None:
-        now = self.clock()
-        pre = getattr(event, "resource_pre_event", None)
-        done = getattr(event, "res_outputs_event", None)
-        failed = getattr(event, "res_op_failed_event", None)
-        diag = getattr(event, "diagnostic_event", None)
-        if pre is not None and not pre.planning and _shown(pre.metadata):
-            meta = pre.metadata
-            self.rows[meta.urn] = ResourceTimer(meta.urn, meta.type, meta.urn.rsplit("::", 1)[-1],
-                                                str(getattr(meta.op, "value", meta.op)), now)
-        elif done is not None and done.metadata.urn in self.rows:
-            self.rows[done.metadata.urn].finished = now
-        elif failed is not None and failed.metadata.urn in self.rows:
-            row = self.rows[failed.metadata.urn]
-            row.finished, row.failed = now, True
-        elif diag is not None and diag.severity == "error" and diag.message.strip():
-            self.diagnostics.append(diag.message.strip().splitlines()[-1])
-
-    def running(self) -> list[ResourceTimer]:
-        return [r for r in self.rows.values() if r.finished is None]
+        found = event if isinstance(event, Progress) else progress(event)
+        if found is not None:
+            super().__call__(found)
 
 
 def _shown(meta: Any) -> bool:

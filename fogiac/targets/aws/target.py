@@ -8,17 +8,19 @@ import dataclasses
 import datetime as _dt
 import time
 from collections.abc import Callable, Collection, Mapping
+from dataclasses import dataclass
 from typing import Any
 
-from fogiac import deployment
 from fogiac.certs import SSH_KEY, load_or_create_bundle
-from fogiac.errors import CloudError, EngineError, FogiacError, ProvisionError
+from fogiac.errors import CloudError, EngineError, ProvisionError
+from fogiac.lifecycle.edge import edge_idle_since
+from fogiac.lifecycle.events import OnEvent
+from fogiac.lifecycle.report import autostop_line
 from fogiac.manifest.schema import Manifest
 from fogiac.net.vpn import write_client_profile
-from fogiac.orchestrate import autostop_line, edge_idle_since, ensure_edge_master, provision_and_connect, stop_edge
 from fogiac.plan import drift, guard
 from fogiac.plan.catalog import catalog
-from fogiac.plan.document import APPLIED_FILE, plan_document
+from fogiac.plan.document import APPLIED_FILE
 from fogiac.plan.model import Plan
 from fogiac.plan.placement import Placement, Tags
 from fogiac.provision import SshAccess, idle, recorded_access
@@ -29,13 +31,15 @@ from fogiac.targets.aws import api, engine, observe, offline, placement, spot
 from fogiac.targets.aws import sweep as sweeping
 from fogiac.targets.base import (
     Check,
+    Created,
+    Destroyed,
     DownOptions,
-    DownResult,
+    Feature,
+    Machine,
+    Prepared,
+    Reach,
     Refreshed,
     SweepOutcome,
-    UpOptions,
-    UpResult,
-    untouched_on_failure,
 )
 
 COMPUTE_KINDS = ("instance", "key-pair", "network-interface")  # what --keep-network still sweeps
@@ -45,10 +49,19 @@ HOST_KEYS_FILE = "host-keys.json"  # instance id -> SHA256 fingerprints pinned f
 SSH_USER = "ubuntu"  # the login of both images compile chooses (Ubuntu, AWS Deep Learning Base)
 
 
+@dataclass(frozen=True)
+class _Preflight:
+    """What ``prepare`` found, handed back to ``create``: the operator's CIDRs and what outputs.json held."""
+
+    operator_cidrs: tuple[str, ...]
+    recorded: Mapping[str, Any]
+    asked_spot: frozenset[str]
+
+
 class AwsTarget:
     name = "aws"
     summary = "EC2 machines in their own VPC, through a Client VPN (or proxy mode), made with Pulumi"
-    makes_resources = True
+    features = frozenset({Feature.CREATES_MACHINES, Feature.INFRA_ONLY, Feature.KEEP_NETWORK})
 
     def place(self, manifest: Manifest, *, stack: str, tags: Tags) -> Placement:
         return placement.place(manifest, stack=stack, tags=tags)
@@ -58,57 +71,52 @@ class AwsTarget:
 
     # -- up ---------------------------------------------------------------------------------------
 
-    def up(self, plan: Plan, opts: UpOptions) -> UpResult:
-        engine.pulumi_cli()  # before any state is touched
-        # applied.json is the same document `fogiac plan` builds from the compiled plan, so that
-        # `plan --detailed-exitcode` compares like with like; the zone actually used is in outputs.json.
-        doc = plan_document(plan, self.declare(plan), manifest=opts.manifest_path)
-        with untouched_on_failure(plan.stack) as commit, stack_lock(plan.stack, operation="up"):
-            recorded = read_json(stack_dir(plan.stack) / engine.OUTPUTS_FILE) or {}
-            if recorded.get("zone") and not plan.zone_chosen:  # keep the subnets where they are
-                plan = dataclasses.replace(plan, zone=recorded["zone"], zone_chosen=True)
-            report = api.preflight(plan, operator_cidr=opts.ssh_from, known_ids=engine.known_ids(plan.stack))
-            plan = dataclasses.replace(plan, zone=report.zone)
-            asked_spot = {h.name for h in plan.hosts if h.spot}
-            opts.show(doc, report)
-            if plan.vpn is not None:
-                opts.announce(engine.VPN_NOTICE)
-            spot_hourly = plan.spot_hourly_usd
-            price = f"${plan.hourly_usd:.4f}/h" + (f", about ${spot_hourly:.4f}/h with spot" if spot_hourly else "")
-            question = f"Create these resources in {plan.region} ({price})?"
-            if not opts.yes and not opts.confirm(question):
-                raise FogiacError("not applied: nothing was changed")
-            master = opts.edge_master or plan.edge_master
-            if not opts.infra_only:  # before money is spent: the robot's side must be there to connect
-                ensure_edge_master(plan, master, start=opts.start_edge_master)
-            commit()
-            deployment.begin(plan, opts.manifest_path)  # before the engine creates anything
-            drift.clear(plan.stack)  # the apply changes the cloud: the last refresh no longer describes it
-            started = api.start_stopped(plan.stack, region=plan.region, known_ids=engine.known_ids(plan.stack))
-            if started:
-                opts.announce(f"started {', '.join(started)} again (stopped while idle): the same instances, "
-                              "nothing recreated")
-            plan, outputs = self._apply(plan, report.operator_cidrs, recorded.get(spot.ON_DEMAND, ()), opts)
-            folder = stack_dir(plan.stack)
-            since = recorded.get(NETWORK_SINCE) or round(time.time())  # what the cost guard counts from
-            fallen = [h.name for h in plan.hosts if not h.spot and h.name in asked_spot]
-            write_json_atomic(folder / engine.OUTPUTS_FILE, {"zone": plan.zone, NETWORK_SINCE: since,
-                                                             OPERATOR_CIDRS: list(report.operator_cidrs), **outputs,
-                                                             **({spot.ON_DEMAND: fallen} if fallen else {})})
-            write_json_atomic(folder / APPLIED_FILE, doc)
-            deployment.finish(plan, opts.manifest_path, plan_digest=doc["plan_digest"])
-            if opts.infra_only:
-                return UpResult(outputs=outputs, applied=folder / APPLIED_FILE, plan=plan)
-            done = self._connect(plan, outputs, master=master, announce=opts.announce)
-            return UpResult(outputs=outputs, applied=folder / APPLIED_FILE, report=done.report,
-                            relays=done.relays, edge_master=master, plan=plan)
+    def ready(self, plan: Plan, *, verb: str) -> None:
+        engine.pulumi_cli()
+        if verb == "down":
+            api.identity(region=plan.region)
 
-    def _apply(self, plan: Plan, operator_cidrs: tuple[str, ...], fallen: Collection[str],
-               opts: UpOptions) -> tuple[Plan, dict[str, Any]]:
+    def prepare(self, plan: Plan, *, ssh_from: str | None) -> Prepared:
+        recorded = read_json(stack_dir(plan.stack) / engine.OUTPUTS_FILE) or {}
+        if recorded.get("zone") and not plan.zone_chosen:  # keep the subnets where they are
+            plan = dataclasses.replace(plan, zone=recorded["zone"], zone_chosen=True)
+        report = api.preflight(plan, operator_cidr=ssh_from, known_ids=engine.known_ids(plan.stack))
+        plan = dataclasses.replace(plan, zone=report.zone)
+        spot_hourly = plan.spot_hourly_usd
+        price = f"${plan.hourly_usd:.4f}/h" + (f", about ${spot_hourly:.4f}/h with spot" if spot_hourly else "")
+        summary = (f"{plan.stack}: {report.region} zone {report.zone}, account {report.account}, "
+                   f"SSH from {', '.join(report.operator_cidrs)}",)
+        return Prepared(plan=plan, question=f"Create these resources in {plan.region} ({price})?", summary=summary,
+                        notices=(engine.VPN_NOTICE,) if plan.vpn is not None else (),
+                        facts=_Preflight(report.operator_cidrs, recorded,
+                                         frozenset(h.name for h in plan.hosts if h.spot)))
+
+    def create(self, plan: Plan, prepared: Prepared, *, announce: Callable[[str], None],
+               on_event: OnEvent | None) -> Created:
+        facts: _Preflight = prepared.facts
+        drift.clear(plan.stack)  # the apply changes the cloud: the last refresh no longer describes it
+        started = api.start_stopped(plan.stack, region=plan.region, known_ids=engine.known_ids(plan.stack))
+        if started:
+            announce(f"started {', '.join(started)} again (stopped while idle): the same instances, "
+                     "nothing recreated")
+        plan, outputs = self._apply(plan, facts.operator_cidrs, facts.recorded.get(spot.ON_DEMAND, ()),
+                                    announce=announce, on_event=on_event)
+        since = facts.recorded.get(NETWORK_SINCE) or round(time.time())  # what the cost guard counts from
+        fallen = [h.name for h in plan.hosts if not h.spot and h.name in facts.asked_spot]
+        write_json_atomic(stack_dir(plan.stack) / engine.OUTPUTS_FILE, {
+            "zone": plan.zone, NETWORK_SINCE: since, OPERATOR_CIDRS: list(facts.operator_cidrs), **outputs,
+            **({spot.ON_DEMAND: fallen} if fallen else {})})
+        hosts = outputs.get("compute", {}).get("hosts", {})
+        machines = tuple(Machine(name, str(h.get("instance_id")), str(h.get("machine")), h.get("public_ip"),
+                                 h.get("private_ip")) for name, h in sorted(hosts.items()))
+        return Created(plan=plan, outputs=outputs, machines=machines)
+
+    def _apply(self, plan: Plan, operator_cidrs: tuple[str, ...], fallen: Collection[str], *,
+               announce: Callable[[str], None], on_event: OnEvent | None) -> tuple[Plan, dict[str, Any]]:
         """Run the engine; spot hosts AWS has no capacity for are made again on-demand, once, and named."""
         plan = spot.on_demand(plan, fallen)  # fell back before: switching market would replace the instance
         try:
-            return plan, engine.Engine(plan, on_event=opts.on_event).up(operator_cidrs=operator_cidrs)
+            return plan, engine.Engine(plan, on_event=on_event).up(operator_cidrs=operator_cidrs)
         except EngineError as err:
             code = spot.no_capacity(str(err))
             if not code:
@@ -118,13 +126,13 @@ class AwsTarget:
             if not hosts:
                 raise
         for host in hosts:
-            opts.announce(spot.fallback_line(plan, host, code))
+            announce(spot.fallback_line(plan, host, code))
         plan = spot.on_demand(plan, hosts)
-        return plan, engine.Engine(plan, on_event=opts.on_event).up(operator_cidrs=operator_cidrs)
+        return plan, engine.Engine(plan, on_event=on_event).up(operator_cidrs=operator_cidrs)
 
-    def _connect(self, plan: Plan, outputs: Mapping[str, Any], *, master: str,
-                 announce: Callable[[str], None]) -> Any:
-        """After the stacks: the edge's VPN profile, then provisioning and relays as on every target."""
+    def reach(self, plan: Plan, created: Created, *, announce: Callable[[str], None]) -> Reach:
+        """After the stacks: the edge's VPN profile, and each host's address with host keys pinned from its console."""
+        outputs = created.outputs
         if plan.vpn is not None:
             profile = write_client_profile(
                 endpoint_dns=outputs["network"]["vpn_dns_name"], stack=plan.stack,
@@ -133,54 +141,44 @@ class AwsTarget:
         announce("waiting for each instance to print its SSH host keys on its console (pinned, never trusted on sight)")
         access, connect = access_from_outputs(plan, outputs, fingerprints=lambda iid: pinned_host_keys(
             plan.stack, iid, fetch=lambda: api.host_fingerprints(iid, region=plan.region)))
-        done = provision_and_connect(plan, access=access, connect=connect, master=master)
-        for note in done.notes:
-            announce(note)
-        return done
+        return Reach(access=access, connect=connect)
 
     # -- down -------------------------------------------------------------------------------------
 
-    def down(self, plan: Plan, opts: DownOptions) -> DownResult:
-        engine.pulumi_cli()
-        api.identity(region=plan.region)  # missing credentials: one line, before anything is destroyed
-        with untouched_on_failure(plan.stack), stack_lock(plan.stack, operation="down"):
-            stop_edge(plan)  # the edge relays first: their peers are about to go
-            layers = ("compute",) if opts.keep_network else ("compute", "network")
-            errors = engine.Engine(plan, on_event=opts.on_event).destroy(layers=layers)
-            result = self._sweep(plan, dry_run=False, kinds=COMPUTE_KINDS if opts.keep_network else None)
-            folder = stack_dir(plan.stack)
-            drift.clear(plan.stack)
-            if not result.left:
-                (folder / APPLIED_FILE).unlink(missing_ok=True)
-                (folder / HOST_KEYS_FILE).unlink(missing_ok=True)  # no instance left to know them by
-                # The instances are gone and their public addresses go back to AWS's pool.
-                (folder / KNOWN_HOSTS).unlink(missing_ok=True)
-                outputs = read_json(folder / engine.OUTPUTS_FILE) or {}
-                if opts.keep_network and outputs:
-                    kept = {k: v for k, v in outputs.items() if k != "compute"}
-                    write_json_atomic(folder / engine.OUTPUTS_FILE, kept)
-                    deployment.cut_back(plan.stack)
-                else:
-                    (folder / engine.OUTPUTS_FILE).unlink(missing_ok=True)
-                    deployment.removed(plan.stack)
-            return DownResult(
-                engine_errors=tuple(errors), left=tuple(str(f) for f in result.left),
-                not_checked=result.not_checked, deleted=tuple(str(f) for f in result.deleted),
-                kept_usd_per_hour=kept_network_usd_per_hour(plan) if opts.keep_network else None,
-            )
+    def recorded(self, plan: Plan) -> bool:
+        return True  # what the cloud holds is known only by asking it: down always destroys and sweeps
+
+    def destroy(self, plan: Plan, opts: DownOptions) -> Destroyed:
+        layers = ("compute",) if opts.keep_network else ("compute", "network")
+        errors = engine.Engine(plan, on_event=opts.on_event).destroy(layers=layers)
+        result = self._sweep(plan, dry_run=False, kinds=COMPUTE_KINDS if opts.keep_network else None)
+        drift.clear(plan.stack)
+        kept = None
+        if opts.keep_network:
+            kept = (f"kept the network stack: ${kept_network_usd_per_hour(plan):.2f}/h while kept "
+                    "(Client VPN association; VPC, subnets and gateway are free)")
+        return Destroyed(errors=tuple(errors), left=tuple(str(f) for f in result.left),
+                         not_checked=result.not_checked, deleted=tuple(str(f) for f in result.deleted), kept=kept)
+
+    def forget(self, plan: Plan, *, keep_network: bool) -> None:
+        folder = stack_dir(plan.stack)
+        (folder / HOST_KEYS_FILE).unlink(missing_ok=True)  # no instance left to know them by
+        # The instances are gone and their public addresses go back to AWS's pool.
+        (folder / KNOWN_HOSTS).unlink(missing_ok=True)
+        outputs = read_json(folder / engine.OUTPUTS_FILE) or {}
+        if keep_network and outputs:
+            write_json_atomic(folder / engine.OUTPUTS_FILE, {k: v for k, v in outputs.items() if k != "compute"})
+        else:
+            (folder / engine.OUTPUTS_FILE).unlink(missing_ok=True)
 
     # -- status, doctor, refresh, sweep ---------------------------------------------------------------
 
-    def status(self, plan: Plan, *, now: float | None = None) -> dict[str, Any]:
+    def describe(self, plan: Plan, *, now: float) -> dict[str, Any]:
         """Each instance (state, when and by whom it stopped) and the cost guard over all the stack still has."""
-        now = time.time() if now is None else now
         rows = api.status(plan.stack, region=plan.region, now=_dt.datetime.fromtimestamp(now, _dt.timezone.utc))
         outputs = read_json(stack_dir(plan.stack, create=False) / engine.OUTPUTS_FILE) or {}
         watched = watchdogs(plan, rows)
-        record = deployment.read(plan.stack)
-        return {"stack": plan.stack, "target": plan.target, "region": plan.region,
-                "partial": record is not None and record.partial,
-                "network_only": "network" in outputs and "compute" not in outputs, "hosts": [
+        return {"region": plan.region, "network_only": "network" in outputs and "compute" not in outputs, "hosts": [
             {"host": r.name, "instance_id": r.instance_id, "state": r.state, "machine": r.machine,
              "public_ip": r.public_ip, "private_ip": r.private_ip, "launched": r.launched.isoformat(),
              "uptime_s": round(r.uptime_s), "cost_usd": r.cost_usd,

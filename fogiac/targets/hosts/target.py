@@ -9,11 +9,11 @@ from pathlib import Path
 
 from fogiac.errors import ProvisionError
 from fogiac.manifest.schema import Manifest
-from fogiac.orchestrate import ExistingMachines
 from fogiac.plan.model import RELAY_PORT, Plan
 from fogiac.plan.placement import Placement, Tags
 from fogiac.provision import SshAccess
 from fogiac.targets.base import Check
+from fogiac.targets.existing import ExistingMachines
 from fogiac.targets.hosts import placement
 
 CONNECT_TIMEOUT_S = 5.0  # doctor's TCP check of each host's SSH port

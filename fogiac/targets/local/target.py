@@ -9,12 +9,13 @@ from pathlib import Path
 from typing import Any
 
 from fogiac.manifest.schema import Manifest
-from fogiac.orchestrate import ExistingMachines
 from fogiac.plan.model import HostSpec, Plan
 from fogiac.plan.placement import Placement, Tags
 from fogiac.provision import LocalAccess, supervise
 from fogiac.provision.local import PORTS_FILE, local_access, sandbox_root
+from fogiac.state import stack_dir
 from fogiac.targets.base import Check
+from fogiac.targets.existing import ExistingMachines
 from fogiac.targets.local import placement
 
 
@@ -36,8 +37,9 @@ class LocalTarget(ExistingMachines):
 
     def host_address(self, plan: Plan, spec: HostSpec, entry: Any) -> str:
         return entry[0].location if entry is not None else "-"
-    def forget(self, plan: Plan, folder: Path) -> None:
-        root = sandbox_root(folder)
+
+    def forget(self, plan: Plan, *, keep_network: bool) -> None:
+        root = sandbox_root(stack_dir(plan.stack, create=False))
         (root / PORTS_FILE).unlink(missing_ok=True)
         if root.is_dir() and not any(root.iterdir()):
             root.rmdir()

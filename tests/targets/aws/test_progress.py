@@ -7,6 +7,7 @@ from pulumi.automation import events
 from rich.console import Console
 
 from fogiac.cli.deploy import _Progress
+from fogiac.targets.aws.engine import translated
 
 
 def _pre(op: str, urn: str, typ: str) -> events.EngineEvent:
@@ -24,12 +25,14 @@ def test_rows_and_timers(monkeypatch: pytest.MonkeyPatch) -> None:
     progress = _Progress()
     progress.clock = progress.timers.clock = lambda: now[0]
     monkeypatch.setattr(progress.live, "start", lambda *a, **k: None)
+    feed = translated(progress)  # what the aws engine hands the lifecycle: neutral progress events
+    assert feed is not None
     vpc = "urn:pulumi:s::fogiac::aws:ec2/vpc:Vpc::m-dev-vpc"
     endpoint = "urn:pulumi:s::fogiac::aws:ec2clientvpn/endpoint:Endpoint::m-dev-endpoint"
-    progress(_pre("create", vpc, "aws:ec2/vpc:Vpc"))
-    progress(_pre("create", endpoint, "aws:ec2clientvpn/endpoint:Endpoint"))
+    feed(_pre("create", vpc, "aws:ec2/vpc:Vpc"))
+    feed(_pre("create", endpoint, "aws:ec2clientvpn/endpoint:Endpoint"))
     now[0] = 14.0
-    progress(_done("create", vpc, "aws:ec2/vpc:Vpc"))
+    feed(_done("create", vpc, "aws:ec2/vpc:Vpc"))
     now[0] = 610.0
     console = Console(width=120, record=True, color_system=None)
     console.print(progress._table())

@@ -1,0 +1,63 @@
+"""How ``fogiac status`` reads in a terminal: the lifecycle's part (not deployed, the edge's processes,
+the relayed topics) around the target's own rows, and the autostop line every target shows."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping
+from typing import Any
+
+from fogiac.lifecycle.driver import Target
+from fogiac.provision import idle
+from fogiac.tables import table
+
+
+def render_status(target: Target, doc: Mapping[str, Any]) -> list[Any]:
+    """Rich renderables (or plain strings), one per line or table."""
+    if not doc.get("deployed", True):
+        return [f"{doc['stack']}: not deployed"]
+    out = list(target.render_status(doc))
+    running = [e for e in doc.get("edge", []) if e["running"]]
+    if running:
+        out.append("edge processes: " + ", ".join(f"{e['name']} (pid {e['pid']})" for e in running))
+    if doc.get("relays"):
+        out.append(relays_table(doc["relays"]))
+    return out
+
+
+def relays_table(links: list[Mapping[str, Any]]) -> Any:
+    relays = table("relayed topics (direction as in the manifest: in = robot to node)", "host", "link", "topic",
+                   "dir", "msgs", "msgs/s", "KiB/s", "latency ms", "drops")
+    for relay in links:
+        rtt = f" {relay['rtt_ms']:.2f} ms" if relay.get("rtt_ms") else ""
+        link = ("up" if relay.get("connected") else "down") + rtt
+        for t in relay.get("topics", []) or [{}]:
+            latency = "-" if t.get("latency_ms") is None else f"{t['latency_ms']:.2f}"
+            rate = t.get("bytes_per_s")
+            relays.add_row(relay["host"], link, t.get("topic", "-"), t.get("direction", "-"),
+                           str(t.get("msgs", "-")), str(t.get("msgs_per_s", "-")),
+                           "-" if rate is None else f"{rate / 1024:.1f}", latency, str(t.get("drops", "-")))
+    return relays
+
+
+def duration(seconds: float) -> str:
+    minutes = int(seconds // 60)
+    return f"{minutes // 60}h{minutes % 60:02d}m" if minutes >= 60 else f"{minutes}m{int(seconds % 60):02d}s"
+
+
+def autostop_line(state: Mapping[str, Any], now: float | None = None) -> str:
+    """``stopped by autostop at 12:03:10 UTC`` or ``idle 4m 10s, stops at ...`` or ``in use``."""
+    now = time.time() if now is None else now
+
+    def clock(t: float) -> str:
+        return time.strftime("%H:%M:%S UTC", time.gmtime(t))
+
+    if state.get(idle.UNREACHABLE):
+        return f"idle time unknown ({idle.UNREACHABLE}: {state[idle.UNREACHABLE]})"
+    if state.get("stopped_at"):
+        verb = "terminated" if state.get("action") == "terminate" else "stopped"
+        return f"{verb} by autostop at {clock(state['stopped_at'])} (idle since {clock(state['idle_since'])})"
+    if state.get("idle_since") is None:
+        return f"in use (autostop {state.get('action', 'stop')} after idle)"
+    idle_s = int(now - state["idle_since"])
+    return f"idle {idle_s // 60}m {idle_s % 60}s, autostop at {clock(state['stops_at'])}"

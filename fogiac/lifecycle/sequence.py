@@ -1,0 +1,129 @@
+"""``up``, ``down`` and ``status``, written once for every target.
+
+Up: show the plan, ask, lock, start (or check) the robot's side, record the deployment, let the
+target create its machines, provision and connect every host, record what was applied. Down:
+stop the edge, stop what runs on machines that stay, let the target destroy what it made, prove
+nothing is left, forget. Status: the record, the target's machines and cost, the edge's links.
+A target (:class:`~fogiac.lifecycle.driver.Target`) answers only the questions that differ.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+from fogiac import deployment
+from fogiac.errors import FogiacError
+from fogiac.lifecycle.driver import (
+    Created,
+    DownOptions,
+    DownResult,
+    Feature,
+    Target,
+    UpOptions,
+    UpResult,
+    untouched_on_failure,
+)
+from fogiac.lifecycle.edge import (
+    DEPLOYMENT_FILE,
+    edge_dir,
+    edge_services,
+    ensure_edge_master,
+    provision_and_connect,
+    running_edge,
+    stop_edge,
+)
+from fogiac.net import middleware
+from fogiac.plan.document import APPLIED_FILE, plan_document
+from fogiac.plan.model import Plan
+from fogiac.provision import recorded_access, teardown
+from fogiac.state import read_json, stack_dir, stack_lock, write_json_atomic
+
+
+def up(target: Target, plan: Plan, opts: UpOptions) -> UpResult:
+    """Apply ``plan`` on ``target``: nothing before the user said yes; a failure leaves a record ``down`` finds."""
+    target.ready(plan, verb="up")  # before any state is touched
+    # applied.json is the document `fogiac plan` builds from the compiled plan, so that
+    # `plan --detailed-exitcode` compares like with like.
+    doc = plan_document(plan, target.declare(plan), manifest=opts.manifest_path)
+    infra_only = opts.infra_only and Feature.INFRA_ONLY in target.features
+    with untouched_on_failure(plan.stack) as commit, stack_lock(plan.stack, operation="up"):
+        prepared = target.prepare(plan, ssh_from=opts.ssh_from)
+        opts.show(doc, prepared.summary)
+        for line in prepared.notices:
+            opts.announce(line)
+        if not opts.yes and not opts.confirm(prepared.question):
+            raise FogiacError("not applied: nothing was changed")
+        master = opts.edge_master or plan.edge_master
+        if not infra_only:  # before anything is made: the robot's side must be there to connect
+            ensure_edge_master(prepared.plan, master, start=opts.start_edge_master)
+        commit()
+        deployment.begin(prepared.plan, opts.manifest_path)  # before anything exists, so down always finds it
+        created = target.create(prepared.plan, prepared, announce=opts.announce, on_event=opts.on_event)
+        plan = created.plan
+        report, relays = None, {}
+        if not infra_only:
+            reach = target.reach(plan, created, announce=opts.announce)
+            done = provision_and_connect(plan, access=reach.access, connect=reach.connect, master=master,
+                                         started_edge_master=opts.start_edge_master)
+            for note in done.notes:
+                opts.announce(note)
+            report, relays = done.report, dict(done.relays)
+        applied = stack_dir(plan.stack) / APPLIED_FILE
+        write_json_atomic(applied, doc)
+        deployment.finish(plan, opts.manifest_path, plan_digest=doc["plan_digest"])
+    return UpResult(outputs=created.outputs or {"relays": relays}, applied=applied, report=report, relays=relays,
+                    edge_master=master, plan=plan, machines=created.machines)
+
+
+def down(target: Target, plan: Plan, opts: DownOptions) -> DownResult:
+    """Stop the edge, stop what runs on machines that stay, destroy what was made, prove nothing is left."""
+    target.ready(plan, verb="down")  # missing credentials: one line, before anything is destroyed
+    folder = stack_dir(plan.stack, create=False)
+    record = deployment.read(plan.stack)
+    known = record is not None and record.exists
+    if not known and not recorded_access(folder) and not edge_services(plan) and not target.recorded(plan):
+        return DownResult(engine_errors=(), left=(), not_checked=(), existed=False)  # and nothing created
+    errors: list[str] = []
+    deleted = [f"edge process {e['name']}" for e in running_edge(plan)]
+    with untouched_on_failure(plan.stack), stack_lock(plan.stack, operation="down"):
+        stop_edge(plan, keep_master=True)  # the edge relays first: their peers are about to go
+        if Feature.CREATES_MACHINES not in target.features:  # the machines stay: stop what fogiac runs there
+            try:
+                report = teardown(plan, hosts=target.reach(plan, Created(plan=plan), announce=lambda _: None).access,
+                                  state_dir=folder)
+                errors += [o.error or f"{o.host}: failed" for o in report.failed]
+                deleted += [f"{o.host} process {name}" for o in report.hosts for name in o.stopped]
+            except FogiacError as err:
+                errors.append(str(err))
+        stop_edge(plan)
+        destroyed = target.destroy(plan, opts)
+        deleted += destroyed.deleted
+        left = [f"process {e['name']} (pid {e['pid']})" for e in running_edge(plan)] + list(destroyed.left)
+        if not left and not errors:
+            (folder / DEPLOYMENT_FILE).unlink(missing_ok=True)
+            (folder / APPLIED_FILE).unlink(missing_ok=True)
+            target.forget(plan, keep_network=opts.keep_network)
+            if destroyed.kept:
+                deployment.cut_back(plan.stack)
+            else:
+                deployment.removed(plan.stack)
+    return DownResult(engine_errors=(*errors, *destroyed.errors), left=tuple(left),
+                      not_checked=destroyed.not_checked, deleted=tuple(deleted), kept=destroyed.kept)
+
+
+def status(target: Target, plan: Plan, *, now: float | None = None) -> dict[str, Any]:
+    """The record (deployed, partial), the target's machines and cost, and the edge's processes and links."""
+    now = time.time() if now is None else now
+    head = {"stack": plan.stack, "target": plan.target}
+    folder = stack_dir(plan.stack, create=False)
+    record = deployment.read(plan.stack)
+    known = record is not None and record.exists
+    if not known and not recorded_access(folder) and not target.recorded(plan):
+        return {**head, "deployed": False, "hosts": [], "relays": [], "edge": []}
+    saved = (read_json(folder / DEPLOYMENT_FILE) or {}) if folder.exists() else {}
+    relays = middleware.deployment(plan.middleware).edge_links(plan, folder=edge_dir(plan),
+                                                               connect=saved.get("relays", {}))
+    return {**head, "deployed": True, "partial": not known or bool(record is not None and record.partial),
+            "edge_master": saved.get("edge_master", plan.edge_master), **target.describe(plan, now=now),
+            "relays": relays, "edge": running_edge(plan)}

@@ -106,7 +106,7 @@ def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str |
        start_edge_master: bool = typer.Option(False, "--start-edge-master",
                                               help="local/hosts: run the edge's roscore too if none answers (demos)."),
        edge_master: str | None = typer.Option(None, "--edge-master", help="Override edge.ros_master."),
-       infra_only: bool = typer.Option(False, "--infra-only", help="Create the machines only; provision nothing (targets that create machines)."),
+       infra_only: bool = typer.Option(False, "--infra-only", help="Create the machines only; provision nothing."),
        force: bool = FORCE) -> None:
     """Check, show the plan and its cost, ask, then create the machines and start the nodes."""
     plan = compile_deployed(manifest, env, target, force=force, has_force=True, creating=True)

@@ -37,8 +37,8 @@ class FleetUp:
     notes: tuple[str, ...] = ()  # the middleware's lines for the user: files written, what to install
 
 
-def edge_dir(plan: Plan) -> Path:
-    return stack_dir(plan.stack) / EDGE_DIR
+def edge_dir(plan: Plan, *, create: bool = True) -> Path:
+    return stack_dir(plan.stack, create=create) / EDGE_DIR
 
 
 def ensure_edge_master(plan: Plan, uri: str, *, start: bool) -> None:
@@ -86,7 +86,8 @@ def edge_services(plan: Plan) -> list[str]:
 
 def running_edge(plan: Plan) -> list[dict[str, Any]]:
     """The stack's edge processes on this machine that still run, with their pids."""
-    return [s for s in (supervise.status(edge_dir(plan), name) for name in edge_services(plan)) if s["running"]]
+    return [s for s in (supervise.status(edge_dir(plan, create=False), name) for name in edge_services(plan))
+            if s["running"]]
 
 
 def edge_idle_since(plan: Plan, *, now: float) -> float | None:

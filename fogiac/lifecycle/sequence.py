@@ -119,11 +119,13 @@ def status(target: Target, plan: Plan, *, now: float | None = None) -> dict[str,
     folder = stack_dir(plan.stack, create=False)
     record = deployment.read(plan.stack)
     known = record is not None and record.exists
-    if not known and not recorded_access(folder) and not target.recorded(plan):
+    provisioned = bool(recorded_access(folder))  # provisioning's own record of the hosts it reached
+    if not known and not provisioned and not target.recorded(plan):
         return {**head, "deployed": False, "hosts": [], "relays": [], "edge": []}
+    described = target.describe(plan, now=now)  # first: a target that cannot answer (no credentials) stops here
     saved = (read_json(folder / DEPLOYMENT_FILE) or {}) if folder.exists() else {}
-    relays = middleware.deployment(plan.middleware).edge_links(plan, folder=edge_dir(plan),
+    relays = middleware.deployment(plan.middleware).edge_links(plan, folder=edge_dir(plan, create=False),
                                                                connect=saved.get("relays", {}))
-    return {**head, "deployed": True, "partial": not known or bool(record is not None and record.partial),
-            "edge_master": saved.get("edge_master", plan.edge_master), **target.describe(plan, now=now),
+    return {**head, "deployed": True, "partial": record.partial if record is not None and known else provisioned,
+            "edge_master": saved.get("edge_master", plan.edge_master), **described,
             "relays": relays, "edge": running_edge(plan)}

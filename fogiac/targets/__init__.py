@@ -1,4 +1,4 @@
-"""Targets: where a manifest's "cloud" nodes run, one registry and one module or folder each.
+"""Targets: where a manifest's "cloud" nodes run, one entry point and one folder each.
 
 ::
 
@@ -6,59 +6,83 @@
     hosts/    machines that already exist, reached over SSH (a lab GPU server is fog too)
     local/    sandboxes on this machine, one ROS master each (demos, CI)
 
-A new target is one :class:`~fogiac.targets.base.Target` passed to :func:`register`; nothing
-else in fogiac names a target.
+A target is a :class:`TargetEntry` published under the ``fogiac.targets`` entry point group
+(fogiac's own in its ``pyproject.toml``): its name, the compile-time placement, the driver the
+lifecycle asks (:class:`~fogiac.lifecycle.driver.Target`) and its manifest ``cloud:`` variant,
+each loaded only when asked for. Nothing else in fogiac names a target.
 """
 
 from __future__ import annotations
 
 import importlib
 from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
 
-from fogiac.errors import PlanError
+from fogiac.lifecycle.driver import Target
 from fogiac.plan.placement import Placement
-from fogiac.targets.base import Target
+from fogiac.registry import Registry
 
 Place = Callable[..., Placement]  # place(manifest, *, stack, tags) -> Placement, as Target.place
 
-# The built-in targets, imported when first asked for: compiling for ``local`` loads nothing of ``aws``.
-BUILTIN: dict[str, str] = {"aws": "fogiac.targets.aws.target:AWS", "hosts": "fogiac.targets.hosts.target:HOSTS",
-                           "local": "fogiac.targets.local.target:LOCAL"}
-# Where a built-in target's placement lives apart from its lifecycle, so that compiling (``validate``,
-# ``plan``, ``graph``) loads what the target decides at compile time and not its provisioning and engine.
-PLACEMENT: dict[str, str] = {name: f"fogiac.targets.{name}.placement:place" for name in BUILTIN}
-_REGISTRY: dict[str, Target] = {}
+
+def _load(ref: str) -> Any:
+    module, _, attr = ref.partition(":")
+    return getattr(importlib.import_module(module), attr)
+
+
+@dataclass(frozen=True)
+class TargetEntry:
+    """What a target publishes: ``module:attr`` references into its own folder, loaded when first needed.
+
+    ``placement`` is what compiling (``validate``, ``plan``, ``graph``) loads; ``driver`` is what
+    ``up``, ``down`` and ``status`` load; a target whose driver is light may name only ``driver``.
+    """
+
+    name: str
+    driver: str
+    placement: str = ""
+
+    def load_driver(self) -> Target:
+        found: Target = _load(self.driver)
+        return found
+
+    def load_placement(self) -> Place:
+        found: Place = _load(self.placement) if self.placement else self.load_driver().place
+        return found
+
+
+ENTRIES: Registry[TargetEntry] = Registry("fogiac.targets", what="target")
+_DRIVERS: dict[str, Target] = {}
 
 
 def register(target: Target) -> Target:
-    """Add (or replace) ``target`` under its name; returns it, so it can decorate an instance."""
-    _REGISTRY[target.name] = target
+    """Add (or replace) a driver object under its name for this process; returns it."""
+    _DRIVERS[target.name] = target
     return target
 
 
 def unregister(name: str) -> None:
-    _REGISTRY.pop(name, None)
+    _DRIVERS.pop(name, None)
 
 
 def get(name: str) -> Target:
     """The target called ``name``; an unknown name fails in one line listing the known ones."""
-    found = _REGISTRY.get(name)
-    if found is None and name in BUILTIN:
-        module, attr = BUILTIN[name].split(":")
-        found = register(getattr(importlib.import_module(module), attr))
-    if found is None:
-        raise PlanError(f"unknown target {name!r}; valid: {', '.join(names())}")
-    return found
+    if name not in _DRIVERS:
+        _DRIVERS[name] = _entry(name).load_driver()
+    return _DRIVERS[name]
 
 
 def placer(name: str) -> Place:
-    """``name``'s ``place``: from its placement module when it has one and is not loaded yet."""
-    if name not in _REGISTRY and name in PLACEMENT:
-        module, attr = PLACEMENT[name].split(":")
-        found: Place = getattr(importlib.import_module(module), attr)
-        return found
-    return get(name).place
+    """``name``'s ``place``: from its placement module when it has one and its driver is not loaded yet."""
+    if name in _DRIVERS:
+        return _DRIVERS[name].place
+    return _entry(name).load_placement()
 
 
 def names() -> tuple[str, ...]:
-    return tuple(sorted(set(_REGISTRY) | set(BUILTIN)))
+    return tuple(sorted(set(_DRIVERS) | set(ENTRIES.names())))
+
+
+def _entry(name: str) -> TargetEntry:
+    return ENTRIES.get(name)

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 
+from fogiac.lifecycle import sequence
 from fogiac.manifest.schema import parse_manifest
 from fogiac.lifecycle.report import autostop_line
 from fogiac.plan.compile import compile_plan
@@ -132,7 +133,7 @@ def test_aws_status_reads_each_running_instance_with_its_pinned_key(
     # the whole status: EC2's answer is the one seam faked (LocalStack's addresses are not ours to dial)
     write_json_atomic(folder / HOST_KEYS_FILE, {"i-0lab": [fingerprint_of(host.host_key_pub)]})
     monkeypatch.setattr(api, "status", lambda stack, **kw: [_row("planner", host.address)])
-    doc = AWS.status(plan)
+    doc = sequence.status(AWS, plan)
     reading = doc["hosts"][0]["autostop"]
     assert reading["idle_since"] is not None and reading["stopped_at"] is None
     assert doc["cost"]["no_edge_s"] == pytest.approx(time.time() - reading["idle_since"], abs=5)

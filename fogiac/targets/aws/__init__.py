@@ -6,6 +6,12 @@ reports during and proves after (:mod:`.api`, :mod:`.sweep`). Offline, the same 
 under Pulumi's mocks (:mod:`.offline`) so ``fogiac plan`` needs no credentials. This folder is
 the only code in fogiac that imports boto3, pulumi, pulumi_aws or ``stacks``.
 
-The target itself is :data:`.target.AWS`; this package imports nothing, so compiling for ``aws``
+The target itself is :data:`.target.AWS`; this package imports only the registry's
+:class:`~fogiac.targets.TargetEntry`, so compiling for ``aws``
 (``validate``, ``plan``) loads only :mod:`.placement`.
 """
+
+from fogiac.targets import TargetEntry
+
+ENTRY = TargetEntry(name="aws", driver="fogiac.targets.aws.target:AWS",
+                    placement="fogiac.targets.aws.placement:place")

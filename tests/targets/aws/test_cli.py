@@ -15,6 +15,7 @@ from typing import Any
 import pytest
 from typer.testing import CliRunner
 
+from fogiac.lifecycle import sequence
 from fogiac.cli import app
 from fogiac.targets import get as target
 from fogiac.targets.base import UpOptions
@@ -102,7 +103,7 @@ def test_every_preflight_problem_gets_its_line(state: Path, tmp_path: Path, with
 def test_unknown_region_in_a_crafted_plan(state: Path, tmp_path: Path, with_cli: None) -> None:
     plan = with_region(make_plan(tmp_path, "mars"), "mars-north-1")
     with pytest.raises(PreflightError, match=r"^unknown AWS region 'mars-north-1'$"):
-        target("aws").up(plan, UpOptions(manifest_path=tmp_path / "mars.yaml", yes=True))
+        sequence.up(target("aws"), plan, UpOptions(manifest_path=tmp_path / "mars.yaml", yes=True))
     assert _files(state) == []
 
 

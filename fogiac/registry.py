@@ -1,0 +1,73 @@
+"""Plug-in tables, one helper for all of them: Python entry points (``importlib.metadata``).
+
+Every variant fogiac knows (targets, middlewares, importers, workloads, CLI verb groups) is an
+entry point in a group named ``fogiac.<table>``; fogiac's own are declared in its
+``pyproject.toml`` like anyone else's, so another installed package adds a target, a middleware
+or a workload by declaring one more, with no edit to fogiac. An entry point is loaded when it is
+first asked for: compiling for ``local`` loads nothing of ``aws``. Tests (and embedders) may
+also :meth:`Registry.register` an object for the life of the process.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from importlib import metadata
+from typing import Generic, TypeVar
+
+from fogiac.errors import FogiacError, PlanError
+
+T = TypeVar("T")
+
+
+@functools.cache
+def _declared(group: str) -> dict[str, metadata.EntryPoint]:
+    """The entry points of ``group`` by name, read from the installed distributions once per process."""
+    return {ep.name: ep for ep in metadata.entry_points(group=group)}
+
+
+def rescan() -> None:
+    """Forget what was read, so a distribution installed (or put on ``sys.path``) since is seen."""
+    _declared.cache_clear()
+
+
+class Registry(Generic[T]):
+    """One table: ``get(name)`` loads an entry point of ``group`` (or returns a registered object).
+
+    An unknown name fails in one line naming the known ones, through ``error`` (a
+    :class:`~fogiac.errors.FogiacError` the CLI prints without a traceback).
+    """
+
+    def __init__(self, group: str, *, what: str, error: Callable[[str], FogiacError] = PlanError) -> None:
+        self.group = group
+        self.what = what
+        self.error = error
+        self._loaded: dict[str, T] = {}
+        self._registered: dict[str, T] = {}
+
+    def names(self) -> tuple[str, ...]:
+        return tuple(sorted(set(self._registered) | set(_declared(self.group))))
+
+    def get(self, name: str) -> T:
+        if name in self._registered:
+            return self._registered[name]
+        if name not in self._loaded:
+            point = _declared(self.group).get(name)
+            if point is None:
+                raise self.error(f"unknown {self.what} {name!r}; valid: {', '.join(self.names())}")
+            self._loaded[name] = point.load()
+        return self._loaded[name]
+
+    def value(self, name: str) -> str:
+        """The entry point's ``module:attr`` text, without loading it (what a lazy table needs to know)."""
+        if name not in _declared(self.group):
+            raise self.error(f"unknown {self.what} {name!r}; valid: {', '.join(self.names())}")
+        return _declared(self.group)[name].value
+
+    def register(self, name: str, obj: T) -> T:
+        """Add (or replace) ``obj`` under ``name`` for this process; returns it."""
+        self._registered[name] = obj
+        return obj
+
+    def unregister(self, name: str) -> None:
+        self._registered.pop(name, None)

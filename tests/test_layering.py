@@ -1,88 +1,109 @@
-"""The layering issue 10 asks for, checked over the source with ``ast`` (no import is executed).
+"""The layering the lifecycle issue asks for, checked over the source with ``ast`` (nothing is imported).
 
-- Only ``fogiac/targets/aws/`` (and the Pulumi programs in ``stacks/``) touch boto3, botocore,
-  pulumi, pulumi_aws or ``stacks``, whether by ``import`` or through ``fogiac.extras.need``.
-- No import cycles between fogiac's modules (module-level imports; TYPE_CHECKING blocks and the
-  imports inside functions are not executed at import time, so they cannot form a cycle there).
-- No branch on a target's name outside that target's own module or folder.
+Every import counts: at module level, inside functions, under ``TYPE_CHECKING``, through
+``importlib.import_module("...")`` and as ``"fogiac.x:attr"`` registry strings.
+
+- manifest never imports plan, net, provision, lifecycle, cli or a target's folder;
+- plan never imports a middleware's folder, provision, lifecycle or a target's folder;
+- provision never imports a middleware's folder or a target's folder;
+- net never imports targets, lifecycle or cli; cli imports no target's folder;
+- no import cycle spans two folders;
+- only ``fogiac/targets/aws/`` (and ``stacks/``) touch boto3, botocore, pulumi, pulumi_aws or ``stacks``,
+  and no code line outside it names Client VPN, EC2 or the instance catalogue (comments and docstrings may);
+- no branch on a target's name outside that target's own folder.
 """
 
 from __future__ import annotations
 
 import ast
+import io
+import re
+import tokenize
 from pathlib import Path
+
+import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 CLOUD = ("boto3", "botocore", "pulumi", "pulumi_aws", "stacks")
 TARGET_NAMES = ("aws", "hosts", "local")
+MIDDLEWARES = ("fogiac.net.relay", "fogiac.net.zenoh")
+TARGET_FOLDERS = tuple(f"fogiac.targets.{name}" for name in TARGET_NAMES)
+# What "naming AWS" means in a code line: the SDKs, the Client VPN, EC2 and its catalogue.
+AWS_WORDS = re.compile(r"boto3|botocore|pulumi_aws|client[ _]?vpn|clientvpn|\bec2\b|instance_types\.json", re.I)
+REF = re.compile(r"^((?:fogiac|stacks|workloads)(?:\.\w+)+):\w+$")
 
 
 def _modules() -> dict[str, Path]:
     out = {}
     for path in sorted((REPO / "fogiac").rglob("*.py")):
         parts = path.relative_to(REPO).with_suffix("").parts
-        name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
-        out[name] = path
+        out[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
     return out
 
 
 MODULES = _modules()
 
 
-def _top_level_imports(tree: ast.Module, module: str, is_package: bool) -> list[str]:
-    """Modules imported when ``module`` is imported (skipping ``if TYPE_CHECKING:`` blocks)."""
-    found: list[str] = []
-    base = module.split(".") if is_package else module.split(".")[:-1]
-
-    def visit(body: list[ast.stmt]) -> None:
-        for node in body:
-            if isinstance(node, ast.Import):
-                found.extend(alias.name for alias in node.names)
-            elif isinstance(node, ast.ImportFrom):
-                prefix = base[: len(base) - node.level + 1] if node.level else []
-                target = ".".join(prefix + ([node.module] if node.module else []))
-                # ``from pkg import sub`` imports the module pkg.sub; ``from mod import name`` imports mod
-                found.extend(f"{target}.{alias.name}" if f"{target}.{alias.name}" in MODULES else target
-                             for alias in node.names)
-            elif isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
-                continue
-            elif isinstance(node, (ast.If, ast.Try)):
-                visit(node.body + node.orelse + [s for h in getattr(node, "handlers", []) for s in h.body])
-    visit(tree.body)
-    return found
+def _resolve(name: str) -> str:
+    """The fogiac module ``name`` denotes (``pkg.mod.attr`` -> ``pkg.mod``), or ``name`` if outside fogiac."""
+    while name and name not in MODULES and "." in name:
+        name = name.rsplit(".", 1)[0]
+    return name
 
 
-def _all_imports(tree: ast.Module) -> list[str]:
-    names: list[str] = []
+def imports(module: str) -> set[str]:
+    """Every module ``module`` imports, by any of the ways listed at the top."""
+    path = MODULES[module]
+    tree = ast.parse(path.read_text())
+    base = module.split(".") if path.name == "__init__.py" else module.split(".")[:-1]
+    found: set[str] = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
-            names.extend(alias.name for alias in node.names)
-        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
-            names.append(node.module)
-        elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "need"
-              and node.args and isinstance(node.args[0], ast.Constant)):
-            names.append(str(node.args[0].value))
-    return names
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            prefix = base[: len(base) - node.level + 1] if node.level else []
+            target = ".".join(prefix + ([node.module] if node.module else []))
+            found.update(_resolve(f"{target}.{alias.name}") if f"{target}.{alias.name}" in MODULES else target
+                         for alias in node.names)
+        elif isinstance(node, ast.Call) and node.args and isinstance(node.args[0], ast.Constant) \
+                and isinstance(node.args[0].value, str) and ast.unparse(node.func).endswith(("import_module", "need")):
+            found.add(node.args[0].value)
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str) and REF.match(node.value):
+            found.add(node.value.split(":")[0])
+    return {_resolve(name) for name in found} - {module}
 
 
-def test_only_the_aws_target_touches_cloud_sdks_and_stacks() -> None:
-    offenders = []
-    for name, path in _modules().items():
-        if name.startswith("fogiac.targets.aws"):
-            continue
-        for imported in _all_imports(ast.parse(path.read_text())):
-            if imported.split(".")[0] in CLOUD:
-                offenders.append(f"{path.relative_to(REPO)} imports {imported}")
+GRAPH = {name: imports(name) for name in MODULES}
+
+
+def folder(module: str) -> str:
+    """``fogiac.plan.model`` -> ``plan``; a module at fogiac's top (``fogiac.state``) is a folder of its own."""
+    return module.split(".")[1] if module.count(".") >= 1 else module
+
+
+def _under(module: str, prefixes: tuple[str, ...]) -> bool:
+    return any(module == p or module.startswith(p + ".") for p in prefixes)
+
+
+RULES = [
+    ("fogiac.manifest", ("fogiac.plan", "fogiac.net", "fogiac.provision", "fogiac.lifecycle", "fogiac.cli",
+                         *TARGET_FOLDERS)),
+    ("fogiac.plan", (*MIDDLEWARES, "fogiac.provision", "fogiac.lifecycle", *TARGET_FOLDERS)),
+    ("fogiac.provision", (*MIDDLEWARES, *TARGET_FOLDERS)),
+    ("fogiac.net", ("fogiac.targets", "fogiac.lifecycle", "fogiac.cli")),
+    ("fogiac.cli", TARGET_FOLDERS),
+]
+
+
+@pytest.mark.parametrize(("layer", "forbidden"), RULES, ids=[rule[0] for rule in RULES])
+def test_a_layer_imports_only_what_is_below_it(layer: str, forbidden: tuple[str, ...]) -> None:
+    offenders = sorted(f"{MODULES[m].relative_to(REPO)} imports {imported}" for m in MODULES if _under(m, (layer,))
+                       for imported in GRAPH[m] if _under(imported, forbidden))
     assert offenders == []
 
 
-def test_no_import_cycles() -> None:
-    modules = _modules()
-    graph: dict[str, set[str]] = {}
-    for name, path in modules.items():
-        imported = _top_level_imports(ast.parse(path.read_text()), name, path.name == "__init__.py")
-        graph[name] = {m for m in imported if m in modules and m != name}
-    # Tarjan's strongly connected components: any component of more than one module is a cycle.
+def test_no_import_cycle_spans_two_folders() -> None:
+    """Tarjan's strongly connected components over every import: a component in two folders is a cycle."""
     index: dict[str, int] = {}
     low: dict[str, int] = {}
     stack: list[str] = []
@@ -91,7 +112,7 @@ def test_no_import_cycles() -> None:
     def connect(node: str) -> None:
         index[node] = low[node] = len(index)
         stack.append(node)
-        for nxt in sorted(graph[node]):
+        for nxt in sorted(m for m in GRAPH[node] if m in MODULES):
             if nxt not in index:
                 connect(nxt)
                 low[node] = min(low[node], low[nxt])
@@ -104,18 +125,48 @@ def test_no_import_cycles() -> None:
                 component.append(top)
                 if top == node:
                     break
-            if len(component) > 1:
+            if len({folder(m) for m in component}) > 1:
                 cycles.append(sorted(component))
 
-    for node in sorted(graph):
+    for node in sorted(GRAPH):
         if node not in index:
             connect(node)
     assert cycles == []
 
 
-def test_no_branch_on_a_target_name_outside_its_own_module() -> None:
+def test_only_the_aws_target_touches_cloud_sdks_and_stacks() -> None:
+    offenders = sorted(f"{MODULES[m].relative_to(REPO)} imports {imported}" for m in MODULES
+                       if not _under(m, ("fogiac.targets.aws",)) for imported in GRAPH[m]
+                       if imported.split(".")[0] in CLOUD)
+    assert offenders == []
+
+
+def _code_lines(path: Path) -> list[tuple[int, str]]:
+    """The file's code without comments and docstrings: (line, text of its names and strings)."""
+    source = path.read_text()
+    docstrings = {(n.body[0].value.lineno, n.body[0].value.end_lineno) for n in ast.walk(ast.parse(source))
+                  if isinstance(n, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and n.body
+                  and isinstance(n.body[0], ast.Expr) and isinstance(n.body[0].value, ast.Constant)
+                  and isinstance(n.body[0].value.value, str)}
+    skipped = {line for first, last in docstrings for line in range(first, (last or first) + 1)}
+    out: list[tuple[int, str]] = []
+    for token in tokenize.generate_tokens(io.StringIO(source).readline):
+        if token.type in (tokenize.COMMENT, tokenize.NL, tokenize.NEWLINE) or token.start[0] in skipped:
+            continue
+        out.append((token.start[0], token.string))
+    return out
+
+
+def test_no_code_line_outside_the_aws_target_names_aws() -> None:
+    offenders = sorted({f"{path.relative_to(REPO)}:{line}" for m, path in MODULES.items()
+                        if not _under(m, ("fogiac.targets.aws",))
+                        for line, text in _code_lines(path) if AWS_WORDS.search(text)})
+    assert offenders == []
+
+
+def test_no_branch_on_a_target_name_outside_its_own_folder() -> None:
     offenders = []
-    for name, path in _modules().items():
+    for name, path in MODULES.items():
         if name.startswith("fogiac.targets."):
             continue
         for node in ast.walk(ast.parse(path.read_text())):

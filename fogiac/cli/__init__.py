@@ -1,9 +1,10 @@
 """The ``fogiac`` command line: one module per group of verbs, each with ``register(app)``.
 
-A verb's module is imported only when that verb runs (``VERBS`` maps each verb to its module,
-the way click's lazily loaded groups do), so ``fogiac validate`` does not pay for the relay,
-the VPN or the provisioning code; ``tests/cli/test_verbs.py`` keeps the map equal to what the
-modules register. Errors a user can act on (:class:`fogiac.errors.FogiacError`) are caught
+A verb's module is imported only when that verb runs (each verb is an entry point of the
+``fogiac.commands`` group naming its module, the way click's lazily loaded groups work), so
+``fogiac validate`` does not pay for the relay, the VPN or the provisioning code, and another
+installed package can add a group of verbs; ``tests/cli/test_verbs.py`` keeps the entry points
+equal to what the modules register. Errors a user can act on (:class:`fogiac.errors.FogiacError`) are caught
 here once and printed one line each, exit code 1, never a traceback.
 """
 
@@ -17,6 +18,7 @@ from typer.core import TyperGroup
 
 from fogiac import __version__
 from fogiac.errors import FogiacError, ManifestError
+from fogiac.registry import Registry
 
 if TYPE_CHECKING:
     import click
@@ -58,31 +60,24 @@ class _FogiacGroup(TyperGroup):
             raise typer.Exit(1) from None
 
     def list_commands(self, ctx: click.Context) -> list[str]:
-        return sorted(VERBS)
+        return list(COMMANDS.names())
 
     def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
-        module = VERBS.get(cmd_name)
-        if module is None:
+        if cmd_name not in COMMANDS.names():
             return None
-        command = verbs_of(module).get(cmd_name)
+        command = verbs_of(COMMANDS.value(cmd_name)).get(cmd_name)
         for each in _with_subcommands(command):
             _flags_without_type(each.get_params(ctx))
         return command
 
 
-VERBS: dict[str, str] = {
-    "init": "manifest", "validate": "manifest", "schema": "manifest", "cost": "manifest",
-    "plan": "plan", "graph": "graph", "import": "importer",
-    "up": "deploy", "down": "deploy", "refresh": "deploy", "status": "deploy", "sweep": "deploy", "doctor": "deploy",
-    "provision": "nodes", "logs": "nodes", "ssh": "nodes",
-    "relay": "relay", "certs": "relay", "vpn": "vpn",
-}
+COMMANDS: Registry[object] = Registry("fogiac.commands", what="command")  # verb -> the module registering it
 
 
 def verbs_of(module: str) -> dict[str, click.Command]:
-    """The click commands ``fogiac.cli.<module>`` registers, by name (imports the module)."""
+    """The click commands the module ``module`` registers, by name (imports the module)."""
     group = typer.Typer(context_settings={"help_option_names": ["-h", "--help"]})
-    importlib.import_module(f"{__name__}.{module}").register(group)
+    importlib.import_module(module).register(group)
 
     @group.callback()
     def _group() -> None:

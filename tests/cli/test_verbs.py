@@ -9,14 +9,14 @@ import sys
 import typer
 
 import fogiac.cli
-from fogiac.cli import VERBS, verbs_of
+from fogiac.cli import COMMANDS, verbs_of
 from tests.conftest import EXAMPLES, REPO
 
 
 def test_every_registered_verb_is_in_the_map_and_nothing_else() -> None:
     modules = [m.name for m in pkgutil.iter_modules(fogiac.cli.__path__) if not m.name.startswith("_")]
-    registered = {verb: module for module in modules for verb in verbs_of(module)}
-    assert registered == VERBS
+    registered = {verb: f"fogiac.cli.{module}" for module in modules for verb in verbs_of(f"fogiac.cli.{module}")}
+    assert registered == {verb: COMMANDS.value(verb) for verb in COMMANDS.names()}
 
 
 def test_validate_for_local_loads_neither_the_relay_nor_aws_nor_a_cloud_sdk() -> None:

@@ -55,10 +55,11 @@ def up(target: Target, plan: Plan, opts: UpOptions) -> UpResult:
         if not opts.yes and not opts.confirm(prepared.question):
             raise FogiacError("not applied: nothing was changed")
         master = opts.edge_master or plan.edge_master
-        if not infra_only:  # before anything is made: the robot's side must be there to connect
-            ensure_edge_master(prepared.plan, master, start=opts.start_edge_master)
         commit()
+        before = deployment.read(plan.stack)
         deployment.begin(prepared.plan, opts.manifest_path)  # before anything exists, so down always finds it
+        if not infra_only:  # before anything is made: the robot's side must be there to connect
+            _edge_or_undo(prepared.plan, master, start=opts.start_edge_master, before=before)
         created = target.create(prepared.plan, prepared, announce=opts.announce, on_event=opts.on_event)
         plan = created.plan
         report, relays = None, {}
@@ -74,6 +75,18 @@ def up(target: Target, plan: Plan, opts: UpOptions) -> UpResult:
         deployment.finish(plan, opts.manifest_path, plan_digest=doc["plan_digest"])
     return UpResult(outputs=created.outputs or {"relays": relays}, applied=applied, report=report, relays=relays,
                     edge_master=master, plan=plan, machines=created.machines)
+
+
+def _edge_or_undo(plan: Plan, master: str, *, start: bool, before: deployment.Deployment | None) -> None:
+    """Start (or check) the robot's side; if that fails, nothing was made: the record goes back to what it was."""
+    try:
+        ensure_edge_master(plan, master, start=start)
+    except FogiacError:
+        if before is None:
+            deployment.forget(plan.stack)
+        elif not before.exists:
+            deployment.removed(plan.stack)
+        raise
 
 
 def down(target: Target, plan: Plan, opts: DownOptions) -> DownResult:

@@ -16,19 +16,18 @@ provisioning, certificates or templates. Nothing else in fogiac names a variant.
 from __future__ import annotations
 
 import importlib
-import shlex
 from collections.abc import Mapping
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
 from fogiac.errors import PlanError
+from fogiac.hostmodel import Launching as Launching  # re-exported: what a middleware answers
+from fogiac.hostmodel import NativeRos as NativeRos
 
 if TYPE_CHECKING:
-    from fogiac.manifest.schema import Edge
+    from fogiac.hostmodel import Service, Where
     from fogiac.plan.model import HostSpec, Plan
     from fogiac.provision.host import Host
-    from fogiac.provision.services import Service, Where
 
 
 class Middleware(Protocol):
@@ -73,52 +72,15 @@ class Middleware(Protocol):
     @property
     def launching(self) -> Launching: ...  # how its ROS generation builds a workspace and runs a launch file
 
-    def edge_entry(self, edge: Edge) -> str:
-        """What the robot's side is reached at (``Plan.edge_master``): a master URI, a router endpoint."""
+    def edge_entry(self, edge: Any) -> str:
+        """What the robot's side is reached at (``Plan.edge_master``): a master URI, a router endpoint,
+        read from the manifest's ``edge:`` block (typed ``Any``: the manifest is imported by no middleware)."""
         ...
 
-
-@dataclass(frozen=True)
-class Launching:
-    """How a ROS generation builds a pushed workspace and runs one package's launch file from it."""
-
-    command: tuple[str, ...]  # what comes before PACKAGE FILE: ("roslaunch", "--wait"), ("ros2", "launch")
-    has_packages: str  # a shell test, in the workspace's root: it has packages to build
-    tool: str  # the build tool's command
-    build: str  # the build, run in the workspace's root after its env scripts
-    overlay: str  # the setup script a build leaves, relative to the workspace's root
-    package_path: bool  # True: packages are found through ROS_PACKAGE_PATH (natively, that alone)
-    image_has_tool: bool  # True: the ROS image always carries ``tool``; else the build asks first
-
-    def build_in_image(self) -> str:
-        """The build inside the ROS image, when the workspace has packages; an image without the build
-        tool fails here in one line rather than leaving the node to fail at launch ("package not found")."""
-        if self.image_has_tool:
-            return f"if {self.has_packages}; then {self.build} >/dev/null; fi"
-        missing = (f"the ROS image has no {self.tool} to build this workspace's packages; "
-                   f"use an image that has it (a ros-base image)")
-        return (f"if {self.has_packages}; then command -v {self.tool} >/dev/null || "
-                f"{{ echo {shlex.quote(missing)} >&2; exit 1; }}; {self.build} >/dev/null; fi")
-
-    def build_native(self, env_file: str) -> str:
-        """The build on a native host, in the nodes' environment, when it has packages and the tool."""
-        return (f"if {self.has_packages} && command -v {self.tool} >/dev/null; "
-                f"then . {env_file} && {self.build} >/dev/null; fi")
-
-
-@dataclass(frozen=True)
-class NativeRos:
-    """What a native host must have for a middleware's nodes, how to tell, and how to get it."""
-
-    needs: str  # in words, for the refusal: "roscore, roslaunch, rospy"
-    check: str  # a shell command that exits 0 when the host has it all
-    packages: tuple[str, ...]  # what installs it
-    install: str  # the script that installs them (run as root), rendered
-    by_hand: str  # the command a person runs instead, for the refusal
-    origin: str = ""  # where the packages come from, when not the OS's own archive
-    setup: str = ""  # a script the nodes' environment sources first, when the host has it
-    image_layer: str = ""  # Dockerfile lines that add it to the ROS image when that lacks it ('' : never needed)
-    probed: tuple[str, ...] = ()  # probe flags that, all present, answer ``check`` at no cost
+    def manifest_problems(self, manifest: Any) -> tuple[tuple[str, str], ...]:
+        """What this middleware cannot carry in a validated manifest: (message, field path) pairs, which
+        the schema reports as its own field problems (the middleware owns its block's rules)."""
+        ...
 
 
 class Deployment(Protocol):

@@ -14,13 +14,14 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from fogiac.errors import PlanError
-from fogiac.net.relay.config import RELAY_PORT as RELAY_PORT  # re-exported: the ports a plan opens, in one place
 from fogiac.plan.machines import Option, RankedBy
 
 # Ports. ROS 1 masters listen on 11311; nodes on ephemeral ports, which Linux takes from
-# 32768-60999 by default; the relay's cloud end on RELAY_PORT.
+# 32768-60999 by default; the middleware's end on a host that picks no port of its own on RELAY_PORT
+# (the relay's cloud end: fogiac.net.relay.config takes it from here).
 SSH_PORT = 22
 ROS_MASTER_PORT = 11311
+RELAY_PORT = 11411
 ROS_EPHEMERAL = (32768, 60999)
 OPERATOR = "operator"  # stands for the operator's address in ssh_from: auto until preflight resolves it
 OPERATOR_PLACEHOLDER = "<operator>/32"  # what an offline plan shows for the operator's address
@@ -175,8 +176,8 @@ class HostSpec:
 
 
 @dataclass(frozen=True)
-class RelayRoute:
-    """What crosses between the edge and one host, and where the edge dials it (relay or Zenoh router)."""
+class Route:
+    """What crosses between the edge and one host, and where the edge dials it (whichever middleware)."""
 
     host: str
     connect_via: ConnectVia  # private (through the VPN), public (proxy mode), address (hosts), loopback (local)
@@ -199,6 +200,9 @@ class RelayRoute:
         else:
             argv += ["--topics", ""]  # nothing beyond the lists: not the CLI's default of auto
         return argv
+
+
+RelayRoute = Route  # the former name, until every caller says Route
 
 
 AutostopPower = Literal["machine", "services"]  # power the machine off, or stop fogiac's services on it
@@ -250,10 +254,15 @@ class Plan:
     vpn: VpnSpec | None
     hosts: tuple[HostSpec, ...]
     nodes: tuple[NodeSpec, ...]
-    relay: tuple[RelayRoute, ...]
+    relay: tuple[Route, ...]  # the routes (named for the relay until the plan document's key moves too)
     tags: tuple[tuple[str, str], ...]
     cost: tuple[CostLine, ...] = field(default=())
     autostop: AutostopSpec | None = None
+
+    @property
+    def routes(self) -> tuple[Route, ...]:
+        """What crosses between the edge and each host, in the middleware's neutral terms."""
+        return self.relay
 
     @property
     def hourly_usd(self) -> float:

@@ -15,9 +15,9 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
+from fogiac.hostmodel import Layout
 from fogiac.provision import autostop
 from fogiac.provision.host import HostAccess, q
-from fogiac.provision.services import Layout
 
 READ_TIMEOUT_S = 5.0  # connecting and reading, each: status stays quick when a host is gone
 UNREACHABLE = "unreachable"  # the key a reading carries instead of the watchdog's state

@@ -10,9 +10,9 @@ import hashlib
 from collections.abc import Sequence
 from typing import Protocol
 
+from fogiac.hostmodel import Layout, Service, unit_name
 from fogiac.provision.host import Host, q
 from fogiac.provision.probe import Facts
-from fogiac.provision.services import Layout, Service, unit_name
 
 Health = list[tuple[str, bool, str]]  # (service, healthy, detail)
 

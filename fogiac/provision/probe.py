@@ -10,9 +10,9 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 
+from fogiac.hostmodel import Layout
 from fogiac.provision.host import Host
 from fogiac.provision.images import PIP_SETTINGS
-from fogiac.provision.services import Layout
 from fogiac.render import render
 
 

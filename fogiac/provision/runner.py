@@ -16,11 +16,11 @@ from pathlib import Path
 from typing import Any
 
 from fogiac.errors import FogiacError, ProvisionError
+from fogiac.hostmodel import Layout
 from fogiac.plan.model import RELAY_PORT, ROS_MASTER_PORT, HostSpec, Plan
 from fogiac.provision.host import Host, HostAccess, q
 from fogiac.provision.local import LocalAccess
 from fogiac.provision.managers import manager_for
-from fogiac.provision.services import Layout
 from fogiac.provision.ssh import SshAccess
 from fogiac.provision.steps import CHANGED, HostRun, Options, step
 from fogiac.state import read_json, write_json_atomic

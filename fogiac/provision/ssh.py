@@ -16,8 +16,7 @@ from typing import TYPE_CHECKING
 
 from fogiac.errors import HostKeyError, ProvisionError
 from fogiac.extras import need
-from fogiac.net.relay.config import RELAY_PORT
-from fogiac.plan.model import ROS_MASTER_PORT
+from fogiac.plan.model import RELAY_PORT, ROS_MASTER_PORT
 from fogiac.procs import poll
 from fogiac.provision import hostkeys
 from fogiac.provision.host import Host, Result, q

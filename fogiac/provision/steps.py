@@ -8,25 +8,25 @@ report says "no changes".
 from __future__ import annotations
 
 import hashlib
-import tempfile
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from fogiac.errors import ProvisionError
+from fogiac.hostmodel import Launching, Layout, NativeRos, Service, Where, master_uri
 from fogiac.net import middleware
 from fogiac.net.middleware import Deployment, Middleware
 from fogiac.plan.model import HostSpec, Plan
-from fogiac.provision import images, venv
-from fogiac.provision import services as svc
+from fogiac.provision import runtimes, venv
 from fogiac.provision.host import Host, HostAccess, q
 from fogiac.provision.managers import Manager, manager_for
 from fogiac.provision.probe import Facts, gather
+from fogiac.provision.runtimes.base import CHANGED as CHANGED
+from fogiac.provision.runtimes.base import OK, SKIPPED, StepResult
+from fogiac.provision.services import env_script, node_services
 from fogiac.provision.sync import push_tree
-from fogiac.render import render
 from fogiac.resources import package_dir
 
-CHANGED, OK, SKIPPED = "changed", "ok", "skipped"
 _CODE_IGNORE = ("tests/", "*.npz", "*.ipynb")  # the planner's problems (0.1 MB) and the grasp model (0.2 MB) go along
 
 
@@ -50,8 +50,8 @@ class HostRun:
     access: HostAccess
     host: Host
     options: Options
-    runtime: str = ""
-    engine: str = ""  # the container engine's command, when runtime is CONTAINER
+    runtime: runtimes.HostRuntime | None = None  # chosen by the runtime step
+    engine: str = ""  # the container engine's command, on the container runtime
     images: dict[str, str] = field(default_factory=dict)  # node -> image tag built on the host
     venv_python: str = ""  # the virtual environment's interpreter (fogiac's code, native workload nodes)
     launch_bin: str = ""  # that environment's bin folder, when native launch nodes asked for requirements
@@ -63,8 +63,8 @@ class HostRun:
     _manager: Manager | None = field(default=None, init=False, repr=False)
 
     @property
-    def layout(self) -> svc.Layout:
-        return svc.Layout(self.host.base, self.plan.stack)
+    def layout(self) -> Layout:
+        return Layout(self.host.base, self.plan.stack)
 
     @property
     def manager(self) -> Manager:
@@ -73,9 +73,19 @@ class HostRun:
             self._manager = manager_for(self.host, systemd=self.systemd)
         return self._manager
 
-    def where(self) -> svc.Where:
+    @property
+    def chosen(self) -> runtimes.HostRuntime:
+        """The host's runtime: native until the runtime step has chosen."""
+        return self.runtime or runtimes.NATIVE
+
+    @property
+    def nodes_on_host(self) -> bool:
+        """Nodes run from the host's python (their requirements in its venv): a chosen native runtime."""
+        return self.runtime is not None and self.runtime.nodes_on_host
+
+    def where(self) -> Where:
         code_root = self.layout.lib if self.access.ship_code else str(package_dir("fogiac").parent)
-        return svc.Where(layout=self.layout, runtime=self.runtime or svc.NATIVE, master_port=self.access.master_port,
+        return Where(layout=self.layout, runtime=self.chosen, master_port=self.access.master_port,
                          relay_port=self.access.relay_port, ros_address=self.access.ros_address,
                          python=self.venv_python or self.access.python, code_root=code_root, user=self.access.user,
                          workspace_digests=tuple(sorted(self.digests.items())), engine=self.engine or "docker",
@@ -92,16 +102,33 @@ class HostRun:
         return middleware.deployment(self.plan.middleware)
 
     @property
+    def allow_install(self) -> bool:
+        return self.options.allow_install
+
+    @property
+    def native_ros(self) -> NativeRos:
+        return self.deploying.native_ros(self.plan.ros_distro)
+
+    @property
+    def launching(self) -> Launching:
+        return self.carrier.launching
+
+    def env_text(self) -> str:
+        """The env file every service script on the host sources (the distro's setup, the middleware's env)."""
+        return env_script(self.deploying.node_env(self.where()), host=self.spec.name,
+                          setup=self.runtime.env_setup(self.native_ros) if self.runtime is not None else "")
+
+    @property
     def dialed(self) -> str:
         """The address the edge reaches this host at: the target's word (a private VPC address over the
         VPN), else the one provisioning reaches it at."""
         return self.options.dialed.get(self.spec.name) or self.access.location.rsplit(":", 1)[0].rpartition("@")[2]
 
-    def services(self) -> tuple[svc.Service, ...]:
+    def services(self) -> tuple[Service, ...]:
         """The middleware's host services (a ROS master, a router), then one per node."""
         where = self.where()
         first = self.deploying.host_services(self.plan, self.spec, where, certs=self.options.certs_dir)
-        return first + svc.node_services(self.plan, self.spec, where)
+        return first + node_services(self.plan, self.spec, where)
 
     def credentials(self) -> bool:
         """The middleware's credentials made on the host (its key never leaves it); True when they changed."""
@@ -110,14 +137,11 @@ class HostRun:
             self.host, python=self.where().python, folder=self.layout.certs, certs_dir=certs, plan=self.plan,
             spec=self.spec, dialed=self.dialed)
 
-    def link_services(self) -> tuple[svc.Service, ...]:
+    def link_services(self) -> tuple[Service, ...]:
         """What joins the host to the edge after its nodes (none without certificates or fogiac's code)."""
         if self.options.certs_dir is None or not relay_available(self):
             return ()
         return self.deploying.link_services(self.plan, self.spec, self.where())
-
-
-StepResult = tuple[str, str]  # (CHANGED | OK | SKIPPED, detail)
 
 
 def _sha(data: bytes) -> str:
@@ -143,15 +167,13 @@ def step_connect(run: HostRun) -> StepResult:
 
 def step_runtime(run: HostRun) -> StepResult:
     host, layout, changes = run.host, run.layout, []
-    wanted = run.spec.runtime
-    facts = run.facts = gather(host, layout, relay_cli=_relay_cli(run),
-                               engines=_ENGINES if wanted == svc.CONTAINER else _ENGINES[:1])
+    facts = run.facts = gather(host, layout, relay_cli=_relay_cli(run), engines=runtimes.engines(run.spec))
     if facts.missing:
         host.run(f"mkdir -p -m 700 {' '.join(q(f) for f in facts.missing)}")
         changes.append("folders")
     run.systemd = "systemd" in facts.flags
-    run.runtime, run.engine = _choose_runtime(run.spec, facts)
-    changes += _RUNTIMES[run.runtime](run, facts)
+    run.runtime, run.engine = runtimes.choose(run.spec, facts)
+    changes += run.runtime.prepare(run, facts)
     if ensure_file(run, Path(__file__).with_name("supervise.py").read_bytes(), layout.supervisor, mode=0o755):
         changes.append("supervisor")
     if run.access.ship_code:
@@ -164,26 +186,8 @@ def step_runtime(run: HostRun) -> StepResult:
                 changes.append(f"{package} code")
         if (package_dir("fogiac") / "cli" / "relay.py").is_file():
             facts.flags.add("relaycli")  # pushed just now: the probe ran before the first push
-    detail = f"{run.runtime} ROS" + (f"; {', '.join(changes)}" if changes else "")
+    detail = f"{run.runtime.name} ROS" + (f"; {', '.join(changes)}" if changes else "")
     return (CHANGED if changes else OK), detail
-
-
-# Engines in order of preference: a docker that answers (AWS hosts have one), else podman.
-_ENGINES = ("docker", "podman")
-
-
-def _choose_runtime(spec: HostSpec, facts: Facts) -> tuple[str, str]:
-    """(runtime, engine): ``auto`` keeps containers for hosts where ``docker info`` answers."""
-    if spec.runtime == svc.NATIVE:
-        return svc.NATIVE, ""
-    if facts.engines:
-        return svc.CONTAINER, facts.engines[0]
-    if spec.runtime == svc.CONTAINER:
-        raise ProvisionError(
-            f"{spec.name}: runtime is container but no container engine answers (`docker info` and `podman info` "
-            "failed); install one (apt-get install podman runc) or set cloud.runtime: native"
-        )
-    return svc.NATIVE, ""
 
 
 def _relay_cli(run: HostRun) -> str:
@@ -191,105 +195,14 @@ def _relay_cli(run: HostRun) -> str:
     return f"{code_root}/fogiac/cli/relay.py"
 
 
-def _container_runtime(run: HostRun, facts: Facts) -> list[str]:
-    changes = []
-    if run.spec.has_gpu and "nvidia" not in facts.flags:
-        script = render("provision/nvidia_toolkit.sh.j2")
-        run.host.put(script.encode(), f"{run.layout.tmp}/nvidia-toolkit.sh", mode=0o700)
-        run.host.sudo(f"bash {q(run.layout.tmp + '/nvidia-toolkit.sh')}", timeout=900)
-        changes.append("NVIDIA container toolkit")
-    image, engine = svc.ros_image(run.plan), run.engine
-    if not run.host.run(f"{engine} image inspect {q(image)} >/dev/null 2>&1", check=False).ok:
-        run.host.run(f"{engine} pull -q {q(image)}", timeout=900)
-        changes.append(f"pulled {image}")
-    return changes + _middleware_image(run, image)
-
-
-def _middleware_image(run: HostRun, image: str) -> list[str]:
-    """The ROS image with what the middleware's nodes need (rmw_zenoh_cpp): the image itself when it has
-    it, else one built over it on the host. Remembered per base image id, so an unchanged base costs no
-    container run on the next ``up``."""
-    native = run.deploying.native_ros(run.plan.ros_distro)
-    if not native.image_layer:
-        return []
-    host, engine = run.host, run.engine
-    base_id = host.run(f"{engine} image inspect --format '{{{{.Id}}}}' {q(image)}").stdout.strip()
-    marker = f"{run.layout.state}/ros-image.sha256"
-    known = (run.facts.marker(marker) if run.facts is not None else "").split()
-    if len(known) == 2 and known[0] == base_id and host.run(f"{engine} image inspect {q(known[1])} >/dev/null 2>&1",
-                                                           check=False).ok:
-        run.ros_image = known[1]
-        return []
-    changes = []
-    if host.run(f"{engine} run --rm --network none -- {q(image)} {native.check}", check=False).ok:
-        run.ros_image = image
-    else:
-        with tempfile.TemporaryDirectory(prefix="fogiac-ros-image-") as tmp:
-            (Path(tmp) / "Dockerfile").write_text(f"FROM {image}\n{native.image_layer}\n")
-            recipe = images.Recipe(node=f"the ROS image ({', '.join(native.packages[1:])})",
-                                   repo=f"fogiac/ros-{run.plan.ros_distro}", context=Path(tmp), dockerfile="Dockerfile")
-            done = images.build(host, recipe, engine=engine, base_id=base_id, dest=f"{run.layout.build}/ros-image",
-                                tmp_dir=run.layout.tmp, log=f"{run.layout.build}/ros-image.log")
-        run.ros_image = done.tag
-        changes.append(f"built {done.tag}")
-    host.put(f"{base_id} {run.ros_image}\n".encode(), marker, mode=0o600)
-    return changes
-
-
-def _native_runtime(run: HostRun, facts: Facts) -> list[str]:
-    """What the plan's middleware needs on the host (ROS 1's roscore and rospy; ROS 2's setup.bash, ros2
-    and rmw_zenoh_cpp): there already, installed when allowed, else one line saying what to install."""
-    native = run.deploying.native_ros(run.plan.ros_distro)
-    if native.probed and set(native.probed) <= facts.flags:
-        return []
-    if run.host.run(native.check, check=False).ok:
-        return []
-    if not run.options.allow_install:
-        raise ProvisionError(
-            f"{run.spec.name}: no ROS {run.plan.ros_distro} ({native.needs}) and no container engine; install "
-            f"{' '.join(native.packages)}{' from ' + native.origin if native.origin else ''} with `{native.by_hand}`, "
-            "or let fogiac install them (`fogiac provision --allow-install`)")
-    run.host.put(native.install.encode(), f"{run.layout.tmp}/ros-native.sh", mode=0o700)
-    run.host.sudo(f"bash {q(run.layout.tmp + '/ros-native.sh')}", timeout=1800)
-    return ["installed ROS packages"]
-
-
-_RUNTIMES: dict[str, Callable[[HostRun, Facts], list[str]]] = {svc.CONTAINER: _container_runtime,
-                                                         svc.NATIVE: _native_runtime}
-
-
 def step_images(run: HostRun) -> StepResult:
-    """Build each workload or ``build:`` node's image on the host, unless its digest is there already."""
-    if run.runtime != svc.CONTAINER:
-        return SKIPPED, "native runtime: nodes run from the pushed code"
-    host, engine, layout = run.host, run.engine, run.layout
-    base = run.ros_image or images.base_image(run.plan)
-    base_id = host.run(f"{engine} image inspect --format '{{{{.Id}}}}' {q(base)}").stdout.strip()
-    flavour, built = "", []
-    with tempfile.TemporaryDirectory(prefix="fogiac-build-") as tmp:
-        for node in (run.plan.node(n) for n in run.spec.nodes):
-            if not images.needs_image(node):
-                continue
-            if node.workload is not None:
-                flavour = flavour or host.run(f"{engine} run --rm --network none -- {q(base)} "
-                                              "sh -c '. /etc/os-release && echo $ID'").stdout.strip()
-                recipe = images.workload_context(node, flavour=flavour, into=Path(tmp) / node.name)
-            elif node.launch is not None:
-                recipe = images.launch_context(node, plan=run.plan, into=Path(tmp) / node.name, base=base)
-            else:
-                recipe = images.user_context(node, stack=run.plan.stack)
-            done = images.build(host, recipe, engine=engine, base_id=base_id, dest=f"{layout.build}/{node.name}",
-                                tmp_dir=layout.tmp, log=f"{layout.build}/{node.name}.log",
-                                build_args=run.facts.pip if run.facts is not None else None)
-            run.images[node.name] = done.tag
-            if done.built:
-                built.append(f"{node.name} ({done.tag})")
-    return (CHANGED, f"built {', '.join(built)}") if built else (OK, f"{len(run.images)} image(s) up to date")
+    """Build each workload or ``build:`` node's image on the host, where the runtime has images."""
+    return run.chosen.build_images(run)
 
 
 def _launch_requirements(run: HostRun) -> tuple[str, ...]:
     """What the launch packages on a native host ask for in their requirements files, each once."""
-    if run.runtime != svc.NATIVE:
+    if not run.nodes_on_host:
         return ()  # a container host installs them in the node's image
     found: list[str] = []
     for node in (run.plan.node(x) for x in run.spec.nodes):
@@ -307,7 +220,7 @@ def step_venv(run: HostRun) -> StepResult:
     if not run.access.ship_code and not launch:
         return SKIPPED, "fogiac's code runs on its own interpreter"
     names = [n.workload for n in (run.plan.node(x) for x in run.spec.nodes) if n.workload is not None]
-    reqs = venv.requirements(names if run.runtime == svc.NATIVE else [], fogiac=True,
+    reqs = venv.requirements(names if run.nodes_on_host else [], fogiac=True,
                              middleware=run.carrier.host_requirements) if run.access.ship_code else ()
     reqs += tuple(r for r in launch if r not in reqs)
     marker = f"{run.layout.state}/venv.sha256"
@@ -360,40 +273,14 @@ def step_env_script(run: HostRun) -> StepResult:
                 else run.host.run(f"cat {q(marker)} 2>/dev/null", check=False).stdout.strip())
         if done == key:
             continue
-        if run.runtime == svc.CONTAINER:
-            names = tuple(f"{i}.sh" for i in range(len(bodies)))
-            for name, body in zip(names, bodies, strict=True):
-                run.host.put(body, f"{dest}/.fogiac-setup/{name}", mode=0o700)
-            log = f"{run.layout.build}/ws-{dest.rsplit('/', 1)[-1]}.log"
-            built = run.host.run(f"mkdir -p {q(run.layout.build)} && "
-                                 f"{svc.workspace_build_command(run.plan, run.where(), local, names)} >{q(log)} 2>&1",
-                                 check=False, timeout=1800)
-            if not built.ok:
-                tail = run.host.run(f"tail -n 1 {q(log)}", check=False).last_line()
-                raise ProvisionError(f"{run.spec.name}: workspace {Path(local).name}: build in "
-                                     f"{svc.node_image(run.plan, run.where())} failed ({tail}); log: {log}")
-        else:
-            # The nodes' env file as the services step will write it: on a first run it is not there yet.
-            env = f"{run.layout.tmp}/ros-env.sh"
-            run.host.put(_node_env(run).encode(), env, mode=0o600)
-            for i, body in enumerate(bodies):
-                path = f"{run.layout.tmp}/setup-{i}.sh"
-                run.host.put(body, path, mode=0o700)
-                run.host.run(f"cd {q(dest)} && . {q(env)} && bash {q(path)}", timeout=1800)
-            run.host.run(f"cd {q(dest)} && {run.carrier.launching.build_native(q(env))}", timeout=1800)
+        run.chosen.set_up_workspace(run, local=local, dest=dest, bodies=bodies)
         run.host.put(key.encode() + b"\n", marker, mode=0o600)
         ran.append(Path(local).name)
     return (CHANGED, f"set up {', '.join(ran)}") if ran else (OK, "set up already")
 
 
-def _node_env(run: HostRun) -> str:
-    """The env file every service script on the host sources (the distro's setup, the middleware's env)."""
-    setup = run.deploying.native_ros(run.plan.ros_distro).setup if run.runtime == svc.NATIVE else ""
-    return svc.env_script(run.deploying.node_env(run.where()), host=run.spec.name, setup=setup)
-
-
 def step_services(run: HostRun) -> StepResult:
-    env_changed = ensure_file(run, _node_env(run).encode(), run.layout.env_file)
+    env_changed = ensure_file(run, run.env_text().encode(), run.layout.env_file)
     manager = run.manager
     wanted = run.services()
     made = run.carrier.credentials_first and run.credentials()  # a new certificate: its router restarts
@@ -438,7 +325,7 @@ def step_link(run: HostRun) -> StepResult:
 
 def step_health(run: HostRun) -> StepResult:
     checks = list(run.services()) + list(run.link_services())
-    results = run.manager.health(run.host, run.layout, checks, master=svc.master_uri(run.where()),
+    results = run.manager.health(run.host, run.layout, checks, master=master_uri(run.where()),
                                 timeout=run.options.health_timeout)
     bad = [f"{name} unhealthy: {detail}" for name, ok, detail in results if not ok]
     if bad:

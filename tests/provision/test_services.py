@@ -10,6 +10,7 @@ from fogiac.plan.compile import compile_plan
 from fogiac.errors import ProvisionError
 from fogiac.manifest.schema import parse_manifest
 from fogiac.net import middleware
+from fogiac.net.relay import services as relay_svc
 from fogiac.plan.model import Plan
 from fogiac.provision import services as svc
 
@@ -120,12 +121,12 @@ def test_container_service_script_and_systemd_unit(plan: Plan) -> None:
 
 
 def test_ros_master_runs_from_the_official_image_on_container_hosts(plan: Plan) -> None:
-    master = svc.master_service(plan, plan.host("talker"), _where(svc.CONTAINER))
+    master = relay_svc.master_service(plan, plan.host("talker"), _where(svc.CONTAINER))
     assert master.script.splitlines()[-1] == (
         f"exec {RUN.format(host='talker')} --name fogiac-fleet-dev-talker-ros-master {ROS} "
         "-- ros:noetic-ros-core roscore -p 11311"
     )
-    gpu_master = svc.master_service(plan, plan.host("grasp"), _where(svc.CONTAINER))
+    gpu_master = relay_svc.master_service(plan, plan.host("grasp"), _where(svc.CONTAINER))
     assert "--gpus" not in gpu_master.script
 
 
@@ -151,7 +152,7 @@ def test_an_image_node_on_a_host_without_docker_is_a_clear_error(plan: Plan) -> 
 
 def test_relay_cloud_end_command(plan: Plan) -> None:
     where = _where(svc.NATIVE)
-    relay = svc.relay_service(plan, plan.host("talker"), where)
+    relay = relay_svc.relay_service(plan, plan.host("talker"), where)
     assert relay.script.splitlines()[-1] == (
         "exec python3 -m fogiac relay cloud --listen 0.0.0.0:11411 --master http://127.0.0.1:11311 "
         f"--certs {where.layout.certs} --stats-file {where.layout.run}/relay-cloud.stats.json --topics auto"  # the edge's policy

@@ -23,8 +23,8 @@ __all__ = [
 def __getattr__(name: str) -> object:
     """The ends load ssl, cryptography's x509 and xmlrpc.server (~70 ms): only when asked for.
 
-    ``fogiac.plan`` imports :data:`RELAY_PORT` from this package, so eager imports here would
-    slow every ``fogiac validate``.
+    The middleware registry imports this package's ``middleware`` module while a manifest is validated,
+    so eager imports here would slow every ``fogiac validate``.
     """
     if name == "EdgeRelay":
         from fogiac.net.relay.edge import EdgeRelay  # noqa: PLC0415 (lazy on purpose, see above)

@@ -10,8 +10,7 @@ from pathlib import Path
 from fogiac.errors import RelayError
 from fogiac.net.relay.compression import check_name
 from fogiac.net.relay.graph import TopicPolicy
-
-RELAY_PORT = 11411
+from fogiac.plan.model import RELAY_PORT as RELAY_PORT  # the port's one definition, beside the plan's others
 
 
 def default_ros_host() -> str:

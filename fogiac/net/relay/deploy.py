@@ -18,12 +18,11 @@ from urllib.parse import urlparse
 
 from fogiac.certs import load_bundle, relay_name
 from fogiac.errors import FogiacError
-from fogiac.net.middleware import NativeRos
-from fogiac.net.rosenv import side_env
-from fogiac.plan.model import HostSpec, Plan, RelayRoute
+from fogiac.hostmodel import NativeRos, Service, Where, autostop_service
+from fogiac.net.relay.services import CLOUD_END, master_service, node_env, relay_service, relay_stats
+from fogiac.plan.model import HostSpec, Plan, Route
 from fogiac.procs import poll
 from fogiac.provision import relaycert, supervise
-from fogiac.provision import services as svc
 from fogiac.provision.host import Host, q
 from fogiac.render import render
 from fogiac.state import read_json
@@ -35,17 +34,13 @@ CERT_FILES = (("ca.pem", 0o644),)  # the host makes its own key; see host_creden
 MANIFEST_DIRECTION = {"out": "in", "in": "out", "-": "-"}
 
 
-def node_env(where: svc.Where) -> Mapping[str, str]:
-    return side_env(side="cloud", master_uri=svc.master_uri(where), address=where.ros_address).env
+def host_services(plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ...]:
+    return (master_service(plan, spec, where),)
 
 
-def host_services(plan: Plan, spec: HostSpec, where: svc.Where) -> tuple[svc.Service, ...]:
-    return (svc.master_service(plan, spec, where),)
-
-
-def link_services(plan: Plan, spec: HostSpec, where: svc.Where) -> tuple[svc.Service, ...]:
-    watchdog = svc.autostop_service(plan, spec, where, stats=svc.relay_stats(where), after="relay-cloud")
-    return (svc.relay_service(plan, spec, where),) + ((watchdog,) if watchdog is not None else ())
+def link_services(plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ...]:
+    watchdog = autostop_service(plan, spec, where, stats=relay_stats(where), after=CLOUD_END)
+    return (relay_service(plan, spec, where),) + ((watchdog,) if watchdog is not None else ())
 
 
 def _master_up(uri: str, *, timeout: float) -> bool:
@@ -83,7 +78,7 @@ def host_credentials(host: Host, *, python: str, folder: str, certs_dir: Path, p
                             name=relay_name(plan.stack, spec.name))
 
 
-def edge_argv(route: RelayRoute, *, stack: str, connect: str, master: str, certs: Path, stats: Path) -> list[str]:
+def edge_argv(route: Route, *, stack: str, connect: str, master: str, certs: Path, stats: Path) -> list[str]:
     # One ROS name per relay: a master drops a node when another registers with its name, so
     # the relays of several hosts (or several stacks) on one edge master would evict each other.
     # The server name is the host's own: another host's certificate (same CA) is refused.
@@ -101,7 +96,7 @@ def edge_argv(route: RelayRoute, *, stack: str, connect: str, master: str, certs
 
 
 def edge_up(plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path, folder: Path) -> list[str]:
-    for route in plan.relay:
+    for route in plan.routes:
         if route.host in connect:
             supervise.start(folder, f"relay-edge-{route.host}", edge_argv(
                 route, stack=plan.stack, connect=connect[route.host], master=entry, certs=certs,
@@ -135,17 +130,17 @@ def native_ros(distro: str) -> NativeRos:
 class RelayDeployment:
     """The relay as a :class:`fogiac.net.middleware.Deployment`."""
 
-    def node_env(self, where: svc.Where) -> Mapping[str, str]:
+    def node_env(self, where: Where) -> Mapping[str, str]:
         return node_env(where)
 
     def native_ros(self, distro: str) -> NativeRos:
         return native_ros(distro)
 
-    def host_services(self, plan: Plan, spec: HostSpec, where: svc.Where, *,
-                      certs: Path | None) -> tuple[svc.Service, ...]:
+    def host_services(self, plan: Plan, spec: HostSpec, where: Where, *,
+                      certs: Path | None) -> tuple[Service, ...]:
         return host_services(plan, spec, where)
 
-    def link_services(self, plan: Plan, spec: HostSpec, where: svc.Where) -> tuple[svc.Service, ...]:
+    def link_services(self, plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ...]:
         return link_services(plan, spec, where)
 
     def link_files(self) -> tuple[tuple[str, int], ...]:

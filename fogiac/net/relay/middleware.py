@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
-from fogiac.manifest.schema import Edge
-from fogiac.net.middleware import Launching
+from fogiac.hostmodel import Launching
 from fogiac.net.relay.config import RELAY_PORT
 
 MASTER = "ros-master"  # the host's roscore service, which nodes and the relay's cloud end start after
@@ -32,8 +32,11 @@ class RelayMiddleware:
                                      tool="catkin_make", build="catkin_make", overlay="devel/setup.bash",
                                      package_path=True, image_has_tool=True)
 
-    def edge_entry(self, edge: Edge) -> str:
-        return edge.ros_master
+    def edge_entry(self, edge: Any) -> str:
+        return str(edge.ros_master)
+
+    def manifest_problems(self, manifest: Any) -> tuple[tuple[str, str], ...]:
+        return ()  # the relay discovers topics ("auto") and carries any listed ones
 
 
 RELAY = RelayMiddleware()

@@ -19,7 +19,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from fogiac.plan.model import RelayRoute
+from fogiac.plan.model import Route
 
 ROUTER_PORT = 7448  # the cloud router's mutual-TLS port for the edge (7447, rmw_zenoh's default, stays local)
 LOCAL_PORT = 7447  # rmw_zenoh's default router port: where nodes on the same machine connect
@@ -59,7 +59,7 @@ def _rule(rule_id: str, flow: str, messages: list[str], keys: list[str]) -> dict
     return {"id": rule_id, "permission": "allow", "flows": [flow], "messages": messages, "key_exprs": keys}
 
 
-def access_control(route: RelayRoute, *, edge_name: str) -> dict[str, Any]:
+def access_control(route: Route, *, edge_name: str) -> dict[str, Any]:
     """Deny by default; the host's own nodes (TCP on loopback) may do anything among themselves."""
     to_cloud = _keys(route.to_cloud + route.listed)
     to_edge = _keys(route.to_edge + route.listed)
@@ -112,7 +112,7 @@ def _base(*, listen: Sequence[str], connect: Sequence[str], tls: dict[str, Any])
     }
 
 
-def cloud_router(route: RelayRoute, *, listen_host: str, tls: TlsFiles, edge_name: str,
+def cloud_router(route: Route, *, listen_host: str, tls: TlsFiles, edge_name: str,
                  local_port: int = LOCAL_PORT) -> dict[str, Any]:
     """The router on ``route.host``: mutual TLS for the edge on ``listen_host``, loopback for its nodes."""
     config = _base(listen=(f"tls/{listen_host}:{route.port}", f"tcp/127.0.0.1:{local_port}"), connect=(),

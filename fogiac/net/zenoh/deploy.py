@@ -27,13 +27,12 @@ from typing import Any
 
 from fogiac.certs import KeyPair, load_bundle, load_or_create_bundle, write_private
 from fogiac.errors import ProvisionError
-from fogiac.net.middleware import NativeRos
+from fogiac.hostmodel import NativeRos, Service, Where, autostop_service, make_service
 from fogiac.net.zenoh import tls
 from fogiac.net.zenoh.config import TlsFiles, cloud_router, edge_router
 from fogiac.net.zenoh.middleware import ROUTER
 from fogiac.plan.model import HostSpec, Plan
 from fogiac.provision import relaycert, supervise
-from fogiac.provision import services as svc
 from fogiac.provision.host import Host, q
 from fogiac.render import render
 from fogiac.state import read_json
@@ -49,11 +48,11 @@ def router_id(stack: str, host: str) -> str:
     return hashlib.sha256(f"{stack}/{host}".encode()).hexdigest()[:32]
 
 
-def local_endpoint(where: svc.Where) -> str:
+def local_endpoint(where: Where) -> str:
     return f"tcp/127.0.0.1:{where.master_port}"
 
 
-def node_env(where: svc.Where) -> Mapping[str, str]:
+def node_env(where: Where) -> Mapping[str, str]:
     """What rmw_zenoh_cpp reads to find the host's router: ZENOH_CONFIG_OVERRIDE over its default session
     config (rmw_zenoh 0.1.2 on humble and later, jazzy, kilted); nodes share the host's network."""
     endpoint = local_endpoint(where)
@@ -111,27 +110,27 @@ def host_credentials(host: Host, *, python: str, folder: str, certs_dir: Path, p
                             name=tls.host_name(plan.stack, spec.name), addresses=(dialed,), what="Zenoh router")
 
 
-def host_services(plan: Plan, spec: HostSpec, where: svc.Where, *, certs: Path) -> tuple[svc.Service, ...]:
+def host_services(plan: Plan, spec: HostSpec, where: Where, *, certs: Path) -> tuple[Service, ...]:
     ca = load_or_create_bundle(plan.stack, certs).ca
     remote = router_folder(where.layout.certs)
     files = TlsFiles(ca=f"{remote}/ca.pem", cert=f"{remote}/server.pem", key=f"{remote}/server.key")
-    route = next(r for r in plan.relay if r.host == spec.name)
-    listen = "127.0.0.1" if where.ros_address.startswith("127.") else "0.0.0.0"
+    route = next(r for r in plan.routes if r.host == spec.name)
+    listen = where.listen
     config = cloud_router(route, listen_host=listen, tls=files, edge_name=tls.edge_name(plan.stack),
                           local_port=where.master_port)
     config["id"] = router_id(plan.stack, spec.name)
     config["listen"]["endpoints"][0] = f"tls/{listen}:{where.relay_port}"
     path, stats = f"{where.layout.env}/zenoh-router.json", router_stats(where)
     command = f"{q(where.python)} -m fogiac.net.zenoh.router {q(path)} --stats-file {q(stats)}"
-    router = svc.make_service(ROUTER, plan=plan, spec=spec, where=where, command=command, check="alive",
+    router = make_service(ROUTER, plan=plan, spec=spec, where=where, command=command, check="alive",
                               python_path=where.code_root, files=(
                                   (path, json.dumps(config, indent=1, sort_keys=True), 0o600),
                                   (files.ca, ca.cert_pem.decode(), 0o644)))
-    watchdog = svc.autostop_service(plan, spec, where, stats=stats, after=ROUTER)
+    watchdog = autostop_service(plan, spec, where, stats=stats, after=ROUTER)
     return (router,) + ((watchdog,) if watchdog is not None else ())
 
 
-def router_stats(where: svc.Where) -> str:
+def router_stats(where: Where) -> str:
     """Where the host's router writes whether the edge's router is linked, which the autostop watchdog reads."""
     return f"{where.layout.run}/{ROUTER}.stats.json"
 
@@ -150,7 +149,7 @@ def edge_up(plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path, 
     router_file.write_text(json.dumps(config, indent=1, sort_keys=True))
     supervise.start(folder, EDGE_ROUTER, [sys.executable, "-m", "fogiac.net.zenoh.router", str(router_file),
                                           "--stats-file", str(stats)])
-    routes = [r for r in plan.relay if r.host in connect]
+    routes = [r for r in plan.routes if r.host in connect]
     to_edge = sorted({t for r in routes for t in r.to_edge + r.listed})
     to_cloud = sorted({t for r in routes for t in r.to_cloud})
     monitor = [sys.executable, "-m", "fogiac.net.zenoh.monitor", entry, "--stats-file",
@@ -172,7 +171,7 @@ def edge_links(plan: Plan, *, folder: Path, connect: Mapping[str, str]) -> list[
     linked = set((read_json(folder / "zenoh-edge.stats.json") or {}).get("routers", []))
     figures = {t["topic"]: t for t in (read_json(folder / "zenoh-monitor.stats.json") or {}).get("topics", [])}
     links = []
-    for route in plan.relay:
+    for route in plan.routes:
         if route.host not in connect:
             continue
         mine = [{**figures[t], "direction": "in" if t in route.to_cloud else "out"}
@@ -185,19 +184,19 @@ def edge_links(plan: Plan, *, folder: Path, connect: Mapping[str, str]) -> list[
 class ZenohDeployment:
     """Zenoh as a :class:`fogiac.net.middleware.Deployment`."""
 
-    def node_env(self, where: svc.Where) -> Mapping[str, str]:
+    def node_env(self, where: Where) -> Mapping[str, str]:
         return node_env(where)
 
     def native_ros(self, distro: str) -> NativeRos:
         return native_ros(distro)
 
-    def host_services(self, plan: Plan, spec: HostSpec, where: svc.Where, *,
-                      certs: Path | None) -> tuple[svc.Service, ...]:
+    def host_services(self, plan: Plan, spec: HostSpec, where: Where, *,
+                      certs: Path | None) -> tuple[Service, ...]:
         if certs is None:
             raise ProvisionError(f"{spec.name}: the Zenoh router needs the stack's certificates")
         return host_services(plan, spec, where, certs=certs)
 
-    def link_services(self, plan: Plan, spec: HostSpec, where: svc.Where) -> tuple[svc.Service, ...]:
+    def link_services(self, plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ...]:
         return ()  # the host's router (host_services) is the link
 
     def link_files(self) -> tuple[tuple[str, int], ...]:

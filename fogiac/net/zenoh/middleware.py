@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
-from fogiac.manifest.schema import Edge
-from fogiac.net.middleware import Launching
+from fogiac.hostmodel import Launching
 from fogiac.net.zenoh.config import LOCAL_PORT as LOCAL_PORT  # re-exported: the ports in one place
 from fogiac.net.zenoh.config import ROUTER_PORT
 
@@ -32,8 +32,14 @@ class ZenohMiddleware:
         command=("ros2", "launch"), has_packages='[ -n "$(find src -name package.xml -print -quit 2>/dev/null)" ]',
         tool="colcon", build="colcon build", overlay="install/setup.bash", package_path=False, image_has_tool=False)
 
-    def edge_entry(self, edge: Edge) -> str:
-        return edge.zenoh_router
+    def edge_entry(self, edge: Any) -> str:
+        return str(edge.zenoh_router)
+
+    def manifest_problems(self, manifest: Any) -> tuple[tuple[str, str], ...]:
+        """Access control allows exactly the listed topics: a node whose topics are "auto" has none."""
+        return tuple((f"ROS {manifest.ros.distro} crosses through {self.name}, whose access control allows only "
+                      "listed topics: give this node topics: {in: [...], out: [...]}", f"nodes[{i}].topics")
+                     for i, node in enumerate(manifest.nodes) if node.topics == "auto")
 
 
 ZENOH = ZenohMiddleware()

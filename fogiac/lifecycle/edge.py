@@ -17,14 +17,12 @@ from fogiac.certs import load_or_create_bundle
 from fogiac.endpoint import Endpoint
 from fogiac.errors import ProvisionError
 from fogiac.net import middleware
-from fogiac.net.relay import deploy
 from fogiac.plan.model import Plan
 from fogiac.provision import provision, supervise
 from fogiac.state import read_json, stack_dir, write_json_atomic
 
 DEPLOYMENT_FILE = "deployment.json"
 EDGE_DIR = "edge"
-EDGE_MASTER = deploy.EDGE_MASTER  # the demo's edge roscore, kept while the relays stop
 STATS_STALE_S = 30.0  # a relay writes its stats every second: this much older and it no longer runs
 
 
@@ -112,7 +110,9 @@ def edge_idle_since(plan: Plan, *, now: float) -> float | None:
 
 
 def stop_edge(plan: Plan, *, keep_master: bool = False) -> None:
-    """Stop this machine's edge processes of the stack: the relays, and the demo master unless kept."""
-    names = [s for s in edge_services(plan) if not (keep_master and s == EDGE_MASTER)]
+    """Stop this machine's edge processes of the stack: the links, and what stands in for the robot's
+    graph (the demo's master) unless kept."""
+    kept = middleware.deployment(plan.middleware).robot_side if keep_master else ()
+    names = [s for s in edge_services(plan) if s not in kept]
     if names:
         supervise.stop_many(edge_dir(plan), names)

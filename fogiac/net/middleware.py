@@ -8,21 +8,24 @@
 
 The ROS distribution picks the middleware (:func:`for_distro`). A variant is one folder with two
 halves: its :class:`Middleware` (what compile, the targets' firewalls, plan, cost and graph ask: its
-port and its words; listed in :data:`BUILTIN`) and its :class:`Deployment` (what ``up``, ``down`` and
-provisioning ask; listed in :data:`DEPLOYMENTS`). The halves load apart, so compiling never imports
-provisioning, certificates or templates. Nothing else in fogiac names a variant.
+port and its words) and its :class:`Deployment` (what ``up``, ``down`` and provisioning ask), both
+named by the :class:`MiddlewareEntry` it publishes under the ``fogiac.middlewares`` entry point
+group. The halves load apart, so compiling never imports provisioning, certificates or templates.
+Nothing else in fogiac names a variant; another installed package can add one.
 """
 
 from __future__ import annotations
 
 import importlib
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
 from fogiac.errors import PlanError
 from fogiac.hostmodel import Launching as Launching  # re-exported: what a middleware answers
 from fogiac.hostmodel import NativeRos as NativeRos
+from fogiac.registry import Registry
 
 if TYPE_CHECKING:
     from fogiac.hostmodel import Service, Where
@@ -128,45 +131,73 @@ class Deployment(Protocol):
         """Per host: ``{host, connect, connected, rtt_ms?, topics: [{topic, direction, msgs, ...}]}``."""
         ...
 
+    @property
+    def robot_side(self) -> tuple[str, ...]:
+        """Edge services that stand in for the robot's own ROS graph (a demo's roscore): ``down`` stops
+        them after the links and the hosts, so nothing of the robot's graph goes first."""
+        ...
 
-# The built-in middlewares, imported when first asked for.
-BUILTIN: dict[str, str] = {"relay": "fogiac.net.relay.middleware:RELAY", "zenoh": "fogiac.net.zenoh.middleware:ZENOH"}
-DEPLOYMENTS: dict[str, str] = {"relay": "fogiac.net.relay.deploy:DEPLOYMENT",
-                               "zenoh": "fogiac.net.zenoh.deploy:DEPLOYMENT"}
+
+@dataclass(frozen=True)
+class MiddlewareEntry:
+    """What a middleware publishes under the ``fogiac.middlewares`` entry point group: ``module:attr``
+    references into its own folder, its :class:`Middleware` (compile) and its :class:`Deployment`
+    (up, down, provisioning), each loaded when first asked for."""
+
+    name: str
+    middleware: str
+    deployment: str
+
+
+ENTRIES: Registry[MiddlewareEntry] = Registry("fogiac.middlewares", what="middleware")
 _REGISTRY: dict[str, Middleware] = {}
 _DEPLOYED: dict[str, Deployment] = {}
 
 
+def _load(ref: str) -> Any:
+    module, _, attr = ref.partition(":")
+    return getattr(importlib.import_module(module), attr)
+
+
 def register(middleware: Middleware, deployment: Deployment) -> Middleware:
+    """Add (or replace) a middleware for this process (tests, embedders); returns it."""
     _REGISTRY[middleware.name] = middleware
     _DEPLOYED[middleware.name] = deployment
     return middleware
 
 
+def unregister(name: str) -> None:
+    _REGISTRY.pop(name, None)
+    _DEPLOYED.pop(name, None)
+
+
+def names() -> tuple[str, ...]:
+    return tuple(sorted(set(_REGISTRY) | set(ENTRIES.names())))
+
+
 def get(name: str) -> Middleware:
     if name not in _REGISTRY:
-        _REGISTRY[name] = _builtin(name, BUILTIN)
+        _REGISTRY[name] = _load(_entry(name).middleware)
     return _REGISTRY[name]
 
 
 def deployment(name: str) -> Deployment:
     """How ``name`` is deployed (imported on first use: see the module docstring)."""
     if name not in _DEPLOYED:
-        _DEPLOYED[name] = _builtin(name, DEPLOYMENTS)
+        _DEPLOYED[name] = _load(_entry(name).deployment)
     return _DEPLOYED[name]
 
 
-def _builtin(name: str, table: Mapping[str, str]) -> Any:
-    if name not in table:
-        raise PlanError(f"unknown middleware {name!r}; valid: {', '.join(sorted(set(_REGISTRY) | set(BUILTIN)))}")
-    module, attr = table[name].split(":")
-    return getattr(importlib.import_module(module), attr)
+def _entry(name: str) -> MiddlewareEntry:
+    if name not in ENTRIES.names():
+        raise PlanError(f"unknown middleware {name!r}; valid: {', '.join(names())}")
+    return ENTRIES.get(name)
 
 
 def for_distro(distro: str) -> Middleware:
     """The middleware that serves ROS ``distro``; an unknown one fails listing those served."""
     served: list[str] = []
-    for name in sorted(set(_REGISTRY) | set(BUILTIN)):
+    for name in names():
         middleware = get(name)
         if distro in middleware.distros:
             return middleware
@@ -175,5 +206,5 @@ def for_distro(distro: str) -> Middleware:
 
 
 def distros() -> tuple[str, ...]:
-    """Every ROS distribution some built-in middleware serves."""
-    return tuple(d for name in sorted(BUILTIN) for d in get(name).distros)
+    """Every ROS distribution some middleware serves."""
+    return tuple(d for name in names() for d in get(name).distros)

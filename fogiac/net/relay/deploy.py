@@ -130,6 +130,8 @@ def native_ros(distro: str) -> NativeRos:
 class RelayDeployment:
     """The relay as a :class:`fogiac.net.middleware.Deployment`."""
 
+    robot_side = (EDGE_MASTER,)  # the demo's roscore, when fogiac started one
+
     def node_env(self, where: Where) -> Mapping[str, str]:
         return node_env(where)
 

@@ -8,3 +8,8 @@ DDS robots) connect to it. Modules: ``middleware`` (the registry entry), ``confi
 rendering of router configs), ``tls`` (one certificate per host from fogiac's CA), ``router``
 (a router process for hosts without ``zenohd``), ``monitor`` (latency and throughput topics).
 """
+
+from fogiac.net.middleware import MiddlewareEntry
+
+ENTRY = MiddlewareEntry(name="zenoh", middleware="fogiac.net.zenoh.middleware:ZENOH",
+                        deployment="fogiac.net.zenoh.deploy:DEPLOYMENT")

@@ -184,6 +184,8 @@ def edge_links(plan: Plan, *, folder: Path, connect: Mapping[str, str]) -> list[
 class ZenohDeployment:
     """Zenoh as a :class:`fogiac.net.middleware.Deployment`."""
 
+    robot_side: tuple[str, ...] = ()  # ROS 2 has no master for fogiac to start
+
     def node_env(self, where: Where) -> Mapping[str, str]:
         return node_env(where)
 

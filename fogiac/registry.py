@@ -27,6 +27,16 @@ def _declared(group: str) -> dict[str, metadata.EntryPoint]:
     return {point.name: point for point in metadata.entry_points(group=group)}
 
 
+def shipped_metadata() -> tuple[str, dict[str, str]]:
+    """fogiac's own distribution metadata as a ``*.dist-info`` folder's name and files, for code that is
+    copied to a host rather than installed there: beside the copied packages, the host's Python finds
+    the same entry points (the CLI's verbs, the middlewares) as this machine's."""
+    dist = metadata.distribution("fogiac")
+    files = {"METADATA": f"Metadata-Version: 2.1\nName: fogiac\nVersion: {dist.version}\n",
+             "entry_points.txt": dist.read_text("entry_points.txt") or ""}
+    return f"fogiac-{dist.version}.dist-info", files
+
+
 def rescan() -> None:
     """Forget what was read, so a distribution installed (or put on ``sys.path``) since is seen."""
     _declared.cache_clear()

@@ -8,6 +8,7 @@ report says "no changes".
 from __future__ import annotations
 
 import hashlib
+import tempfile
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,6 +26,7 @@ from fogiac.provision.runtimes.base import CHANGED as CHANGED
 from fogiac.provision.runtimes.base import OK, SKIPPED, StepResult
 from fogiac.provision.services import env_script, node_services
 from fogiac.provision.sync import push_tree
+from fogiac.registry import shipped_metadata
 from fogiac.resources import package_dir
 
 _CODE_IGNORE = ("tests/", "*.npz", "*.ipynb")  # the planner's problems (0.1 MB) and the grasp model (0.2 MB) go along
@@ -184,10 +186,26 @@ def step_runtime(run: HostRun) -> StepResult:
             run.files_pushed += pushed.files
             if pushed.changed:
                 changes.append(f"{package} code")
+        if _push_metadata(run, facts):
+            changes.append("fogiac metadata")
         if (package_dir("fogiac") / "cli" / "relay.py").is_file():
             facts.flags.add("relaycli")  # pushed just now: the probe ran before the first push
     detail = f"{run.runtime.name} ROS" + (f"; {', '.join(changes)}" if changes else "")
     return (CHANGED if changes else OK), detail
+
+
+def _push_metadata(run: HostRun, facts: Facts) -> bool:
+    """fogiac's ``dist-info`` beside its copied code, so the host's ``python -m fogiac`` finds its plug-ins
+    (entry points) as an installed fogiac would; True when it changed."""
+    name, files = shipped_metadata()
+    with tempfile.TemporaryDirectory() as tmp:
+        for file, text in files.items():
+            (Path(tmp) / file).write_text(text)
+        dest = f"{run.layout.lib}/{name}"
+        pushed = push_tree(run.host, Path(tmp), dest, tmp_dir=run.layout.tmp,
+                           remote_sums=facts.sums(f"{dest}.sha256sums"))
+    run.files_pushed += pushed.files
+    return pushed.changed
 
 
 def _relay_cli(run: HostRun) -> str:

@@ -9,9 +9,9 @@ import typer
 
 from fogiac.cli._common import MANIFEST, TARGET, load
 from fogiac.errors import FogiacError
+from fogiac.manifest.clouds import prices as price_source
 from fogiac.manifest.schema import json_schema, parse_manifest
 from fogiac.net import middleware
-from fogiac.plan.catalog import catalog
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.cost import MONTH, per_month, saving_pct
 from fogiac.state import write_text_atomic
@@ -88,11 +88,12 @@ def cost(manifest: Path = MANIFEST, target: str | None = TARGET) -> None:
     carrier = middleware.get(plan.middleware)
     screen.print(f"ROS {plan.ros_distro} via {carrier.label}; edge: {carrier.edge_side}; "
                  f"each host: {carrier.cloud_side} (no charge beyond the hosts)", markup=False)
-    screen.print(f"prices: {catalog().source} ({catalog().as_of})", markup=False, style="dim")
+    prices = price_source(plan.target)
+    screen.print(f"prices: {prices.source} ({prices.as_of})", markup=False, style="dim")
     if spot is not None:
         screen.print(f"with spot: ${spot:.4f} per hour, {saving_pct(plan.hourly_usd, spot)}% less than on-demand "
                      "(an estimate; AWS never charges more than on-demand)", markup=False)
-        screen.print(f"spot prices: {catalog().spot_source} ({catalog().spot_as_of}); {catalog().spot_method}",
+        screen.print(f"spot prices: {prices.spot_source} ({prices.spot_as_of}); {prices.spot_method}",
                      markup=False, style="dim")
 
 

@@ -20,9 +20,9 @@ from rich.markup import escape
 from fogiac import targets
 from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_deployed, compile_for
 from fogiac.errors import FogiacError
+from fogiac.manifest.clouds import prices as price_source
 from fogiac.manifest.revision import load_revision
 from fogiac.plan import drift, review
-from fogiac.plan.catalog import catalog
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.cost import MONTH, menu_line, per_month, saving_pct
 from fogiac.plan.diff import PlanDiff, annotate, diff_documents, with_drift
@@ -116,7 +116,7 @@ def render(doc: Mapping[str, Any]) -> None:
     out.print(hosts)
     for h in doc["hosts"]:
         if h["chosen_for"]:
-            out.print(escape(menu_line(h, spot_as_of=catalog().spot_as_of)), highlight=False)
+            out.print(escape(menu_line(h, spot_as_of=price_source(doc["target"]).spot_as_of)), highlight=False)
     nodes = table("nodes", "node", "host", "kind", "runs", "GPU")
     for n in doc["nodes"]:
         nodes.add_row(n["name"], n["host"], n["kind"], escape(n["runs"]), "yes" if n["gpu"] else "no")

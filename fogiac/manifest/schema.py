@@ -11,18 +11,28 @@ import ipaddress
 import re
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 from urllib.parse import urlparse
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+    ValidatorFunctionWrapHandler,
+    field_validator,
+    model_validator,
+)
 
+from fogiac import plugins
 from fogiac.errors import ManifestError
+from fogiac.manifest.clouds import providers, variant
 from fogiac.manifest.crossfield import cross_field_problems
+from fogiac.manifest.machines import Choice, NoMachine, Requirement, parse_bound
 from fogiac.manifest.problems import FieldProblem, format_errors, line_index, parse_yaml
 from fogiac.manifest.requirements import RequirementsProblem, specifiers
-from fogiac.net import middleware
-from fogiac.plan.catalog import catalog
-from fogiac.plan.machines import Choice, NoMachine, Requirement, choose, parse_bound
 
 _DNS_NAME = re.compile(r"^[a-z]([a-z0-9-]{0,38}[a-z0-9])?$")
 _TOPIC = re.compile(r"^/[A-Za-z][A-Za-z0-9_/]*$")
@@ -103,6 +113,10 @@ DnsName = Annotated[str, AfterValidator(_dns_name)]
 
 
 Distro = Literal["noetic", "humble", "jazzy", "kilted"]  # each served by one middleware (fogiac.net.middleware)
+if TYPE_CHECKING:
+    Provider = str
+else:  # the built-in targets' ``cloud:`` variants; Cloud._installed admits an installed one
+    Provider = Literal[providers(installed=False)]
 
 
 class Ros(_Model):
@@ -133,13 +147,25 @@ class Autostop(_Model):
 
 
 class Cloud(_Model):
-    provider: Literal["aws", "hosts", "local"] = Field(default="aws", description="Where cloud nodes run.")
+    provider: Provider = Field(default="aws", description="Where cloud nodes run.")
     region: str = Field(default="us-west-2", description="AWS region (one the price table covers).")
     zone: str | None = Field(default=None, description="Availability zone; chosen by preflight if absent.")
     hosts: tuple[HostMachine, ...] = Field(default=(), description="Machines for the hosts target.")
     autostop: Literal["off"] | Autostop | None = Field(
         default=None, description="Idle shutdown; unset: the target's default (aws: 30 idle minutes, stop); off: never."
     )
+
+    @field_validator("provider", mode="wrap")
+    @classmethod
+    def _installed(cls, value: object, handler: ValidatorFunctionWrapHandler) -> object:
+        """A provider an installed package contributes (entry point group ``fogiac.clouds``); the
+        distributions are read only for a name that is not built in, so ``validate`` stays fast."""
+        try:
+            return handler(value)
+        except ValidationError:
+            if isinstance(value, str) and value in providers():
+                return value
+            raise
 
     @field_validator("autostop", mode="before")
     @classmethod
@@ -154,18 +180,19 @@ class Cloud(_Model):
 
     @field_validator("region")
     @classmethod
-    def _region(cls, value: str) -> str:
-        regions = catalog().regions
-        if value not in regions:
-            raise FieldProblem(f"{value!r} is not a supported region", choices=regions)
+    def _region(cls, value: str, info: ValidationInfo) -> str:
+        variant(info.data.get("provider")).check_region(value)  # the provider's own regions and words
         return value
+
+    def chosen(self) -> str | None:
+        """The provider, or None while it has a problem (the checks across fields then ask the default's
+        variant, whose words every built-in variant shares, rather than skip)."""
+        return self.provider if isinstance(self.provider, str) else None
 
     @model_validator(mode="after")
     def _zone_in_region(self) -> Cloud:
-        if self.zone is not None and not (
-            self.zone.startswith(self.region) and len(self.zone) == len(self.region) + 1
-        ):
-            raise FieldProblem(f"{self.zone!r} is not a zone of {self.region}", field="zone")
+        if self.zone is not None:
+            variant(self.chosen()).check_zone(self.zone, self.region)
         names = [h.name for h in self.hosts]
         for i, name in enumerate(names):
             if name in names[:i]:
@@ -308,8 +335,8 @@ class Machine(_Model):
     @field_validator("type")
     @classmethod
     def _type(cls, value: str | None) -> str | None:
-        if value is not None and value not in catalog().types:
-            raise FieldProblem(f"{value!r} is not a known instance type", choices=tuple(catalog().types))
+        if value is not None:
+            variant().check_machine(value)
         return value
 
     @model_validator(mode="after")
@@ -359,8 +386,8 @@ class Node(_Model):
     @field_validator("machine")
     @classmethod
     def _machine(cls, value: str | Machine) -> str | Machine:
-        if isinstance(value, str) and value not in catalog().types:
-            raise FieldProblem(f"{value!r} is not a known instance type", choices=tuple(catalog().types))
+        if isinstance(value, str):
+            variant().check_machine(value)
         return value
 
     @field_validator("image")
@@ -389,22 +416,17 @@ class Node(_Model):
         if self.command and given[0] in ("launch", "workload"):
             raise FieldProblem("command is for image nodes, or alone", field="command")
         named = self.machine if isinstance(self.machine, str) else self.machine.type
-        if self.gpu and named is not None and not catalog().types[named].has_gpu:
-            raise FieldProblem(
-                f"{named!r} has no GPU but the node sets gpu: true; pick a GPU type such as 'g4dn.xlarge'",
-                field="machine",
-            )
+        if self.gpu and named is not None:
+            variant().check_gpu(named)
         return self
 
-    def machine_choice(self, region: str, *, spot: bool = False) -> Choice:
-        """The instance type this node runs on in ``region``: the named one, or the cheapest that fits
-        (at the spot estimate when ``spot``: the target buys the node's machine as spot)."""
+    def machine_choice(self, region: str, *, spot: bool = False, provider: str | None = None) -> Choice:
+        """The machine type this node runs on in ``region``: the named one, or the cheapest that fits
+        (at the spot estimate when ``spot``: the target buys the node's machine as spot), as
+        ``provider``'s ``cloud:`` variant (default: the default provider's) chooses."""
         named = self.machine if isinstance(self.machine, str) else self.machine.type
-        if named is not None:
-            return Choice(machine=named, usd_per_hour=catalog().types[named].usd_per_hour.get(region, 0.0),
-                          alternatives=())
-        assert isinstance(self.machine, Machine)
-        return choose(self.machine.requirement(gpu=self.gpu), region, spot=spot)
+        need = self.machine.requirement(gpu=self.gpu) if isinstance(self.machine, Machine) and named is None else None
+        return variant(provider).choose(named, need, region, spot=spot)
 
     @property
     def needs_gpu(self) -> bool:
@@ -469,7 +491,7 @@ class Manifest(_Model):
                 raise FieldProblem(f"duplicate node name {name!r}", field=f"nodes[{i}].name")
         for i, node in enumerate(self.nodes):
             try:
-                node.machine_choice(self.cloud.region, spot=node.spot)
+                node.machine_choice(self.cloud.region, spot=node.spot, provider=self.cloud.chosen())
             except NoMachine as err:
                 raise FieldProblem(str(err), field=f"nodes[{i}].machine") from None
         host_names = [h.name for h in self.cloud.hosts]
@@ -478,7 +500,7 @@ class Manifest(_Model):
                 raise FieldProblem(
                     f"{node.host!r} is not in cloud.hosts", field=f"nodes[{i}].host", choices=tuple(host_names)
                 )
-        chosen = middleware.for_distro(self.ros.distro)
+        chosen = plugins.load("fogiac.middleware", "for_distro")(self.ros.distro)
         for i, node in enumerate(self.nodes):
             if chosen.needs_listed_topics and node.topics == "auto":
                 raise FieldProblem(

@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from fogiac.errors import PlanError
+from fogiac.manifest.machines import Option, RankedBy
 from fogiac.net.relay.config import RELAY_PORT as RELAY_PORT  # re-exported: the ports a plan opens, in one place
-from fogiac.plan.machines import Option, RankedBy
 
 # Ports. ROS 1 masters listen on 11311; nodes on ephemeral ports, which Linux takes from
 # 32768-60999 by default; the relay's cloud end on RELAY_PORT.

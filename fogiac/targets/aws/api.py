@@ -21,8 +21,8 @@ from typing import Any
 from fogiac.errors import CloudError, CredentialsError, PreflightError
 from fogiac.extras import need
 from fogiac.manifest.schema import ssh_from_problem
-from fogiac.plan.catalog import catalog
 from fogiac.plan.model import OPERATOR, ImageQuery, Plan
+from fogiac.targets.aws.catalog import catalog
 from stacks import HOST_KEYS_BEGIN, HOST_KEYS_END
 
 STACK_TAG = "fogiac:stack"

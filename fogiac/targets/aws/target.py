@@ -17,7 +17,6 @@ from fogiac.manifest.schema import Manifest
 from fogiac.net.vpn import write_client_profile
 from fogiac.orchestrate import autostop_line, edge_idle_since, ensure_edge_master, provision_and_connect, stop_edge
 from fogiac.plan import drift, guard
-from fogiac.plan.catalog import catalog
 from fogiac.plan.document import APPLIED_FILE, plan_document
 from fogiac.plan.model import Plan
 from fogiac.plan.placement import Placement, Tags
@@ -27,6 +26,7 @@ from fogiac.state import read_json, stack_dir, stack_lock, write_json_atomic
 from fogiac.tables import table
 from fogiac.targets.aws import api, engine, observe, offline, placement, spot
 from fogiac.targets.aws import sweep as sweeping
+from fogiac.targets.aws.catalog import catalog
 from fogiac.targets.base import (
     Check,
     DownOptions,

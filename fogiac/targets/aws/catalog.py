@@ -1,6 +1,6 @@
 """The checked-in catalogue of EC2 instance types fogiac knows: hardware, on-demand and spot price.
 
-The table (``fogiac/plan/data/instance_types.json``) names its sources and dates. It is what makes
+The table (``fogiac/targets/aws/data/instance_types.json``) names its sources and dates. It is what makes
 ``fogiac plan`` show a cost offline and what ``validate`` checks machine names against. Spot
 prices move hourly and AWS publishes no dated table of them; the catalogue keeps what the Spot
 Instance Advisor published, the saving over on-demand per type and region, and derives the spot
@@ -54,7 +54,7 @@ class Catalog:
 
 @lru_cache(maxsize=1)
 def catalog() -> Catalog:
-    raw = json.loads(resources.files("fogiac").joinpath("plan/data/instance_types.json").read_text())
+    raw = json.loads(resources.files("fogiac").joinpath("targets/aws/data/instance_types.json").read_text())
     types = {
         name: InstanceType(
             name=name,

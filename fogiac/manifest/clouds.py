@@ -1,0 +1,71 @@
+"""The ``cloud:`` block's variants: each target contributes the checks only it can make.
+
+Where machines come from decides what a region, a zone and a machine name mean, so the schema
+does not know: it asks the variant the manifest's ``provider`` names, through the plug-in registry
+(group ``fogiac.clouds``), for its region and zone checks, whether a machine name exists and has
+a GPU, and which machine a node's requirement resolves to. A variant raises
+:class:`~fogiac.manifest.problems.FieldProblem` with its own words; the schema places them.
+
+A node's machine is checked where the node is, before the manifest's provider is known, so it is
+named in :data:`DEFAULT`'s terms (the same manifest runs on every target; targets without a
+catalogue of their own size and price their machines in the default's terms).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Protocol
+
+from fogiac import plugins
+from fogiac.manifest.machines import Choice, MachineSpec, PriceSource, Requirement
+
+GROUP = "fogiac.clouds"
+DEFAULT = "aws"  # the provider a manifest without ``provider:`` names
+
+
+class CloudVariant(Protocol):
+    """What a target answers about its part of the manifest's ``cloud:`` block."""
+
+    def regions(self) -> Sequence[str]: ...
+
+    def check_region(self, region: str) -> None:
+        """Raise :class:`FieldProblem` when ``region`` is not one the target serves."""
+
+    def check_zone(self, zone: str, region: str) -> None:
+        """Raise :class:`FieldProblem` (field ``zone``) when ``zone`` is not in ``region``."""
+
+    def machine_names(self) -> Sequence[str]: ...
+
+    def machine(self, name: str) -> MachineSpec | None:
+        """The named machine type's hardware, or None."""
+
+    def check_machine(self, name: str) -> None:
+        """Raise :class:`FieldProblem` when ``name`` is not a known machine type."""
+
+    def check_gpu(self, name: str) -> None:
+        """Raise :class:`FieldProblem` (field ``machine``) when ``name`` has no GPU but one is asked for."""
+
+    def choose(self, named: str | None, need: Requirement | None, region: str, *, spot: bool) -> Choice:
+        """The named type at its price in ``region``, or the cheapest that meets ``need``; raises
+        :class:`~fogiac.manifest.machines.NoMachine` when none does."""
+
+    def prices(self) -> PriceSource:
+        """Where the machine prices come from, and the network's standing charge."""
+
+
+def providers(*, installed: bool = True) -> tuple[str, ...]:
+    """Every provider a manifest may name: built in, and (``installed``) from installed packages."""
+    return plugins.names(GROUP, installed=installed)
+
+
+def variant(provider: str | None = None) -> CloudVariant:
+    """The ``cloud:`` variant of ``provider`` (default: :data:`DEFAULT`)."""
+    found: CloudVariant = plugins.load(GROUP, provider or DEFAULT)
+    return found
+
+
+def prices(target: str | None = None) -> PriceSource:
+    """Where ``target``'s prices come from; a target without a ``cloud:`` variant of its own (one
+    registered in code only) prices its machines in the default's terms, as it sized them."""
+    own = target is not None and (target in providers(installed=False) or target in providers())
+    return variant(target if own else None).prices()

@@ -22,7 +22,7 @@ from fogiac.errors import PlanError
 BUILTIN: dict[str, dict[str, str]] = {
     # A target's part of the manifest's ``cloud:`` block: its fields' checks and its machine choice.
     "fogiac.clouds": {
-        "aws": "fogiac.targets.aws.manifest:CLOUD",
+        "aws": "fogiac.catalogue:AWS",
         "hosts": "fogiac.targets.hosts.manifest:CLOUD",
         "local": "fogiac.targets.local.manifest:CLOUD",
     },

@@ -26,6 +26,8 @@ BUILTIN: dict[str, dict[str, str]] = {
         "hosts": "fogiac.targets.hosts.manifest:CLOUD",
         "local": "fogiac.targets.local.manifest:CLOUD",
     },
+    # Which input changes replace a resource, per Pulumi package (a type token's first part).
+    "fogiac.replacements": {"aws": "fogiac.targets.aws.replace:forces_replacement"},
     # What the manifest asks of the middleware a ROS distribution picks.
     "fogiac.middleware": {"for_distro": "fogiac.net.middleware:for_distro"},
 }
@@ -46,6 +48,11 @@ def names(group: str, *, installed: bool = True) -> tuple[str, ...]:
     if installed:
         found |= set(_installed(group))
     return tuple(sorted(found))
+
+
+def known(group: str, name: str) -> bool:
+    """Whether ``group`` has ``name`` (the distributions are read only when it is not built in)."""
+    return _where(group, name) is not None
 
 
 @cache

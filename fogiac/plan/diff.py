@@ -8,8 +8,8 @@ credentials, so the same code answers ``plan`` against the applied document and 
 Resources are matched by (stack, type, name). A changed input replaces the resource when the
 provider's rules say so (plug-in group ``fogiac.replacements``, e.g. ``fogiac.targets.aws.replace``);
 a replaced resource gets new ids, so every resource whose inputs name it (``<name.id>``
-placeholders) sees that input change too, and may be replaced in turn: a new VPC CIDR replaces everything in the VPC. Secrets are compared and shown
-as the documents hold them, ``[secret]``.
+placeholders) sees that input change too, and may be replaced in turn: a new VPC CIDR replaces
+everything in the VPC. Secrets are compared and shown as the documents hold them, ``[secret]``.
 """
 
 from __future__ import annotations

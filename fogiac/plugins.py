@@ -28,6 +28,8 @@ BUILTIN: dict[str, dict[str, str]] = {
     },
     # Which input changes replace a resource, per Pulumi package (a type token's first part).
     "fogiac.replacements": {"aws": "fogiac.targets.aws.replace:forces_replacement"},
+    # Sub-commands a target adds to the CLI: name -> a function returning a typer app.
+    "fogiac.commands": {"vpn": "fogiac.targets.aws.vpncli:commands"},
     # What the manifest asks of the middleware a ROS distribution picks.
     "fogiac.middleware": {"for_distro": "fogiac.net.middleware:for_distro"},
 }

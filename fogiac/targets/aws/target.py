@@ -14,7 +14,6 @@ from fogiac import deployment
 from fogiac.certs import SSH_KEY, load_or_create_bundle
 from fogiac.errors import CloudError, EngineError, FogiacError, ProvisionError
 from fogiac.manifest.schema import Manifest
-from fogiac.net.vpn import write_client_profile
 from fogiac.orchestrate import autostop_line, edge_idle_since, ensure_edge_master, provision_and_connect, stop_edge
 from fogiac.plan import drift, guard
 from fogiac.plan.document import APPLIED_FILE, plan_document
@@ -27,6 +26,7 @@ from fogiac.tables import table
 from fogiac.targets.aws import api, engine, observe, offline, placement, spot
 from fogiac.targets.aws import sweep as sweeping
 from fogiac.targets.aws.catalog import catalog
+from fogiac.targets.aws.vpn import write_client_profile
 from fogiac.targets.base import (
     Check,
     DownOptions,

@@ -28,6 +28,8 @@ BUILTIN: dict[str, dict[str, str]] = {
     },
     # Which input changes replace a resource, per Pulumi package (a type token's first part).
     "fogiac.replacements": {"aws": "fogiac.targets.aws.replace:forces_replacement"},
+    # The inputs `fogiac plan` shows per resource type, per Pulumi package.
+    "fogiac.key_inputs": {"aws": "fogiac.targets.aws.display:KEY_INPUTS"},
     # Sub-commands a target adds to the CLI: name -> a function returning a typer app.
     "fogiac.commands": {"vpn": "fogiac.targets.aws.vpncli:commands"},
     # What the manifest asks of the middleware a ROS distribution picks.
@@ -55,6 +57,11 @@ def names(group: str, *, installed: bool = True) -> tuple[str, ...]:
 def known(group: str, name: str) -> bool:
     """Whether ``group`` has ``name`` (the distributions are read only when it is not built in)."""
     return _where(group, name) is not None
+
+
+def find(group: str, name: str) -> Any:
+    """:func:`load`, or None where ``group`` has no ``name`` (a plug-in that is optional)."""
+    return load(group, name) if known(group, name) else None
 
 
 @cache

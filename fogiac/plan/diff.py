@@ -162,8 +162,8 @@ def _names(value: Any) -> set[str]:
 def forces_replacement(type_: str, path: str) -> bool:
     """True when the rules of ``type_``'s Pulumi package say changing input ``path`` replaces the
     resource; a package without rules is assumed to update in place (the engine's preview has the last word)."""
-    package = type_.partition(":")[0]
-    return plugins.known(GROUP, package) and bool(plugins.load(GROUP, package)(type_, path))
+    rules = plugins.find(GROUP, type_.partition(":")[0])
+    return rules is not None and bool(rules(type_, path))
 
 
 def _input_changes(type_: str, before: Mapping[str, Any], after: Mapping[str, Any],

@@ -20,12 +20,12 @@ from fogiac.plan.model import (
     AutostopSpec,
     ConnectVia,
     CostLine,
+    EdgeVpn,
     HostSpec,
-    ImageQuery,
+    MachineImage,
     NetworkMode,
     NetworkSpec,
     SecurityGroup,
-    VpnSpec,
 )
 
 Tags = tuple[tuple[str, str], ...]
@@ -41,7 +41,7 @@ class Placement:
     connect_via: ConnectVia  # which address of a host the edge relay dials
     network: NetworkSpec | None = None
     security_groups: tuple[SecurityGroup, ...] = ()
-    vpn: VpnSpec | None = None
+    vpn: EdgeVpn | None = None
     cost: tuple[CostLine, ...] = ()
     autostop: AutostopSpec | None = None
 
@@ -79,7 +79,7 @@ def host_per_node(manifest: Manifest, *, stack: str, tags: Tags,
                   usd_per_hour: Callable[[MachineSpec], float] = lambda spec: 0.0,
                   spot: bool = False,
                   spot_usd_per_hour: Callable[[MachineSpec], float | None] = lambda spec: None,
-                  image: Callable[[MachineSpec], ImageQuery | None] = lambda spec: None,
+                  image: Callable[[MachineSpec], MachineImage | None] = lambda spec: None,
                   address: str | None = None,
                   runtime: Literal["auto", "container", "native"] = "auto",
                   ) -> tuple[tuple[HostSpec, ...], dict[str, str]]:

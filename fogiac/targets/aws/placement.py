@@ -10,16 +10,15 @@ from fogiac.plan.model import (
     SSH_PORT,
     CostLine,
     HostSpec,
-    ImageQuery,
     NetworkSpec,
     Rule,
     SecurityGroup,
     Subnet,
-    VpnSpec,
     server_name,
 )
 from fogiac.plan.placement import Placement, Tags, autostop_for, host_per_node, ssh_sources
 from fogiac.targets.aws.catalog import catalog
+from fogiac.targets.aws.model import ImageQuery, VpnSpec
 
 _WORLD = "0.0.0.0/0"
 AUTOSTOP_MINUTES = 30  # unless the manifest says otherwise, an EC2 host idle this long powers itself off

@@ -180,7 +180,8 @@ class CatalogueCloud:
         for key in charge["usd_per_hour"] if charge else ():
             standing = standing[key]
         return PriceSource(source=cat.source, as_of=cat.as_of, spot_source=cat.spot_source, spot_as_of=cat.spot_as_of,
-                           spot_method=cat.spot_method, network_usd_per_hour=float(standing) if charge else 0.0,
+                           spot_method=cat.spot_method, spot_ceiling=raw(self.resource)["spot"].get("ceiling", ""),
+                           network_usd_per_hour=float(standing) if charge else 0.0,
                            network_item=charge["item"] if charge else "")
 
 

@@ -92,7 +92,7 @@ def cost(manifest: Path = MANIFEST, target: str | None = TARGET) -> None:
     screen.print(f"prices: {prices.source} ({prices.as_of})", markup=False, style="dim")
     if spot is not None:
         screen.print(f"with spot: ${spot:.4f} per hour, {saving_pct(plan.hourly_usd, spot)}% less than on-demand "
-                     "(an estimate; AWS never charges more than on-demand)", markup=False)
+                     f"(an estimate; {prices.spot_ceiling})", markup=False)
         screen.print(f"spot prices: {prices.spot_source} ({prices.spot_as_of}); {prices.spot_method}",
                      markup=False, style="dim")
 

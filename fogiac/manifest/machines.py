@@ -149,6 +149,7 @@ class PriceSource:
     spot_source: str
     spot_as_of: str
     spot_method: str
+    spot_ceiling: str = ""  # why a spot estimate is at most on-demand, in the provider's words
     network_usd_per_hour: float = 0.0  # billed while the network exists, whether or not an edge is connected
     network_item: str = ""  # that charge in words, as a status line and a cost note name it
 

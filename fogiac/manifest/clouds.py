@@ -6,9 +6,10 @@ does not know: it asks the variant the manifest's ``provider`` names, through th
 a GPU, and which machine a node's requirement resolves to. A variant raises
 :class:`~fogiac.manifest.problems.FieldProblem` with its own words; the schema places them.
 
-A node's machine is checked where the node is, before the manifest's provider is known, so it is
-named in :data:`DEFAULT`'s terms (the same manifest runs on every target; targets without a
-catalogue of their own size and price their machines in the default's terms).
+A node's machine is checked where the node is, before the ``cloud:`` block's own checks: the
+schema passes the provider it read from the raw manifest as validation context, and a model
+built without one (in code, or the checks across fields) names machines in :data:`DEFAULT`'s
+terms (targets without a catalogue of their own size and price their machines in the default's).
 """
 
 from __future__ import annotations
@@ -58,6 +59,11 @@ def providers(*, installed: bool = True) -> tuple[str, ...]:
     return plugins.names(GROUP, installed=installed)
 
 
+def known(provider: object) -> bool:
+    """Whether ``provider`` names a variant (installed packages are read only for a name not built in)."""
+    return isinstance(provider, str) and plugins.known(GROUP, provider)
+
+
 def variant(provider: str | None = None) -> CloudVariant:
     """The ``cloud:`` variant of ``provider`` (default: :data:`DEFAULT`)."""
     found: CloudVariant = plugins.load(GROUP, provider or DEFAULT)
@@ -67,5 +73,4 @@ def variant(provider: str | None = None) -> CloudVariant:
 def prices(target: str | None = None) -> PriceSource:
     """Where ``target``'s prices come from; a target without a ``cloud:`` variant of its own (one
     registered in code only) prices its machines in the default's terms, as it sized them."""
-    own = target is not None and (target in providers(installed=False) or target in providers())
-    return variant(target if own else None).prices()
+    return variant(target if known(target) else None).prices()

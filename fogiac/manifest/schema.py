@@ -28,7 +28,7 @@ from pydantic import (
 
 from fogiac import plugins
 from fogiac.errors import ManifestError
-from fogiac.manifest.clouds import providers, variant
+from fogiac.manifest.clouds import CloudVariant, known, providers, variant
 from fogiac.manifest.crossfield import cross_field_problems
 from fogiac.manifest.machines import Choice, NoMachine, Requirement, parse_bound
 from fogiac.manifest.problems import FieldProblem, format_errors, line_index, parse_yaml
@@ -60,6 +60,13 @@ def ssh_from_problem(nets: Iterable[ipaddress.IPv4Network]) -> str | None:
         return (f"{', '.join(str(n) for n in given)} cover {covered} addresses, more than a "
                 f"/{SSH_FROM_MAX_PREFIX} ({2 ** (32 - SSH_FROM_MAX_PREFIX)}); name your own network")
     return None
+
+
+def _sizing(info: ValidationInfo | None) -> CloudVariant:
+    """The ``cloud:`` variant that names the machines: the manifest's provider's, which
+    :func:`parse_manifest` passes as context; without one (a model built in code), the default's."""
+    context = info.context if info is not None else None
+    return variant(context.get("provider") if isinstance(context, dict) else None)
 
 
 def _no_control(value: Path) -> Path:
@@ -334,9 +341,9 @@ class Machine(_Model):
 
     @field_validator("type")
     @classmethod
-    def _type(cls, value: str | None) -> str | None:
+    def _type(cls, value: str | None, info: ValidationInfo) -> str | None:
         if value is not None:
-            variant().check_machine(value)
+            _sizing(info).check_machine(value)
         return value
 
     @model_validator(mode="after")
@@ -385,9 +392,9 @@ class Node(_Model):
 
     @field_validator("machine")
     @classmethod
-    def _machine(cls, value: str | Machine) -> str | Machine:
+    def _machine(cls, value: str | Machine, info: ValidationInfo) -> str | Machine:
         if isinstance(value, str):
-            variant().check_machine(value)
+            _sizing(info).check_machine(value)
         return value
 
     @field_validator("image")
@@ -406,7 +413,7 @@ class Node(_Model):
         return value
 
     @model_validator(mode="after")
-    def _one_kind(self) -> Node:
+    def _one_kind(self, info: ValidationInfo | None = None) -> Node:
         given = [k for k in ("image", "build", "launch", "workload") if getattr(self, k) is not None]
         if not given and self.command:
             given = ["command"]
@@ -417,7 +424,7 @@ class Node(_Model):
             raise FieldProblem("command is for image nodes, or alone", field="command")
         named = self.machine if isinstance(self.machine, str) else self.machine.type
         if self.gpu and named is not None:
-            variant().check_gpu(named)
+            _sizing(info).check_gpu(named)
         return self
 
     def machine_choice(self, region: str, *, spot: bool = False, provider: str | None = None) -> Choice:
@@ -555,8 +562,10 @@ def parse_manifest(text: str, *, source: str = "<manifest>", base: Path | None =
     if not isinstance(data, dict):
         raise ManifestError([f"{source}:1: the manifest must be a mapping (name:, nodes:, ...)"])
     missing = _resolve_paths(data, base or Path.cwd())
-    try:
-        manifest = Manifest.model_validate(data)
+    cloud = data.get("cloud")
+    provider = cloud.get("provider") if isinstance(cloud, dict) else None
+    try:  # the provider's variant names the nodes' machines (a broken provider: the default's)
+        manifest = Manifest.model_validate(data, context={"provider": provider if known(provider) else None})
     except ValidationError as err:
         # Field errors and the rules across fields together: one run shows every problem.
         extra = missing + cross_field_problems(Manifest, data)

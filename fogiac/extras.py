@@ -4,7 +4,7 @@ fogiac's core (validate, plan's compile, the relay) needs none of these. A comma
 calls :func:`need` where it starts its work, not at module import, so ``fogiac validate``
 stays fast and a missing extra is a one-line error, not a traceback::
 
-    boto3 = need("boto3", extra="aws")
+    fabric = need("fabric", extra="ssh")
 """
 
 from __future__ import annotations
@@ -14,9 +14,9 @@ from types import ModuleType
 
 from fogiac.errors import MissingExtra
 
-# module -> the fogiac extra that installs it (pyproject.toml's [project.optional-dependencies])
+# module -> the fogiac extra that installs it (pyproject.toml's [project.optional-dependencies]); a
+# target's own SDKs are named by the target (the aws target's fogiac.targets.aws.sdk passes extra=).
 EXTRAS: dict[str, str] = {
-    "boto3": "aws", "botocore": "aws", "pulumi": "aws", "pulumi_aws": "aws",
     "fabric": "ssh", "paramiko": "ssh",
     "zenoh": "ros2", "zenoh_ros2_sdk": "ros2",
     "torch": "workloads", "ompl": "workloads", "fcl": "workloads", "trimesh": "workloads",

@@ -13,7 +13,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Callable
 from importlib import metadata
-from typing import Generic, TypeVar
+from typing import Any, Generic, TypeVar
 
 from fogiac.errors import FogiacError, PlanError
 
@@ -40,6 +40,33 @@ def shipped_metadata() -> tuple[str, dict[str, str]]:
 def rescan() -> None:
     """Forget what was read, so a distribution installed (or put on ``sys.path``) since is seen."""
     _declared.cache_clear()
+    load.cache_clear()
+
+
+def names(group: str, *, own: bool = False) -> tuple[str, ...]:
+    """Every name ``group`` declares, sorted (reads the distributions' metadata, loads nothing);
+    ``own``: only those fogiac's own distribution declares (what its documentation lists)."""
+    if own:
+        return tuple(sorted(p.name for p in metadata.distribution("fogiac").entry_points if p.group == group))
+    return tuple(sorted(_declared(group)))
+
+
+def known(group: str, name: str) -> bool:
+    return name in _declared(group)
+
+
+@functools.cache
+def load(group: str, name: str) -> Any:
+    """The object entry point ``name`` of ``group`` names; an unknown name fails listing the known ones."""
+    point = _declared(group).get(name)
+    if point is None:
+        raise PlanError(f"unknown {group.rpartition('.')[2]} {name!r}; valid: {', '.join(names(group))}")
+    return point.load()
+
+
+def find(group: str, name: str) -> Any:
+    """:func:`load`, or None where ``group`` has no ``name`` (a plug-in that is optional)."""
+    return load(group, name) if known(group, name) else None
 
 
 class Registry(Generic[T]):

@@ -14,8 +14,9 @@ from dataclasses import dataclass
 import pulumi
 import pulumi_aws as aws
 
-from fogiac.plan.model import HostSpec, ImageQuery
+from fogiac.plan.model import HostSpec
 from fogiac.render import render
+from fogiac.targets.aws.model import ImageQuery, image_of
 from stacks import HOST_KEYS_BEGIN, HOST_KEYS_END
 from stacks.tags import tagged
 
@@ -88,22 +89,24 @@ class Compute(pulumi.ComponentResource):
         )
         images: dict[ImageQuery, pulumi.Output[str]] = {}
         for host in args.hosts:
-            if host.image is not None and host.image not in images:
+            image = image_of(host)
+            if image is not None and image not in images:
                 ami = aws.ec2.get_ami_output(
-                    owners=list(host.image.owners),
+                    owners=list(image.owners),
                     most_recent=True,
-                    filters=ami_filters(host.image),
+                    filters=ami_filters(image),
                     opts=pulumi.InvokeOutputOptions(parent=self),
                 )
-                images[host.image] = ami.id
+                images[image] = ami.id
         self.instances = {}
         for host in args.hosts:
-            if host.image is None:
+            image = image_of(host)
+            if image is None:
                 raise ValueError(f"host {host.name!r} has no image query; is the plan for the aws target?")
             tags = dict(host.tags)
             self.instances[host.name] = aws.ec2.Instance(
                 f"{name}-host-{host.name}",
-                ami=images[host.image],
+                ami=images[image],
                 instance_type=host.machine,
                 subnet_id=args.subnet_id,
                 vpc_security_group_ids=list(args.security_group_ids),

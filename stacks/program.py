@@ -16,6 +16,7 @@ import pulumi
 from fogiac.certs import Bundle
 from fogiac.errors import PlanError
 from fogiac.plan.model import Plan
+from fogiac.targets.aws.model import vpn_of
 from stacks.compute import Compute, ComputeArgs
 from stacks.firewall import Firewall, FirewallArgs
 from stacks.network import Network, NetworkArgs
@@ -60,14 +61,15 @@ def network_program(plan: Plan, *, certs: Bundle, operator_cidrs: tuple[str, ...
     pulumi.export("vpc_id", network.vpc.id)
     pulumi.export("subnet_ids", {key: subnet.id for key, subnet in network.subnets.items()})
     pulumi.export("security_group_ids", {key: sg.id for key, sg in firewall.groups.items()})
-    if plan.vpn is not None:
+    spec = vpn_of(plan)
+    if spec is not None:
         vpn = ClientVpn(
             plan.stack,
             ClientVpnArgs(
-                spec=plan.vpn,
+                spec=spec,
                 certs=certs,
                 vpc_id=network.vpc.id,
-                subnet_id=network.subnets[plan.vpn.target_subnet].id,
+                subnet_id=network.subnets[spec.target_subnet].id,
                 security_group_id=firewall.groups[VPN_GROUP].id,
                 tags=tags,
             ),

@@ -16,7 +16,7 @@ import pulumi
 import pulumi_aws as aws
 
 from fogiac.certs import Bundle, KeyPair
-from fogiac.plan.model import VpnSpec
+from fogiac.targets.aws.model import VpnSpec
 from stacks.tags import tagged
 
 SLOW = pulumi.CustomTimeouts(create="30m", update="30m", delete="30m")

@@ -9,9 +9,9 @@ import typer
 
 from fogiac.cli._common import MANIFEST, TARGET, load
 from fogiac.errors import FogiacError
+from fogiac.manifest.clouds import prices as price_source
 from fogiac.manifest.schema import json_schema, parse_manifest
 from fogiac.net import middleware
-from fogiac.plan.catalog import catalog
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.cost import MONTH, per_month, saving_pct
 from fogiac.state import write_text_atomic
@@ -36,23 +36,6 @@ def schema() -> None:
     typer.echo(json.dumps(json_schema(), indent=2, sort_keys=True))
 
 
-STARTER = """\
-# fogiac.yaml: which ROS nodes run off the robot, where, and over which network.
-# Reference: fogiac schema, or the README's manifest reference.
-name: {name}
-cloud:
-  provider: aws        # aws | hosts | local
-  region: us-west-2
-network:
-  mode: vpn            # vpn (AWS Client VPN) | proxy (relay over TLS)
-  ssh_from: auto       # your address at `up` time
-edge:
-  ros_master: http://localhost:11311
-nodes:
-  - name: planner
-    machine: c5.4xlarge
-    workload: motion_planning
-"""
 
 
 def init(
@@ -62,7 +45,9 @@ def init(
     """Write a starter manifest (never over an existing one)."""
     if path.exists():
         raise FogiacError(f"{path} exists; edit it, or pick another path")
-    text = STARTER.format(name=name)
+    from fogiac.render import render  # noqa: PLC0415 - jinja2 only for init, never for validate (test_startup)
+
+    text = render("manifest/starter.yaml.j2", name=name)
     parse_manifest(text, source=str(path))
     write_text_atomic(path, text)
     typer.echo(f"wrote {path}; next: fogiac validate {path} && fogiac plan {path}")
@@ -88,11 +73,12 @@ def cost(manifest: Path = MANIFEST, target: str | None = TARGET) -> None:
     carrier = middleware.get(plan.middleware)
     screen.print(f"ROS {plan.ros_distro} via {carrier.label}; edge: {carrier.edge_side}; "
                  f"each host: {carrier.cloud_side} (no charge beyond the hosts)", markup=False)
-    screen.print(f"prices: {catalog().source} ({catalog().as_of})", markup=False, style="dim")
+    prices = price_source(plan.target)
+    screen.print(f"prices: {prices.source} ({prices.as_of})", markup=False, style="dim")
     if spot is not None:
         screen.print(f"with spot: ${spot:.4f} per hour, {saving_pct(plan.hourly_usd, spot)}% less than on-demand "
-                     "(an estimate; AWS never charges more than on-demand)", markup=False)
-        screen.print(f"spot prices: {catalog().spot_source} ({catalog().spot_as_of}); {catalog().spot_method}",
+                     f"(an estimate; {prices.spot_ceiling})", markup=False)
+        screen.print(f"spot prices: {prices.spot_source} ({prices.spot_as_of}); {prices.spot_method}",
                      markup=False, style="dim")
 
 

@@ -17,12 +17,12 @@ from typing import Any
 import typer
 from rich.markup import escape
 
-from fogiac import targets
+from fogiac import registry, targets
 from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_deployed, compile_for
 from fogiac.errors import FogiacError
+from fogiac.manifest.clouds import prices as price_source
 from fogiac.manifest.revision import load_revision
 from fogiac.plan import drift, review
-from fogiac.plan.catalog import catalog
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.cost import MONTH, menu_line, per_month, saving_pct
 from fogiac.plan.diff import PlanDiff, annotate, diff_documents, with_drift
@@ -30,24 +30,7 @@ from fogiac.plan.document import APPLIED_FILE, document, plan_document
 from fogiac.state import read_json, stack_dir, write_json_atomic
 from fogiac.tables import console, table
 
-_RULE = ("ipProtocol", "fromPort", "toPort", "cidrIpv4", "cidrIpv6")
-# The inputs worth a glance in the table, per resource type (the JSON has all of them).
-KEY_INPUTS: dict[str, tuple[str, ...]] = {
-    "aws:ec2/vpc:Vpc": ("cidrBlock",),
-    "aws:ec2/subnet:Subnet": ("cidrBlock", "availabilityZone", "mapPublicIpOnLaunch"),
-    "aws:ec2/routeTable:RouteTable": ("routes",),
-    "aws:ec2/routeTableAssociation:RouteTableAssociation": ("subnetId", "routeTableId"),
-    "aws:ec2/securityGroup:SecurityGroup": ("name",),
-    "aws:vpc/securityGroupIngressRule:SecurityGroupIngressRule": _RULE,
-    "aws:vpc/securityGroupEgressRule:SecurityGroupEgressRule": _RULE,
-    "aws:acm/certificate:Certificate": ("certificateBody", "privateKey"),
-    "aws:ec2clientvpn/endpoint:Endpoint": ("clientCidrBlock", "splitTunnel", "transportProtocol", "vpnPort",
-                                           "authenticationOptions"),
-    "aws:ec2clientvpn/networkAssociation:NetworkAssociation": ("subnetId",),
-    "aws:ec2clientvpn/authorizationRule:AuthorizationRule": ("targetNetworkCidr",),
-    "aws:ec2/keyPair:KeyPair": ("keyName",),
-    "aws:ec2/instance:Instance": ("instanceType", "ami", "rootBlockDevice", "metadataOptions", "instanceMarketOptions"),
-}
+KEY_INPUTS = "fogiac.key_inputs"  # plug-in group: a Pulumi package -> {resource type: the inputs worth a glance}
 
 
 def _short(value: Any) -> str:
@@ -59,8 +42,10 @@ def _short(value: Any) -> str:
 
 
 def _key_inputs(resource: Mapping[str, Any]) -> list[str]:
-    inputs = resource["inputs"]
-    return [f"{k}: {_short(inputs[k])}" for k in KEY_INPUTS.get(resource["type"], ()) if k in inputs]
+    """The inputs the table shows, as the resource's package lists them (the JSON has all of them)."""
+    inputs, package = resource["inputs"], resource["type"].partition(":")[0]
+    listed: Mapping[str, tuple[str, ...]] = registry.find(KEY_INPUTS, package) or {}
+    return [f"{k}: {_short(inputs[k])}" for k in listed.get(resource["type"], ()) if k in inputs]
 
 
 def _render_diff(doc: dict[str, Any], diff: PlanDiff, *, against: str) -> None:
@@ -116,7 +101,7 @@ def render(doc: Mapping[str, Any]) -> None:
     out.print(hosts)
     for h in doc["hosts"]:
         if h["chosen_for"]:
-            out.print(escape(menu_line(h, spot_as_of=catalog().spot_as_of)), highlight=False)
+            out.print(escape(menu_line(h, spot_as_of=price_source(doc["target"]).spot_as_of)), highlight=False)
     nodes = table("nodes", "node", "host", "kind", "runs", "GPU")
     for n in doc["nodes"]:
         nodes.add_row(n["name"], n["host"], n["kind"], escape(n["runs"]), "yes" if n["gpu"] else "no")

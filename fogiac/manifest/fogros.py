@@ -19,9 +19,9 @@ import yaml
 
 from fogiac.errors import ManifestError
 from fogiac.manifest import importers
+from fogiac.manifest.clouds import variant
 from fogiac.manifest.importers import Converted
 from fogiac.manifest.schema import Manifest, parse_manifest
-from fogiac.plan.catalog import catalog
 
 _FIND = re.compile(r"\$\(find ([A-Za-z0-9_]+)\)")
 
@@ -121,7 +121,7 @@ def _infer_gpu(nodes: list[dict]) -> list[str]:
     """FogROS says nothing of GPUs: a node on a GPU machine type gets ``gpu: true`` (and a note why)."""
     notes = []
     for node in nodes:
-        spec = catalog().types.get(node["machine"])
+        spec = variant().machine(node["machine"])
         if spec is not None and spec.has_gpu:
             node["gpu"] = True
             notes.append(f"{node['name']}: gpu: true, because {node['machine']} has {spec.gpus} GPU(s)"

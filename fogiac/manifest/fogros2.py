@@ -26,10 +26,10 @@ from typing import Any
 import yaml
 
 from fogiac.errors import ManifestError
+from fogiac.manifest.clouds import variant
 from fogiac.manifest.fogros import _dns
 from fogiac.manifest.importers import Converted
 from fogiac.manifest.schema import parse_manifest
-from fogiac.plan.catalog import catalog
 
 SUFFIXES = (".py",)
 DISTRO = "humble"  # the ROS 2 distribution FogROS2 supports
@@ -174,11 +174,12 @@ class _Reader:
         disk = self.literal(kwargs["disk_size"]) if "disk_size" in kwargs else None
         if region is None or kind is None:
             return None
-        if kind not in catalog().types:
+        aws = variant("aws")  # FogROS2's AWS(...) names EC2 types and regions
+        if aws.machine(kind) is None:
             self.problem(kwargs.get("ec2_instance_type", call),
                          f"ec2_instance_type {kind!r} is not in fogiac's catalog; e.g. t3.medium, c5.xlarge, "
                          "g4dn.xlarge")
-        regions = sorted({r for t in catalog().types.values() for r in t.usd_per_hour})
+        regions = sorted(aws.regions())
         if region not in regions:
             self.problem(kwargs.get("region", call),
                          f"region {region!r} is not one fogiac prices; valid: {', '.join(regions)}")

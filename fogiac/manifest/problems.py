@@ -250,8 +250,8 @@ def _describe(error: ErrorDetails, data_path: Loc, model: type[BaseModel]) -> tu
     if kind == "ip_v4_network":
         return data_path, _network_problem(value)
     if kind in _YAML_SHAPES:
-        example = f"; write [{value}]" if isinstance(value, (str, int, float)) and kind in ("tuple_type", "list_type") \
-            else ""
+        example = f"; write [{value}]" if isinstance(value, (str, int, float)) and str(value).isprintable() \
+            and kind in ("tuple_type", "list_type") else ""  # a newline in the example would split the line
         shown = "" if isinstance(value, (dict, list)) else f"{value!r}: "
         return data_path, f"{shown}should be {_YAML_SHAPES[kind]}{example}"
     message = error["msg"]

@@ -11,18 +11,28 @@ import ipaddress
 import re
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 from urllib.parse import urlparse
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+    ValidatorFunctionWrapHandler,
+    field_validator,
+    model_validator,
+)
 
+from fogiac import registry
 from fogiac.errors import ManifestError
+from fogiac.manifest.clouds import CloudVariant, known, providers, variant
 from fogiac.manifest.crossfield import cross_field_problems
+from fogiac.manifest.machines import Choice, NoMachine, Requirement, parse_bound
 from fogiac.manifest.problems import FieldProblem, format_errors, line_index, parse_yaml
 from fogiac.manifest.requirements import RequirementsProblem, specifiers
-from fogiac.net import middleware
-from fogiac.plan.catalog import catalog
-from fogiac.plan.machines import Choice, NoMachine, Requirement, choose, parse_bound
 
 _DNS_NAME = re.compile(r"^[a-z]([a-z0-9-]{0,38}[a-z0-9])?$")
 _TOPIC = re.compile(r"^/[A-Za-z][A-Za-z0-9_/]*$")
@@ -50,6 +60,13 @@ def ssh_from_problem(nets: Iterable[ipaddress.IPv4Network]) -> str | None:
         return (f"{', '.join(str(n) for n in given)} cover {covered} addresses, more than a "
                 f"/{SSH_FROM_MAX_PREFIX} ({2 ** (32 - SSH_FROM_MAX_PREFIX)}); name your own network")
     return None
+
+
+def _sizing(info: ValidationInfo | None) -> CloudVariant:
+    """The ``cloud:`` variant that names the machines: the manifest's provider's, which
+    :func:`parse_manifest` passes as context; without one (a model built in code), the default's."""
+    context = info.context if info is not None else None
+    return variant(context.get("provider") if isinstance(context, dict) else None)
 
 
 def _no_control(value: Path) -> Path:
@@ -103,6 +120,10 @@ DnsName = Annotated[str, AfterValidator(_dns_name)]
 
 
 Distro = Literal["noetic", "humble", "jazzy", "kilted"]  # each served by one middleware (fogiac.net.middleware)
+if TYPE_CHECKING:
+    Provider = str
+else:  # fogiac's own targets' ``cloud:`` variants; Cloud._installed admits another installed package's
+    Provider = Literal[providers(own=True)]
 
 
 class Ros(_Model):
@@ -133,13 +154,25 @@ class Autostop(_Model):
 
 
 class Cloud(_Model):
-    provider: Literal["aws", "hosts", "local"] = Field(default="aws", description="Where cloud nodes run.")
+    provider: Provider = Field(default="aws", description="Where cloud nodes run.")
     region: str = Field(default="us-west-2", description="AWS region (one the price table covers).")
     zone: str | None = Field(default=None, description="Availability zone; chosen by preflight if absent.")
     hosts: tuple[HostMachine, ...] = Field(default=(), description="Machines for the hosts target.")
     autostop: Literal["off"] | Autostop | None = Field(
         default=None, description="Idle shutdown; unset: the target's default (aws: 30 idle minutes, stop); off: never."
     )
+
+    @field_validator("provider", mode="wrap")
+    @classmethod
+    def _installed(cls, value: object, handler: ValidatorFunctionWrapHandler) -> object:
+        """A provider an installed package contributes (entry point group ``fogiac.clouds``); the
+        distributions are read only for a name that is not built in, so ``validate`` stays fast."""
+        try:
+            return handler(value)
+        except ValidationError:
+            if isinstance(value, str) and value in providers():
+                return value
+            raise
 
     @field_validator("autostop", mode="before")
     @classmethod
@@ -154,18 +187,19 @@ class Cloud(_Model):
 
     @field_validator("region")
     @classmethod
-    def _region(cls, value: str) -> str:
-        regions = catalog().regions
-        if value not in regions:
-            raise FieldProblem(f"{value!r} is not a supported region", choices=regions)
+    def _region(cls, value: str, info: ValidationInfo) -> str:
+        variant(info.data.get("provider")).check_region(value)  # the provider's own regions and words
         return value
+
+    def chosen(self) -> str | None:
+        """The provider, or None while it has a problem (the checks across fields then ask the default's
+        variant, whose words every built-in variant shares, rather than skip)."""
+        return self.provider if isinstance(self.provider, str) else None
 
     @model_validator(mode="after")
     def _zone_in_region(self) -> Cloud:
-        if self.zone is not None and not (
-            self.zone.startswith(self.region) and len(self.zone) == len(self.region) + 1
-        ):
-            raise FieldProblem(f"{self.zone!r} is not a zone of {self.region}", field="zone")
+        if self.zone is not None:
+            variant(self.chosen()).check_zone(self.zone, self.region)
         names = [h.name for h in self.hosts]
         for i, name in enumerate(names):
             if name in names[:i]:
@@ -175,14 +209,14 @@ class Cloud(_Model):
 
 class Network(_Model):
     mode: Literal["vpn", "proxy"] = Field(
-        default="vpn", description="vpn: AWS Client VPN; proxy: relay over TLS to the public address."
+        default="vpn", description="vpn: the edge joins the target's VPN; proxy: relay over TLS to the public address."
     )
     vpc_cidr: ipaddress.IPv4Network = Field(
         default=ipaddress.IPv4Network("10.10.0.0/16"), description="VPC address range (/16 to /26)."
     )
     client_cidr: ipaddress.IPv4Network = Field(
         default=ipaddress.IPv4Network("10.200.0.0/22"),
-        description="Client VPN address range for the edge (/12 to /22), outside the VPC.",
+        description="The edge's VPN address range (the target's VPN sets its limits), outside the VPC.",
     )
     ssh_from: Literal["auto"] | tuple[ipaddress.IPv4Network, ...] = Field(
         default="auto", description="CIDRs allowed to SSH (and, in proxy mode, reach the relay); auto: your address."
@@ -200,9 +234,8 @@ class Network(_Model):
 
     @field_validator("client_cidr")
     @classmethod
-    def _client(cls, value: ipaddress.IPv4Network) -> ipaddress.IPv4Network:
-        if not 12 <= value.prefixlen <= 22:
-            raise ValueError(f"{value} must be between /12 and /22 (AWS Client VPN's limits)")
+    def _client(cls, value: ipaddress.IPv4Network, info: ValidationInfo) -> ipaddress.IPv4Network:
+        _sizing(info).check_edge_vpn_range(str(value), value.prefixlen)  # the target's VPN says what it allows
         return value
 
     @field_validator("ssh_from")
@@ -293,7 +326,7 @@ class TopicLists(_Model):
 class Machine(_Model):
     """What a node needs instead of a type name: compile picks the cheapest catalogue type that fits."""
 
-    type: str | None = Field(default=None, description="An EC2 instance type; or leave it out and say what you need.")
+    type: str | None = Field(default=None, description="A type from the target's catalogue; or leave it out.")
     gpu: bool | str | None = Field(default=None, description="true (any GPU) or a model such as T4, A10G, V100.")
     vcpus: int | str | None = Field(default=None, description="vCPUs: a number (at least) or a bound like '>=8'.")
     memory_gib: float | str | None = Field(default=None, description="Memory in GiB: a number (at least) or '>=16'.")
@@ -307,9 +340,9 @@ class Machine(_Model):
 
     @field_validator("type")
     @classmethod
-    def _type(cls, value: str | None) -> str | None:
-        if value is not None and value not in catalog().types:
-            raise FieldProblem(f"{value!r} is not a known instance type", choices=tuple(catalog().types))
+    def _type(cls, value: str | None, info: ValidationInfo) -> str | None:
+        if value is not None:
+            _sizing(info).check_machine(value)
         return value
 
     @model_validator(mode="after")
@@ -337,7 +370,7 @@ NodeKind = Literal["image", "launch", "workload", "command"]  # which of the fou
 class Node(_Model):
     name: DnsName = Field(description="DNS-safe node name, unique in the manifest.")
     machine: str | Machine = Field(
-        description="EC2 instance type (c5.24xlarge), or what the node needs ({gpu: T4, vcpus: '>=8'})."
+        description="Machine type (c5.24xlarge), or what the node needs ({gpu: T4, vcpus: '>=8'})."
     )
     image: str | None = Field(
         default=None, description="Container image to run (exactly one of image, build, launch, workload)."
@@ -358,9 +391,9 @@ class Node(_Model):
 
     @field_validator("machine")
     @classmethod
-    def _machine(cls, value: str | Machine) -> str | Machine:
-        if isinstance(value, str) and value not in catalog().types:
-            raise FieldProblem(f"{value!r} is not a known instance type", choices=tuple(catalog().types))
+    def _machine(cls, value: str | Machine, info: ValidationInfo) -> str | Machine:
+        if isinstance(value, str):
+            _sizing(info).check_machine(value)
         return value
 
     @field_validator("image")
@@ -379,7 +412,7 @@ class Node(_Model):
         return value
 
     @model_validator(mode="after")
-    def _one_kind(self) -> Node:
+    def _one_kind(self, info: ValidationInfo | None = None) -> Node:
         given = [k for k in ("image", "build", "launch", "workload") if getattr(self, k) is not None]
         if not given and self.command:
             given = ["command"]
@@ -389,22 +422,17 @@ class Node(_Model):
         if self.command and given[0] in ("launch", "workload"):
             raise FieldProblem("command is for image nodes, or alone", field="command")
         named = self.machine if isinstance(self.machine, str) else self.machine.type
-        if self.gpu and named is not None and not catalog().types[named].has_gpu:
-            raise FieldProblem(
-                f"{named!r} has no GPU but the node sets gpu: true; pick a GPU type such as 'g4dn.xlarge'",
-                field="machine",
-            )
+        if self.gpu and named is not None:
+            _sizing(info).check_gpu(named)
         return self
 
-    def machine_choice(self, region: str, *, spot: bool = False) -> Choice:
-        """The instance type this node runs on in ``region``: the named one, or the cheapest that fits
-        (at the spot estimate when ``spot``: the target buys the node's machine as spot)."""
+    def machine_choice(self, region: str, *, spot: bool = False, provider: str | None = None) -> Choice:
+        """The machine type this node runs on in ``region``: the named one, or the cheapest that fits
+        (at the spot estimate when ``spot``: the target buys the node's machine as spot), as
+        ``provider``'s ``cloud:`` variant (default: the default provider's) chooses."""
         named = self.machine if isinstance(self.machine, str) else self.machine.type
-        if named is not None:
-            return Choice(machine=named, usd_per_hour=catalog().types[named].usd_per_hour.get(region, 0.0),
-                          alternatives=())
-        assert isinstance(self.machine, Machine)
-        return choose(self.machine.requirement(gpu=self.gpu), region, spot=spot)
+        need = self.machine.requirement(gpu=self.gpu) if isinstance(self.machine, Machine) and named is None else None
+        return variant(provider).choose(named, need, region, spot=spot)
 
     @property
     def needs_gpu(self) -> bool:
@@ -469,7 +497,7 @@ class Manifest(_Model):
                 raise FieldProblem(f"duplicate node name {name!r}", field=f"nodes[{i}].name")
         for i, node in enumerate(self.nodes):
             try:
-                node.machine_choice(self.cloud.region, spot=node.spot)
+                node.machine_choice(self.cloud.region, spot=node.spot, provider=self.cloud.chosen())
             except NoMachine as err:
                 raise FieldProblem(str(err), field=f"nodes[{i}].machine") from None
         host_names = [h.name for h in self.cloud.hosts]
@@ -478,7 +506,7 @@ class Manifest(_Model):
                 raise FieldProblem(
                     f"{node.host!r} is not in cloud.hosts", field=f"nodes[{i}].host", choices=tuple(host_names)
                 )
-        chosen = middleware.for_distro(self.ros.distro)
+        chosen = registry.load("fogiac.middleware", "for_distro")(self.ros.distro)
         for i, node in enumerate(self.nodes):
             if chosen.needs_listed_topics and node.topics == "auto":
                 raise FieldProblem(
@@ -533,8 +561,10 @@ def parse_manifest(text: str, *, source: str = "<manifest>", base: Path | None =
     if not isinstance(data, dict):
         raise ManifestError([f"{source}:1: the manifest must be a mapping (name:, nodes:, ...)"])
     missing = _resolve_paths(data, base or Path.cwd())
-    try:
-        manifest = Manifest.model_validate(data)
+    cloud = data.get("cloud")
+    provider = cloud.get("provider") if isinstance(cloud, dict) else None
+    try:  # the provider's variant names the nodes' machines (a broken provider: the default's)
+        manifest = Manifest.model_validate(data, context={"provider": provider if known(provider) else None})
     except ValidationError as err:
         # Field errors and the rules across fields together: one run shows every problem.
         extra = missing + cross_field_problems(Manifest, data)

@@ -11,7 +11,7 @@ import shlex
 from collections.abc import Mapping
 from typing import Any
 
-from fogiac.plan.catalog import catalog
+from fogiac.manifest.clouds import prices as price_source
 from fogiac.plan.model import CostLine, HostSpec, NodeSpec, Plan
 
 # A month, wherever fogiac prints one: AWS's pricing pages use 730 hours (365 days * 24 / 12).
@@ -33,18 +33,19 @@ def saving_pct(on_demand: float, spot: float) -> int:
     return round(100 * (on_demand - spot) / on_demand) if on_demand else 0
 
 
-def spot_source() -> dict[str, str]:
-    cat = catalog()
-    return {"source": cat.spot_source, "as_of": cat.spot_as_of, "method": cat.spot_method}
+def spot_source(target: str | None = None) -> dict[str, str]:
+    """Where ``target``'s spot estimates come from (default: the default provider's catalogue)."""
+    prices = price_source(target)
+    return {"source": prices.spot_source, "as_of": prices.spot_as_of, "method": prices.spot_method}
 
 
 def cost(plan: Plan) -> dict[str, Any]:
-    """``{lines, hourly_usd}``: instances, Client VPN association-hours and connection-hours; with
+    """``{lines, hourly_usd}``: the target's cost lines (instances, its network's hours); with
     spot hosts also ``spot_hourly_usd`` and where the spot estimate comes from."""
     out: dict[str, Any] = {"lines": [cost_line(line) for line in plan.cost], "hourly_usd": plan.hourly_usd}
     if plan.spot_hourly_usd is not None:
         out["spot_hourly_usd"] = plan.spot_hourly_usd
-        out["spot_prices"] = spot_source()
+        out["spot_prices"] = spot_source(plan.target)
     return out
 
 

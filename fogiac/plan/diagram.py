@@ -56,7 +56,7 @@ def layout(plan: Plan) -> Drawing:
     row_h, gap = 2.7, 0.9
     height = max(4.0, len(plan.hosts) * (row_h + gap) + 1.2)
     carrier = middleware.get(plan.middleware)
-    link = carrier.label.split(":")[0] + (" through AWS Client VPN" if plan.vpn is not None else "")
+    link = carrier.label.split(":")[0] + (f" through {plan.vpn.label}" if plan.vpn is not None else "")
     boxes = [
         Box(0.3, 0.3, 3.8, height - 0.6, "edge (robot)", (f"ROS {plan.ros_distro}", carrier.edge_side[:40]), "site"),
         Box(9.6, 0.3, 8.2, height - 0.6, f"cloud: {plan.target}",

@@ -6,10 +6,10 @@ credentials, so the same code answers ``plan`` against the applied document and 
 --against`` another manifest.
 
 Resources are matched by (stack, type, name). A changed input replaces the resource when the
-provider's rules say so (:mod:`fogiac.plan.replace`); a replaced resource gets new ids, so every
-resource whose inputs name it (``<name.id>`` placeholders) sees that input change too, and may be
-replaced in turn: a new VPC CIDR replaces everything in the VPC. Secrets are compared and shown
-as the documents hold them, ``[secret]``.
+provider's rules say so (plug-in group ``fogiac.replacements``, e.g. ``fogiac.targets.aws.replace``);
+a replaced resource gets new ids, so every resource whose inputs name it (``<name.id>``
+placeholders) sees that input change too, and may be replaced in turn: a new VPC CIDR replaces
+everything in the VPC. Secrets are compared and shown as the documents hold them, ``[secret]``.
 """
 
 from __future__ import annotations
@@ -21,12 +21,13 @@ from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+from fogiac import registry
 from fogiac.plan.drift import Drift
-from fogiac.plan.replace import forces_replacement
 
 Action = Literal["create", "update", "replace", "delete", "no-op"]
 KNOWN_AFTER_APPLY = "(known after apply)"
 SETTINGS = ("target", "region", "zone", "mode", "edge_master")
+GROUP = "fogiac.replacements"  # package -> forces_replacement(type_, path), the provider's ForceNew rules
 _PLACEHOLDER = re.compile(r"<([^<>]+)\.[A-Za-z]+>")
 
 
@@ -156,6 +157,13 @@ def leaves(value: Any, prefix: str = "") -> Iterator[tuple[str, Any]]:
 def _names(value: Any) -> set[str]:
     """The resources an input refers to through ``<name.attr>`` placeholders."""
     return {m.group(1) for _, leaf in leaves(value) for m in _PLACEHOLDER.finditer(str(leaf))}
+
+
+def forces_replacement(type_: str, path: str) -> bool:
+    """True when the rules of ``type_``'s Pulumi package say changing input ``path`` replaces the
+    resource; a package without rules is assumed to update in place (the engine's preview has the last word)."""
+    rules = registry.find(GROUP, type_.partition(":")[0])
+    return rules is not None and bool(rules(type_, path))
 
 
 def _input_changes(type_: str, before: Mapping[str, Any], after: Mapping[str, Any],

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from fogiac.plan.catalog import catalog
+from fogiac.manifest.clouds import prices as price_source
 from fogiac.plan.model import Plan
 
 
@@ -68,7 +68,7 @@ def guard(billed: Sequence[Billed], *, now: float, autostop_s: float | None,
     return {"lines": lines, "usd_per_hour": hourly,
             "cost_usd": round(sum(line["cost_usd"] or 0.0 for line in lines), 4),
             "no_edge_s": round(no_edge) if no_edge is not None else None, "warning": warning,
-            "spot_estimate_as_of": catalog().spot_as_of if any(b.spot_estimate for b in billed) else None}
+            "spot_estimate_as_of": price_source().spot_as_of if any(b.spot_estimate for b in billed) else None}
 
 
 def _prices(spot_as_of: str | None) -> str:
@@ -97,15 +97,16 @@ def up_summary(plan: Plan) -> str:
     Spot hosts count at the catalogue's spot estimate, labelled, with on-demand as the ceiling.
     """
     spot = plan.spot_hourly_usd
+    prices = price_source(plan.target)
     head = f"cost: ${plan.hourly_usd:.4f}/h while up"
     if spot is not None:
         head = (f"cost: about ${spot:.4f}/h while up (spot hosts at the catalogue's spot estimate of "
-                f"{catalog().spot_as_of}; ${plan.hourly_usd:.4f}/h at on-demand prices, the most spot costs)")
+                f"{prices.spot_as_of}; ${plan.hourly_usd:.4f}/h at on-demand prices, the most spot costs)")
     if plan.autostop is None:
         return f"{head}; autostop is off: it costs this until `fogiac down`"
     stop = plan.autostop
     what = "stops the hosts" if stop.action == "stop" else "terminates the hosts"
     tail = ""
     if plan.vpn is not None:
-        tail = "; the Client VPN association is billed until `fogiac down`"
+        tail = f"; {prices.network_item} is billed until `fogiac down`"
     return f"{head}; autostop {what} after {duration(stop.idle_s)} without an edge{tail}"

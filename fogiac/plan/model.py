@@ -10,11 +10,12 @@ import dataclasses
 import hashlib
 import ipaddress
 import json
+import typing
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from fogiac.errors import PlanError
-from fogiac.plan.machines import Option, RankedBy
+from fogiac.manifest.machines import Option, RankedBy
 
 # Ports. ROS 1 masters listen on 11311; nodes on ephemeral ports, which Linux takes from
 # 32768-60999 by default; the middleware's end on a host that picks no port of its own on RELAY_PORT
@@ -88,24 +89,19 @@ class NetworkSpec:
     subnets: tuple[Subnet, ...]
 
 
-@dataclass(frozen=True)
-class VpnSpec:
-    client_cidr: str
-    server_name: str
-    target_subnet: str
-    authorize_cidr: str
-    split_tunnel: bool = True
-    transport: Literal["udp", "tcp"] = "udp"
-    port: int = 443
+class EdgeVpn(typing.Protocol):
+    """The target's VPN for the edge, its part of the plan (the aws target's Client VPN endpoint:
+    ``fogiac.targets.aws.model.VpnSpec``); neutral code asks only whether there is one, and its name."""
+
+    @property
+    def label(self) -> str: ...
 
 
-@dataclass(frozen=True)
-class ImageQuery:
-    """How Compute finds its AMI: owner and name pattern, newest first."""
+class MachineImage(typing.Protocol):
+    """How the target finds a host's disk image (on aws an AMI query); the plan shows its description."""
 
-    owners: tuple[str, ...]
-    name_pattern: str
-    description: str
+    @property
+    def description(self) -> str: ...
 
 
 @dataclass(frozen=True)
@@ -155,7 +151,7 @@ class HostSpec:
     nodes: tuple[str, ...]
     steps: tuple[str, ...]
     tags: tuple[tuple[str, str], ...]
-    image: ImageQuery | None = None
+    image: MachineImage | None = None
     chosen_for: str | None = None  # the node's requirement in words, when compile chose the machine
     alternatives: tuple[Option, ...] = ()  # the next cheapest types that also fit
     ranked_by: RankedBy | None = None  # which price chose the machine (spot for a spot host); None: named
@@ -251,7 +247,7 @@ class Plan:
     ssh_from: tuple[str, ...]
     network: NetworkSpec | None
     security_groups: tuple[SecurityGroup, ...]
-    vpn: VpnSpec | None
+    vpn: EdgeVpn | None
     hosts: tuple[HostSpec, ...]
     nodes: tuple[NodeSpec, ...]
     relay: tuple[Route, ...]  # the routes (named for the relay until the plan document's key moves too)

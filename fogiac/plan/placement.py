@@ -11,20 +11,21 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Literal
 
+from fogiac.manifest.clouds import variant
+from fogiac.manifest.machines import MachineSpec
 from fogiac.manifest.schema import Manifest, Node
-from fogiac.plan.catalog import InstanceType, catalog
 from fogiac.plan.model import (
     OPERATOR,
     AutostopPower,
     AutostopSpec,
     ConnectVia,
     CostLine,
+    EdgeVpn,
     HostSpec,
-    ImageQuery,
+    MachineImage,
     NetworkMode,
     NetworkSpec,
     SecurityGroup,
-    VpnSpec,
 )
 
 Tags = tuple[tuple[str, str], ...]
@@ -40,7 +41,7 @@ class Placement:
     connect_via: ConnectVia  # which address of a host the edge relay dials
     network: NetworkSpec | None = None
     security_groups: tuple[SecurityGroup, ...] = ()
-    vpn: VpnSpec | None = None
+    vpn: EdgeVpn | None = None
     cost: tuple[CostLine, ...] = ()
     autostop: AutostopSpec | None = None
 
@@ -75,19 +76,20 @@ def steps_for(nodes: Sequence[Node]) -> tuple[str, ...]:
 
 
 def host_per_node(manifest: Manifest, *, stack: str, tags: Tags,
-                  usd_per_hour: Callable[[InstanceType], float] = lambda spec: 0.0,
+                  usd_per_hour: Callable[[MachineSpec], float] = lambda spec: 0.0,
                   spot: bool = False,
-                  spot_usd_per_hour: Callable[[InstanceType], float | None] = lambda spec: None,
-                  image: Callable[[InstanceType], ImageQuery | None] = lambda spec: None,
+                  spot_usd_per_hour: Callable[[MachineSpec], float | None] = lambda spec: None,
+                  image: Callable[[MachineSpec], MachineImage | None] = lambda spec: None,
                   address: str | None = None,
                   runtime: Literal["auto", "container", "native"] = "auto",
                   ) -> tuple[tuple[HostSpec, ...], dict[str, str]]:
     """One host per node, of the node's machine type: how ``aws`` and ``local`` place nodes."""
-    types = catalog().types
+    sizes = variant(manifest.cloud.provider)
     hosts = []
     for node in manifest.nodes:
-        choice = node.machine_choice(manifest.cloud.region, spot=node.spot and spot)
-        spec = types[choice.machine]
+        choice = node.machine_choice(manifest.cloud.region, spot=node.spot and spot, provider=manifest.cloud.provider)
+        spec = sizes.machine(choice.machine)
+        assert spec is not None, choice.machine  # the variant chose it
         hosts.append(HostSpec(
             name=node.name, machine=choice.machine, alternatives=choice.alternatives,
             chosen_for=choice.chosen_for, ranked_by=choice.ranked_by,

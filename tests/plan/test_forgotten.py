@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import pytest
 
-from fogiac.plan.forgotten import BEGIN, END, Forgotten, readme_table
+from fogiac.targets.aws.forgotten import BEGIN, END, Forgotten, readme_table
 from tests.conftest import EXAMPLES, REPO
 
 
 def test_readme_cost_table_matches_the_catalogue() -> None:
     text = (REPO / "README.md").read_text()
     block = text[text.index(BEGIN): text.index(END) + len(END)]
-    assert block == readme_table(EXAMPLES), "run: python -m fogiac.plan.forgotten --write README.md"
+    assert block == readme_table(EXAMPLES), "run: python -m fogiac.targets.aws.forgotten --write README.md"
 
 
 @pytest.mark.parametrize(("hours", "without", "with_autostop"), [

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from fogiac.manifest.schema import load_manifest
 from fogiac.lifecycle.edge import edge_dir, edge_idle_since
-from fogiac.plan.catalog import catalog
+from fogiac.targets.aws.catalog import catalog
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.guard import Billed, duration, guard, render, up_summary
 from fogiac.plan.model import Plan

@@ -9,7 +9,8 @@ import pytest
 from fogiac.errors import ManifestError
 from fogiac.manifest.schema import parse_manifest
 from fogiac.plan.compile import compile_plan
-from fogiac.plan.machines import Bound, NoMachine, Requirement, choose, parse_bound
+from fogiac.manifest.machines import Bound, NoMachine, Requirement, parse_bound
+from fogiac.targets.aws.machines import choose
 
 
 def req(gpu: bool | str | None = None, vcpus: str | None = None, memory: str | None = None) -> Requirement:

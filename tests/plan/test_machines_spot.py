@@ -14,9 +14,10 @@ from typer.testing import CliRunner
 
 from fogiac.cli import app
 from fogiac.manifest.schema import parse_manifest
-from fogiac.plan.catalog import catalog
+from fogiac.targets.aws.catalog import catalog
 from fogiac.plan.compile import compile_plan
-from fogiac.plan.machines import NoMachine, Requirement, choose
+from fogiac.manifest.machines import NoMachine, Requirement
+from fogiac.targets.aws.machines import choose
 
 from .test_machines import manifest, req
 

@@ -17,7 +17,7 @@ from fogiac.manifest.schema import parse_manifest
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.diff import diff_documents, leaves
 from fogiac.plan.document import document
-from fogiac.plan.replace import RULES, ReplaceRule, forces_replacement, known_types
+from fogiac.targets.aws.replace import RULES, ReplaceRule, forces_replacement, known_types
 
 MANIFEST = """\
 name: rules

@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 
 from fogiac.cli import app
 from fogiac.manifest.schema import parse_manifest
-from fogiac.plan.catalog import catalog
+from fogiac.targets.aws.catalog import catalog
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.cost import cost, hosts, saving_pct
 from fogiac.targets.aws.spot import on_demand

@@ -19,10 +19,11 @@ from dataclasses import dataclass
 from typing import Any
 
 from fogiac.errors import CloudError, CredentialsError, PreflightError
-from fogiac.extras import need
 from fogiac.manifest.schema import ssh_from_problem
-from fogiac.plan.catalog import catalog
-from fogiac.plan.model import OPERATOR, ImageQuery, Plan
+from fogiac.plan.model import OPERATOR, Plan
+from fogiac.targets.aws.catalog import catalog
+from fogiac.targets.aws.model import ImageQuery, image_of
+from fogiac.targets.aws.sdk import need
 from stacks import HOST_KEYS_BEGIN, HOST_KEYS_END
 
 STACK_TAG = "fogiac:stack"
@@ -253,14 +254,15 @@ def preflight(plan: Plan, *, ec2: Any = None, sts: Any = None, operator_cidr: st
         _check_gpus(ec2, plan, problems)
         resolved: dict[ImageQuery, str | None] = {}
         for host in plan.hosts:
-            if host.image is None:
+            image = image_of(host)
+            if image is None:
                 continue
-            if host.image not in resolved:
-                resolved[host.image] = resolve_image(ec2, host.image)
-                if resolved[host.image] is None:
-                    problems.append(f"no AMI matches {host.image.description} ({host.image.name_pattern!r}, "
-                                    f"owners {', '.join(host.image.owners)}) in {plan.region}")
-            if ami := resolved[host.image]:
+            if image not in resolved:
+                resolved[image] = resolve_image(ec2, image)
+                if resolved[image] is None:
+                    problems.append(f"no AMI matches {image.description} ({image.name_pattern!r}, "
+                                    f"owners {', '.join(image.owners)}) in {plan.region}")
+            if ami := resolved[image]:
                 images.append((host.name, ami))
     strangers = conflicts(ec2, plan.stack, known_ids=known_ids)
     if strangers:

@@ -21,11 +21,11 @@ from typing import Any
 
 from fogiac.certs import SSH_KEY, load_or_create_bundle, load_or_create_ssh_key, write_private
 from fogiac.errors import EngineError
-from fogiac.extras import need
 from fogiac.lifecycle.events import OnEvent, Progress
 from fogiac.lifecycle.events import Timers as _Timers
 from fogiac.plan.model import Plan
 from fogiac.state import read_json, stack_dir
+from fogiac.targets.aws.sdk import need
 from stacks import LAYERS, PROJECT
 
 # The one place the Pulumi CLI version is pinned: the release matching the pulumi SDK in use.
@@ -177,7 +177,7 @@ class Engine:
     def programs(self, *, operator_cidrs: tuple[str, ...],
                  network_outputs: Callable[[], Mapping[str, Any]]) -> dict[str, Callable[[], None]]:
         stack = self.plan.stack
-        return need("stacks.program", extra="aws").layer_programs(
+        return need("stacks.program").layer_programs(
             self.plan, certs=load_or_create_bundle(stack, stack_dir(stack) / CERTS_DIR),
             operator_cidrs=operator_cidrs, public_key_openssh=ssh_public_key(stack), network_outputs=network_outputs)
 

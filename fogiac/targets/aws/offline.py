@@ -17,8 +17,8 @@ from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
 from fogiac.certs import Bundle, KeyPair
-from fogiac.extras import need
 from fogiac.plan.model import OPERATOR_PLACEHOLDER, Plan
+from fogiac.targets.aws.sdk import need
 from stacks import LAYERS, PROJECT
 
 if TYPE_CHECKING:
@@ -210,7 +210,7 @@ def declare(plan: Plan, *, mocks: Any | None = None) -> OfflinePlan:
     if plan.network is None:
         return OfflinePlan(plan=plan, resources=(), outputs=MappingProxyType({}))
     pulumi = need("pulumi")
-    program = need("stacks.program", extra="aws")
+    program = need("stacks.program")
 
     mocks = mocks if mocks is not None else _mock_class()()
     order: list[tuple[str, str, str]] = []

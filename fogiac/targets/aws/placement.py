@@ -4,22 +4,21 @@ from __future__ import annotations
 
 from fogiac.manifest.schema import Manifest
 from fogiac.net import middleware
-from fogiac.plan.catalog import catalog
 from fogiac.plan.model import (
     ROS_EPHEMERAL,
     ROS_MASTER_PORT,
     SSH_PORT,
     CostLine,
     HostSpec,
-    ImageQuery,
     NetworkSpec,
     Rule,
     SecurityGroup,
     Subnet,
-    VpnSpec,
     server_name,
 )
 from fogiac.plan.placement import Placement, Tags, autostop_for, host_per_node, ssh_sources
+from fogiac.targets.aws.catalog import catalog
+from fogiac.targets.aws.model import ImageQuery, VpnSpec
 
 _WORLD = "0.0.0.0/0"
 AUTOSTOP_MINUTES = 30  # unless the manifest says otherwise, an EC2 host idle this long powers itself off
@@ -117,9 +116,10 @@ def place(manifest: Manifest, *, stack: str, tags: Tags) -> Placement:
     region = manifest.cloud.region
     vpn_mode = manifest.network.mode == "vpn"
     network = _network(manifest)
+    types = catalog().types
     hosts, node_hosts = host_per_node(
-        manifest, stack=stack, tags=tags, usd_per_hour=lambda spec: spec.usd_per_hour[region], spot=True,
-        spot_usd_per_hour=lambda spec: spec.spot_usd_per_hour(region),
+        manifest, stack=stack, tags=tags, usd_per_hour=lambda spec: types[spec.name].usd_per_hour[region], spot=True,
+        spot_usd_per_hour=lambda spec: types[spec.name].spot_usd_per_hour(region),
         image=lambda spec: NVIDIA if spec.has_gpu else UBUNTU)
     vpn = _vpn(manifest, stack, network) if vpn_mode else None
     return Placement(

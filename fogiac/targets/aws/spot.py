@@ -13,6 +13,7 @@ import dataclasses
 from collections.abc import Collection
 
 from fogiac.plan.model import Plan
+from fogiac.targets.aws.model import vpn_of
 from fogiac.targets.aws.placement import cost_lines
 
 ON_DEMAND = "on_demand_fallback"  # in outputs.json: spot hosts that run on-demand
@@ -32,7 +33,7 @@ def on_demand(plan: Plan, hosts: Collection[str]) -> Plan:
         return plan
     specs = tuple(dataclasses.replace(h, spot=False, spot_usd_per_hour=None) if h.name in hosts else h
                   for h in plan.hosts)
-    return dataclasses.replace(plan, hosts=specs, cost=cost_lines(specs, plan.vpn))
+    return dataclasses.replace(plan, hosts=specs, cost=cost_lines(specs, vpn_of(plan)))
 
 
 def fallback_line(plan: Plan, host: str, code: str) -> str:

@@ -17,9 +17,7 @@ from fogiac.lifecycle.edge import edge_idle_since
 from fogiac.lifecycle.events import OnEvent
 from fogiac.lifecycle.report import autostop_line
 from fogiac.manifest.schema import Manifest
-from fogiac.net.vpn import write_client_profile
 from fogiac.plan import drift, guard
-from fogiac.plan.catalog import catalog
 from fogiac.plan.document import APPLIED_FILE
 from fogiac.plan.model import Plan
 from fogiac.plan.placement import Placement, Tags
@@ -29,6 +27,8 @@ from fogiac.state import read_json, stack_dir, stack_lock, write_json_atomic
 from fogiac.tables import table
 from fogiac.targets.aws import api, engine, observe, offline, placement, spot
 from fogiac.targets.aws import sweep as sweeping
+from fogiac.targets.aws.catalog import catalog
+from fogiac.targets.aws.vpn import write_client_profile
 from fogiac.targets.base import (
     Check,
     Created,

@@ -24,7 +24,7 @@ from typing import Iterator
 import pytest
 
 from fogiac import certs
-from fogiac.net.vpn import render_server_config, write_client_profile
+from fogiac.targets.aws.vpn import render_server_config, write_client_profile
 from tests.support.netns import Namespace, NetLab, skip_reason
 
 pytestmark = pytest.mark.root

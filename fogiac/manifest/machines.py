@@ -1,15 +1,11 @@
-"""Machines chosen by requirement: the cheapest catalogue type that fits, and the runners-up.
+"""What a node needs of its machine, and the choice a target's catalogue makes from it.
 
 A node may ask for what it needs (``machine: {gpu: T4, vcpus: ">=8", memory_gib: ">=16"}``)
-instead of naming a type. Compile resolves that here, against the checked-in catalogue and the
-manifest's region, so the choice is the same on every machine and shows in ``fogiac plan`` with
-the next alternatives and their prices, the way FogROS2-Config offers a menu. Pure: no network.
-
-A spot node is ranked by the catalogue's spot estimate (on-demand less the Spot Instance
-Advisor's saving), since that is what it is expected to cost; the saving differs by type, so the
-cheapest on-demand type is not always the cheapest spot one. The choice says which price ranked it.
-Ties on price go to the smaller machine (fewer vCPUs, then less memory), then to the name in
-alphabetical order, so equal manifests always resolve to the same type.
+instead of naming a type. This module holds the provider-neutral words for that (bounds, the
+requirement, the choice and its runners-up); the target whose catalogue sizes the machines
+resolves it (for ``aws``: ``fogiac.targets.aws.machines``, against the checked-in catalogue and
+the manifest's region), so the choice is the same on every machine and shows in ``fogiac plan``
+with the next alternatives and their prices, the way FogROS2-Config offers a menu. Pure: no network.
 """
 
 from __future__ import annotations
@@ -18,9 +14,7 @@ import operator
 import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Literal
-
-from fogiac.plan.catalog import InstanceType, catalog
+from typing import Literal, Protocol
 
 _BOUND = re.compile(r"^\s*(>=|<=|==|>|<)?\s*(\d+(?:\.\d+)?)\s*$")
 _OPS: Mapping[str, Callable[[float, float], bool]] = {
@@ -29,6 +23,23 @@ _OPS: Mapping[str, Callable[[float, float], bool]] = {
 _STRICT_MISS = 0.01  # what a value on the wrong side of a strict bound misses by, at least
 ALTERNATIVES = 2  # how many runners-up a plan shows beside the choice
 RankedBy = Literal["on-demand", "spot"]  # which catalogue price put the types in order
+
+
+class MachineSpec(Protocol):
+    """The hardware of one catalogue type, as a requirement measures it."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def vcpus(self) -> int: ...
+    @property
+    def gpus(self) -> int: ...
+    @property
+    def memory_gib(self) -> float: ...
+    @property
+    def gpu_model(self) -> str | None: ...
+    @property
+    def has_gpu(self) -> bool: ...
 
 
 @dataclass(frozen=True)
@@ -83,16 +94,16 @@ class Requirement:
             parts.append(f"memory_gib {self.memory_gib}")
         return ", ".join(parts) or "any machine"
 
-    def _gpu_miss(self, spec: InstanceType) -> float:
+    def _gpu_miss(self, spec: MachineSpec) -> float:
         if self.gpu is None or self.gpu is False:
             return 0.0
         if not spec.has_gpu:
             return 2.0
-        if isinstance(self.gpu, str) and not _same_gpu(self.gpu, spec.gpu_model):
+        if isinstance(self.gpu, str) and not same_gpu(self.gpu, spec.gpu_model):
             return 1.0
         return 0.0
 
-    def miss(self, spec: InstanceType) -> float:
+    def miss(self, spec: MachineSpec) -> float:
         """0 when ``spec`` fits; otherwise a distance used to name the closest types."""
         total = self._gpu_miss(spec)
         if self.vcpus is not None:
@@ -102,7 +113,7 @@ class Requirement:
         return total
 
 
-def _same_gpu(asked: str, model: str | None) -> bool:
+def same_gpu(asked: str, model: str | None) -> bool:
     """``T4`` matches ``NVIDIA T4``; case does not matter."""
     if model is None:
         return False
@@ -129,47 +140,19 @@ class Choice:
     spot_usd_per_hour: float | None = None  # the chosen type's spot estimate, when spot prices ranked it
 
 
+@dataclass(frozen=True)
+class PriceSource:
+    """Where a target's catalogue prices come from, and what its network bills while it stands."""
+
+    source: str
+    as_of: str
+    spot_source: str
+    spot_as_of: str
+    spot_method: str
+    spot_ceiling: str = ""  # why a spot estimate is at most on-demand, in the provider's words
+    network_usd_per_hour: float = 0.0  # billed while the network exists, whether or not an edge is connected
+    network_item: str = ""  # that charge in words, as a status line and a cost note name it
+
+
 class NoMachine(ValueError):
     """Nothing in the catalogue fits; the message names the closest types in one line."""
-
-
-def offered(region: str) -> list[InstanceType]:
-    """Catalogue types with a price in ``region`` (the catalogue lists only what the region offers)."""
-    return [spec for spec in catalog().types.values() if region in spec.usd_per_hour]
-
-
-def _spot(spec: InstanceType, region: str, by: RankedBy) -> float | None:
-    return spec.spot_usd_per_hour(region) if by == "spot" else None
-
-
-def price(spec: InstanceType, region: str, by: RankedBy) -> float:
-    """The price ``by`` ranks with; a type without a spot estimate ranks at on-demand, the most spot costs."""
-    spot = _spot(spec, region, by)
-    return spec.usd_per_hour[region] if spot is None else spot
-
-
-def _rank(spec: InstanceType, region: str, by: RankedBy) -> tuple[float, int, float, str]:
-    return (price(spec, region, by), spec.vcpus, spec.memory_gib, spec.name)
-
-
-def _label(spec: InstanceType, region: str, by: RankedBy) -> str:
-    gpu = f"{spec.gpus}x {spec.gpu_model}, " if spec.has_gpu else ""
-    spot = _spot(spec, region, by)
-    cost = f"${spec.usd_per_hour[region]:g}/h" + (f", spot about ${spot:g}/h" if spot is not None else "")
-    return f"{spec.name} ({gpu}{spec.vcpus} vCPU, {spec.memory_gib:g} GiB, {cost})"
-
-
-def choose(req: Requirement, region: str, *, spot: bool = False) -> Choice:
-    """The cheapest type in ``region`` that meets ``req``, at the spot estimate when ``spot``;
-    raises :class:`NoMachine` if none fits."""
-    by: RankedBy = "spot" if spot else "on-demand"
-    types = offered(region)
-    fits = sorted((s for s in types if req.miss(s) == 0.0), key=lambda s: _rank(s, region, by))
-    if not fits:
-        closest = sorted(types, key=lambda s: (req.miss(s),) + _rank(s, region, by))[:3]
-        raise NoMachine(f"no instance type in {region} has {req.describe()}; closest: "
-                        + ", ".join(_label(s, region, by) for s in closest))
-    best, rest = fits[0], fits[1:1 + ALTERNATIVES]
-    return Choice(machine=best.name, usd_per_hour=best.usd_per_hour[region],
-                  alternatives=tuple(Option(s.name, s.usd_per_hour[region], _spot(s, region, by)) for s in rest),
-                  chosen_for=req.describe(), ranked_by=by, spot_usd_per_hour=_spot(best, region, by))

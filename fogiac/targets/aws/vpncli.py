@@ -1,9 +1,10 @@
 """``fogiac vpn up|down|status``: run the edge's OpenVPN on the stack's Client VPN profile.
 
 Thin: picks the profile (``--profile PATH``, else the one in the state folder of the
-manifest's stack for ``--env``), calls
-:mod:`fogiac.net.vpn`, prints one line. Everything is idempotent and exits 0 when there is
-nothing to do; errors (not root, no openvpn, tunnel failed) exit 1 with one line.
+manifest's stack for ``--env``), calls :mod:`.vpn`, prints one line. Everything is idempotent
+and exits 0 when there is nothing to do; errors (not root, no openvpn, tunnel failed) exit 1
+with one line. The aws target contributes these commands (plug-in group ``fogiac.commands``);
+the CLI imports no target.
 """
 
 from __future__ import annotations
@@ -13,8 +14,8 @@ from pathlib import Path
 import typer
 
 from fogiac.cli._common import ENV, load
-from fogiac.net.vpn import TunnelStatus, default_profile_path, tunnel_down, tunnel_status, tunnel_up
 from fogiac.plan.compile import stack_name
+from fogiac.targets.aws.vpn import TunnelStatus, default_profile_path, tunnel_down, tunnel_status, tunnel_up
 
 _MANIFEST = typer.Argument(Path("fogiac.yaml"), help="The manifest (or launch file) whose stack's profile to use.")
 _PROFILE = typer.Option(None, "--profile", help="Use this client.ovpn instead.", dir_okay=False)
@@ -38,6 +39,12 @@ def _describe(status: object) -> str:
 
 
 def register(app: typer.Typer) -> None:
+    """Add ``fogiac vpn`` to the CLI (the ``fogiac.commands`` entry point ``vpn`` names this module)."""
+    app.add_typer(commands(), name="vpn")
+
+
+def commands() -> typer.Typer:
+    """``fogiac vpn``'s sub-commands."""
     vpn = typer.Typer(help="Run the edge's Client VPN connection (OpenVPN, needs root).",
                       no_args_is_help=True)
 
@@ -60,4 +67,4 @@ def register(app: typer.Typer) -> None:
         """Say whether OpenVPN runs, on which tun device, with which address."""
         typer.echo(f"VPN {_describe(tunnel_status(profile=_profile(manifest, profile, env)))}")
 
-    app.add_typer(vpn, name="vpn")
+    return vpn

@@ -1,0 +1,80 @@
+"""The ``cloud:`` block's variants: each target contributes the checks only it can make.
+
+Where machines come from decides what a region, a zone and a machine name mean, so the schema
+does not know: it asks the variant the manifest's ``provider`` names, through the plug-in registry
+(group ``fogiac.clouds``), for its region and zone checks, whether a machine name exists and has
+a GPU, and which machine a node's requirement resolves to. A variant raises
+:class:`~fogiac.manifest.problems.FieldProblem` with its own words; the schema places them.
+
+A node's machine is checked where the node is, before the ``cloud:`` block's own checks: the
+schema passes the provider it read from the raw manifest as validation context, and a model
+built without one (in code, or the checks across fields) names machines in :data:`DEFAULT`'s
+terms (targets without a catalogue of their own size and price their machines in the default's).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Protocol
+
+from fogiac import registry
+from fogiac.manifest.machines import Choice, MachineSpec, PriceSource, Requirement
+
+GROUP = "fogiac.clouds"
+DEFAULT = "aws"  # the provider a manifest without ``provider:`` names
+
+
+class CloudVariant(Protocol):
+    """What a target answers about its part of the manifest's ``cloud:`` block."""
+
+    def regions(self) -> Sequence[str]: ...
+
+    def check_region(self, region: str) -> None:
+        """Raise :class:`FieldProblem` when ``region`` is not one the target serves."""
+
+    def check_zone(self, zone: str, region: str) -> None:
+        """Raise :class:`FieldProblem` (field ``zone``) when ``zone`` is not in ``region``."""
+
+    def check_edge_vpn_range(self, cidr: str, prefix: int) -> None:
+        """Raise ``ValueError`` when the edge's VPN address range (``network.client_cidr``) is outside
+        what the target's VPN allows."""
+
+    def machine_names(self) -> Sequence[str]: ...
+
+    def machine(self, name: str) -> MachineSpec | None:
+        """The named machine type's hardware, or None."""
+
+    def check_machine(self, name: str) -> None:
+        """Raise :class:`FieldProblem` when ``name`` is not a known machine type."""
+
+    def check_gpu(self, name: str) -> None:
+        """Raise :class:`FieldProblem` (field ``machine``) when ``name`` has no GPU but one is asked for."""
+
+    def choose(self, named: str | None, need: Requirement | None, region: str, *, spot: bool) -> Choice:
+        """The named type at its price in ``region``, or the cheapest that meets ``need``; raises
+        :class:`~fogiac.manifest.machines.NoMachine` when none does."""
+
+    def prices(self) -> PriceSource:
+        """Where the machine prices come from, and the network's standing charge."""
+
+
+def providers(*, own: bool = False) -> tuple[str, ...]:
+    """Every provider a manifest may name: fogiac's and those of other installed packages (``own``: fogiac's)."""
+    return registry.names(GROUP, own=own)
+
+
+def known(provider: object) -> bool:
+    """Whether ``provider`` names a variant."""
+    return isinstance(provider, str) and registry.known(GROUP, provider)
+
+
+def variant(provider: str | None = None) -> CloudVariant:
+    """The ``cloud:`` variant of ``provider`` (default: :data:`DEFAULT`)."""
+    found: CloudVariant = registry.load(GROUP, provider or DEFAULT)
+    return found
+
+
+def prices(target: str | None = None) -> PriceSource:
+    """Where ``target``'s prices come from; a target without a ``cloud:`` variant of its own (one
+    registered in code only) prices its machines in the default's terms, as it sized them."""
+    return variant(target if known(target) else None).prices()

@@ -17,9 +17,9 @@ from pathlib import Path
 
 from fogiac.errors import FogiacError
 from fogiac.plan.model import Plan
-from fogiac.state import read_json, stack_dir, write_json_atomic
+from fogiac.state import StackState, read_json, write_json_atomic
 
-RECORD_FILE = "stack.json"
+RECORD_FILE = StackState.RECORD
 PARTIAL = "partial"  # up started and did not finish (interrupted or failed): things may exist
 COMPLETE = "complete"
 REMOVED = "removed"  # down removed everything; the stack is free for any target or manifest
@@ -46,7 +46,7 @@ class Deployment:
 
 
 def _path(stack: str) -> Path:
-    return stack_dir(stack, create=False) / RECORD_FILE
+    return StackState(stack).record
 
 
 def read(stack: str) -> Deployment | None:
@@ -73,7 +73,7 @@ def begin(plan: Plan, manifest: Path) -> Deployment:
         stack=plan.stack, target=plan.target, manifest=manifest_id(manifest), state=PARTIAL,
         since=old.since if old else time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(now)),
         since_epoch=old.since_epoch if old else now, plan_digest=old.plan_digest if old else "")
-    write_json_atomic(stack_dir(plan.stack) / RECORD_FILE, asdict(record))
+    StackState(plan.stack).write(RECORD_FILE, asdict(record))
     return record
 
 
@@ -81,7 +81,7 @@ def finish(plan: Plan, manifest: Path, *, plan_digest: str) -> Deployment:
     """``up`` completed: everything the plan asks for exists."""
     record = begin(plan, manifest)
     done = Deployment(**{**asdict(record), "state": COMPLETE, "plan_digest": plan_digest})
-    write_json_atomic(stack_dir(plan.stack) / RECORD_FILE, asdict(done))
+    StackState(plan.stack).write(RECORD_FILE, asdict(done))
     return done
 
 

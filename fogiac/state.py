@@ -1,7 +1,16 @@
 """fogiac's state directory: keys, certificates, Pulumi backend, applied plans, locks.
 
 It lives outside any repository (``$FOGIAC_STATE_DIR``, else ``~/.fogiac``), one folder per
-stack (manifest name and environment), created 0700 because it holds private keys.
+stack (manifest name and environment), created 0700 because it holds private keys. A
+:class:`StackState` owns one stack's folder: every file fogiac keeps there is named by it, once.
+
+::
+
+    stack.json        the deployment record (fogiac.deployment)        applied.json   what the last up applied
+    deployment.json   the edge's links as the last up made them        refreshed.json what refresh saw
+    lock.json         who holds the stack now                         known_hosts    the hosts' pinned keys
+    certs/            the stack's CA and the edge's certificates       edge/          the edge's processes
+    <target's own>    named by the target (the aws target's outputs.json, host-keys.json, pulumi/ ...)
 """
 
 from __future__ import annotations
@@ -11,7 +20,7 @@ import os
 import socket
 import time
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -76,6 +85,85 @@ def read_json(path: Path) -> Any | None:
         raise StateError(f"{path}: unreadable state file ({err})") from None
 
 
+class StackState:
+    """One stack's folder: a typed path for each file every target shares, and the stack's lock.
+
+    Asking for a path creates nothing; :meth:`ensure` makes the folder (0700) for a writer.
+    A target's own files live here too, named in its folder (:meth:`file`).
+    """
+
+    RECORD = "stack.json"
+    APPLIED = "applied.json"
+    DEPLOYMENT = "deployment.json"
+    REFRESHED = "refreshed.json"
+    LOCK = "lock.json"
+    KNOWN_HOSTS = "known_hosts"
+    CERTS = "certs"
+    EDGE = "edge"
+
+    def __init__(self, stack: str) -> None:
+        self.stack = stack
+        self.folder = stack_dir(stack, create=False)  # checks the name; creates nothing
+
+    def __repr__(self) -> str:
+        return f"StackState({self.stack!r})"
+
+    def exists(self) -> bool:
+        return self.folder.exists()
+
+    def ensure(self) -> Path:
+        """The folder, made (0700) if it is not there yet."""
+        return stack_dir(self.stack)
+
+    def file(self, name: str) -> Path:
+        return self.folder / name
+
+    @property
+    def record(self) -> Path:
+        return self.folder / self.RECORD
+
+    @property
+    def applied(self) -> Path:
+        return self.folder / self.APPLIED
+
+    @property
+    def deployment(self) -> Path:
+        return self.folder / self.DEPLOYMENT
+
+    @property
+    def refreshed(self) -> Path:
+        return self.folder / self.REFRESHED
+
+    @property
+    def known_hosts(self) -> Path:
+        return self.folder / self.KNOWN_HOSTS
+
+    @property
+    def certs(self) -> Path:
+        return self.folder / self.CERTS
+
+    @property
+    def edge(self) -> Path:
+        return self.folder / self.EDGE
+
+    def read(self, name: str) -> Any | None:
+        """A JSON file of the stack (None when it is not there)."""
+        return read_json(self.folder / name)
+
+    def write(self, name: str, data: Any) -> Path:
+        """A JSON file of the stack, 0600, atomically; the folder is made if needed."""
+        self.ensure()
+        write_json_atomic(self.folder / name, data)
+        return self.folder / name
+
+    def remove(self, *names: str) -> None:
+        for name in names:
+            (self.folder / name).unlink(missing_ok=True)
+
+    def lock(self, *, operation: str) -> AbstractContextManager[None]:
+        return stack_lock(self.stack, operation=operation)
+
+
 @contextmanager
 def stack_lock(stack: str, *, operation: str) -> Iterator[None]:
     """Hold the stack's lock for ``operation``; a second holder fails at once, naming the first.
@@ -83,7 +171,7 @@ def stack_lock(stack: str, *, operation: str) -> Iterator[None]:
     The lock is a file created with O_EXCL holding who took it; a lock whose process is gone
     (same host) is stale and taken over.
     """
-    path = stack_dir(stack) / "lock.json"
+    path = stack_dir(stack) / StackState.LOCK
     me = {"pid": os.getpid(), "host": socket.gethostname(), "operation": operation,
           "since": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
     for _ in range(2):

@@ -177,3 +177,10 @@ def test_no_branch_on_a_target_name_outside_its_own_folder() -> None:
             if "target" in text and any(c in TARGET_NAMES for c in consts):
                 offenders.append(f"{path.relative_to(REPO)}:{node.lineno}: {text}")
     assert offenders == []
+
+
+def test_only_the_stack_state_names_the_stack_folder() -> None:
+    """A :class:`fogiac.state.StackState` owns a stack's folder: nothing else builds its path."""
+    offenders = sorted(f"{path.relative_to(REPO)}:{line}" for m, path in MODULES.items() if m != "fogiac.state"
+                       for line, text in _code_lines(path) if text == "stack_dir")
+    assert offenders == []

@@ -25,7 +25,7 @@ from fogiac.provision import teardown as tear_down
 from fogiac.provision.managers import manager_for
 from fogiac.provision.report import report_table
 from fogiac.provision.services import Layout
-from fogiac.state import stack_dir, stack_lock
+from fogiac.state import StackState, stack_lock
 from fogiac.tables import console
 
 
@@ -35,7 +35,7 @@ def _host_of(node: str, manifest: Path, env: str) -> tuple[str, Any, str, Path, 
     known = sorted(n.name for n in plan.nodes)
     if node not in known:
         raise ProvisionError(f"{manifest} has no node {node!r}; its nodes: {', '.join(known)}")
-    state = stack_dir(plan.stack, create=False)
+    state = StackState(plan.stack).folder
     for name, (access, base, nodes) in recorded_access(state).items():
         if node in nodes:
             return name, access, base, state, plan
@@ -57,16 +57,17 @@ def register(app: typer.Typer) -> None:
             usable = ", ".join(n for n in targets.names() if Feature.CREATES_MACHINES not in targets.get(n).features)
             raise ProvisionError(f"`fogiac provision` is for targets whose machines exist ({usable}); "
                                  f"{plan.target} hosts are provisioned by `fogiac up`")
-        state = stack_dir(plan.stack)
+        stack = StackState(plan.stack)
+        state = stack.ensure()
         screen = console()
         with stack_lock(plan.stack, operation="teardown" if teardown else "provision"):
             hosts = chosen.reach(plan, Created(plan=plan), announce=lambda line: None).access
             if teardown:
                 report = tear_down(plan, hosts=hosts, state_dir=state)
             else:
-                load_or_create_bundle(plan.stack, state / "certs")
+                load_or_create_bundle(plan.stack, stack.certs)
                 with screen.status(f"provisioning {len(plan.hosts)} host(s)"):
-                    report = provision(plan, hosts=hosts, state_dir=state, certs_dir=state / "certs",
+                    report = provision(plan, hosts=hosts, state_dir=state, certs_dir=stack.certs,
                                        health_timeout=health_timeout, allow_install=allow_install)
         screen.print(report_table(report, title="teardown" if teardown else "provisioning"))
         for failed in report.failed:  # whole lines, whatever the terminal's width

@@ -27,7 +27,7 @@ from fogiac.plan.compile import compile_plan
 from fogiac.plan.cost import MONTH, menu_line, per_month, saving_pct
 from fogiac.plan.diff import PlanDiff, annotate, diff_documents, with_drift
 from fogiac.plan.document import APPLIED_FILE, document, plan_document
-from fogiac.state import read_json, stack_dir, write_json_atomic
+from fogiac.state import StackState, write_json_atomic
 from fogiac.tables import console, table
 
 KEY_INPUTS = "fogiac.key_inputs"  # plug-in group: a Pulumi package -> {resource type: the inputs worth a glance}
@@ -62,7 +62,7 @@ def _before(compiled: Any, *, against: str | None, target: str | None, env: str)
         plan = compile_plan(base.manifest, target=target, environment=env)
         return document(plan, targets.get(plan.target).declare(plan), manifest_path=against,
                         manifest_sha256=base.sha256), against
-    applied = read_json(stack_dir(compiled.stack, create=False) / APPLIED_FILE)
+    applied = StackState(compiled.stack).read(APPLIED_FILE)
     return (applied, f"what was applied to {compiled.stack}") if isinstance(applied, dict) else (None, "nothing")
 
 

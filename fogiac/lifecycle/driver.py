@@ -20,7 +20,7 @@ from fogiac.lifecycle.events import OnEvent
 from fogiac.manifest.schema import Manifest
 from fogiac.plan.model import Plan
 from fogiac.plan.placement import Placement, Tags
-from fogiac.state import stack_dir
+from fogiac.state import StackState
 
 
 class Feature(str, Enum):
@@ -224,7 +224,7 @@ class Target(Protocol):
 @contextmanager
 def untouched_on_failure(stack: str) -> Iterator[Callable[[], None]]:
     """Remove the stack folder again if this run created it and fails before ``commit()``."""
-    existed = stack_dir(stack, create=False).exists()
+    existed = StackState(stack).exists()
     committed = False
 
     def commit() -> None:
@@ -234,7 +234,7 @@ def untouched_on_failure(stack: str) -> Iterator[Callable[[], None]]:
     try:
         yield commit
     except BaseException:
-        path = stack_dir(stack, create=False)
+        path = StackState(stack).folder
         if not existed and not committed and path.exists():
             shutil.rmtree(path, ignore_errors=True)
         raise

@@ -19,10 +19,9 @@ from fogiac.errors import ProvisionError
 from fogiac.net import middleware
 from fogiac.plan.model import Plan
 from fogiac.provision import provision, supervise
-from fogiac.state import read_json, stack_dir, write_json_atomic
+from fogiac.state import StackState, read_json
 
-DEPLOYMENT_FILE = "deployment.json"
-EDGE_DIR = "edge"
+DEPLOYMENT_FILE = StackState.DEPLOYMENT
 STATS_STALE_S = 30.0  # a relay writes its stats every second: this much older and it no longer runs
 
 
@@ -36,7 +35,10 @@ class FleetUp:
 
 
 def edge_dir(plan: Plan, *, create: bool = True) -> Path:
-    return stack_dir(plan.stack, create=create) / EDGE_DIR
+    state = StackState(plan.stack)
+    if create:
+        state.ensure()
+    return state.edge
 
 
 def ensure_edge_master(plan: Plan, uri: str, *, start: bool) -> None:
@@ -58,16 +60,15 @@ def provision_and_connect(plan: Plan, *, access: Mapping[str, Any], connect: Map
     its instances' addresses and pinned host keys. A failed host fails the run; the others stay
     up so ``fogiac down`` (or a fixed re-run) finds them.
     """
-    folder = stack_dir(plan.stack)
-    certs = folder / "certs"
+    state = StackState(plan.stack)
+    folder, certs = state.ensure(), state.certs
     load_or_create_bundle(plan.stack, certs)
     report = provision(plan, hosts=access, state_dir=folder, certs_dir=certs, progress=progress,
                        dialed=dialed_addresses(connect))
     relays = {o.host: connect[o.host] for o in report.hosts if o.ok and o.host in connect}
     notes = middleware.deployment(plan.middleware).edge_up(plan, entry=master, connect=relays, certs=certs,
                                                            folder=edge_dir(plan)) if relays else []
-    deployment = folder / DEPLOYMENT_FILE
-    write_json_atomic(deployment, {
+    deployment = state.write(DEPLOYMENT_FILE, {
         "target": plan.target, "edge_master": master, "relays": relays,
         "started_edge_master": started_edge_master, "nodes": {n.name: n.host for n in plan.nodes},
     })
@@ -78,7 +79,7 @@ def provision_and_connect(plan: Plan, *, access: Mapping[str, Any], connect: Map
 
 
 def edge_services(plan: Plan) -> list[str]:
-    folder = stack_dir(plan.stack, create=False) / EDGE_DIR  # asking creates nothing
+    folder = StackState(plan.stack).edge  # asking creates nothing
     return sorted(p.stem for p in folder.glob("*.pid")) if folder.exists() else []
 
 

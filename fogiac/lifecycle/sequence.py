@@ -9,6 +9,7 @@ A target (:class:`~fogiac.lifecycle.driver.Target`) answers only the questions t
 
 from __future__ import annotations
 
+import shutil
 import time
 from typing import Any
 
@@ -37,7 +38,7 @@ from fogiac.net import middleware
 from fogiac.plan.document import APPLIED_FILE, plan_document
 from fogiac.plan.model import Plan
 from fogiac.provision import recorded_access, teardown
-from fogiac.state import read_json, stack_dir, stack_lock, write_json_atomic
+from fogiac.state import StackState, stack_lock
 
 
 def up(target: Target, plan: Plan, opts: UpOptions) -> UpResult:
@@ -47,6 +48,7 @@ def up(target: Target, plan: Plan, opts: UpOptions) -> UpResult:
     # `plan --detailed-exitcode` compares like with like.
     doc = plan_document(plan, target.declare(plan), manifest=opts.manifest_path)
     infra_only = opts.infra_only and Feature.INFRA_ONLY in target.features
+    existed = StackState(plan.stack).exists()
     with untouched_on_failure(plan.stack) as commit, stack_lock(plan.stack, operation="up"):
         prepared = target.prepare(plan, ssh_from=opts.ssh_from)
         opts.show(doc, prepared.summary)
@@ -59,7 +61,7 @@ def up(target: Target, plan: Plan, opts: UpOptions) -> UpResult:
         before = deployment.read(plan.stack)
         deployment.begin(prepared.plan, opts.manifest_path)  # before anything exists, so down always finds it
         if not infra_only:  # before anything is made: the robot's side must be there to connect
-            _edge_or_undo(prepared.plan, master, start=opts.start_edge_master, before=before)
+            _edge_or_undo(prepared.plan, master, start=opts.start_edge_master, before=before, existed=existed)
         created = target.create(prepared.plan, prepared, announce=opts.announce, on_event=opts.on_event)
         plan = created.plan
         report, relays = None, {}
@@ -70,19 +72,23 @@ def up(target: Target, plan: Plan, opts: UpOptions) -> UpResult:
             for note in done.notes:
                 opts.announce(note)
             report, relays = done.report, dict(done.relays)
-        applied = stack_dir(plan.stack) / APPLIED_FILE
-        write_json_atomic(applied, doc)
+        applied = StackState(plan.stack).write(APPLIED_FILE, doc)
         deployment.finish(plan, opts.manifest_path, plan_digest=doc["plan_digest"])
     return UpResult(outputs=created.outputs or {"relays": relays}, applied=applied, report=report, relays=relays,
                     edge_master=master, plan=plan, machines=created.machines)
 
 
-def _edge_or_undo(plan: Plan, master: str, *, start: bool, before: deployment.Deployment | None) -> None:
-    """Start (or check) the robot's side; if that fails, nothing was made: the record goes back to what it was."""
+def _edge_or_undo(plan: Plan, master: str, *, start: bool, before: deployment.Deployment | None,
+                  existed: bool) -> None:
+    """Start (or check) the robot's side. If that fails, nothing was made: the stack's folder goes if this
+    run made it, else the record goes back to what it was. (Interrupted instead, the record stays
+    partial: a master may have started, and ``down`` stops it.)"""
     try:
         ensure_edge_master(plan, master, start=start)
     except FogiacError:
-        if before is None:
+        if not existed:
+            shutil.rmtree(StackState(plan.stack).folder, ignore_errors=True)
+        elif before is None:
             deployment.forget(plan.stack)
         elif not before.exists:
             deployment.removed(plan.stack)
@@ -92,7 +98,8 @@ def _edge_or_undo(plan: Plan, master: str, *, start: bool, before: deployment.De
 def down(target: Target, plan: Plan, opts: DownOptions) -> DownResult:
     """Stop the edge, stop what runs on machines that stay, destroy what was made, prove nothing is left."""
     target.ready(plan, verb="down")  # missing credentials: one line, before anything is destroyed
-    folder = stack_dir(plan.stack, create=False)
+    state = StackState(plan.stack)
+    folder = state.folder
     record = deployment.read(plan.stack)
     known = record is not None and record.exists
     if not known and not recorded_access(folder) and not edge_services(plan) and not target.recorded(plan):
@@ -114,8 +121,7 @@ def down(target: Target, plan: Plan, opts: DownOptions) -> DownResult:
         deleted += destroyed.deleted
         left = [f"process {e['name']} (pid {e['pid']})" for e in running_edge(plan)] + list(destroyed.left)
         if not left and not errors:
-            (folder / DEPLOYMENT_FILE).unlink(missing_ok=True)
-            (folder / APPLIED_FILE).unlink(missing_ok=True)
+            state.remove(DEPLOYMENT_FILE, APPLIED_FILE)
             target.forget(plan, keep_network=opts.keep_network)
             if destroyed.kept:
                 deployment.cut_back(plan.stack)
@@ -129,14 +135,15 @@ def status(target: Target, plan: Plan, *, now: float | None = None) -> dict[str,
     """The record (deployed, partial), the target's machines and cost, and the edge's processes and links."""
     now = time.time() if now is None else now
     head = {"stack": plan.stack, "target": plan.target}
-    folder = stack_dir(plan.stack, create=False)
+    state = StackState(plan.stack)
+    folder = state.folder
     record = deployment.read(plan.stack)
     known = record is not None and record.exists
     provisioned = bool(recorded_access(folder))  # provisioning's own record of the hosts it reached
     if not known and not provisioned and not target.recorded(plan):
         return {**head, "deployed": False, "hosts": [], "relays": [], "edge": []}
     described = target.describe(plan, now=now)  # first: a target that cannot answer (no credentials) stops here
-    saved = (read_json(folder / DEPLOYMENT_FILE) or {}) if folder.exists() else {}
+    saved = state.read(DEPLOYMENT_FILE) or {}
     relays = middleware.deployment(plan.middleware).edge_links(plan, folder=edge_dir(plan, create=False),
                                                                connect=saved.get("relays", {}))
     return {**head, "deployed": True, "partial": record.partial if record is not None and known else provisioned,

@@ -25,9 +25,10 @@ from fogiac import __version__
 from fogiac.net import middleware
 from fogiac.plan import cost
 from fogiac.plan.model import NodeSpec, Plan, Rule
+from fogiac.state import StackState
 
 FORMAT_VERSION = 2
-APPLIED_FILE = "applied.json"  # in stack_dir(stack): the document of the last successful up
+APPLIED_FILE = StackState.APPLIED  # the document of the last successful up, in the stack's folder
 
 
 def _node(node: NodeSpec) -> dict[str, Any]:

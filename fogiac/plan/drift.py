@@ -14,9 +14,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Literal
 
-from fogiac.state import read_json, stack_dir, write_json_atomic
+from fogiac.state import StackState
 
-REFRESHED_FILE = "refreshed.json"
+REFRESHED_FILE = StackState.REFRESHED
 Status = Literal["changed", "deleted", "added"]
 VERB = {"changed": "changed outside fogiac", "deleted": "deleted outside fogiac", "added": "made outside fogiac"}
 
@@ -56,7 +56,7 @@ def record(stack: str, *, outputs: Mapping[str, Any], observed: Mapping[str, Any
            drift: list[Drift], now: float | None = None) -> Refresh:
     """Write what a refresh saw (the engine's refreshed outputs, the cloud's objects) and the drift."""
     at = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(time.time() if now is None else now))
-    write_json_atomic(stack_dir(stack) / REFRESHED_FILE, {
+    StackState(stack).write(REFRESHED_FILE, {
         "refreshed_at": at, "outputs": dict(outputs), "observed": dict(observed),
         "drift": [d.to_dict() for d in drift]})
     return Refresh(at, tuple(drift))
@@ -64,7 +64,7 @@ def record(stack: str, *, outputs: Mapping[str, Any], observed: Mapping[str, Any
 
 def load(stack: str) -> Refresh | None:
     """The stack's last refresh, or None when there was none since the last apply."""
-    data = read_json(stack_dir(stack, create=False) / REFRESHED_FILE)
+    data = StackState(stack).read(REFRESHED_FILE)
     if not isinstance(data, dict):
         return None
     return Refresh(str(data.get("refreshed_at", "")), tuple(Drift.from_dict(r) for r in data.get("drift", ())))
@@ -72,4 +72,4 @@ def load(stack: str) -> Refresh | None:
 
 def clear(stack: str) -> None:
     """An apply or destroy is about to change the cloud: the last refresh no longer describes it."""
-    (stack_dir(stack, create=False) / REFRESHED_FILE).unlink(missing_ok=True)
+    StackState(stack).remove(REFRESHED_FILE)

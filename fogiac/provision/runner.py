@@ -23,11 +23,11 @@ from fogiac.provision.local import LocalAccess
 from fogiac.provision.managers import manager_for
 from fogiac.provision.ssh import SshAccess
 from fogiac.provision.steps import CHANGED, HostRun, Options, step
-from fogiac.state import read_json, write_json_atomic
+from fogiac.state import StackState, read_json, write_json_atomic
 
 Progress = Callable[[str, str, str], None]  # (host, step, status)
 RECORD = "provision.json"
-KNOWN_HOSTS = "known_hosts"  # in the stack folder: the SSH host keys provisioning has seen
+KNOWN_HOSTS = StackState.KNOWN_HOSTS  # the SSH host keys provisioning has seen, in the stack's folder
 
 
 @dataclass(frozen=True)

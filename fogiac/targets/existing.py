@@ -30,8 +30,7 @@ from fogiac.lifecycle.report import autostop_line, duration
 from fogiac.plan import guard
 from fogiac.plan.model import HostSpec, Plan
 from fogiac.provision import HostAccess, idle, recorded_access
-from fogiac.provision.runner import KNOWN_HOSTS
-from fogiac.state import stack_dir
+from fogiac.state import StackState
 from fogiac.tables import table
 
 
@@ -76,14 +75,14 @@ class ExistingMachines:
         return Created(plan=plan)
 
     def reach(self, plan: Plan, created: Created, *, announce: Callable[[str], None]) -> Reach:
-        access = self.access(plan, state_dir=stack_dir(plan.stack))
+        access = self.access(plan, state_dir=StackState(plan.stack).ensure())
         return Reach(access=access, connect={host: self.connect_address(plan, host, a) for host, a in access.items()})
 
     def recorded(self, plan: Plan) -> bool:
         return False  # what these targets record is provisioning's access record, which the lifecycle reads
 
     def destroy(self, plan: Plan, opts: DownOptions) -> Destroyed:
-        return Destroyed(left=tuple(self.leftovers(plan, stack_dir(plan.stack, create=False))))
+        return Destroyed(left=tuple(self.leftovers(plan, StackState(plan.stack).folder)))
 
     def forget(self, plan: Plan, *, keep_network: bool) -> None:
         """Drop what :meth:`access` recorded, once ``down`` found nothing left."""
@@ -95,13 +94,13 @@ class ExistingMachines:
             return {}
         ask = {spec.name: (recorded[spec.name][0], recorded[spec.name][1]) for spec in plan.hosts
                if recorded.get(spec.name) is not None}
-        return idle.read_all(ask, known_hosts=stack_dir(plan.stack) / KNOWN_HOSTS, stack=plan.stack)
+        return idle.read_all(ask, known_hosts=StackState(plan.stack).known_hosts, stack=plan.stack)
 
     def describe(self, plan: Plan, *, now: float) -> dict[str, Any]:
         """Hosts (address, uptime, cost so far, nodes, autostop) and the cost guard."""
         record = deployment.read(plan.stack)
         record = record if record is not None and record.exists else None
-        recorded = recorded_access(stack_dir(plan.stack, create=False))
+        recorded = recorded_access(StackState(plan.stack).folder)
         uptime = max(0.0, time.time() - record.since_epoch) if record else 0.0
         watched = self.autostop_states(plan, recorded)
         hosts = [{"host": spec.name, "machine": spec.machine,

@@ -24,7 +24,7 @@ from fogiac.errors import EngineError
 from fogiac.lifecycle.events import OnEvent, Progress
 from fogiac.lifecycle.events import Timers as _Timers
 from fogiac.plan.model import Plan
-from fogiac.state import read_json, stack_dir
+from fogiac.state import StackState, read_json
 from fogiac.targets.aws.sdk import need
 from stacks import LAYERS, PROJECT
 
@@ -34,7 +34,7 @@ INSTALL = f"curl -fsSL https://get.pulumi.com | sh -s -- --version {PULUMI_CLI_V
 PASSPHRASE_FILE = "pulumi-passphrase"
 OUTPUTS_FILE = "outputs.json"
 SSH_KEY_FILE = Path("ssh") / SSH_KEY  # in the stack folder, where stacks/entry.py (plain pulumi up) keeps it too
-CERTS_DIR = "certs"
+CERTS_DIR = StackState.CERTS
 VPN_NOTICE = ("The Client VPN endpoint's subnet association takes about 10 minutes to create "
               "(and again to delete); its resources wait up to 30 minutes.")
 
@@ -47,7 +47,8 @@ def layer_stack(stack: str, layer: str) -> str:
 
 
 def backend_dir(stack: str, *, create: bool = True) -> Path:
-    return stack_dir(stack, create=create) / "pulumi"
+    state = StackState(stack)
+    return (state.ensure() if create else state.folder) / "pulumi"
 
 
 def pulumi_cli() -> Path:
@@ -78,7 +79,7 @@ def passphrase(stack: str) -> str:
     given_file = os.environ.get("PULUMI_CONFIG_PASSPHRASE_FILE")
     if given_file:
         return Path(given_file).read_text().strip()
-    path = stack_dir(stack) / PASSPHRASE_FILE
+    path = StackState(stack).ensure() / PASSPHRASE_FILE
     if not path.exists():
         write_private(path, secrets.token_urlsafe(32).encode())
     return path.read_text().strip()
@@ -105,13 +106,13 @@ def ssh_public_key(stack: str) -> str:
 
     Kept where ``stacks/entry.py`` (plain ``pulumi up``) keeps it, so both paths use one key.
     """
-    return load_or_create_ssh_key(stack_dir(stack) / SSH_KEY_FILE.parent)
+    return load_or_create_ssh_key(StackState(stack).ensure() / SSH_KEY_FILE.parent)
 
 
 def known_ids(stack: str) -> frozenset[str]:
     """Every cloud id fogiac's state knows for ``stack`` (outputs and Pulumi checkpoints)."""
     ids: set[str] = set()
-    root = stack_dir(stack, create=False)
+    root = StackState(stack).folder
 
     def walk(value: Any) -> None:
         if isinstance(value, Mapping):
@@ -178,7 +179,7 @@ class Engine:
                  network_outputs: Callable[[], Mapping[str, Any]]) -> dict[str, Callable[[], None]]:
         stack = self.plan.stack
         return need("stacks.program").layer_programs(
-            self.plan, certs=load_or_create_bundle(stack, stack_dir(stack) / CERTS_DIR),
+            self.plan, certs=load_or_create_bundle(stack, StackState(stack).certs),
             operator_cidrs=operator_cidrs, public_key_openssh=ssh_public_key(stack), network_outputs=network_outputs)
 
     def preview(self, *, operator_cidrs: tuple[str, ...]) -> list[LayerResult]:

@@ -11,7 +11,7 @@ from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from fogiac.certs import SSH_KEY, load_or_create_bundle
+from fogiac.certs import load_or_create_bundle
 from fogiac.errors import CloudError, EngineError, ProvisionError
 from fogiac.lifecycle.edge import edge_idle_since
 from fogiac.lifecycle.events import OnEvent
@@ -22,8 +22,7 @@ from fogiac.plan.document import APPLIED_FILE
 from fogiac.plan.model import Plan
 from fogiac.plan.placement import Placement, Tags
 from fogiac.provision import SshAccess, idle, recorded_access
-from fogiac.provision.runner import KNOWN_HOSTS
-from fogiac.state import read_json, stack_dir, stack_lock, write_json_atomic
+from fogiac.state import StackState, read_json, stack_lock
 from fogiac.tables import table
 from fogiac.targets.aws import api, engine, observe, offline, placement, spot
 from fogiac.targets.aws import sweep as sweeping
@@ -77,7 +76,7 @@ class AwsTarget:
             api.identity(region=plan.region)
 
     def prepare(self, plan: Plan, *, ssh_from: str | None) -> Prepared:
-        recorded = read_json(stack_dir(plan.stack) / engine.OUTPUTS_FILE) or {}
+        recorded = StackState(plan.stack).read(engine.OUTPUTS_FILE) or {}
         if recorded.get("zone") and not plan.zone_chosen:  # keep the subnets where they are
             plan = dataclasses.replace(plan, zone=recorded["zone"], zone_chosen=True)
         report = api.preflight(plan, operator_cidr=ssh_from, known_ids=engine.known_ids(plan.stack))
@@ -103,7 +102,7 @@ class AwsTarget:
                                     announce=announce, on_event=on_event)
         since = facts.recorded.get(NETWORK_SINCE) or round(time.time())  # what the cost guard counts from
         fallen = [h.name for h in plan.hosts if not h.spot and h.name in facts.asked_spot]
-        write_json_atomic(stack_dir(plan.stack) / engine.OUTPUTS_FILE, {
+        StackState(plan.stack).write(engine.OUTPUTS_FILE, {
             "zone": plan.zone, NETWORK_SINCE: since, OPERATOR_CIDRS: list(facts.operator_cidrs), **outputs,
             **({spot.ON_DEMAND: fallen} if fallen else {})})
         hosts = outputs.get("compute", {}).get("hosts", {})
@@ -136,7 +135,7 @@ class AwsTarget:
         if plan.vpn is not None:
             profile = write_client_profile(
                 endpoint_dns=outputs["network"]["vpn_dns_name"], stack=plan.stack,
-                bundle=load_or_create_bundle(plan.stack, stack_dir(plan.stack) / "certs"))
+                bundle=load_or_create_bundle(plan.stack, StackState(plan.stack).certs))
             announce(f"VPN profile: {profile} (connect with: sudo fogiac vpn up; the relays retry until it is up)")
         announce("waiting for each instance to print its SSH host keys on its console (pinned, never trusted on sight)")
         access, connect = access_from_outputs(plan, outputs, fingerprints=lambda iid: pinned_host_keys(
@@ -161,22 +160,21 @@ class AwsTarget:
                          not_checked=result.not_checked, deleted=tuple(str(f) for f in result.deleted), kept=kept)
 
     def forget(self, plan: Plan, *, keep_network: bool) -> None:
-        folder = stack_dir(plan.stack)
-        (folder / HOST_KEYS_FILE).unlink(missing_ok=True)  # no instance left to know them by
-        # The instances are gone and their public addresses go back to AWS's pool.
-        (folder / KNOWN_HOSTS).unlink(missing_ok=True)
-        outputs = read_json(folder / engine.OUTPUTS_FILE) or {}
+        state = StackState(plan.stack)
+        # No instance is left to know its keys by, and the public addresses go back to AWS's pool.
+        state.remove(HOST_KEYS_FILE, state.KNOWN_HOSTS)
+        outputs = state.read(engine.OUTPUTS_FILE) or {}
         if keep_network and outputs:
-            write_json_atomic(folder / engine.OUTPUTS_FILE, {k: v for k, v in outputs.items() if k != "compute"})
+            state.write(engine.OUTPUTS_FILE, {k: v for k, v in outputs.items() if k != "compute"})
         else:
-            (folder / engine.OUTPUTS_FILE).unlink(missing_ok=True)
+            state.remove(engine.OUTPUTS_FILE)
 
     # -- status, doctor, refresh, sweep ---------------------------------------------------------------
 
     def describe(self, plan: Plan, *, now: float) -> dict[str, Any]:
         """Each instance (state, when and by whom it stopped) and the cost guard over all the stack still has."""
         rows = api.status(plan.stack, region=plan.region, now=_dt.datetime.fromtimestamp(now, _dt.timezone.utc))
-        outputs = read_json(stack_dir(plan.stack, create=False) / engine.OUTPUTS_FILE) or {}
+        outputs = StackState(plan.stack).read(engine.OUTPUTS_FILE) or {}
         watched = watchdogs(plan, rows)
         return {"region": plan.region, "network_only": "network" in outputs and "compute" not in outputs, "hosts": [
             {"host": r.name, "instance_id": r.instance_id, "state": r.state, "machine": r.machine,
@@ -216,7 +214,7 @@ class AwsTarget:
             checks.append(Check("Pulumi CLI", True, str(engine.pulumi_cli())))
         except CloudError as err:
             checks.append(Check("Pulumi CLI", False, str(err)))
-        known = engine.known_ids(plan.stack) if stack_dir(plan.stack, create=False).exists() else frozenset()
+        known = engine.known_ids(plan.stack) if StackState(plan.stack).exists() else frozenset()
         try:
             report = api.preflight(plan, operator_cidr=ssh_from, known_ids=known)
         except CloudError as err:
@@ -234,11 +232,11 @@ class AwsTarget:
         with stack_lock(plan.stack, operation="refresh"):
             layers = engine.Engine(plan).refresh()
             lines = [Refreshed(r.layer, r.ok, r.summary) for r in layers]
-            applied = read_json(stack_dir(plan.stack) / APPLIED_FILE)
+            applied = StackState(plan.stack).read(APPLIED_FILE)
             if not isinstance(applied, dict):
                 return lines  # nothing applied: nothing the cloud could have drifted from
             seen = observe.observe(plan.stack, region=plan.region)
-            recorded = read_json(stack_dir(plan.stack) / engine.OUTPUTS_FILE) or {}
+            recorded = StackState(plan.stack).read(engine.OUTPUTS_FILE) or {}
             found = observe.compare(applied, seen, operator_cidrs=recorded.get(OPERATOR_CIDRS))
             drift.record(plan.stack, outputs={r.layer: dict(r.outputs) for r in layers if r.ok}, observed=seen,
                          drift=found)
@@ -269,7 +267,8 @@ def watchdogs(plan: Plan, rows: list[api.InstanceStatus]) -> dict[str, dict[str,
     public address) and the host key the one pinned from its first boot's console: an instance
     without a pinned key is not asked, since trusting a key on sight is what pinning avoids.
     """
-    folder = stack_dir(plan.stack, create=False)
+    state = StackState(plan.stack)
+    folder = state.folder
     if plan.autostop is None or not folder.exists():
         return {}
     recorded = recorded_access(folder)
@@ -285,7 +284,7 @@ def watchdogs(plan: Plan, rows: list[api.InstanceStatus]) -> dict[str, dict[str,
             unpinned[r.name] = {idle.UNREACHABLE: f"no host key pinned for {r.instance_id}"}
             continue
         ask[r.name] = (dataclasses.replace(entry[0], address=r.public_ip, fingerprints=keys), entry[1])
-    return {**unpinned, **idle.read_all(ask, known_hosts=folder / KNOWN_HOSTS, stack=plan.stack)}
+    return {**unpinned, **idle.read_all(ask, known_hosts=state.known_hosts, stack=plan.stack)}
 
 
 def cost_guard(plan: Plan, rows: list[api.InstanceStatus], outputs: Mapping[str, Any], *,
@@ -330,12 +329,12 @@ def pinned_host_keys(stack: str, instance_id: str, *, fetch: Callable[[], tuple[
     cloud-init prints them on the first boot only, so an instance autostop stopped and ``up``
     started again is known by the keys recorded then (same instance id, same disk, same keys).
     """
-    path = stack_dir(stack) / HOST_KEYS_FILE
-    recorded = read_json(path) or {}
+    state = StackState(stack)
+    recorded = state.read(HOST_KEYS_FILE) or {}
     if recorded.get(instance_id):
         return tuple(recorded[instance_id])
     found = fetch()
-    write_json_atomic(path, {**recorded, instance_id: list(found)})
+    state.write(HOST_KEYS_FILE, {**recorded, instance_id: list(found)})
     return found
 
 
@@ -346,7 +345,7 @@ def access_from_outputs(plan: Plan, outputs: Mapping[str, Any], *, fingerprints:
     In vpn mode the edge reaches a host's private address through the Client VPN; in proxy mode
     its public address, which the security group opens to ``ssh_from`` only.
     """
-    key = stack_dir(plan.stack) / "ssh" / SSH_KEY
+    key = StackState(plan.stack).folder / engine.SSH_KEY_FILE
     hosts = outputs.get("compute", {}).get("hosts", {})
     access: dict[str, SshAccess] = {}
     connect: dict[str, str] = {}

@@ -24,7 +24,7 @@ from fogiac import certs
 from fogiac.errors import VpnError
 from fogiac.procs import pid_alive, poll, stop_tree
 from fogiac.render import render
-from fogiac.state import stack_dir
+from fogiac.state import StackState
 
 PROFILE_NAME = "client.ovpn"
 _PROTOCOLS = ("udp", "tcp")
@@ -82,7 +82,8 @@ def render_client_profile(
 
 def default_profile_path(stack: str, *, create: bool = True) -> Path:
     """``client.ovpn`` in the stack's state folder (made 0700 when ``create``)."""
-    return stack_dir(stack, create=create) / PROFILE_NAME
+    state = StackState(stack)
+    return (state.ensure() if create else state.folder) / PROFILE_NAME
 
 
 def git_work_tree(path: Path) -> Path | None:

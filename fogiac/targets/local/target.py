@@ -13,7 +13,7 @@ from fogiac.plan.model import HostSpec, Plan
 from fogiac.plan.placement import Placement, Tags
 from fogiac.provision import LocalAccess, supervise
 from fogiac.provision.local import PORTS_FILE, local_access, sandbox_root
-from fogiac.state import stack_dir
+from fogiac.state import StackState
 from fogiac.targets.base import Check
 from fogiac.targets.existing import ExistingMachines
 from fogiac.targets.local import placement
@@ -39,7 +39,7 @@ class LocalTarget(ExistingMachines):
         return entry[0].location if entry is not None else "-"
 
     def forget(self, plan: Plan, *, keep_network: bool) -> None:
-        root = sandbox_root(stack_dir(plan.stack, create=False))
+        root = sandbox_root(StackState(plan.stack).folder)
         (root / PORTS_FILE).unlink(missing_ok=True)
         if root.is_dir() and not any(root.iterdir()):
             root.rmdir()

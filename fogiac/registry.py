@@ -64,6 +64,14 @@ def load(group: str, name: str) -> Any:
     return point.load()
 
 
+def value(group: str, name: str) -> str:
+    """The ``module:attr`` (or module) entry point ``name`` of ``group`` names, without loading it."""
+    point = _declared(group).get(name)
+    if point is None:
+        raise PlanError(f"unknown {group.rpartition('.')[2]} {name!r}; valid: {', '.join(names(group))}")
+    return point.value
+
+
 def find(group: str, name: str) -> Any:
     """:func:`load`, or None where ``group`` has no ``name`` (a plug-in that is optional)."""
     return load(group, name) if known(group, name) else None

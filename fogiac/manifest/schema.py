@@ -363,7 +363,10 @@ class Machine(_Model):
         )
 
 
-Workload = Literal["motion_planning", "grasp_planning"]
+if TYPE_CHECKING:
+    Workload = str
+else:  # the workloads fogiac ships (entry points of fogiac.workloads that fogiac itself declares)
+    Workload = Literal[registry.names("fogiac.workloads", own=True)]
 NodeKind = Literal["image", "launch", "workload", "command"]  # which of the four a node runs
 
 

@@ -14,7 +14,6 @@ digest: a mirror serves the same pins.
 from __future__ import annotations
 
 import hashlib
-import importlib
 import re
 import shutil
 from collections.abc import Mapping
@@ -23,7 +22,7 @@ from pathlib import Path
 
 from fogiac.errors import ProvisionError
 from fogiac.plan.model import NodeSpec, Plan
-from fogiac.provision import venv
+from fogiac.provision import venv, workload
 from fogiac.provision.host import Host, q
 from fogiac.provision.sync import push_tree
 from fogiac.render import render
@@ -68,7 +67,7 @@ def needs_image(node: NodeSpec) -> bool:
 def workload_context(node: NodeSpec, *, flavour: str, into: Path) -> Recipe:
     """Lay out a workload's build context under ``into``: fogiac/, workloads/<name>/ and its Dockerfile."""
     name = node.workload or ""
-    container = importlib.import_module(f"workloads.{name}.container")
+    container = workload.recipe(name)
     overrides = container.FLAVOURS.get(flavour, {})
     ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "tests")
     shutil.copytree(package_dir("fogiac"), into / "fogiac", ignore=ignore)

@@ -20,6 +20,7 @@ from pathlib import Path
 
 from fogiac.errors import ProvisionError
 from fogiac.manifest.requirements import RequirementsProblem, specifiers
+from fogiac.provision import workload
 from fogiac.provision.host import Host, q
 
 _HAS_VENV = "import ensurepip, venv"  # Debian's python3 has venv but not ensurepip without python3-venv
@@ -48,7 +49,7 @@ def requirements(workloads: list[str], *, fogiac: bool = False, middleware: tupl
     found: list[str] = list(fogiac_requirements()) if fogiac else []
     found += [r for r in middleware if r not in found]
     for name in sorted(set(workloads)):
-        for req in importlib.import_module(f"workloads.{name}.container").requirements():
+        for req in workload.recipe(name).requirements():
             if req not in found:
                 found.append(req)
     return tuple(found)

@@ -15,7 +15,7 @@ from fogiac.errors import ProvisionError
 from fogiac.hostmodel import NativeRos, NodeRun, Where, container_name, node_env_file, node_image, ros_image
 from fogiac.net import middleware
 from fogiac.plan.model import HostSpec, NodeSpec, Plan
-from fogiac.provision import images
+from fogiac.provision import images, workload
 from fogiac.provision.host import q
 from fogiac.provision.probe import Facts
 from fogiac.provision.runtimes.base import CHANGED, OK, Run, StepResult, source_overlay
@@ -67,7 +67,7 @@ def docker_run(node: NodeSpec, *, plan: Plan, spec: HostSpec, where: Where) -> s
             env += (("ROS_PACKAGE_PATH", f"{_WS_MOUNT}/src:{_WS_MOUNT}"),)
         workdir = _WS_MOUNT
     else:
-        image, command = _built(node, where), ("python", "-m", f"workloads.{node.workload}", "node")
+        image, command = _built(node, where), ("python", "-m", workload.package(node.workload or ""), "node")
     return render("provision/docker_run.j2", engine=where.engine, stack=plan.stack, host=spec.name,
                   gpus=spec.has_gpu, container=container_name(plan.stack, node.name), env=env,
                   env_file=node_env_file(where.layout, node.name) if node.env else "", volumes=volumes,

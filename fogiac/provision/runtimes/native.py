@@ -8,6 +8,7 @@ from fogiac.errors import ProvisionError
 from fogiac.hostmodel import NativeRos, NodeRun, Where
 from fogiac.net import middleware
 from fogiac.plan.model import HostSpec, NodeSpec, Plan
+from fogiac.provision import workload
 from fogiac.provision.host import q
 from fogiac.provision.probe import Facts
 from fogiac.provision.runtimes.base import SKIPPED, Run, StepResult, source_overlay
@@ -41,8 +42,9 @@ class NativeRuntime:
                            pre=() if launching.package_path else (source_overlay(ws, launching.overlay),),
                            bin_path=where.launch_bin if node.launch.requirements else "", env=node.env)
         python = where.workload_python or where.python
-        return NodeRun(command=f"{q(python)} -m workloads.{node.workload} node", python_path=where.code_root,
-                       check="node", env=node.env)
+        package = workload.package(node.workload or "")
+        return NodeRun(command=f"{q(python)} -m {package} node", python_path=where.code_root, check="node",
+                       env=node.env)
 
     def prepare(self, run: Run, facts: Facts) -> list[str]:
         """What the plan's middleware needs on the host (ROS 1's roscore and rospy; ROS 2's setup.bash, ros2

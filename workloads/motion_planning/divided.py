@@ -1,0 +1,337 @@
+"""The divided search: one bidirectional tree search whose work is split between the workers.
+
+A race (``planner.py``) runs one whole search per worker and keeps the first to finish, so k
+workers do k times the work for the luck of the best draw. Here the workers grow the *same* two
+trees (one from the start, one from the goal, RRT-Connect's extend-then-connect) in rounds:
+
+- every round has a fixed batch of samples, drawn from ``(seed, round)``; sample ``i`` extends
+  the start tree when ``i + round`` is even, else the goal tree, from its nearest node (as the
+  trees stood when the round began) by at most ``step``, to the last pose its motion check
+  passed; the other tree's nearest node then tries to reach the new node in a straight line
+  (its valid prefix is added as nodes ``step`` apart); a full reach joins the trees;
+- workers claim samples one at a time from a shared counter (no worker waits on a fixed share
+  while another still has work), check motions with fcl at the request's resolution, and send
+  the nodes back; the coordinator merges them in sample order and sends the merge with the next
+  round, so every worker keeps an identical copy of both trees;
+- the first round with a joining sample ends the search: the lowest such sample's path.
+
+So the k workers together do the work one worker would do, each about 1/k of it, and the
+answer depends on the seed alone, not on k or on which worker took which sample (the batch
+is ``batch_size(k)``: the same for any k up to 8). What stays serial is the merge, the
+messages and each worker applying the merge to its copy; :class:`Division` measures it.
+
+Pure numpy and fcl (no OMPL): the workers run it beside their ``search.Search``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from workloads.motion_planning.geometry import CollisionChecker
+from workloads.motion_planning.problem import Pose, Problem, space_extent
+
+DEFAULT_BATCH = 32  # samples per round for up to 8 workers; 4 per worker beyond
+STEP_FRACTION = 0.2  # the extend step, of the space's extent (RRT-Connect's default range)
+CONNECT_CHECKS = 96  # a connect checks at most this many poses per round, then goes on in the next
+
+
+def batch_size(workers: int) -> int:
+    """Samples per round: fixed up to 8 workers (so 1 and 2 workers search alike), then 4 per worker."""
+    return max(DEFAULT_BATCH, 4 * workers)
+
+
+def as_array(pose: Pose) -> np.ndarray:
+    """(x, y, z, qw, qx, qy, qz): the order fcl takes."""
+    q = pose.quaternion()
+    return np.array([pose.x, pose.y, pose.z, q[0], q[1], q[2], q[3]])
+
+
+def as_pose(row: np.ndarray) -> Pose:
+    return Pose.from_arrays(row[:3], row[3:])
+
+
+class Trees:
+    """Both trees (0: from the start, 1: from the goal) as growable arrays of poses and parents."""
+
+    def __init__(self, start: np.ndarray, goal: np.ndarray) -> None:
+        self.poses = [start[None, :].copy(), goal[None, :].copy()]
+        self.parents = [np.array([-1]), np.array([-1])]
+
+    def size(self, tree: int) -> int:
+        return len(self.parents[tree])
+
+    def append(self, merge: list[tuple[np.ndarray, np.ndarray]]) -> None:
+        for tree, (poses, parents) in enumerate(merge):
+            if len(parents):
+                self.poses[tree] = np.concatenate([self.poses[tree], poses])
+                self.parents[tree] = np.concatenate([self.parents[tree], parents])
+
+    def branch(self, tree: int, node: int) -> list[np.ndarray]:
+        """Poses from the tree's root to ``node``."""
+        out = []
+        while node >= 0:
+            out.append(self.poses[tree][node])
+            node = int(self.parents[tree][node])
+        return out[::-1]
+
+
+def distances(poses: np.ndarray, pose: np.ndarray, radius: float) -> np.ndarray:
+    """The sweep from each of ``poses`` to ``pose``: how far any robot point moves (position + radius * turn)."""
+    dot = np.abs(poses[:, 3:] @ pose[3:])
+    return np.linalg.norm(poses[:, :3] - pose[:3], axis=1) + radius * 2.0 * np.arccos(np.minimum(1.0, dot))
+
+
+def between(a: np.ndarray, b: np.ndarray, ts: np.ndarray) -> np.ndarray:
+    """Poses at fractions ``ts`` from a to b: linear position, shortest-arc slerp (OMPL's SE(3) way)."""
+    q0, q1 = a[3:], b[3:].copy()
+    dot = float(q0 @ q1)
+    if dot < 0.0:
+        q1, dot = -q1, -dot
+    if dot > 0.9995:
+        q = q0 + ts[:, None] * (q1 - q0)
+    else:
+        theta = math.acos(min(1.0, dot))
+        q = (np.sin((1 - ts) * theta)[:, None] * q0 + np.sin(ts * theta)[:, None] * q1) / math.sin(theta)
+    q /= np.linalg.norm(q, axis=1)[:, None]
+    return np.hstack([a[:3] + ts[:, None] * (b[:3] - a[:3]), q])
+
+
+@dataclass(frozen=True)
+class Division:
+    """How a divided search's work fell on the workers, and how much of its time was serial."""
+
+    checks: tuple[int, ...]  # collision checks per worker
+    samples: tuple[int, ...]  # samples extended per worker
+    busy_s: tuple[float, ...]  # seconds each worker spent on its samples
+    rounds: int
+    wall_s: float  # the search's wall time, first round sent to last merged
+    serial_s: float  # no worker on a sample: merging, messages, applying merges to the copies
+    imbalance_s: float  # summed over rounds: the last worker's finish after the average one's
+
+    @property
+    def serial_share(self) -> float:
+        return self.serial_s / self.wall_s if self.wall_s > 0 else 0.0
+
+    def projected_speedup(self, cores: int) -> float:
+        """Amdahl's law from this run: serial time (waiting on stragglers counted as serial) stays,
+        the samples' work divides by ``cores``. A projection, not a measurement."""
+        serial = self.serial_s + self.imbalance_s
+        work = sum(self.busy_s)
+        return (serial + work) / (serial + work / cores) if serial + work > 0 else 1.0
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"checks": list(self.checks), "samples": list(self.samples), "busy_s": list(self.busy_s),
+                "rounds": self.rounds, "wall_s": self.wall_s, "serial_s": self.serial_s,
+                "imbalance_s": self.imbalance_s, "serial_share": self.serial_share}
+
+
+class TreeWorker:
+    """One worker's side of the divided search on one problem: a copy of the trees, fcl checks."""
+
+    def __init__(self, problem: Problem, checker: CollisionChecker | None = None) -> None:
+        self.problem = problem
+        self.checker = checker or CollisionChecker(problem)
+        self.radius = problem.robot.radius()
+        self.lo, self.hi = np.array(problem.bounds_min), np.array(problem.bounds_max)
+        self.step = STEP_FRACTION * space_extent(problem)
+        self.trees: Trees | None = None
+        self.resolution = 0.0
+        self.seed = 0
+        self.batch = DEFAULT_BATCH
+
+    def begin(self, start: Pose, goal: Pose, *, resolution: float, seed: int, batch: int,
+              check: bool) -> dict[str, Any]:
+        """New trees; with ``check`` (one worker), the endpoints' validity and whether the straight move
+        is free (a search is then moot)."""
+        self.trees = Trees(as_array(start), as_array(goal))
+        self.resolution, self.seed, self.batch = resolution, seed, batch
+        self.checker.checks = 0
+        if not check:
+            return {"checks": 0}
+        a, b = self.trees.poses[0][0], self.trees.poses[1][0]
+        start_free, goal_free = self._free(a), self._free(b)
+        straight = start_free and goal_free and self.valid_prefix(a, b, limit=None)[0] == 1.0
+        return {"start_free": start_free, "goal_free": goal_free, "straight": straight, "checks": self.checker.checks}
+
+    def round(self, number: int, merge: list[tuple[np.ndarray, np.ndarray]], pending: list[tuple[int, int, int]],
+              claim: Callable[[], int]) -> dict[str, Any]:
+        """Apply the last round's merge, then take tasks until none is left: first the connects the last
+        round left unfinished (``pending``: tree of the node to reach, that node, the other tree's node
+        to go on from), then the round's samples."""
+        assert self.trees is not None
+        started = time.perf_counter()
+        self.trees.append(merge)
+        applied = time.perf_counter()
+        self.checker.checks = 0
+        samples = self.samples(number)
+        results, count = [], 0
+        while (i := claim()) < len(pending) + self.batch:
+            if i < len(pending):
+                tree, x, c = pending[i]
+                results.append((i, tree, x, None, *self.connect(tree, self.trees.poses[tree][x], c)))
+            else:
+                results.append(self.extend(i, (i + number) % 2, samples[i - len(pending)]))
+                count += 1
+        return {"results": results, "checks": self.checker.checks, "samples": count,
+                "busy_s": time.perf_counter() - applied, "apply_s": applied - started}
+
+    def samples(self, number: int) -> np.ndarray:
+        """The round's batch of uniform poses, the same in every worker: drawn from (seed, round)."""
+        rng = np.random.default_rng([self.seed, number])
+        positions = rng.uniform(self.lo, self.hi, size=(self.batch, 3))
+        q = rng.normal(size=(self.batch, 4))
+        return np.hstack([positions, q / np.linalg.norm(q, axis=1)[:, None]])
+
+    def extend(self, index: int, tree: int, sample: np.ndarray) -> tuple[Any, ...]:
+        """(index, tree, near, new pose or None, other tree's node, its chain toward the new pose, joined,
+        the connect goes on next round)."""
+        assert self.trees is not None
+        poses = self.trees.poses[tree]
+        d = distances(poses, sample, self.radius)
+        near = int(np.argmin(d))
+        target = sample if d[near] <= self.step else between(poses[near], sample,
+                                                             np.array([self.step / d[near]]))[0]
+        reached, _ = self.valid_prefix(poses[near], target, limit=None)
+        if reached == 0.0:
+            return (index, tree, near, None, -1, [], False, False)
+        new = target if reached == 1.0 else between(poses[near], target, np.array([reached]))[0]
+        y = int(np.argmin(distances(self.trees.poses[1 - tree], new, self.radius)))
+        return (index, tree, near, new, *self.connect(tree, new, y))
+
+    def connect(self, tree: int, new: np.ndarray, y: int) -> tuple[int, list[np.ndarray], bool, bool]:
+        """The other tree's node ``y`` goes straight toward ``new`` for at most ``CONNECT_CHECKS`` checks:
+        (y, the nodes it adds a step apart, whether it reached ``new``, whether it goes on next round).
+
+        The cap keeps every task short, so no worker waits long on another's last task of a round."""
+        assert self.trees is not None
+        origin = self.trees.poses[1 - tree][y]
+        got, capped = self.valid_prefix(origin, new, limit=CONNECT_CHECKS)
+        if got == 1.0:
+            return (y, [], True, False)
+        length = got * float(distances(origin[None, :], new, self.radius)[0])
+        if length < self.resolution:
+            return (y, [], False, False)
+        total = length / got
+        fractions = [(j + 1) * self.step / total for j in range(int(length // self.step))]
+        if not fractions or fractions[-1] < got:
+            fractions.append(got)
+        return (y, list(between(origin, new, np.array(fractions))), False, capped)
+
+    def valid_prefix(self, a: np.ndarray, b: np.ndarray, *, limit: int | None) -> tuple[float, bool]:
+        """The fraction of a -> b whose poses, no robot point moving more than the resolution between two,
+        all pass the collision check, from a onward (a itself is taken as checked); and whether it
+        stopped at ``limit`` checks, all passed, short of b."""
+        sweep = float(distances(a[None, :], b, self.radius)[0])
+        n = max(1, math.ceil(sweep / self.resolution))
+        upto = n if limit is None else min(n, limit)
+        poses = between(a, b, np.arange(1, upto + 1) / n)
+        for i, pose in enumerate(poses):
+            if not self.checker.is_free(pose[:3], pose[3:]):
+                return i / n, False
+        return upto / n, upto < n
+
+    def _free(self, pose: np.ndarray) -> bool:
+        return bool(np.all(self.lo <= pose[:3]) and np.all(pose[:3] <= self.hi)) and self.checker.is_free(
+            pose[:3], pose[3:])
+
+
+def merge_round(trees: Trees, results: list[tuple[Any, ...]]
+                ) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[int, int, int]], list[Pose] | None]:
+    """The round's nodes in task order (appended to ``trees``), the connects to go on with next round,
+    and the path if a task joined the trees."""
+    sizes = [trees.size(0), trees.size(1)]
+    added: list[list[np.ndarray]] = [[], []]
+    parents: list[list[int]] = [[], []]
+    pending: list[tuple[int, int, int]] = []
+    path: list[Pose] | None = None
+    for _, tree, near, new, y, chain, joined, goes_on in sorted(results, key=lambda r: r[0]):
+        if new is None and y < 0:
+            continue  # an extension that did not move
+        if joined and path is None:
+            own = trees.branch(tree, near) + ([] if new is None else [new])
+            theirs = trees.branch(1 - tree, y)[::-1]
+            rows = own + theirs if tree == 0 else (own + theirs)[::-1]
+            path = [as_pose(r) for r in rows]
+        x = near  # the node the other tree reaches for: this task's new node, or (a connect going on) ``near``
+        if new is not None:
+            added[tree].append(new)
+            parents[tree].append(near)
+            x = sizes[tree] + len(parents[tree]) - 1
+        parent = y
+        for pose in chain:
+            added[1 - tree].append(pose)
+            parents[1 - tree].append(parent)
+            parent = sizes[1 - tree] + len(parents[1 - tree]) - 1
+        if goes_on:
+            pending.append((tree, x, parent))
+    merge = [(np.array(added[t]).reshape(-1, 7), np.array(parents[t], dtype=np.int64)) for t in (0, 1)]
+    trees.append(merge)
+    return merge, pending, path
+
+
+def coordinate(start: Pose, goal: Pose, *, workers: int, seed: int, resolution: float, deadline: float,
+               broadcast: Callable[[dict[str, Any]], None],
+               collect: Callable[[], list[dict[str, Any] | None]],
+               reset_claims: Callable[[], None]) -> dict[str, Any]:
+    """Run the divided search over ``workers`` (``broadcast`` a message to all, ``collect`` their replies).
+
+    A report as ``Search.run`` gives one (``solved``, ``status``, ``path``, ``plan_time_s``, ``checks``),
+    plus ``division`` (:class:`Division`). Ends at the first round that joins the trees, or at ``deadline``.
+    """
+    t0 = time.perf_counter()
+    batch = batch_size(workers)
+    checks, samples, busy = [0] * workers, [0] * workers, [0.0] * workers
+    broadcast({"op": "begin", "start": start, "goal": goal, "resolution": resolution, "seed": seed, "batch": batch})
+    # (worker 0 alone checks the endpoints and the straight move: see the pool's begin)
+    replies = collect()
+    first = replies[0]
+    if first is None or any(r is None for r in replies):
+        return {"solved": False, "status": "a worker died during the request"}
+    for w, r in enumerate(replies):
+        checks[w] += r["checks"] if r else 0
+    if not first["start_free"] or not first["goal_free"]:
+        return {"solved": False, "status": "invalid start" if not first["start_free"] else "invalid goal"}
+    trees = Trees(as_array(start), as_array(goal))
+    path: list[Pose] | None = [start, goal] if first["straight"] else None
+    merge: list[tuple[np.ndarray, np.ndarray]] = [(np.zeros((0, 7)), np.zeros(0, dtype=np.int64))] * 2
+    pending: list[tuple[int, int, int]] = []
+    rounds, round_wall, imbalance = 0, 0.0, 0.0
+    while path is None and time.perf_counter() < deadline:
+        reset_claims()
+        sent = time.perf_counter()
+        broadcast({"op": "round", "round": rounds, "merge": merge, "pending": pending})
+        replies = collect()
+        round_wall += time.perf_counter() - sent
+        if any(r is None for r in replies):
+            return {"solved": False, "status": "a worker died during the request"}
+        results = []
+        times = []
+        for w, r in enumerate(replies):
+            assert r is not None
+            checks[w] += r["checks"]
+            samples[w] += r["samples"]
+            busy[w] += r["busy_s"]
+            times.append(r["busy_s"])
+            results += r["results"]
+        imbalance += max(times) - sum(times) / len(times)
+        rounds += 1
+        merge, pending, path = merge_round(trees, results)
+    wall = time.perf_counter() - t0
+    # serial: all that is not the workers' rounds, plus within rounds the time no worker spent on samples
+    serial = wall - round_wall + max(0.0, round_wall - sum(busy) / workers - imbalance)
+    division = Division(tuple(checks), tuple(samples), tuple(busy), rounds, wall, serial, imbalance)
+    report: dict[str, Any] = {"plan_time_s": wall, "checks": sum(checks), "division": division,
+                              "cpu_s": sum(busy) / workers}
+    if path is None:
+        return {**report, "solved": False, "status": "timeout"}
+    return {**report, "solved": True, "status": "first path", "path": [_tuple(p) for p in path]}
+
+
+def _tuple(pose: Pose) -> tuple[float, ...]:
+    return (pose.x, pose.y, pose.z, pose.qx, pose.qy, pose.qz, pose.qw)

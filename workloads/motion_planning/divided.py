@@ -26,9 +26,6 @@ Pure numpy and fcl (no OMPL): the workers run it beside their ``search.Search``.
 from __future__ import annotations
 
 import math
-import time
-from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -38,7 +35,9 @@ from workloads.motion_planning.problem import Pose, Problem, space_extent
 
 DEFAULT_BATCH = 32  # samples per round for up to 8 workers; 4 per worker beyond
 STEP_FRACTION = 0.2  # the extend step, of the space's extent (RRT-Connect's default range)
-CONNECT_CHECKS = 96  # a connect checks at most this many poses per round, then goes on in the next
+CONNECT_CHECKS = 64  # a connect checks at most this many poses per round, then goes on in the next
+EXTEND_CHECKS = 64  # an extension checks at most this many poses (and steps no farther than RRT-Connect would)
+MAX_CHAIN = 4  # nodes a connect adds in one round
 
 
 def batch_size(workers: int) -> int:
@@ -102,35 +101,6 @@ def between(a: np.ndarray, b: np.ndarray, ts: np.ndarray) -> np.ndarray:
     return np.hstack([a[:3] + ts[:, None] * (b[:3] - a[:3]), q])
 
 
-@dataclass(frozen=True)
-class Division:
-    """How a divided search's work fell on the workers, and how much of its time was serial."""
-
-    checks: tuple[int, ...]  # collision checks per worker
-    samples: tuple[int, ...]  # samples extended per worker
-    busy_s: tuple[float, ...]  # seconds each worker spent on its samples
-    rounds: int
-    wall_s: float  # the search's wall time, first round sent to last merged
-    serial_s: float  # no worker on a sample: merging, messages, applying merges to the copies
-    imbalance_s: float  # summed over rounds: the last worker's finish after the average one's
-
-    @property
-    def serial_share(self) -> float:
-        return self.serial_s / self.wall_s if self.wall_s > 0 else 0.0
-
-    def projected_speedup(self, cores: int) -> float:
-        """Amdahl's law from this run: serial time (waiting on stragglers counted as serial) stays,
-        the samples' work divides by ``cores``. A projection, not a measurement."""
-        serial = self.serial_s + self.imbalance_s
-        work = sum(self.busy_s)
-        return (serial + work) / (serial + work / cores) if serial + work > 0 else 1.0
-
-    def as_dict(self) -> dict[str, Any]:
-        return {"checks": list(self.checks), "samples": list(self.samples), "busy_s": list(self.busy_s),
-                "rounds": self.rounds, "wall_s": self.wall_s, "serial_s": self.serial_s,
-                "imbalance_s": self.imbalance_s, "serial_share": self.serial_share}
-
-
 class TreeWorker:
     """One worker's side of the divided search on one problem: a copy of the trees, fcl checks."""
 
@@ -139,47 +109,34 @@ class TreeWorker:
         self.checker = checker or CollisionChecker(problem)
         self.radius = problem.robot.radius()
         self.lo, self.hi = np.array(problem.bounds_min), np.array(problem.bounds_max)
-        self.step = STEP_FRACTION * space_extent(problem)
+        self.extent = space_extent(problem)
+        self.step = STEP_FRACTION * self.extent
         self.trees: Trees | None = None
         self.resolution = 0.0
         self.seed = 0
         self.batch = DEFAULT_BATCH
 
-    def begin(self, start: Pose, goal: Pose, *, resolution: float, seed: int, batch: int,
-              check: bool) -> dict[str, Any]:
-        """New trees; with ``check`` (one worker), the endpoints' validity and whether the straight move
-        is free (a search is then moot)."""
+    def begin(self, start: Pose, goal: Pose, *, resolution: float, seed: int, batch: int) -> str | None:
+        """New trees; a status when no search is needed (``invalid start``, ``invalid goal``, ``straight``:
+        the straight move is free). Every worker checks this alike: a few checks, the same answer."""
         self.trees = Trees(as_array(start), as_array(goal))
         self.resolution, self.seed, self.batch = resolution, seed, batch
-        self.checker.checks = 0
-        if not check:
-            return {"checks": 0}
+        self.step = min(STEP_FRACTION * self.extent, EXTEND_CHECKS * resolution)
         a, b = self.trees.poses[0][0], self.trees.poses[1][0]
-        start_free, goal_free = self._free(a), self._free(b)
-        straight = start_free and goal_free and self.valid_prefix(a, b, limit=None)[0] == 1.0
-        return {"start_free": start_free, "goal_free": goal_free, "straight": straight, "checks": self.checker.checks}
+        if not self._free(a):
+            return "invalid start"
+        if not self._free(b):
+            return "invalid goal"
+        return "straight" if self.valid_prefix(a, b, limit=None)[0] == 1.0 else None
 
-    def round(self, number: int, merge: list[tuple[np.ndarray, np.ndarray]], pending: list[tuple[int, int, int]],
-              claim: Callable[[], int]) -> dict[str, Any]:
-        """Apply the last round's merge, then take tasks until none is left: first the connects the last
-        round left unfinished (``pending``: tree of the node to reach, that node, the other tree's node
-        to go on from), then the round's samples."""
+    def task(self, i: int, number: int, pending: list[tuple[int, int, int]], samples: np.ndarray) -> tuple[Any, ...]:
+        """Task ``i`` of round ``number``: first the connects the last round left unfinished (``pending``:
+        the tree of the node to reach, that node, the other tree's node to go on from), then the samples."""
         assert self.trees is not None
-        started = time.perf_counter()
-        self.trees.append(merge)
-        applied = time.perf_counter()
-        self.checker.checks = 0
-        samples = self.samples(number)
-        results, count = [], 0
-        while (i := claim()) < len(pending) + self.batch:
-            if i < len(pending):
-                tree, x, c = pending[i]
-                results.append((i, tree, x, None, *self.connect(tree, self.trees.poses[tree][x], c)))
-            else:
-                results.append(self.extend(i, (i + number) % 2, samples[i - len(pending)]))
-                count += 1
-        return {"results": results, "checks": self.checker.checks, "samples": count,
-                "busy_s": time.perf_counter() - applied, "apply_s": applied - started}
+        if i < len(pending):
+            tree, x, c = pending[i]
+            return (i, tree, x, None, *self.connect(tree, self.trees.poses[tree][x], c))
+        return self.extend(i, (i + number) % 2, samples[i - len(pending)])
 
     def samples(self, number: int) -> np.ndarray:
         """The round's batch of uniform poses, the same in every worker: drawn from (seed, round)."""
@@ -217,10 +174,8 @@ class TreeWorker:
         length = got * float(distances(origin[None, :], new, self.radius)[0])
         if length < self.resolution:
             return (y, [], False, False)
-        total = length / got
-        fractions = [(j + 1) * self.step / total for j in range(int(length // self.step))]
-        if not fractions or fractions[-1] < got:
-            fractions.append(got)
+        count = min(MAX_CHAIN, int(length // self.step) + 1)
+        fractions = [got * (j + 1) / count for j in range(count)]  # a step apart or more, the last at ``got``
         return (y, list(between(origin, new, np.array(fractions))), False, capped)
 
     def valid_prefix(self, a: np.ndarray, b: np.ndarray, *, limit: int | None) -> tuple[float, bool]:
@@ -273,65 +228,3 @@ def merge_round(trees: Trees, results: list[tuple[Any, ...]]
     merge = [(np.array(added[t]).reshape(-1, 7), np.array(parents[t], dtype=np.int64)) for t in (0, 1)]
     trees.append(merge)
     return merge, pending, path
-
-
-def coordinate(start: Pose, goal: Pose, *, workers: int, seed: int, resolution: float, deadline: float,
-               broadcast: Callable[[dict[str, Any]], None],
-               collect: Callable[[], list[dict[str, Any] | None]],
-               reset_claims: Callable[[], None]) -> dict[str, Any]:
-    """Run the divided search over ``workers`` (``broadcast`` a message to all, ``collect`` their replies).
-
-    A report as ``Search.run`` gives one (``solved``, ``status``, ``path``, ``plan_time_s``, ``checks``),
-    plus ``division`` (:class:`Division`). Ends at the first round that joins the trees, or at ``deadline``.
-    """
-    t0 = time.perf_counter()
-    batch = batch_size(workers)
-    checks, samples, busy = [0] * workers, [0] * workers, [0.0] * workers
-    broadcast({"op": "begin", "start": start, "goal": goal, "resolution": resolution, "seed": seed, "batch": batch})
-    # (worker 0 alone checks the endpoints and the straight move: see the pool's begin)
-    replies = collect()
-    first = replies[0]
-    if first is None or any(r is None for r in replies):
-        return {"solved": False, "status": "a worker died during the request"}
-    for w, r in enumerate(replies):
-        checks[w] += r["checks"] if r else 0
-    if not first["start_free"] or not first["goal_free"]:
-        return {"solved": False, "status": "invalid start" if not first["start_free"] else "invalid goal"}
-    trees = Trees(as_array(start), as_array(goal))
-    path: list[Pose] | None = [start, goal] if first["straight"] else None
-    merge: list[tuple[np.ndarray, np.ndarray]] = [(np.zeros((0, 7)), np.zeros(0, dtype=np.int64))] * 2
-    pending: list[tuple[int, int, int]] = []
-    rounds, round_wall, imbalance = 0, 0.0, 0.0
-    while path is None and time.perf_counter() < deadline:
-        reset_claims()
-        sent = time.perf_counter()
-        broadcast({"op": "round", "round": rounds, "merge": merge, "pending": pending})
-        replies = collect()
-        round_wall += time.perf_counter() - sent
-        if any(r is None for r in replies):
-            return {"solved": False, "status": "a worker died during the request"}
-        results = []
-        times = []
-        for w, r in enumerate(replies):
-            assert r is not None
-            checks[w] += r["checks"]
-            samples[w] += r["samples"]
-            busy[w] += r["busy_s"]
-            times.append(r["busy_s"])
-            results += r["results"]
-        imbalance += max(times) - sum(times) / len(times)
-        rounds += 1
-        merge, pending, path = merge_round(trees, results)
-    wall = time.perf_counter() - t0
-    # serial: all that is not the workers' rounds, plus within rounds the time no worker spent on samples
-    serial = wall - round_wall + max(0.0, round_wall - sum(busy) / workers - imbalance)
-    division = Division(tuple(checks), tuple(samples), tuple(busy), rounds, wall, serial, imbalance)
-    report: dict[str, Any] = {"plan_time_s": wall, "checks": sum(checks), "division": division,
-                              "cpu_s": sum(busy) / workers}
-    if path is None:
-        return {**report, "solved": False, "status": "timeout"}
-    return {**report, "solved": True, "status": "first path", "path": [_tuple(p) for p in path]}
-
-
-def _tuple(pose: Pose) -> tuple[float, ...]:
-    return (pose.x, pose.y, pose.z, pose.qx, pose.qy, pose.qz, pose.qw)

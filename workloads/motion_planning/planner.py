@@ -20,12 +20,14 @@ import random
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from fogiac.errors import WorkloadError
 from fogiac.procs import pid_alive
-from workloads.motion_planning.divided import Division
 from workloads.motion_planning.problem import Pose, Problem, validity_resolution
+
+if TYPE_CHECKING:  # rounds imports fcl-side code; a Solution only carries its record
+    from workloads.motion_planning.rounds import Division
 
 # name accepted on the CLI / in ROS params -> class in ompl.geometric
 PLANNERS = {

@@ -31,13 +31,13 @@ import os
 import random
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from multiprocessing.connection import Connection, wait
 from typing import Any
 
 from fogiac.errors import WorkloadError
 from fogiac.procs import pid_alive
-from workloads.motion_planning.divided import TreeWorker, coordinate
+from workloads.motion_planning.divided import TreeWorker, batch_size
 from workloads.motion_planning.planner import (
     DEFAULT_PLANNER,
     PLANNERS,
@@ -50,11 +50,13 @@ from workloads.motion_planning.planner import (
     worker_context,
 )
 from workloads.motion_planning.problem import Pose, Problem
+from workloads.motion_planning.rounds import Division, Sync, run_rounds
 from workloads.motion_planning.share import DEFAULT_MODE, MODES, join_reports, simplify_shares, split_path
 
 _READY_TIMEOUT_S = 120.0
 _STOP_GRACE_S = 2.0
 _IDLE_POLL_S = 1.0
+_DIED = "a worker died during the request"
 
 
 class WarmPlanner:
@@ -76,7 +78,7 @@ class WarmPlanner:
         self._seed = seed if seed is not None else random.SystemRandom().randrange(2**31)
         self._ctx = worker_context()
         self._flag = self._ctx.RawValue("b", 0)
-        self._claims = self._ctx.Value("i", 0)  # the divided search's next unclaimed sample
+        self._sync = Sync.create(self._ctx, workers=self.workers, batch=batch_size(self.workers))
         self._lock = threading.Lock()
         self._procs: list[Any] = [None] * self.workers
         self._conns: list[Connection | None] = [None] * self.workers
@@ -122,6 +124,9 @@ class WarmPlanner:
             t0 = time.perf_counter()
             if self.mode == "divide":
                 winner, statuses = self._divide(request, seed=seed, deadline=t0 + limit + simplify + 30.0)
+                if winner is None and statuses == [_DIED]:  # it needs every worker: replace the dead, once more
+                    self._replace_dead()
+                    winner, statuses = self._divide(request, seed=seed, deadline=t0 + limit + simplify + 30.0)
                 sharing = self.workers > 1
             else:
                 winner, statuses = self._race(request, deadline=t0 + limit + simplify + 30.0)
@@ -144,31 +149,37 @@ class WarmPlanner:
 
     def _divide(self, request: dict[str, Any], *, seed: int | None, deadline: float
                 ) -> tuple[dict[str, Any] | None, list[str]]:
-        """The divided search (``divided.py``) over every worker; the first path lifted clear of walls."""
+        """The divided search (``divided.py``, ``rounds.py``) on every worker; the first path lifted clear
+        of the walls by worker 0 before it is cut into pieces."""
         self._request_id += 1
         rid, name = self._request_id, request["name"]
-        search_seed = ompl_seed(self._seed + rid if seed is None else seed)
-
-        def broadcast(msg: dict[str, Any]) -> None:
-            for i in range(self.workers):
-                self._send(i, {**msg, "id": rid, "name": name, "check": i == 0})
-
-        def reset_claims() -> None:
-            self._claims.value = 0
-
-        report = coordinate(request["start"], request["goal"], workers=self.workers, seed=search_seed,
-                            resolution=request["resolution"], deadline=time.perf_counter() + request["time_limit"],
-                            broadcast=broadcast, collect=lambda: self._gather(rid, self.workers, deadline=deadline),
-                            reset_claims=reset_claims)
-        if not report["solved"]:
-            return None, [report["status"]]
+        self._flag.value = 0
+        self._sync.barrier.reset()
+        for counter in self._sync.claims:
+            counter.value = 0
+        search = {"id": rid, "name": name, "op": "search", "start": request["start"], "goal": request["goal"],
+                  "resolution": request["resolution"], "time_limit": request["time_limit"],
+                  "seed": ompl_seed(self._seed + rid if seed is None else seed), "batch": batch_size(self.workers)}
+        sent = time.perf_counter()
+        for i in range(self.workers):
+            self._send(i, search)
+        reports = self._gather(rid, self.workers, deadline=deadline)
+        wall = time.perf_counter() - sent
+        if any(r is None for r in reports):
+            return None, [_DIED]
+        done = [r for r in reports if r is not None]
+        if not done[0]["solved"]:
+            return None, [done[0]["status"]]
+        division = Division.from_reports(done, wall)
         self._request_id += 1
-        self._send(0, {"id": self._request_id, "name": name, "op": "lift", "path": report["path"],
+        self._send(0, {"id": self._request_id, "name": name, "op": "lift", "path": done[0]["path"],
                        "resolution": request["resolution"]})
         lifted = self._gather(self._request_id, 1, deadline=deadline)[0]
         if lifted is None:
             return None, ["a worker died during the request"]
-        return {**report, "path": lifted["path"], "index": None}, []
+        return {"plan_time_s": wall, "checks": sum(division.checks), "cpu_s": max(division.busy_s),
+                "division": division, "path": lifted["path"], "index": None, "solved": True,
+                "status": "first path"}, []
 
     def _finish_whole(self, name: str, first: dict[str, Any], request: dict[str, Any], *, left: float,
                       deadline: float) -> dict[str, Any]:
@@ -225,6 +236,7 @@ class WarmPlanner:
                     msg: dict[str, Any] = conn.recv()
                 except (EOFError, OSError):
                     waiting.discard(i)
+                    self._sync.barrier.abort()  # a divided search's survivors stop waiting for it, and report
                     continue
                 if msg.get("id") == request_id:
                     reports[i] = msg
@@ -275,7 +287,7 @@ class WarmPlanner:
         parent, child = self._ctx.Pipe()
         proc = self._ctx.Process(target=_serve, name=f"mp-warm-planner-{i}", daemon=True,
                                  args=(self.problems, PLANNERS[self.planner], ompl_seed(self._seed + i), i,
-                                       self._flag, self._claims, child, os.getpid()))
+                                       self._flag, self._sync, child, os.getpid()))
         proc.start()
         child.close()
         self._procs[i], self._conns[i] = proc, parent
@@ -342,7 +354,7 @@ class WarmPlanner:
             self._discard(i)
 
 
-def _serve(problems: Mapping[str, Problem], planner: str, seed: int, index: int, flag: Any, claims: Any,
+def _serve(problems: Mapping[str, Problem], planner: str, seed: int, index: int, flag: Any, sync: Sync,
            conn: Connection, parent_pid: int) -> None:
     """A warm worker: load every problem once, then answer requests until told to stop."""
     from workloads.motion_planning.search import Search, seed_process  # noqa: PLC0415 (OMPL: workers only)
@@ -372,7 +384,7 @@ def _serve(problems: Mapping[str, Problem], planner: str, seed: int, index: int,
             search = searches[request["name"]]
             op = request.get("op")
             if op is not None:
-                report = _divided_step(op, request, trees[request["name"]], search, claims)
+                report = _divided_step(op, request, trees[request["name"]], search, sync, index, cancelled)
             elif "piece" in request:
                 report = search.finish(request["piece"], planner=planner, resolution=request["resolution"],
                                        time_limit=request["time_limit"], simplify_time=request["simplify_time"])
@@ -388,17 +400,12 @@ def _serve(problems: Mapping[str, Problem], planner: str, seed: int, index: int,
         conn.send({**report, "id": request["id"], "index": index})
 
 
-def _divided_step(op: str, request: dict[str, Any], trees: TreeWorker, search: Any, claims: Any) -> dict[str, Any]:
-    """A worker's part of a divided request: new trees, one round of samples, or lifting the found path."""
-    if op == "begin":
-        return trees.begin(request["start"], request["goal"], resolution=request["resolution"], seed=request["seed"],
-                           batch=request["batch"], check=request["check"])
-    if op == "round":
-        def claim() -> int:
-            with claims.get_lock():
-                claims.value += 1
-                return int(claims.value) - 1
-
-        return trees.round(request["round"], request["merge"], request["pending"], claim)
+def _divided_step(op: str, request: dict[str, Any], trees: TreeWorker, search: Any, sync: Sync, index: int,
+                  cancelled: Callable[[], bool]) -> dict[str, Any]:
+    """A worker's part of a divided request: its share of the search's rounds, or lifting the found path."""
+    if op == "search":
+        return run_rounds(trees, sync, index=index, start=request["start"], goal=request["goal"],
+                          resolution=request["resolution"], seed=request["seed"], batch=request["batch"],
+                          time_limit=request["time_limit"], cancelled=cancelled)
     path = search.lift([Pose(*p) for p in request["path"]], request["resolution"])
     return {"path": [(p.x, p.y, p.z, p.qx, p.qy, p.qz, p.qw) for p in path]}

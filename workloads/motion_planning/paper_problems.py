@@ -5,8 +5,8 @@ Apartment, Home and Twistycool may not be shipped (their license forbids it); th
 from boxes to the same recipe, and ``solve`` reads OMPL.app's own files from any path.
 
 - ``apartment``: a piano (keyboard, body, lid) carried through a flat of six rooms whose doors
-  are narrower than the piano is long: it must turn to go through each, start and goal in
-  opposite corners (OMPL.app's ``Apartment``: "apartment_piano").
+  are narrower than the piano is long: it must turn to go through each, three doors apart
+  (OMPL.app's ``Apartment``: "apartment_piano").
 - ``home``: a table (top and four legs) carried across a house of nine rooms furnished with
   beds, sofas and cupboards, through doors it clears only edge-on (OMPL.app's ``Home``). Its cfg
   repeats keys in an OMPL.app-style ``[planner]`` section, as OMPL.app's own ``Home.cfg`` does.
@@ -34,7 +34,8 @@ from workloads.motion_planning.problem import PROBLEMS_DIR
 PAPER_DIR = PROBLEMS_DIR / "paper"
 Vec = Sequence[float]
 # OMPL.app's Home.cfg lists planners for its benchmark tool, one key given twice; fogiac ignores the section
-_PLANNER_SECTION = "[planner]\nprm=\nrrtstar=\naps=\naps.name=APS1\naps.num_planners=1\naps=\naps.name=APS4\n"
+_PLANNER_SECTION = ("[planner]\nprm=\nrrtstar=\naps=\naps.name=APS1\naps.num_planners=1\n"
+                    "aps=\naps.name=APS4\naps.num_planners=4\n")
 
 
 def write_cfg(path: Path, *, start: Vec, goal: Vec, start_rot: Vec = (1, 0, 0, 0), goal_rot: Vec = (1, 0, 0, 0),
@@ -46,7 +47,8 @@ def write_cfg(path: Path, *, start: Vec, goal: Vec, start_rot: Vec = (1, 0, 0, 0
         lines += [f"{end}.{k} = {v:g}" for k, v in zip("xyz", pos, strict=True)]
         lines += [f"{end}.theta = {rot[3]:.6f}"]
         lines += [f"{end}.axis.{k} = {v:g}" for k, v in zip("xyz", rot[:3], strict=True)]
-    lines += [f"volume.{m}.{k} = {v:g}" for m, vec in (("min", lo), ("max", hi)) for k, v in zip("xyz", vec, strict=True)]
+    lines += [f"volume.{m}.{k} = {v:g}"
+              for m, vec in (("min", lo), ("max", hi)) for k, v in zip("xyz", vec, strict=True)]
     lines += ["", "[solver]", f"time_limit = {time_limit:g}", f"resolution = {resolution:g}",
               "", "[benchmark]", f"time_limit = {time_limit:g}", "mem_limit = 1000.0", "run_count = 50", ""]
     path.write_text("\n".join(lines) + (_PLANNER_SECTION if planner_section else ""), encoding="utf-8")
@@ -76,12 +78,12 @@ def apartment(out: Path) -> None:
     doors = {("v", 1, 0), ("v", 2, 0), ("h", 1, 2), ("v", 1, 1), ("v", 2, 1)}
     parts = [box_between((-1, -1, -0.3), (cols * cell[0] + 1, rows * cell[1] + 1, 0.0)),
              box_between((-1, -1, height), (cols * cell[0] + 1, rows * cell[1] + 1, height + 0.3))]
-    parts += _rooms(cols, rows, cell, door_w=1.2, height=height, thick=0.15, doors=doors)
+    parts += _rooms(cols, rows, cell, door_w=1.6, height=height, thick=0.15, doors=doors)
     export(parts, out / "apartment_env.stl")
-    piano = [box((0, 0, 0), (1.5, 0.6, 0.9)), box((0, -0.45, 0.05), (1.4, 0.3, 0.1)),  # body, keyboard
-             box((0, 0.1, 0.6), (1.5, 0.06, 0.4))]  # the lid, raised
+    piano = [box((0, 0, 0), (1.5, 0.6, 0.9)), box((0, -0.4, 0.05), (1.4, 0.2, 0.1)),  # body, keyboard
+             box((0, 0.1, 0.55), (1.5, 0.06, 0.2))]  # the lid, raised
     export(piano, out / "apartment_robot.stl")
-    write_cfg(out / "apartment.cfg", start=(1.5, 1.5, 0.8), goal=(1.5, 7.5, 0.8), goal_rot=(0, 0, 1, math.pi),
+    write_cfg(out / "apartment.cfg", start=(1.5, 1.5, 0.8), goal=(12.5, 7.0, 0.8), goal_rot=(0, 0, 1, math.pi),
               lo=(0, 0, 0.5), hi=(cols * cell[0], rows * cell[1], 2.0), resolution=0.03)
 
 
@@ -93,7 +95,7 @@ def home(out: Path, *, seed: int = 3) -> None:
     width, depth = cols * cell[0], rows * cell[1]
     parts = [box_between((-1, -1, -0.3), (width + 1, depth + 1, 0.0)),
              box_between((-1, -1, height), (width + 1, depth + 1, height + 0.3))]
-    parts += _rooms(cols, rows, cell, door_w=1.1, height=height, thick=0.15, doors=doors)
+    parts += _rooms(cols, rows, cell, door_w=1.4, height=height, thick=0.15, doors=doors)
     for i in range(cols):
         for j in range(rows):
             if (i, j) in ((0, 0), (2, 2)):
@@ -112,19 +114,19 @@ def home(out: Path, *, seed: int = 3) -> None:
 
 
 def twistycool(out: Path) -> None:
-    half, thick = 4.0, 0.25
-    slot_y, slot_z = 2.5, 0.5  # the slot: a bar (0.3 thick, 2.1 long) goes through lengthwise only
+    half, thick = 4.0, 0.1
+    slot_y, slot_z = 2.8, 0.8  # the slot: a bar (0.3 thick, 2.1 long) goes through lengthwise only
     parts = [box_between((-thick / 2, -half, slot_z / 2), (thick / 2, half, half)),
              box_between((-thick / 2, -half, -half), (thick / 2, half, -slot_z / 2)),
              box_between((-thick / 2, -half, -slot_z / 2), (thick / 2, -slot_y / 2, slot_z / 2)),
              box_between((-thick / 2, slot_y / 2, -slot_z / 2), (thick / 2, half, slot_z / 2))]
     export(parts, out / "twistycool_env.stl")
-    robot = [box((-0.45, 0, 0), (0.3, 2.1, 0.3)),  # the first bar, along y
-             box((0.45, 0, 0), (0.3, 0.3, 2.1)),  # the second, along z: a quarter turn about x away
-             box((0, 0, 0), (0.6, 0.2, 0.2))]  # the neck that turns inside the slot
+    robot = [box((-0.65, 0, 0), (0.3, 2.1, 0.3)),  # the first bar, along y
+             box((0.65, 0, 0), (0.3, 0.3, 2.1)),  # the second, along z: a quarter turn about x away
+             box((0, 0, 0), (1.0, 0.2, 0.2))]  # the neck that turns inside the slot
     export(robot, out / "twistycool_robot.stl")
     write_cfg(out / "twistycool.cfg", start=(-2.5, 0, 0), goal=(2.5, 0, 0), lo=(-3.5, -2.5, -2.5),
-              hi=(3.5, 2.5, 2.5), resolution=0.025)
+              hi=(3.5, 2.5, 2.5), resolution=0.04)
 
 
 GENERATORS = {"apartment": apartment, "home": home, "twistycool": twistycool}

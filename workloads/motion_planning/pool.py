@@ -177,7 +177,8 @@ class WarmPlanner:
         lifted = self._gather(self._request_id, 1, deadline=deadline)[0]
         if lifted is None:
             return None, ["a worker died during the request"]
-        return {"plan_time_s": wall, "checks": sum(division.checks), "cpu_s": max(division.busy_s),
+        return {"plan_time_s": wall, "checks": sum(division.checks) + done[0]["setup_checks"],
+                "cpu_s": max(division.busy_s),
                 "division": division, "path": lifted["path"], "index": None, "solved": True,
                 "status": "first path"}, []
 

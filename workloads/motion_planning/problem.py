@@ -196,21 +196,21 @@ _READ: dict[str, frozenset[str] | None] = {"problem": None, "solver": None,  # s
 def _refuse_repeats(cfg: Path, text: str) -> None:
     """A key fogiac reads, given twice in its section, is an error naming both lines; repeats elsewhere
     ([planner], the rest of [benchmark]: OMPL.app's benchmark settings, unused here) pass."""
-    section, seen = "", dict[str, int]()
+    section, seen = "", dict[tuple[str, str], int]()  # a section opened twice is one section, as configparser has it
     for number, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
         if not line or line[0] in "#;":
             continue
         if line.startswith("[") and line.endswith("]"):
-            section, seen = line[1:-1].strip().lower(), {}
+            section = line[1:-1].strip().lower()
             continue
         key = line.split("=", 1)[0].split(":", 1)[0].strip().lower()
         read = _READ.get(section, frozenset())
         if read is not None and key not in read:
             continue
-        if key in seen:
-            raise WorkloadError(f"{cfg}: [{section}] {key}: given twice (lines {seen[key]} and {number})")
-        seen[key] = number
+        if (section, key) in seen:
+            raise WorkloadError(f"{cfg}: [{section}] {key}: given twice (lines {seen[section, key]} and {number})")
+        seen[section, key] = number
 
 
 def space_extent(problem: Problem) -> float:

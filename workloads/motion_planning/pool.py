@@ -154,9 +154,7 @@ class WarmPlanner:
         self._request_id += 1
         rid, name = self._request_id, request["name"]
         self._flag.value = 0
-        self._sync.barrier.reset()
-        for counter in self._sync.claims:
-            counter.value = 0
+        self._sync.reset()
         search = {"id": rid, "name": name, "op": "search", "start": request["start"], "goal": request["goal"],
                   "resolution": request["resolution"], "time_limit": request["time_limit"],
                   "seed": ompl_seed(self._seed + rid if seed is None else seed), "batch": batch_size(self.workers)}
@@ -168,11 +166,12 @@ class WarmPlanner:
         if any(r is None for r in reports):
             return None, [_DIED]
         done = [r for r in reports if r is not None]
-        if not done[0]["solved"]:
+        found = next((r for r in done if r["solved"]), None)  # any that has it: all that do have the same path
+        if found is None:
             return None, [done[0]["status"]]
         division = Division.from_reports(done, wall)
         self._request_id += 1
-        self._send(0, {"id": self._request_id, "name": name, "op": "lift", "path": done[0]["path"],
+        self._send(0, {"id": self._request_id, "name": name, "op": "lift", "path": found["path"],
                        "resolution": request["resolution"]})
         lifted = self._gather(self._request_id, 1, deadline=deadline)[0]
         if lifted is None:
@@ -237,7 +236,7 @@ class WarmPlanner:
                     msg: dict[str, Any] = conn.recv()
                 except (EOFError, OSError):
                     waiting.discard(i)
-                    self._sync.barrier.abort()  # a divided search's survivors stop waiting for it, and report
+                    self._sync.finished.value = 1  # a divided search's survivors stop waiting for it, and report
                     continue
                 if msg.get("id") == request_id:
                     reports[i] = msg

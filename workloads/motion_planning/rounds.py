@@ -1,29 +1,28 @@
 """The divided search's rounds, run by the workers among themselves in shared memory.
 
 Thread model: k worker processes, no coordinator between rounds. The parent sends each worker
-the request once and waits for k reports. In round r every worker
+the request once and reads k reports. Round r lives in slot ``r % SLOTS`` of the shared arrays:
 
-1. claims tasks one at a time from the shared counter ``claims[r % 2]`` (worker 0 zeroed it at the
-   start of round r - 1's successor, while nobody used it) and writes each task's outcome into its
-   slot of ``records[r % 2]`` (a fixed-size row of doubles);
-2. worker 0 alone then decides whether the search stops after this round (time up, or its parent
-   gone) into ``stop[r % 2]``;
-3. all wait at the barrier, then read every record of the round and apply the same merge
-   (``divided.merge_round``) to their own copy of the trees, so the copies stay identical, and all
-   see the same joining task, if any, and the same stop decision.
+1. a worker entering round r waits until every worker has merged round r - SLOTS (so the slot is
+   free), then claims tasks one at a time from the slot's counter (the first to claim in round r
+   clears the slot, under the slot's lock) and writes each task's outcome into the task's record,
+   then marks it done;
+2. when the claims run out it waits for the round's other tasks; one still not done after
+   ``STEAL_AFTER_S`` (its worker is likely parked by the kernel on a busy machine) it runs itself:
+   a task's outcome depends only on the trees and the seed, so both copies write the same bytes;
+3. it reads every record of the round and applies the same merge (``divided.merge_round``) to its
+   own copy of the trees, so all copies stay identical and all see the same joining task.
 
-Slots and counters alternate by the round's parity: the ones of round r are next written in round
-r + 2, which no worker starts before every worker has passed round r + 1's barrier, so after
-reading round r's. A worker that dies breaks the barrier (after ``BARRIER_TIMEOUT_S`` at worst):
-the others give up the request, the pool replaces the dead one and resets the barrier.
-
-What stays serial is the merge (every worker does the same one) and the barrier's latency; waiting
-for the last worker's last task is imbalance. :class:`Division` puts figures on both.
+So a worker can be up to SLOTS - 1 rounds ahead of another, and a parked worker delays the others
+by at most the steal time, never a whole time slice per round. The search ends for everyone when
+one worker raises ``finished`` (a path merged, time up, parent gone); the path is the same in any
+report that has it. What stays serial is the merge, which every worker does; waiting for the
+round's last tasks is imbalance. :class:`Division` puts figures on both.
 """
 
 from __future__ import annotations
 
-import threading
+import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -34,8 +33,9 @@ import numpy as np
 from workloads.motion_planning.divided import MAX_CHAIN, TreeWorker, merge_round
 from workloads.motion_planning.problem import Pose
 
-BARRIER_TIMEOUT_S = 30.0
-_HEAD = 8  # tree, near, has new, y, joined, goes on, chain length, used
+SLOTS = 4  # rounds in flight: a worker may run SLOTS - 1 rounds ahead of the slowest
+STEAL_AFTER_S = 0.002  # a task not done this long after the claims ran out is run again by a waiting worker
+_HEAD = 8  # tree, near, has new, y, joined, goes on, chain length, spare
 RECORD = _HEAD + 7 + 7 * MAX_CHAIN
 
 
@@ -43,36 +43,57 @@ RECORD = _HEAD + 7 + 7 * MAX_CHAIN
 class Sync:
     """The shared objects of one pool's divided searches (made once, handed to every worker at start)."""
 
-    claims: list[Any]  # two multiprocessing Values ("i"), with their locks
-    stop: Any  # RawArray("b", 2)
-    records: Any  # RawArray("d", 2 * max_tasks * RECORD)
-    barrier: Any
+    locks: list[Any]  # one per slot: guards its round number and claim counter
+    slot_round: Any  # RawArray("i", SLOTS): which round a slot holds
+    claims: Any  # RawArray("i", SLOTS): the slot's next unclaimed task
+    done: Any  # RawArray("b", SLOTS * max_tasks)
+    records: Any  # RawArray("d", SLOTS * max_tasks * RECORD)
+    reached: Any  # RawArray("i", workers): rounds each worker has merged
+    finished: Any  # RawValue("i")
     max_tasks: int
 
     @classmethod
     def create(cls, ctx: Any, *, workers: int, batch: int) -> Sync:
         max_tasks = 2 * batch  # a round's samples plus at most as many connects going on
-        return cls([ctx.Value("i", 0), ctx.Value("i", 0)], ctx.RawArray("b", 2),
-                   ctx.RawArray("d", 2 * max_tasks * RECORD), ctx.Barrier(workers), max_tasks)
+        return cls([ctx.Lock() for _ in range(SLOTS)], ctx.RawArray("i", SLOTS), ctx.RawArray("i", SLOTS),
+                   ctx.RawArray("b", SLOTS * max_tasks), ctx.RawArray("d", SLOTS * max_tasks * RECORD),
+                   ctx.RawArray("i", workers), ctx.RawValue("i", 0), max_tasks)
 
-    def claim(self, parity: int) -> int:
-        counter = self.claims[parity]
-        with counter.get_lock():
-            counter.value += 1
-            return int(counter.value) - 1
+    def reset(self) -> None:
+        """Before a request, while no worker runs one."""
+        for s in range(SLOTS):
+            self.slot_round[s] = -1
+            self.claims[s] = 0
+        for w in range(len(self.reached)):
+            self.reached[w] = 0
+        self.finished.value = 0
+
+    def claim(self, number: int, tasks: int) -> int:
+        slot = number % SLOTS
+        with self.locks[slot]:
+            if self.slot_round[slot] != number:  # the first claim of the round clears the slot
+                self.slot_round[slot] = number
+                self.claims[slot] = 0
+                start = slot * self.max_tasks
+                self.done[start:start + tasks] = bytes(tasks)
+            i = int(self.claims[slot])
+            self.claims[slot] = i + 1
+            return i
 
 
 @dataclass(frozen=True)
 class Division:
     """How a divided search's work fell on the workers, and how much of its time was serial."""
 
-    checks: tuple[int, ...]  # collision checks per worker
+    checks: tuple[int, ...]  # collision checks per worker (tasks run twice included)
     samples: tuple[int, ...]  # samples extended per worker
-    busy_s: tuple[float, ...]  # seconds each worker spent on its tasks
+    busy_s: tuple[float, ...]  # seconds each worker spent on tasks
     rounds: int
     wall_s: float  # the search's wall time, request sent to the last report in
-    serial_s: float  # no worker on a task: merging, the barrier, the request and reports
-    imbalance_s: float  # summed over rounds: the busiest worker's time on tasks over the average's
+    serial_s: float  # not on tasks nor waiting for them: merging, the request and reports
+    imbalance_s: float  # waiting for a round's last tasks, averaged over the workers
+    stolen_checks: tuple[int, ...] = ()  # checks in tasks a worker ran again for a parked one
+    cpu_s: tuple[float, ...] = ()  # CPU seconds each worker's process used in the search (waiting included)
 
     @property
     def serial_share(self) -> float:
@@ -81,81 +102,130 @@ class Division:
     def projected_speedup(self, cores: int) -> float:
         """Amdahl's law from this run's figures: the serial time (and the imbalance, counted as serial)
         stays, the tasks' work divides by ``cores``. A projection, not a measurement."""
-        serial, work = self.serial_s + self.imbalance_s, sum(self.busy_s)
+        serial, work = self.serial_s + self.imbalance_s, sum(self.busy_s) - self._stolen_s()
         return (serial + work) / (serial + work / cores) if serial + work > 0 else 1.0
+
+    def _stolen_s(self) -> float:
+        total = sum(self.checks)
+        return sum(self.busy_s) * sum(self.stolen_checks) / total if total else 0.0
 
     @classmethod
     def from_reports(cls, reports: list[dict[str, Any]], wall_s: float) -> Division:
-        busy = np.array([r["round_busy_s"] for r in reports])  # workers x rounds
-        rounds = busy.shape[1] if busy.ndim == 2 else 0
-        peak = float(busy.max(axis=0).sum()) if rounds else 0.0
-        imbalance = peak - float(busy.mean(axis=0).sum()) if rounds else 0.0
-        return cls(tuple(r["checks"] for r in reports), tuple(r["samples"] for r in reports),
-                   tuple(float(sum(r["round_busy_s"])) for r in reports), rounds, wall_s, max(0.0, wall_s - peak),
-                   imbalance)
+        k = len(reports)
+        busy = [float(r["busy_s"]) for r in reports]
+        waiting = sum(float(r["wait_s"]) for r in reports) / k
+        serial = max(0.0, wall_s - sum(busy) / k - waiting)
+        return cls(tuple(r["checks"] for r in reports), tuple(r["samples"] for r in reports), tuple(busy),
+                   max(r["rounds"] for r in reports), wall_s, serial, waiting,
+                   tuple(r["stolen_checks"] for r in reports), tuple(r["cpu_s"] for r in reports))
 
     def as_dict(self) -> dict[str, Any]:
         return {"checks": list(self.checks), "samples": list(self.samples), "busy_s": list(self.busy_s),
                 "rounds": self.rounds, "wall_s": self.wall_s, "serial_s": self.serial_s,
-                "imbalance_s": self.imbalance_s, "serial_share": self.serial_share}
+                "imbalance_s": self.imbalance_s, "serial_share": self.serial_share,
+                "stolen_checks": list(self.stolen_checks), "cpu_s": list(self.cpu_s)}
+
+
+class _Stop(Exception):
+    pass
 
 
 def run_rounds(worker: TreeWorker, sync: Sync, *, index: int, start: Pose, goal: Pose, resolution: float,
                seed: int, batch: int, time_limit: float, cancelled: Callable[[], bool]) -> dict[str, Any]:
-    """One worker's whole part of a divided search; worker 0's report carries the path."""
+    """One worker's whole part of a divided search; every report that has a path has the same one."""
     deadline = time.perf_counter() + time_limit
     worker.checker.checks = 0
     status = worker.begin(start, goal, resolution=resolution, seed=seed, batch=batch)
     # the endpoints' and the straight move's checks, the same in every worker: kept apart from the shared work
-    report: dict[str, Any] = {"round_busy_s": [], "samples": 0, "setup_checks": worker.checker.checks}
+    report: dict[str, Any] = {"busy_s": 0.0, "wait_s": 0.0, "samples": 0, "rounds": 0, "stolen_checks": 0,
+                              "setup_checks": worker.checker.checks, "cpu_s": time.process_time()}
     worker.checker.checks = 0
     if status is not None:
-        path = [start, goal] if status == "straight" else None
-        return _report(report, worker, path, status)
+        return _report(report, worker, [start, goal] if status == "straight" else None, status)
     trees = worker.trees
     assert trees is not None
+    records, done = np.frombuffer(sync.records, dtype=float), np.frombuffer(sync.done, dtype=np.int8)
     pending: list[tuple[int, int, int]] = []
-    records = np.frombuffer(sync.records, dtype=float)  # a view: no copy either way
+
+    def stop_now() -> bool:
+        if sync.finished.value:
+            return True
+        if time.perf_counter() >= deadline or cancelled():
+            sync.finished.value = 1
+            return True
+        return False
+
     number = 0
-    while True:
-        parity = number % 2
-        began = time.perf_counter()
-        if index == 0:
-            sync.claims[1 - parity].value = 0
-        samples = worker.samples(number)
-        tasks = len(pending) + batch
-        while (i := sync.claim(parity)) < tasks:
-            result = worker.task(i, number, pending, samples)
-            report["samples"] += i >= len(pending)
-            _write(records, (parity * sync.max_tasks + i) * RECORD, result)
-        report["round_busy_s"].append(time.perf_counter() - began)
-        if index == 0:
-            sync.stop[parity] = time.perf_counter() >= deadline or cancelled()
-        try:
-            sync.barrier.wait(BARRIER_TIMEOUT_S)
-        except threading.BrokenBarrierError:
-            return _report(report, worker, None, "a worker died during the request")
-        results = [_read(records, (parity * sync.max_tasks + i) * RECORD, i) for i in range(tasks)]
-        _, pending, path = merge_round(trees, results)
-        pending = pending[:batch]  # the oldest go on; the slots hold a round's samples plus as many
-        number += 1
-        if path is not None:
-            return _report(report, worker, path, "first path")
-        if sync.stop[parity]:
-            return _report(report, worker, None, "timeout")
+    try:
+        while True:
+            slot = number % SLOTS
+            base = slot * sync.max_tasks
+            tasks = len(pending) + batch
+            waited = time.perf_counter()
+            while min(sync.reached) < number - SLOTS + 1:  # the slot's last round not merged by all yet
+                _idle(stop_now)
+            samples = worker.samples(number)
+            began = time.perf_counter()
+            report["wait_s"] += began - waited
+            while (i := sync.claim(number, tasks)) < tasks:
+                _run(worker, records, done, base, i, number, pending, samples)
+                report["samples"] += i >= len(pending)
+                if sync.finished.value:
+                    raise _Stop
+            report["busy_s"] += time.perf_counter() - began
+            waited = time.perf_counter()
+            while not done[base:base + tasks].all():  # the round's last tasks, in other workers' hands
+                if time.perf_counter() - waited < STEAL_AFTER_S:
+                    _idle(stop_now)
+                    continue
+                i = int(np.argmin(done[base:base + tasks]))
+                checks, ran = worker.checker.checks, time.perf_counter()
+                _run(worker, records, done, base, i, number, pending, samples)  # its claimer counts the sample
+                report["stolen_checks"] += worker.checker.checks - checks
+                report["busy_s"] += time.perf_counter() - ran
+                waited -= time.perf_counter() - ran
+            report["wait_s"] += time.perf_counter() - waited
+            results = [_read(records, (base + i) * RECORD, i) for i in range(tasks)]
+            _, pending, path = merge_round(trees, results)
+            pending = pending[:batch]  # the oldest go on; the slots hold a round's samples plus as many
+            number += 1
+            sync.reached[index] = number
+            report["rounds"] = number
+            if path is not None:
+                sync.finished.value = 1
+                return _report(report, worker, path, "first path")
+            if stop_now():
+                raise _Stop
+    except _Stop:
+        sync.reached[index] = 1 << 30  # never again a worker to wait for
+        return _report(report, worker, None, "timeout")
+
+
+def _run(worker: TreeWorker, records: np.ndarray, done: np.ndarray, base: int, i: int, number: int,
+         pending: list[tuple[int, int, int]], samples: np.ndarray) -> None:
+    """Task i of the round: its outcome into its record, then marked done."""
+    _write(records, (base + i) * RECORD, worker.task(i, number, pending, samples))
+    done[base + i] = 1
+
+
+def _idle(stop_now: Callable[[], bool]) -> None:
+    if stop_now():
+        raise _Stop
+    os.sched_yield()
 
 
 def _report(report: dict[str, Any], worker: TreeWorker, path: list[Pose] | None, status: str) -> dict[str, Any]:
-    out = {**report, "checks": worker.checker.checks, "solved": path is not None, "status": status}
+    out = {**report, "checks": worker.checker.checks, "solved": path is not None, "status": status,
+           "cpu_s": time.process_time() - report["cpu_s"]}
     if path is not None:
         out["path"] = [(p.x, p.y, p.z, p.qx, p.qy, p.qz, p.qw) for p in path]
     return out
 
 
-def _write(buf: Any, at: int, result: tuple[Any, ...]) -> None:
+def _write(buf: np.ndarray, at: int, result: tuple[Any, ...]) -> None:
     _, tree, near, new, y, chain, joined, goes_on = result
     row = np.zeros(RECORD)
-    row[:_HEAD] = (tree, near, new is not None, y, joined, goes_on, len(chain), 1)
+    row[:_HEAD] = (tree, near, new is not None, y, joined, goes_on, len(chain), 0)
     if new is not None:
         row[_HEAD:_HEAD + 7] = new
     for j, pose in enumerate(chain):
@@ -163,7 +233,7 @@ def _write(buf: Any, at: int, result: tuple[Any, ...]) -> None:
     buf[at:at + RECORD] = row
 
 
-def _read(buf: Any, at: int, i: int) -> tuple[Any, ...]:
+def _read(buf: np.ndarray, at: int, i: int) -> tuple[Any, ...]:
     row = buf[at:at + RECORD]
     tree, near, has_new, y, joined, goes_on, count, _ = (int(v) for v in row[:_HEAD])
     new = row[_HEAD:_HEAD + 7].copy() if has_new else None

@@ -11,8 +11,9 @@ one-worker and N-worker runs search the very same trees: the work each of the N 
 - the robot's baseline: whichever one-core planner had the lower median here (both medians shown);
 - the cloud's median time and the speedup (ratio of medians; every pair is also printed);
 - work per worker as a share of the one-worker total over N (1.00 = an exact split);
-- the share of the search's wall time that was serial (merging, the barrier, messages) and the
-  imbalance (waiting on the last worker's last task), medians;
+- the share of the search's wall time that was serial (merging, messages) and the imbalance
+  (waiting for a round's last tasks), medians; the search's CPU seconds on one worker over the
+  busiest of N's (what load from other jobs does not stretch), and how many cores the N got;
 - the speedup at 16 and 96 cores that these figures give by Amdahl's law: a projection, not a
   measurement (no machine with more than 2 cores was measured here).
 
@@ -62,12 +63,17 @@ def describe(name: str, runs: list[tuple[Solution, Solution, Solution]], cores: 
         return lines
     checks = [c * cores / sum(a.checks) for a, b in split for c in b.checks]
     samples = [s * cores / sum(a.samples) for a, b in split if sum(a.samples) for s in b.samples]
-    same = sum(sum(a.checks) == sum(b.checks) for a, b in split)
+    same = sum(sum(a.checks) == sum(b.checks) - sum(b.stolen_checks) for a, b in split)
+    stolen = [sum(b.stolen_checks) / sum(a.checks) for a, b in split]
+    cpu = [a.cpu_s[0] / max(b.cpu_s) for a, b in split]
+    got = [sum(b.cpu_s) / b.wall_s for _, b in split]
     many_div = [b for _, b in split]
     lines.append(f"  {name}: work per worker / (one-worker total / {cores}): checks "
                  f"{min(checks):.2f}-{max(checks):.2f}, samples {min(samples):.2f}-{max(samples):.2f}; "
-                 f"same total checks as one worker in {same} of "
-                 f"{len(split)}; serial share median {_median([d.serial_share for d in many_div]):.1%} "
+                 f"same total checks as one worker (less those run twice, median {_median(stolen):.1%}) in {same} "
+                 f"of {len(split)}; search CPU seconds, one worker / busiest of {cores}: median {_median(cpu):.2f}x "
+                 f"(cores the {cores} workers got while searching: median {_median(got):.2f}); serial share median "
+                 f"{_median([d.serial_share for d in many_div]):.1%} "
                  f"(max {max(d.serial_share for d in many_div):.1%}), imbalance "
                  f"{_median([d.imbalance_s / d.wall_s for d in many_div]):.1%}; projection (Amdahl, these figures): "
                  f"{_median([d.projected_speedup(16) for d in many_div]):.1f}x at 16 cores, "

@@ -17,7 +17,8 @@ one-worker and N-worker runs search the very same trees: the work each of the N 
 - the speedup at 16 and 96 cores that these figures give by Amdahl's law: a projection, not a
   measurement (no machine with more than 2 cores was measured here).
 
-``--paper`` adds the paper-class problems (``problems/paper/``: apartment, home, twistycool).
+``--paper`` adds the paper-class problems (``problems/paper/``: apartment, home, twistycool); they
+may also be named one by one.
 Figures are ratios against baselines measured in the same run; the load average is printed.
 """
 
@@ -90,7 +91,8 @@ def main() -> None:
     parser.add_argument("--paper", action="store_true", help="add apartment, home and twistycool (problems/paper/)")
     args = parser.parse_args()
     warm_up()
-    paths = {name: PROBLEMS_DIR / f"{name}.cfg" for name in args.problems}
+    paths = {name: next((d / f"{name}.cfg" for d in (PROBLEMS_DIR, PAPER_DIR) if (d / f"{name}.cfg").exists()),
+                        PROBLEMS_DIR / f"{name}.cfg") for name in args.problems}
     if args.paper:
         paths.update({p.stem: p for p in sorted(PAPER_DIR.glob("*.cfg"))})
     problems = {name: load_problem(path) for name, path in paths.items()}

@@ -17,8 +17,9 @@ one-worker and N-worker runs search the very same trees: the work each of the N 
 - the speedup at 16 and 96 cores that these figures give by Amdahl's law: a projection, not a
   measurement (no machine with more than 2 cores was measured here).
 
-``--paper`` adds the paper-class problems (``problems/paper/``: apartment, home, twistycool); they
-may also be named one by one.
+``--curve 1,2,4,8,16`` measures the divided search alone on each worker count instead (for a machine
+with that many cores; none was lent here). ``--paper`` adds the paper-class problems
+(``problems/paper/``: apartment, home, twistycool); they may also be named one by one.
 Figures are ratios against baselines measured in the same run; the load average is printed.
 """
 
@@ -35,7 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from workloads.motion_planning.paper_problems import PAPER_DIR  # noqa: E402
 from workloads.motion_planning.planner import Solution, warm_up  # noqa: E402
 from workloads.motion_planning.pool import WarmPlanner  # noqa: E402
-from workloads.motion_planning.problem import PROBLEMS_DIR, load_problem  # noqa: E402
+from workloads.motion_planning.problem import PROBLEMS_DIR, Problem, load_problem  # noqa: E402
 
 
 def _median(values: list[float]) -> float:
@@ -89,6 +90,7 @@ def main() -> None:
     parser.add_argument("--cores", type=int, default=2)
     parser.add_argument("--seed", type=int, default=1234)
     parser.add_argument("--paper", action="store_true", help="add apartment, home and twistycool (problems/paper/)")
+    parser.add_argument("--curve", default="", help="worker counts, e.g. 1,2,4,8,16: the measured curve instead")
     args = parser.parse_args()
     warm_up()
     paths = {name: next((d / f"{name}.cfg" for d in (PROBLEMS_DIR, PAPER_DIR) if (d / f"{name}.cfg").exists()),
@@ -97,16 +99,42 @@ def main() -> None:
         paths.update({p.stem: p for p in sorted(PAPER_DIR.glob("*.cfg"))})
     problems = {name: load_problem(path) for name, path in paths.items()}
     print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}", flush=True)
-    with WarmPlanner(problems, workers=1, seed=args.seed, mode="race") as race, \
-            WarmPlanner(problems, workers=1, seed=args.seed, mode="divide") as one, \
-            WarmPlanner(problems, workers=args.cores, seed=args.seed, mode="divide") as many:
-        for name in problems:
-            runs = []
-            for run in range(args.runs):
-                seed = args.seed + 1000 * run
-                runs.append((race.solve(name, seed=seed), one.solve(name, seed=seed), many.solve(name, seed=seed)))
-            print("\n".join(describe(name, runs, args.cores)), flush=True)
+    if args.curve:
+        curve(problems, [int(n) for n in args.curve.split(",")], runs=args.runs, seed=args.seed)
+    else:
+        pairs(problems, cores=args.cores, runs=args.runs, seed=args.seed)
     print(f"load average at end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+
+
+def pairs(problems: dict[str, Problem], *, cores: int, runs: int, seed: int) -> None:
+    with WarmPlanner(problems, workers=1, seed=seed, mode="race") as race, \
+            WarmPlanner(problems, workers=1, seed=seed, mode="divide") as one, \
+            WarmPlanner(problems, workers=cores, seed=seed, mode="divide") as many:
+        for name in problems:
+            done = []
+            for run in range(runs):
+                s = seed + 1000 * run
+                done.append((race.solve(name, seed=s), one.solve(name, seed=s), many.solve(name, seed=s)))
+            print("\n".join(describe(name, done, cores)), flush=True)
+
+
+def curve(problems: dict[str, Problem], counts: list[int], *, runs: int, seed: int) -> None:
+    """The divided search on each worker count, the same seeds (so the same searches up to 8 workers):
+    median search and solve time, and their speedup over the first count. For a machine with the cores."""
+    for name in problems:
+        times: dict[int, list[Solution]] = {}
+        for n in counts:
+            with WarmPlanner({name: problems[name]}, workers=n, seed=seed, mode="divide") as planner:
+                times[n] = [planner.solve(name, seed=seed + 1000 * run) for run in range(runs)]
+        base = counts[0]
+        search0 = _median([s.plan_time_s for s in times[base]])
+        solve0 = _median([s.solve_time_s for s in times[base]])
+        for n in counts:
+            search, solve = _median([s.plan_time_s for s in times[n]]), _median([s.solve_time_s for s in times[n]])
+            shares = [d.serial_share for s in times[n] if (d := s.division) is not None]
+            print(f"  {name:<10} {n:>3} workers: search {search:6.2f}s ({search0 / search:5.2f}x), solve "
+                  f"{solve:6.2f}s ({solve0 / solve:5.2f}x), serial share {_median(shares):.1%}, solved "
+                  f"{sum(s.solved for s in times[n])}/{runs}", flush=True)
 
 
 if __name__ == "__main__":

@@ -35,6 +35,7 @@ from workloads.motion_planning.problem import Pose
 
 SLOTS = 4  # rounds in flight: a worker may run SLOTS - 1 rounds ahead of the slowest
 STEAL_AFTER_S = 0.002  # a task not done this long after the claims ran out is run again by a waiting worker
+SPIN_S, NAP_S = 0.0002, 0.0002
 _HEAD = 8  # tree, near, has new, y, joined, goes on, chain length, spare
 RECORD = _HEAD + 7 + 7 * MAX_CHAIN
 
@@ -163,7 +164,7 @@ def run_rounds(worker: TreeWorker, sync: Sync, *, index: int, start: Pose, goal:
             tasks = len(pending) + batch
             waited = time.perf_counter()
             while min(sync.reached) < number - SLOTS + 1:  # the slot's last round not merged by all yet
-                _idle(stop_now)
+                _idle(stop_now, waited)
             samples = worker.samples(number)
             began = time.perf_counter()
             report["wait_s"] += began - waited
@@ -176,7 +177,7 @@ def run_rounds(worker: TreeWorker, sync: Sync, *, index: int, start: Pose, goal:
             waited = time.perf_counter()
             while not done[base:base + tasks].all():  # the round's last tasks, in other workers' hands
                 if time.perf_counter() - waited < STEAL_AFTER_S:
-                    _idle(stop_now)
+                    _idle(stop_now, waited)
                     continue
                 i = int(np.argmin(done[base:base + tasks]))
                 checks, ran = worker.checker.checks, time.perf_counter()
@@ -208,10 +209,15 @@ def _run(worker: TreeWorker, records: np.ndarray, done: np.ndarray, base: int, i
     done[base + i] = 1
 
 
-def _idle(stop_now: Callable[[], bool]) -> None:
+def _idle(stop_now: Callable[[], bool], since: float) -> None:
+    """Spin briefly (a task ends within ~0.1 ms as often as not), then sleep in short naps: on a busy
+    machine a spinning waiter would take the CPU the worker it waits for needs."""
     if stop_now():
         raise _Stop
-    os.sched_yield()
+    if time.perf_counter() - since < SPIN_S:
+        os.sched_yield()
+    else:
+        time.sleep(NAP_S)
 
 
 def _report(report: dict[str, Any], worker: TreeWorker, path: list[Pose] | None, status: str) -> dict[str, Any]:

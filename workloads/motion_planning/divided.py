@@ -4,21 +4,21 @@ A race (``planner.py``) runs one whole search per worker and keeps the first to 
 workers do k times the work for the luck of the best draw. Here the workers grow the *same* two
 trees (one from the start, one from the goal, RRT-Connect's extend-then-connect) in rounds:
 
-- every round has a fixed batch of samples, drawn from ``(seed, round)``; sample ``i`` extends
-  the start tree when ``i + round`` is even, else the goal tree, from its nearest node (as the
-  trees stood when the round began) by at most ``step``, to the last pose its motion check
-  passed; the other tree's nearest node then tries to reach the new node in a straight line
-  (its valid prefix is added as nodes ``step`` apart); a full reach joins the trees;
-- workers claim samples one at a time from a shared counter (no worker waits on a fixed share
-  while another still has work), check motions with fcl at the request's resolution, and send
-  the nodes back; the coordinator merges them in sample order and sends the merge with the next
-  round, so every worker keeps an identical copy of both trees;
-- the first round with a joining sample ends the search: the lowest such sample's path.
+- every round has a fixed batch of samples, drawn from ``(seed, round)``, after the connects the
+  last round left unfinished; sample ``i`` extends the start tree when ``i + round`` is even, else
+  the goal tree, from its nearest node (as the trees stood when the round began) by at most
+  ``step`` (and ``EXTEND_CHECKS`` checks), to the last pose its motion check passed; the other
+  tree's nearest node then goes straight toward the new node for at most ``CONNECT_CHECKS``
+  checks, its valid prefix added as nodes a step apart; a full reach joins the trees;
+- each task is a pure function of the trees and the seed (:meth:`TreeWorker.task`), so it does not
+  matter which worker runs it; ``rounds.py`` hands them out, and every worker applies the same
+  :func:`merge_round` (task order) to its own copy of the trees;
+- the first round with a joining task ends the search: the lowest such task's path.
 
 So the k workers together do the work one worker would do, each about 1/k of it, and the
-answer depends on the seed alone, not on k or on which worker took which sample (the batch
-is ``batch_size(k)``: the same for any k up to 8). What stays serial is the merge, the
-messages and each worker applying the merge to its copy; :class:`Division` measures it.
+answer depends on the seed alone, not on k or on which worker took which task (the batch is
+``batch_size(k)``: the same for any k up to 8). What stays serial is the merge every worker
+applies; ``rounds.Division`` measures it.
 
 Pure numpy and fcl (no OMPL): the workers run it beside their ``search.Search``.
 """

@@ -31,7 +31,7 @@ import os
 import random
 import threading
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from multiprocessing.connection import Connection, wait
 from typing import Any
 
@@ -50,7 +50,7 @@ from workloads.motion_planning.planner import (
     worker_context,
 )
 from workloads.motion_planning.problem import Pose, Problem
-from workloads.motion_planning.rounds import Division, Sync, run_rounds
+from workloads.motion_planning.rounds import Division, Sync, worker_step
 from workloads.motion_planning.share import DEFAULT_MODE, MODES, join_reports, simplify_shares, split_path
 
 _READY_TIMEOUT_S = 120.0
@@ -384,7 +384,7 @@ def _serve(problems: Mapping[str, Problem], planner: str, seed: int, index: int,
             search = searches[request["name"]]
             op = request.get("op")
             if op is not None:
-                report = _divided_step(op, request, trees[request["name"]], search, sync, index, cancelled)
+                report = worker_step(op, request, trees[request["name"]], search, sync, index, cancelled)
             elif "piece" in request:
                 report = search.finish(request["piece"], planner=planner, resolution=request["resolution"],
                                        time_limit=request["time_limit"], simplify_time=request["simplify_time"])
@@ -398,14 +398,3 @@ def _serve(problems: Mapping[str, Problem], planner: str, seed: int, index: int,
         except Exception as err:  # report, do not hang the parent
             report = {"solved": False, "status": f"worker error: {err}"}
         conn.send({**report, "id": request["id"], "index": index})
-
-
-def _divided_step(op: str, request: dict[str, Any], trees: TreeWorker, search: Any, sync: Sync, index: int,
-                  cancelled: Callable[[], bool]) -> dict[str, Any]:
-    """A worker's part of a divided request: its share of the search's rounds, or lifting the found path."""
-    if op == "search":
-        return run_rounds(trees, sync, index=index, start=request["start"], goal=request["goal"],
-                          resolution=request["resolution"], seed=request["seed"], batch=request["batch"],
-                          time_limit=request["time_limit"], cancelled=cancelled)
-    path = search.lift([Pose(*p) for p in request["path"]], request["resolution"])
-    return {"path": [(p.x, p.y, p.z, p.qx, p.qy, p.qz, p.qw) for p in path]}

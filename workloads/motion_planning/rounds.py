@@ -127,6 +127,18 @@ class Division:
                 "stolen_checks": list(self.stolen_checks), "cpu_s": list(self.cpu_s)}
 
 
+def worker_step(op: str, request: dict[str, Any], trees: TreeWorker, search: Any, sync: Sync, index: int,
+                cancelled: Callable[[], bool]) -> dict[str, Any]:
+    """A pool worker's part of a divided request: its share of the search's rounds, or lifting the found
+    path clear of the walls (``search``: the worker's ``search.Search`` of the problem)."""
+    if op == "search":
+        return run_rounds(trees, sync, index=index, start=request["start"], goal=request["goal"],
+                          resolution=request["resolution"], seed=request["seed"], batch=request["batch"],
+                          time_limit=request["time_limit"], cancelled=cancelled)
+    path = search.lift([Pose(*p) for p in request["path"]], request["resolution"])
+    return {"path": [(p.x, p.y, p.z, p.qx, p.qy, p.qz, p.qw) for p in path]}
+
+
 class _Stop(Exception):
     pass
 

@@ -1,89 +1,140 @@
-"""Benchmark: one core and two on the same draw, request by request (no ROS, no relay).
+"""Benchmark: the robot's best single core against the cloud's divided search, request by request.
 
-    .venv/bin/python benchmarks/planner_pairs.py [--runs 8] [--seed 1234] [cubicles maze twisty]
+    .venv/bin/python benchmarks/planner_pairs.py [--runs 5] [--cores 2] [--seed 1234] [--paper] [NAMES]
 
-A warm 1-worker planner (the robot) and a warm 2-worker planner in ``share`` mode (the cloud)
-get the same requests with the same seed, taking turns, so the cloud's worker 0 repeats the
-robot's search exactly (``WarmPlanner.solve(seed=)``) and worker 1 makes a second draw. Per
-problem it prints each pair and then where the second core's time went: how often worker 1's
-draw won the race, the speedup when it did and when it did not, the search's and the
-simplifying's share of each side's time, and how much slower worker 0 ran the very same
-search beside a busy worker 1 (contention for the machine, not planning). Figures are ratios
-against the 1-worker side measured in the same run.
+Per request the same seed goes to three warm planners, taking turns: OMPL's RRT-Connect on one
+worker (``race``, what the robot ran before), the divided search on one worker (``divide``), and
+the divided search on ``--cores`` workers. The divided search depends on the seed alone, so its
+one-worker and N-worker runs search the very same trees: the work each of the N workers did
+(collision checks, samples) is set against the one-worker total over N. Per problem it prints:
+
+- the robot's baseline: whichever one-core planner had the lower median here (both medians shown);
+- the cloud's median time and the speedup (ratio of medians; every pair is also printed);
+- work per worker as a share of the one-worker total over N (1.00 = an exact split);
+- the share of the search's wall time that was serial (merging, messages) and the imbalance
+  (waiting for a round's last tasks), medians; the search's CPU seconds on one worker over the
+  busiest of N's (what load from other jobs does not stretch), and how many cores the N got;
+- the speedup at 16 and 96 cores that these figures give by Amdahl's law: a projection, not a
+  measurement (no machine with more than 2 cores was measured here).
+
+``--curve 1,2,4,8,16`` measures the divided search alone on each worker count instead (for a machine
+with that many cores; none was lent here). ``--paper`` adds the paper-class problems
+(``problems/paper/``: apartment, home, twistycool); they may also be named one by one.
+Figures are ratios against baselines measured in the same run; the load average is printed.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from workloads.motion_planning.paper_problems import PAPER_DIR  # noqa: E402
 from workloads.motion_planning.planner import Solution, warm_up  # noqa: E402
 from workloads.motion_planning.pool import WarmPlanner  # noqa: E402
-from workloads.motion_planning.problem import PROBLEMS_DIR, load_problem  # noqa: E402
+from workloads.motion_planning.problem import PROBLEMS_DIR, Problem, load_problem  # noqa: E402
 
 
-def describe(name: str, pairs: list[tuple[Solution, Solution]]) -> list[str]:
+def _median(values: list[float]) -> float:
+    return statistics.median(values) if values else float("nan")
+
+
+def describe(name: str, runs: list[tuple[Solution, Solution, Solution]], cores: int) -> list[str]:
     lines = []
-    for robot, cloud in pairs:
-        lines.append(f"  {name:<9} robot {robot.solve_time_s:5.2f}s ({_parts(robot)})  "
-                     f"cloud {cloud.solve_time_s:5.2f}s (worker {cloud.winner} won, {_parts(cloud)}, "
-                     f"pieces {cloud.pieces})  "
-                     f"{robot.solve_time_s / cloud.solve_time_s:4.2f}x")
-    solved = [(r, c) for r, c in pairs if r.solved and c.solved]
-    second = [(r, c) for r, c in solved if c.winner == 1]
-    first = [(r, c) for r, c in solved if c.winner == 0]
-
-    def ratio(group: list[tuple[Solution, Solution]]) -> str:
-        return f"{statistics.median(r.solve_time_s / c.solve_time_s for r, c in group):.2f}x" if group else "-"
-
-    same = [c.plan_time_s / r.plan_time_s for r, c in first if r.plan_time_s > 0.05]
-    lines.append(f"  {name}: speedup median {ratio(solved)} over {len(solved)} of {len(pairs)} pairs solved; "
-                 f"worker 1's draw won {len(second)} ({ratio(second)}), worker 0's {len(first)} ({ratio(first)}); "
-                 f"search share of time robot {_share(solved, 0):.0%}, cloud {_share(solved, 1):.0%}; "
-                 f"simplify robot/cloud {_simplify_ratio(solved):.2f}x; same search beside a busy worker: "
-                 + (f"{statistics.median(same):.2f}x as long" if same else "-"))
+    for race, one, many in runs:
+        lines.append(f"  {name:<10} race 1w {race.solve_time_s:6.2f}s  divide 1w {one.solve_time_s:6.2f}s "
+                     f"(search {one.plan_time_s:5.2f})  divide {cores}w {many.solve_time_s:6.2f}s "
+                     f"(search {many.plan_time_s:5.2f}, pieces {many.pieces}, repairs {many.repairs})  "
+                     f"{min(race.solve_time_s, one.solve_time_s) / many.solve_time_s:4.2f}x over the better one core")
+    race_t = _median([r.solve_time_s for r, _, _ in runs])
+    one_t = _median([o.solve_time_s for _, o, _ in runs])
+    many_t = _median([m.solve_time_s for _, _, m in runs])
+    best, best_name = (race_t, "race (RRT-Connect)") if race_t < one_t else (one_t, "divide")
+    solved = [sum(s.solved for s in side) for side in zip(*runs, strict=True)]
+    lines.append(f"  {name}: one core median race {race_t:.2f}s, divide {one_t:.2f}s (baseline: {best_name}); "
+                 f"{cores} cores {many_t:.2f}s: speedup {best / many_t:.2f}x; search alone "
+                 f"{_median([o.plan_time_s for _, o, _ in runs]) / _median([m.plan_time_s for _, _, m in runs]):.2f}x; "
+                 f"solved {solved[0]}/{solved[1]}/{solved[2]} of {len(runs)}")
+    split = [(one.division, many.division) for _, one, many in runs
+             if one.division is not None and many.division is not None and one.solved and many.solved]
+    if not split:
+        return lines
+    checks = [c * cores / sum(a.checks) for a, b in split for c in b.checks]
+    samples = [s * cores / sum(a.samples) for a, b in split if sum(a.samples) for s in b.samples]
+    same = sum(sum(a.checks) == sum(b.checks) - sum(b.stolen_checks) for a, b in split)
+    stolen = [sum(b.stolen_checks) / sum(a.checks) for a, b in split]
+    cpu = [a.cpu_s[0] / max(b.cpu_s) for a, b in split]
+    got = [sum(b.cpu_s) / b.wall_s for _, b in split]
+    many_div = [b for _, b in split]
+    lines.append(f"  {name}: work per worker / (one-worker total / {cores}): checks "
+                 f"{min(checks):.2f}-{max(checks):.2f}, samples {min(samples):.2f}-{max(samples):.2f}; "
+                 f"same total checks as one worker (less those run twice, median {_median(stolen):.1%}) in {same} "
+                 f"of {len(split)}; search CPU seconds, one worker / busiest of {cores}: median {_median(cpu):.2f}x "
+                 f"(cores the {cores} workers got while searching: median {_median(got):.2f}); serial share median "
+                 f"{_median([d.serial_share for d in many_div]):.1%} "
+                 f"(max {max(d.serial_share for d in many_div):.1%}), imbalance "
+                 f"{_median([d.imbalance_s / d.wall_s for d in many_div]):.1%}; projection (Amdahl, these figures): "
+                 f"{_median([d.projected_speedup(16) for d in many_div]):.1f}x at 16 cores, "
+                 f"{_median([d.projected_speedup(96) for d in many_div]):.1f}x at 96")
     return lines
-
-
-def _parts(s: Solution) -> str:
-    """Search, simplify, and the rest (proving, repairs, passing pieces about), in seconds."""
-    rest = s.solve_time_s - s.plan_time_s - s.simplify_time_s
-    return f"search {s.plan_time_s:4.2f}, simplify {s.simplify_time_s:4.2f}, rest {rest:4.2f}, repairs {s.repairs}"
-
-
-def _share(pairs: list[tuple[Solution, Solution]], side: int) -> float:
-    """The search's share of one side's time, over all pairs."""
-    done = [p[side] for p in pairs]
-    total = sum(s.solve_time_s for s in done)
-    return sum(s.plan_time_s for s in done) / total if total > 0 else 0.0
-
-
-def _simplify_ratio(pairs: list[tuple[Solution, Solution]]) -> float:
-    """Median of the robot's simplifying time over the cloud's (its slowest piece)."""
-    ratios = [r.simplify_time_s / c.simplify_time_s for r, c in pairs if c.simplify_time_s > 0]
-    return statistics.median(ratios) if ratios else 0.0
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("problems", nargs="*", default=["cubicles", "maze", "twisty"])
-    parser.add_argument("--runs", type=int, default=8)
+    parser.add_argument("--runs", type=int, default=5)
+    parser.add_argument("--cores", type=int, default=2)
     parser.add_argument("--seed", type=int, default=1234)
+    parser.add_argument("--paper", action="store_true", help="add apartment, home and twistycool (problems/paper/)")
+    parser.add_argument("--curve", default="", help="worker counts, e.g. 1,2,4,8,16: the measured curve instead")
     args = parser.parse_args()
     warm_up()
-    problems = {name: load_problem(PROBLEMS_DIR / f"{name}.cfg") for name in args.problems}
-    with WarmPlanner(problems, workers=1, seed=args.seed) as robot, \
-            WarmPlanner(problems, workers=2, seed=args.seed + 1, mode="share") as cloud:
-        for name in args.problems:
-            pairs = []
-            for run in range(args.runs):
-                seed = args.seed + 1000 * run
-                pairs.append((robot.solve(name, seed=seed), cloud.solve(name, seed=seed)))
-            print("\n".join(describe(name, pairs)), flush=True)
+    paths = {name: next((d / f"{name}.cfg" for d in (PROBLEMS_DIR, PAPER_DIR) if (d / f"{name}.cfg").exists()),
+                        PROBLEMS_DIR / f"{name}.cfg") for name in args.problems}
+    if args.paper:
+        paths.update({p.stem: p for p in sorted(PAPER_DIR.glob("*.cfg"))})
+    problems = {name: load_problem(path) for name, path in paths.items()}
+    print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}", flush=True)
+    if args.curve:
+        curve(problems, [int(n) for n in args.curve.split(",")], runs=args.runs, seed=args.seed)
+    else:
+        pairs(problems, cores=args.cores, runs=args.runs, seed=args.seed)
+    print(f"load average at end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+
+
+def pairs(problems: dict[str, Problem], *, cores: int, runs: int, seed: int) -> None:
+    with WarmPlanner(problems, workers=1, seed=seed, mode="race") as race, \
+            WarmPlanner(problems, workers=1, seed=seed, mode="divide") as one, \
+            WarmPlanner(problems, workers=cores, seed=seed, mode="divide") as many:
+        for name in problems:
+            done = []
+            for run in range(runs):
+                s = seed + 1000 * run
+                done.append((race.solve(name, seed=s), one.solve(name, seed=s), many.solve(name, seed=s)))
+            print("\n".join(describe(name, done, cores)), flush=True)
+
+
+def curve(problems: dict[str, Problem], counts: list[int], *, runs: int, seed: int) -> None:
+    """The divided search on each worker count, the same seeds (so the same searches up to 8 workers):
+    median search and solve time, and their speedup over the first count. For a machine with the cores."""
+    for name in problems:
+        times: dict[int, list[Solution]] = {}
+        for n in counts:
+            with WarmPlanner({name: problems[name]}, workers=n, seed=seed, mode="divide") as planner:
+                times[n] = [planner.solve(name, seed=seed + 1000 * run) for run in range(runs)]
+        base = counts[0]
+        search0 = _median([s.plan_time_s for s in times[base]])
+        solve0 = _median([s.solve_time_s for s in times[base]])
+        for n in counts:
+            search, solve = _median([s.plan_time_s for s in times[n]]), _median([s.solve_time_s for s in times[n]])
+            shares = [d.serial_share for s in times[n] if (d := s.division) is not None]
+            print(f"  {name:<10} {n:>3} workers: search {search:6.2f}s ({search0 / search:5.2f}x), solve "
+                  f"{solve:6.2f}s ({solve0 / solve:5.2f}x), serial share {_median(shares):.1%}, solved "
+                  f"{sum(s.solved for s in times[n])}/{runs}", flush=True)
 
 
 if __name__ == "__main__":

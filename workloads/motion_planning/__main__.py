@@ -14,12 +14,13 @@ from collections.abc import Sequence
 from fogiac.errors import FogiacError
 from workloads.motion_planning import load_problem, solve
 from workloads.motion_planning.planner import DEFAULT_PLANNER, PLANNERS
+from workloads.motion_planning.share import DEFAULT_MODE, MODES
 
 
 def _solve(args: argparse.Namespace) -> int:
     problem = load_problem(args.problem)
     solution = solve(problem, cores=args.cores, time_limit=args.time_limit, seed=args.seed, planner=args.planner,
-                     resolution=args.resolution)
+                     resolution=args.resolution, mode=args.mode)
     if args.json:
         print(json.dumps(solution.as_dict()))
     else:
@@ -49,12 +50,15 @@ def build_parser() -> argparse.ArgumentParser:
     verbs = parser.add_subparsers(dest="verb", required=True)
     s = verbs.add_parser("solve", help="plan one problem file")
     s.add_argument("problem", help="OMPL.app-style .cfg file")
-    s.add_argument("--cores", type=int, default=None, help="racing planner processes (default: all cores)")
+    s.add_argument("--cores", type=int, default=None, help="planner processes (default: all cores)")
     s.add_argument("--time-limit", type=float, default=None, help="seconds (default: the cfg's time_limit)")
     s.add_argument("--seed", type=int, default=None)
     s.add_argument("--resolution", type=float, default=None,
                    help="world units a robot point may move between checks (default: the cfg's, else fitted)")
-    s.add_argument("--planner", choices=sorted(PLANNERS), default=DEFAULT_PLANNER)
+    s.add_argument("--planner", choices=sorted(PLANNERS), default=DEFAULT_PLANNER,
+                   help="the OMPL planner of the race and share modes")
+    s.add_argument("--mode", choices=MODES, default=DEFAULT_MODE,
+                   help="divide: one search split between the cores; race/share: one search per core")
     s.add_argument("--json", action="store_true", help="print the Solution as one JSON object")
     s.set_defaults(run=_solve)
     n = verbs.add_parser("node", help="run the ROS node (rospy args such as __name:= pass through)")

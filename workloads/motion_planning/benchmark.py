@@ -1,4 +1,5 @@
-"""Benchmark: every problem N times on 1 core and on all cores, cold and warm; medians, speedup.
+"""Benchmark of the race and share modes: every problem N times on 1 core and on all cores, cold and
+warm; medians, speedup. The divided search (the default mode) has its own: ``benchmarks/planner_pairs.py``.
 
 ``python -m workloads.motion_planning.benchmark --runs 10 --out benchmarks/out``
 
@@ -58,7 +59,8 @@ def measure(name: str, problem: Problem, warm: dict[tuple[str, int], WarmPlanner
     results.update({key: [] for key in warm})
     for i in range(runs):
         for c in cores:
-            results[("cold", c)].append(solve(problem, cores=c, time_limit=time_limit, seed=seed + 1000 * i))
+            results[("cold", c)].append(solve(problem, cores=c, time_limit=time_limit, seed=seed + 1000 * i,
+                                                    mode="race"))
             for mode in ("warm", "share"):
                 if (mode, c) in warm:
                     results[(mode, c)].append(warm[(mode, c)].solve(name, time_limit=time_limit,
@@ -85,7 +87,7 @@ def overhead_ms(name: str, problem: Problem, warm: WarmPlanner, *, requests: int
     trivial = problem.with_endpoints(start, goal)
     cold, hot = [], []
     for _ in range(requests):
-        cold.append(solve(trivial, cores=warm.workers, simplify_time=0.0).solve_time_s)
+        cold.append(solve(trivial, cores=warm.workers, simplify_time=0.0, mode="race").solve_time_s)
         hot.append(warm.solve(name, start=start, goal=goal, simplify_time=0.0).solve_time_s)
     return statistics.median(cold) * 1e3, statistics.median(hot) * 1e3
 
@@ -155,7 +157,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     warm_up()
     print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}", flush=True)
     rows = []
-    with WarmPlanner(problems, workers=1, seed=args.seed) as warm1, \
+    with WarmPlanner(problems, workers=1, seed=args.seed, mode="race") as warm1, \
             WarmPlanner(problems, workers=args.cores, seed=args.seed + 500, mode="race") as warm_n, \
             WarmPlanner(problems, workers=args.cores, seed=args.seed + 700, mode="share") as share_n:
         warm = {("warm", 1): warm1, ("warm", args.cores): warm_n, ("share", args.cores): share_n}

@@ -12,8 +12,9 @@ Topics (node name ``motion_planning``, so ``~x`` is ``/motion_planning/x``; rema
 
 Params: ``~cores`` (0 or unset: all cores), ``~time_limit`` (0 or unset: each cfg's), ``~problem_dir``
 (default: the shipped problems), ``~planner`` (default ``rrtconnect``), ``~resolution`` (0 or
-unset: each problem's validity resolution), ``~mode`` (``share``, the default: every worker
-finishes a piece of the first path; ``race``: the winner finishes it alone; see ``share.py``).
+unset: each problem's validity resolution), ``~mode`` (``divide``, the default: the workers share
+one search, ``divided.py``, then a piece each of its path; ``share``: they race, then share the
+finish; ``race``: the winner finishes alone; see ``share.py``).
 
 The node is warm: at start it loads every problem in ``~problem_dir`` into ``~cores`` long-lived
 worker processes (:class:`pool.WarmPlanner`), so a request pays for planning only. Requests are

@@ -12,6 +12,7 @@ solve builds its collision models anew. ``pool.WarmPlanner`` keeps workers and m
 
 from __future__ import annotations
 
+import dataclasses
 import multiprocessing as mp
 import os
 import queue
@@ -19,11 +20,14 @@ import random
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from fogiac.errors import WorkloadError
 from fogiac.procs import pid_alive
 from workloads.motion_planning.problem import Pose, Problem, validity_resolution
+
+if TYPE_CHECKING:  # rounds imports fcl-side code; a Solution only carries its record
+    from workloads.motion_planning.rounds import Division
 
 # name accepted on the CLI / in ROS params -> class in ompl.geometric
 PLANNERS = {
@@ -58,6 +62,7 @@ class Solution:
     repairs: int = 0  # segments re-planned because they could not be proven free
     pieces: int = 1  # how many workers simplified and proved a piece of the path (share mode)
     cpu_s: float = 0.0  # CPU seconds on the critical path (winner's search + its, or the slowest piece's, finish)
+    division: Division | None = None  # the divided search's work per worker and serial time (mode divide)
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -67,6 +72,7 @@ class Solution:
             "collision_checks": self.collision_checks, "resolution": self.resolution,
             "check_resolution": self.check_resolution, "repairs": self.repairs,
             "pieces": self.pieces, "cpu_s": self.cpu_s,
+            "division": self.division.as_dict() if self.division is not None else None,
             "path": [p.as_dict() for p in self.path],
         }
 
@@ -128,20 +134,26 @@ def solution_from(report: dict[str, Any] | None, statuses: list[str], *, cores: 
     return Solution(report["solved"], report["status"], path, cores, elapsed, report["plan_time_s"],
                     report.get("simplify_time_s", 0.0), report["index"], planner, report["checks"],
                     report.get("resolution", 0.0), report.get("check_resolution", 0.0), report.get("repairs", 0),
-                    report.get("pieces", 1), report.get("cpu_s", 0.0))
+                    report.get("pieces", 1), report.get("cpu_s", 0.0), report.get("division"))
 
 
 def solve(problem: Problem, *, cores: int | None = None, time_limit: float | None = None,
           seed: int | None = None, planner: str = DEFAULT_PLANNER, simplify_time: float = 0.5,
-          resolution: float | None = None) -> Solution:
-    """Plan from ``problem.start`` to ``problem.goal`` with ``cores`` racing planners, started cold.
+          resolution: float | None = None, mode: str = "divide") -> Solution:
+    """Plan from ``problem.start`` to ``problem.goal`` on ``cores`` worker processes, started cold.
 
-    ``resolution`` (world units) overrides the problem's validity resolution for this request.
+    ``mode="divide"`` (the default) splits one search between them (``divided.py``), then shares
+    the finish; ``"race"`` races ``cores`` OMPL planners (``planner``), the first path winning;
+    ``"share"`` races, then shares the finish (``share.py``). ``resolution`` (world units)
+    overrides the problem's validity resolution for this request.
     """
     n, limit, res = check_request(problem, cores=cores, time_limit=time_limit, planner=planner,
                                   resolution=resolution)
     base_seed = seed if seed is not None else random.SystemRandom().randrange(2**31)
     warm_up()  # a one-off per calling process, kept out of solve_time_s
+    if mode != "race":
+        return _solve_pooled(problem, cores=n, time_limit=limit, seed=base_seed, planner=planner,
+                             simplify_time=simplify_time, resolution=res, mode=mode)
     ctx = worker_context()
     flag = ctx.RawValue("b", 0)
     results = ctx.Queue()
@@ -174,6 +186,18 @@ def solve(problem: Problem, *, cores: int | None = None, time_limit: float | Non
         flag.value = 1
         _reap(started, results)
     return solution_from(winner, statuses, cores=n, elapsed=elapsed, planner=planner)
+
+
+def _solve_pooled(problem: Problem, *, cores: int, time_limit: float, seed: int, planner: str,
+                  simplify_time: float, resolution: float, mode: str) -> Solution:
+    """A warm planner started for this one request: its start-up counts in ``solve_time_s``, as a race's does."""
+    from workloads.motion_planning.pool import WarmPlanner  # noqa: PLC0415 (pool imports this module)
+
+    t0 = time.perf_counter()
+    with WarmPlanner({problem.name: problem}, workers=cores, planner=planner, seed=seed, simplify_time=simplify_time,
+                     mode=mode) as warm:
+        solution = warm.solve(problem.name, time_limit=time_limit, resolution=resolution, seed=seed)
+        return dataclasses.replace(solution, solve_time_s=time.perf_counter() - t0)
 
 
 def ompl_seed(seed: int) -> int:

@@ -16,7 +16,10 @@ requests (problem name, start, goal, limits) over its own pipe until it is close
   request that names its own ``seed`` is repeatable alone: worker i draws from ``seed + i``
   whatever it did before, so one worker's search is the same on a 1-worker planner and as
   worker 0 of a larger one (the demo compares the robot and the cloud on the same draws).
-- ``mode="share"`` (the default) shares the work after the race: the first path is cut into a
+- ``mode="divide"`` (the default) divides the search itself: every worker grows the same two trees,
+  a share of each round's samples apiece (``divided.py``), then the path is finished in pieces as
+  in ``share``. The search depends on the request's seed alone, not on the number of workers.
+- ``mode="share"`` shares the work after the race: the first path is cut into a
   piece per worker and every worker simplifies and proves its piece (``share.py``); when a piece
   cannot be proven, one worker finishes the whole path in the time left (:attr:`refinished`);
   ``mode="race"`` leaves that to the winner alone. With one worker the two are the same.
@@ -34,6 +37,7 @@ from typing import Any
 
 from fogiac.errors import WorkloadError
 from fogiac.procs import pid_alive
+from workloads.motion_planning.divided import TreeWorker, batch_size
 from workloads.motion_planning.planner import (
     DEFAULT_PLANNER,
     PLANNERS,
@@ -46,11 +50,13 @@ from workloads.motion_planning.planner import (
     worker_context,
 )
 from workloads.motion_planning.problem import Pose, Problem
+from workloads.motion_planning.rounds import Division, Sync, worker_step
 from workloads.motion_planning.share import DEFAULT_MODE, MODES, join_reports, simplify_shares, split_path
 
 _READY_TIMEOUT_S = 120.0
 _STOP_GRACE_S = 2.0
 _IDLE_POLL_S = 1.0
+_DIED = "a worker died during the request"
 
 
 class WarmPlanner:
@@ -72,6 +78,7 @@ class WarmPlanner:
         self._seed = seed if seed is not None else random.SystemRandom().randrange(2**31)
         self._ctx = worker_context()
         self._flag = self._ctx.RawValue("b", 0)
+        self._sync = Sync.create(self._ctx, workers=self.workers, batch=batch_size(self.workers))
         self._lock = threading.Lock()
         self._procs: list[Any] = [None] * self.workers
         self._conns: list[Connection | None] = [None] * self.workers
@@ -115,8 +122,18 @@ class WarmPlanner:
                        "resolution": res, "time_limit": limit, "simplify_time": simplify, "finish": not sharing,
                        "seed": seed}
             t0 = time.perf_counter()
-            winner, statuses = self._race(request, deadline=t0 + limit + simplify + 30.0)
-            if winner is not None and sharing:
+            if self.mode == "divide":
+                winner, statuses = self._divide(request, seed=seed, deadline=t0 + limit + simplify + 30.0)
+                if winner is None and statuses == [_DIED]:  # it needs every worker: replace the dead, once more
+                    self._replace_dead()
+                    winner, statuses = self._divide(request, seed=seed, deadline=t0 + limit + simplify + 30.0)
+                sharing = self.workers > 1
+            else:
+                winner, statuses = self._race(request, deadline=t0 + limit + simplify + 30.0)
+            if winner is not None and self.mode == "divide" and not sharing:
+                winner = self._finish_whole(name, winner, request, left=t0 + limit - time.perf_counter(),
+                                            deadline=t0 + limit + simplify + 30.0)
+            elif winner is not None and sharing:
                 winner = self._finish_shared(name, winner, request, left=t0 + limit - time.perf_counter(),
                                              deadline=t0 + limit + simplify + 30.0)
             elapsed = time.perf_counter() - t0
@@ -129,6 +146,49 @@ class WarmPlanner:
         for i in range(self.workers):
             self._send(i, request)
         return self._collect(self._request_id, deadline=deadline)
+
+    def _divide(self, request: dict[str, Any], *, seed: int | None, deadline: float
+                ) -> tuple[dict[str, Any] | None, list[str]]:
+        """The divided search (``divided.py``, ``rounds.py``) on every worker; the first path lifted clear
+        of the walls by worker 0 before it is cut into pieces."""
+        self._request_id += 1
+        rid, name = self._request_id, request["name"]
+        self._flag.value = 0
+        self._sync.reset()
+        search = {"id": rid, "name": name, "op": "search", "start": request["start"], "goal": request["goal"],
+                  "resolution": request["resolution"], "time_limit": request["time_limit"],
+                  "seed": ompl_seed(self._seed + rid if seed is None else seed), "batch": batch_size(self.workers)}
+        sent = time.perf_counter()
+        for i in range(self.workers):
+            self._send(i, search)
+        reports = self._gather(rid, self.workers, deadline=deadline)
+        wall = time.perf_counter() - sent
+        if any(r is None for r in reports):
+            return None, [_DIED]
+        done = [r for r in reports if r is not None]
+        found = next((r for r in done if r["solved"]), None)  # any that has it: all that do have the same path
+        if found is None:
+            return None, [done[0]["status"]]
+        division = Division.from_reports(done, wall)
+        self._request_id += 1
+        self._send(0, {"id": self._request_id, "name": name, "op": "lift", "path": found["path"],
+                       "resolution": request["resolution"]})
+        lifted = self._gather(self._request_id, 1, deadline=deadline)[0]
+        if lifted is None:
+            return None, ["a worker died during the request"]
+        return {"plan_time_s": wall, "checks": sum(division.checks) + done[0]["setup_checks"],
+                "cpu_s": max(division.busy_s),
+                "division": division, "path": lifted["path"], "index": None, "solved": True,
+                "status": "first path"}, []
+
+    def _finish_whole(self, name: str, first: dict[str, Any], request: dict[str, Any], *, left: float,
+                      deadline: float) -> dict[str, Any]:
+        """One worker simplifies and proves the whole first path (the divided search on one worker)."""
+        self._request_id += 1
+        self._send(0, {"id": self._request_id, "name": name, "piece": [Pose(*p) for p in first["path"]],
+                       "resolution": request["resolution"], "time_limit": max(1e-3, left),
+                       "simplify_time": request["simplify_time"]})
+        return join_reports(first, self._gather(self._request_id, 1, deadline=deadline))
 
     def _finish_shared(self, name: str, first: dict[str, Any], request: dict[str, Any], *, left: float,
                        deadline: float) -> dict[str, Any]:
@@ -176,6 +236,7 @@ class WarmPlanner:
                     msg: dict[str, Any] = conn.recv()
                 except (EOFError, OSError):
                     waiting.discard(i)
+                    self._sync.finished.value = 1  # a divided search's survivors stop waiting for it, and report
                     continue
                 if msg.get("id") == request_id:
                     reports[i] = msg
@@ -226,7 +287,7 @@ class WarmPlanner:
         parent, child = self._ctx.Pipe()
         proc = self._ctx.Process(target=_serve, name=f"mp-warm-planner-{i}", daemon=True,
                                  args=(self.problems, PLANNERS[self.planner], ompl_seed(self._seed + i), i,
-                                       self._flag, child, os.getpid()))
+                                       self._flag, self._sync, child, os.getpid()))
         proc.start()
         child.close()
         self._procs[i], self._conns[i] = proc, parent
@@ -293,14 +354,16 @@ class WarmPlanner:
             self._discard(i)
 
 
-def _serve(problems: Mapping[str, Problem], planner: str, seed: int, index: int, flag: Any, conn: Connection,
-           parent_pid: int) -> None:
+def _serve(problems: Mapping[str, Problem], planner: str, seed: int, index: int, flag: Any, sync: Sync,
+           conn: Connection, parent_pid: int) -> None:
     """A warm worker: load every problem once, then answer requests until told to stop."""
     from workloads.motion_planning.search import Search, seed_process  # noqa: PLC0415 (OMPL: workers only)
 
     try:
         seed_process(seed)
         searches = {name: Search(problem) for name, problem in problems.items()}
+        trees = {name: TreeWorker(problem, search.checker) for (name, problem), search in
+                 zip(problems.items(), searches.values(), strict=True)}
     except Exception as err:
         conn.send({"error": f"{type(err).__name__}: {err}"})
         return
@@ -319,7 +382,10 @@ def _serve(problems: Mapping[str, Problem], planner: str, seed: int, index: int,
             return
         try:
             search = searches[request["name"]]
-            if "piece" in request:
+            op = request.get("op")
+            if op is not None:
+                report = worker_step(op, request, trees[request["name"]], search, sync, index, cancelled)
+            elif "piece" in request:
                 report = search.finish(request["piece"], planner=planner, resolution=request["resolution"],
                                        time_limit=request["time_limit"], simplify_time=request["simplify_time"])
             else:

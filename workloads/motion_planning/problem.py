@@ -148,14 +148,17 @@ def collada_up_axis(path: Path) -> str:
 def load_problem(path: str | Path) -> Problem:
     """Read and check an OMPL.app-style problem file; every error names the file and the key."""
     cfg_path = Path(path)
-    parser = configparser.ConfigParser(interpolation=None)
+    # OMPL.app's own files repeat keys in sections only its benchmark tool reads (Home.cfg: ``aps=`` twice
+    # under [planner]), and its parser takes them; so does this one, but a key fogiac reads must be single.
+    parser = configparser.ConfigParser(interpolation=None, strict=False)
     try:
-        with cfg_path.open(encoding="utf-8") as fh:
-            parser.read_file(fh)
+        text = cfg_path.read_text(encoding="utf-8")
+        parser.read_string(text, source=str(cfg_path))
     except FileNotFoundError as err:
         raise WorkloadError(f"{cfg_path}: problem file not found") from err
     except configparser.Error as err:
         raise WorkloadError(f"{cfg_path}: not an INI-style problem file: {err.message.splitlines()[0]}") from err
+    _refuse_repeats(cfg_path, text)
     if not parser.has_section("problem"):
         raise WorkloadError(f"{cfg_path}: no [problem] section")
     section = parser["problem"]
@@ -184,6 +187,30 @@ def load_problem(path: str | Path) -> Problem:
         resolution=_optional_positive(cfg_path, parser, "resolution"),
         source=str(cfg_path),
     )
+
+
+_READ: dict[str, frozenset[str] | None] = {"problem": None, "solver": None,  # section -> keys read (None: all)
+                                          "benchmark": frozenset({"time_limit"})}
+
+
+def _refuse_repeats(cfg: Path, text: str) -> None:
+    """A key fogiac reads, given twice in its section, is an error naming both lines; repeats elsewhere
+    ([planner], the rest of [benchmark]: OMPL.app's benchmark settings, unused here) pass."""
+    section, seen = "", dict[tuple[str, str], int]()  # a section opened twice is one section, as configparser has it
+    for number, raw in enumerate(text.splitlines(), start=1):
+        line = raw.strip()
+        if not line or line[0] in "#;":
+            continue
+        if line.startswith("[") and line.endswith("]"):
+            section = line[1:-1].strip().lower()
+            continue
+        key = line.split("=", 1)[0].split(":", 1)[0].strip().lower()
+        read = _READ.get(section, frozenset())
+        if read is not None and key not in read:
+            continue
+        if (section, key) in seen:
+            raise WorkloadError(f"{cfg}: [{section}] {key}: given twice (lines {seen[section, key]} and {number})")
+        seen[section, key] = number
 
 
 def space_extent(problem: Problem) -> float:

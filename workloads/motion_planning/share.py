@@ -23,10 +23,10 @@ import numpy as np
 from workloads.motion_planning.geometry import rotation_angle
 from workloads.motion_planning.problem import Pose
 
-MODES = ("race", "share")
-# share is the default: with a failed piece finished whole (pool.py) it answered every request race did,
-# and faster on cubicles and the maze, as fast on twisty (README, "Sharing the work").
-DEFAULT_MODE = "share"
+MODES = ("divide", "race", "share")
+# divide is the default: one search split between the workers (divided.py), then finished in pieces as
+# share does; race and share run a whole search per worker (README, "The divided search").
+DEFAULT_MODE = "divide"
 
 
 def sweep(a: Pose, b: Pose, radius: float) -> float:

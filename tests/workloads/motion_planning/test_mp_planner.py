@@ -33,7 +33,7 @@ def _ends_match(problem, path) -> None:
 
 
 def test_easy_path_is_collision_free(easy) -> None:
-    solution = solve(easy, cores=1, time_limit=20, seed=1)
+    solution = solve(easy, cores=1, time_limit=20, seed=1, mode="race")
     assert solution.solved and solution.status == "exact solution"
     assert solution.cores == 1 and solution.winner == 0
     assert solution.collision_checks > 0

@@ -164,3 +164,37 @@ def test_unreadable_files(tmp_path: Path) -> None:
     (tmp_path / "y.cfg").write_text("robot = a.stl\n")
     with pytest.raises(WorkloadError, match=r"y\.cfg: not an INI-style problem file: File contains no section headers"):
         load_problem(tmp_path / "y.cfg")
+
+
+# OMPL.app's Home.cfg: its benchmark tool's sections repeat keys (aps= twice), as OMPL.app's parser allows
+HOME_STYLE = ("[benchmark]\ntime_limit=60.0\nmem_limit=1000.0\nrun_count=50\n\n[planner]\nprm=\nrrtstar=\naps=\n"
+              "aps.name=APS1\naps.num_planners=1\naps=\naps.name=APS4\naps.num_planners=4\n")
+
+
+def test_repeated_keys_in_sections_fogiac_does_not_read_pass(cube_dir: Path) -> None:
+    problem = load_problem(write_cfg(cube_dir, extra=HOME_STYLE))
+    assert problem.time_limit == 60.0 and problem.start == Pose(-2.0, 0.0, 0.0)
+
+
+@pytest.mark.parametrize(("extra", "message"), [
+    ("start.x = 1\n", r"p\.cfg: \[problem\] start\.x: given twice \(lines 4 and 24\)$"),
+    ("[benchmark]\ntime_limit = 5\nrun_count = 1\ntime_limit = 6\n",
+     r"p\.cfg: \[benchmark\] time_limit: given twice \(lines 25 and 27\)$"),
+    ("[solver]\nresolution = 0.1\n[planner]\naps=\n[solver]\nresolution: 0.2\n",
+     r"p\.cfg: \[solver\] resolution: given twice \(lines 25 and 29\)$"),
+])
+def test_a_key_fogiac_reads_given_twice_is_refused(cube_dir: Path, extra: str, message: str) -> None:
+    with pytest.raises(WorkloadError, match=message):
+        load_problem(write_cfg(cube_dir, extra=extra))
+
+
+def test_paper_class_problems_load() -> None:
+    from workloads.motion_planning.paper_problems import PAPER_DIR
+
+    names = sorted(p.stem for p in PAPER_DIR.glob("*.cfg"))
+    assert names == ["apartment", "home", "twistycool"]
+    for name in names:
+        problem = load_problem(PAPER_DIR / f"{name}.cfg")
+        assert problem.name == name and problem.resolution is not None
+        assert (PAPER_DIR / f"{name}_env.stl").stat().st_size < 100_000
+    assert "aps=\n" in (PAPER_DIR / "home.cfg").read_text().split("[planner]")[1]

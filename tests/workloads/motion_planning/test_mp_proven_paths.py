@@ -21,6 +21,7 @@ import pytest
 from tests.workloads.motion_planning.mp_support import PROBLEMS
 from workloads.motion_planning import Pose, load_problem
 from workloads.motion_planning.generate_problems import twisty
+from workloads.motion_planning.paper_problems import PAPER_DIR
 from workloads.motion_planning.pool import WarmPlanner
 from workloads.motion_planning.problem import Problem
 
@@ -71,20 +72,20 @@ def generated(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 CASES = [("shipped", "easy", 3), ("shipped", "cubicles", 2), ("shipped", "maze", 2), ("shipped", "twisty", 2),
-         ("generated", "thin90", 4), ("generated", "big60", 3)]
+         ("generated", "thin90", 4), ("generated", "big60", 3), ("paper", "apartment", 2), ("paper", "home", 2)]
 
 
 @pytest.mark.parametrize(("where", "name", "runs"), CASES, ids=[c[1] for c in CASES])
 def test_no_answered_path_touches_a_wall(where: str, name: str, runs: int, generated: Path) -> None:
-    cfg = (PROBLEMS if where == "shipped" else generated) / f"{name}.cfg"
+    cfg = {"shipped": PROBLEMS, "generated": generated, "paper": PAPER_DIR}[where] / f"{name}.cfg"
     problem = load_problem(cfg)
     if where == "generated":  # what makes these hard: plates thinner than OMPL's default position step
         diagonal = float(np.linalg.norm(np.subtract(problem.bounds_max, problem.bounds_min)))
         assert 0.02 * (10.0 if name == "big60" else 1.0) < 0.01 * diagonal / 4
     solved = 0
-    with WarmPlanner({name: problem}, workers=2, seed=11) as planner:
+    with WarmPlanner({name: problem}, workers=2, seed=11) as planner:  # the divided search, the default
         for _ in range(runs):
-            solution = planner.solve(name, time_limit=30)
+            solution = planner.solve(name, time_limit=60)
             if not solution.solved:
                 assert solution.path == ()  # "no path", never a path that was not proven
                 continue

@@ -85,5 +85,5 @@ def test_a_piece_that_cannot_be_proven_is_finished_whole() -> None:
 
 
 def test_an_unknown_mode_is_named() -> None:
-    with pytest.raises(WorkloadError, match=r"^unknown mode 'fast'; valid: race, share$"):
+    with pytest.raises(WorkloadError, match=r"^unknown mode 'fast'; valid: divide, race, share$"):
         WarmPlanner({"easy": load_problem(PROBLEMS / "easy.cfg")}, workers=1, mode="fast")

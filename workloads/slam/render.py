@@ -24,7 +24,7 @@ import numpy as np
 from fogiac.errors import WorkloadError
 from workloads.slam.camera import Intrinsics
 from workloads.slam.geometry import make
-from workloads.slam.tum import Trajectory, write_trajectory
+from workloads.slam.tum import Trajectory, write_camera, write_trajectory
 
 ROOM = (np.array([-2.5, -1.5, -2.5]), np.array([2.5, 1.5, 2.5]))  # world y points down, as the camera's
 BOXES = (  # (low corner, high corner) of boxes standing on the floor (y = 1.5)
@@ -35,26 +35,28 @@ BOXES = (  # (low corner, high corner) of boxes standing on the floor (y = 1.5)
     ((-2.4, 0.1, -1.2), (-1.7, 1.5, -0.3)),
 )
 TILE = 1024  # texels per side of one face's texture
-TEXEL_M = 0.006  # metres per texel
+TEXEL_M = 0.004  # metres per texel
 GRID = 6  # atlas tiles per row: 6 faces x (room + 5 boxes) = 36 tiles
 START_STAMP = 1000.0
 
 
 def _texture(rng: np.random.Generator) -> np.ndarray:
-    tile = np.full((TILE, TILE), rng.integers(90, 170), np.uint8)
-    for _ in range(700):
+    """Sharp-edged shapes at several sizes over fine noise: corners at every viewing distance."""
+    noise = rng.integers(0, 256, (TILE // 8, TILE // 8)).astype(np.uint8)
+    tile = cv2.resize(noise, (TILE, TILE), interpolation=cv2.INTER_CUBIC) // 2 + 64
+    for _ in range(2500):
         colour = int(rng.integers(0, 256))
         x, y = (int(v) for v in rng.integers(0, TILE, 2))
-        size = int(rng.integers(6, 60))
+        size = int(rng.integers(4, 48))
         shape = rng.integers(0, 3)
         if shape == 0:
-            cv2.rectangle(tile, (x, y), (x + size, y + int(rng.integers(6, 60))), colour, -1)
+            cv2.rectangle(tile, (x, y), (x + size, y + int(rng.integers(4, 48))), colour, -1)
         elif shape == 1:
             cv2.circle(tile, (x, y), size // 2, colour, -1)
         else:
             points = rng.integers(-size, size, (4, 2)) + np.array([x, y])
             cv2.fillPoly(tile, [points.astype(np.int32)], colour)
-    return cv2.GaussianBlur(tile, (3, 3), 0.8)
+    return cv2.GaussianBlur(tile, (3, 3), 0.7)
 
 
 def _atlas(seed: int) -> np.ndarray:
@@ -181,4 +183,5 @@ def render_sequence(out: Path, *, kind: str = "desk", frames: int = 150, rate_hz
     (out / "depth.txt").write_text("\n".join(depth_lines) + "\n")
     truth = Trajectory(stamps, np.array(poses))
     write_trajectory(out / "groundtruth.txt", truth)
+    write_camera(out / "camera.txt", intrinsics)
     return truth

@@ -29,6 +29,58 @@ from workloads.slam.mapdata import FrameRecord, Keyframe, Map
 from workloads.slam.tum import Trajectory
 
 MAX_HAMMING = 64
+POPCOUNT = np.array([bin(i).count("1") for i in range(256)], np.uint8)
+
+
+def hamming(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise Hamming distances of two (N, 32) uint8 descriptor arrays."""
+    return POPCOUNT[np.bitwise_xor(a, b)].sum(axis=1, dtype=np.int32)
+
+
+def near_pairs(features: np.ndarray, points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """(feature index, point index) of every pair closer than ``radius`` px, through a grid of radius-sized cells."""
+    cells_x = int(features[:, 0].max() // radius) + 3 if len(features) else 1
+    fcell = (features[:, 1] // radius).astype(np.int64) * cells_x + (features[:, 0] // radius).astype(np.int64)
+    order = np.argsort(fcell, kind="stable")
+    sorted_cells = fcell[order]
+    px, py = (points[:, 0] // radius).astype(np.int64), (points[:, 1] // radius).astype(np.int64)
+    feats, pts = [], []
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            x = px + dx
+            cell = np.where((x >= 0) & (x < cells_x), (py + dy) * cells_x + x, -1)
+            lo, hi = np.searchsorted(sorted_cells, cell, "left"), np.searchsorted(sorted_cells, cell, "right")
+            count = hi - lo
+            point = np.repeat(np.arange(len(points)), count)
+            offset = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+            feats.append(order[np.repeat(lo, count) + offset])
+            pts.append(point)
+    feat, point = np.concatenate(feats), np.concatenate(pts)
+    close = ((features[feat] - points[point]) ** 2).sum(axis=1) < radius * radius
+    return feat[close], point[close]
+
+
+def best_matches(feat: np.ndarray, point: np.ndarray, dist: np.ndarray, *, ratio: float) -> np.ndarray:
+    """(feature, point) pairs: each point's nearest feature if clearly better than its second, each feature once."""
+    order = np.lexsort((dist, point))
+    feat, point, dist = feat[order], point[order], dist[order]
+    first = np.ones(len(point), bool)
+    first[1:] = point[1:] != point[:-1]
+    idx = np.flatnonzero(first)
+    has_second = np.zeros(len(idx), bool)
+    second = np.full(len(idx), np.iinfo(np.int32).max)
+    nxt = idx + 1
+    ok = nxt < len(point)
+    ok[ok] = point[nxt[ok]] == point[idx[ok]]
+    has_second[ok], second[ok] = True, dist[nxt[ok]]
+    keep = (dist[idx] <= MAX_HAMMING) & (~has_second | (dist[idx] < ratio * second))
+    idx = idx[keep]
+    feat, point, dist = feat[idx], point[idx], dist[idx]
+    by_feature = np.lexsort((dist, feat))  # a feature claimed by several points keeps the closest
+    feat, point = feat[by_feature], point[by_feature]
+    unique = np.ones(len(feat), bool)
+    unique[1:] = feat[1:] != feat[:-1]
+    return np.column_stack([feat[unique], point[unique]]).astype(np.int64)
 
 
 @dataclass(frozen=True)
@@ -116,48 +168,61 @@ class Tracker:
             return None, pairs[:0]
         obj = self.map.points.pos[pairs[:, 1]]
         img = f.uv[pairs[:, 0]].astype(np.float64)
-        rvec, tvec = to_rvec(inverse(predicted))
+        scale = 1.2 ** f.octave[pairs[:, 0]]
         k = self.intrinsics.matrix()
-        ok, rvec, tvec, inl = cv2.solvePnPRansac(obj, img, k, None, rvec.copy(), tvec.copy(), useExtrinsicGuess=True,
-                                                 iterationsCount=100, reprojectionError=4.0, confidence=0.99)
-        if not ok or inl is None or len(inl) < self.config.min_inliers:
-            return None, pairs[:0]
-        inl = inl.ravel()
-        rvec, tvec = cv2.solvePnPRefineLM(obj[inl], img[inl], k, None, rvec, tvec)
-        pose = inverse(from_rvec(rvec, tvec))
-        # Count as inliers every match that reprojects within 3 px (scaled by octave) of the refined pose.
-        uv, z = self.intrinsics.project(transform(inverse(pose), obj))
-        err = np.linalg.norm(uv - img, axis=1) / 1.2 ** f.octave[pairs[:, 0]]
-        return pose, pairs[(z > 0) & (err < 3.0)]
+        starts = [inverse(predicted)]  # refine from the motion model, and from RANSAC's answer
+        ok, rvec, tvec, inl = cv2.solvePnPRansac(obj, img, k, None, iterationsCount=100, reprojectionError=4.0,
+                                                 confidence=0.99, flags=cv2.SOLVEPNP_EPNP)
+        if ok and inl is not None and len(inl) >= self.config.min_inliers:
+            starts.append(from_rvec(rvec, tvec))
+        best: tuple[np.ndarray | None, np.ndarray] = (None, pairs[:0])
+        for start in starts:
+            pose, good = self._refine(obj, img, scale, start)
+            if len(good) > len(best[1]):
+                best = (pose, pairs[good])
+        return best
+
+    def _refine(self, obj: np.ndarray, img: np.ndarray, scale: np.ndarray, cam_from_world: np.ndarray,
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """Levenberg-Marquardt on the matches within reach of ``cam_from_world``, twice, tightening;
+        (camera-to-world pose, indices of the matches within 3 px times their octave's scale)."""
+        k = self.intrinsics.matrix()
+        rvec, tvec = to_rvec(cam_from_world)
+        for threshold in (8.0, 3.0):
+            uv, z = self.intrinsics.project(transform(from_rvec(rvec, tvec), obj))
+            good = np.flatnonzero((z > 0) & (np.linalg.norm(uv - img, axis=1) / scale < threshold))
+            if len(good) < 6:
+                return inverse(from_rvec(rvec, tvec)), good[:0]
+            rvec, tvec = cv2.solvePnPRefineLM(obj[good], img[good], k, None, rvec.reshape(3, 1), tvec.reshape(3, 1))
+        uv, z = self.intrinsics.project(transform(from_rvec(rvec, tvec), obj))
+        good = np.flatnonzero((z > 0) & (np.linalg.norm(uv - img, axis=1) / scale < 3.0))
+        return inverse(from_rvec(rvec, tvec)), good
 
     def _search(self, f: Features, ids: np.ndarray, pose: np.ndarray, radius: float | None) -> np.ndarray:
         """Descriptor matches (feature index, point id), within ``radius`` px of each point's projection."""
         if len(ids) == 0 or len(f) == 0:
             return np.zeros((0, 2), np.int64)
-        mask = None
-        if radius is not None:
-            uv, z = self.intrinsics.project(transform(inverse(pose), self.map.points.pos[ids]))
-            visible = (z > 0) & self.intrinsics.inside(uv, margin=-radius)
-            ids, uv = ids[visible], uv[visible].astype(np.float32)
-            if len(ids) == 0:
-                return np.zeros((0, 2), np.int64)
-            du = f.uv[:, 0, None] - uv[None, :, 0]
-            dv = f.uv[:, 1, None] - uv[None, :, 1]
-            mask = ((du * du + dv * dv) < radius * radius).astype(np.uint8)
-        knn = self._matcher.knnMatch(f.desc, self.map.points.desc[ids], k=2, mask=mask)
-        ratio = 0.9 if radius is not None else 0.75
+        if radius is None:
+            return self._search_all(f, ids)
+        uv, z = self.intrinsics.project(transform(inverse(pose), self.map.points.pos[ids]))
+        visible = (z > 0) & self.intrinsics.inside(uv, margin=-radius)
+        ids, uv = ids[visible], uv[visible]
+        feat, point = near_pairs(f.uv, uv, radius)
+        if len(feat) == 0:
+            return np.zeros((0, 2), np.int64)
+        dist = hamming(f.desc[feat], self.map.points.desc[ids[point]])
+        return best_matches(feat, ids[point], dist, ratio=0.9)
+
+    def _search_all(self, f: Features, ids: np.ndarray) -> np.ndarray:
+        """Relocalisation's search: every feature against every local point, a stricter ratio test."""
         best: dict[int, tuple[float, int]] = {}
-        for pair in knn:
-            if not pair or pair[0].distance > MAX_HAMMING:
-                continue
-            if len(pair) == 2 and pair[0].distance > ratio * pair[1].distance:
+        for pair in self._matcher.knnMatch(f.desc, self.map.points.desc[ids], k=2):
+            if len(pair) < 2 or pair[0].distance > MAX_HAMMING or pair[0].distance > 0.75 * pair[1].distance:
                 continue
             m = pair[0]
             if m.trainIdx not in best or m.distance < best[m.trainIdx][0]:
                 best[m.trainIdx] = (m.distance, m.queryIdx)
-        if not best:
-            return np.zeros((0, 2), np.int64)
-        return np.array([(q, ids[t]) for t, (_, q) in best.items()], np.int64)
+        return np.array([(q, ids[t]) for t, (_, q) in best.items()], np.int64).reshape(-1, 2)
 
     # -- keyframes -----------------------------------------------------------------------------
     def _wants_keyframe(self, pose: np.ndarray, ref_pose: np.ndarray, inliers: int) -> bool:

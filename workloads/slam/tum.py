@@ -3,7 +3,9 @@
 A folder holds ``rgb.txt`` and ``depth.txt`` (``timestamp path`` per line, ``#`` comments),
 the images they name (8-bit colour PNG, 16-bit depth PNG at ``depth_scale`` units per metre,
 0 = no reading) and optionally ``groundtruth.txt`` (``timestamp tx ty tz qx qy qz qw``, the
-camera-to-world pose). Colour and depth are paired by nearest timestamp within 20 ms, as the
+camera-to-world pose). An optional ``camera.txt`` (our addition, written by ``render.py``) holds
+``fx fy cx cy width height depth_scale`` on one line; without it the camera is TUM's fr1, and
+the command line can override either. Colour and depth are paired by nearest timestamp within 20 ms, as the
 data set's own ``associate.py`` does; so are estimate and ground truth for evaluation.
 """
 
@@ -121,7 +123,25 @@ def read_sequence(root: Path, *, intrinsics: Intrinsics | None = None) -> Sequen
         raise WorkloadError(f"{root}: no colour and depth images within {MAX_DIFFERENCE_S * 1000:.0f} ms of each other")
     frames = tuple(FrameFiles(rgb[i][0], root / rgb[i][1], root / depth[j][1]) for i, j in pairs)
     gt = root / "groundtruth.txt"
-    return Sequence(root, frames, intrinsics or Intrinsics.fr1(), read_trajectory(gt) if gt.is_file() else None)
+    camera = intrinsics or read_camera(root / "camera.txt")
+    return Sequence(root, frames, camera, read_trajectory(gt) if gt.is_file() else None)
+
+
+def read_camera(path: Path) -> Intrinsics:
+    """The folder's ``camera.txt``, or TUM's fr1 camera when there is none."""
+    if not path.is_file():
+        return Intrinsics.fr1()
+    lines = [x for x in path.read_text().splitlines() if x.strip() and not x.lstrip().startswith("#")]
+    values = lines[0].split() if lines else []
+    if len(values) != 7:
+        raise WorkloadError(f"{path}: expected one line 'fx fy cx cy width height depth_scale'")
+    fx, fy, cx, cy, width, height, scale = (float(v) for v in values)
+    return Intrinsics(fx, fy, cx, cy, int(width), int(height), scale)
+
+
+def write_camera(path: Path, k: Intrinsics) -> None:
+    path.write_text("# fx fy cx cy width height depth_scale\n"
+                    f"{k.fx} {k.fy} {k.cx} {k.cy} {k.width} {k.height} {k.depth_scale}\n")
 
 
 def load_frame(frame: FrameFiles, intrinsics: Intrinsics) -> tuple[np.ndarray, np.ndarray]:

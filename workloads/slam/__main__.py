@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import typer
@@ -77,13 +78,17 @@ def play(
     folder: Path = typer.Argument(..., help="TUM RGB-D sequence folder to publish"),
     rate: float = typer.Option(0.0, help="frames per second (0: the sequence's own rate)"),
     wait: float = typer.Option(30.0, help="seconds to wait for the node's subscriptions before playing"),
-    mono: bool = typer.Option(False, "--mono", help="the node runs monocular: send no depth, evaluate up to scale"),
+    mono: bool = typer.Option(False, "--mono", help="the node runs monocular: evaluate up to scale"),
+    max_frames: int | None = typer.Option(None, help="publish only the first frames"),
     as_json: bool = typer.Option(False, "--json", help="print one JSON line of round-trip figures at the end"),
 ) -> None:
     """Robot side: publish a sequence's images at its frame rate and collect the poses that come back."""
     from workloads.slam.player import play as run_player  # noqa: PLC0415 (rospy: on ROS hosts only)
 
-    report = run_player(read_sequence(folder), rate=rate or None, wait_s=wait, mono=mono)
+    seq = read_sequence(folder)
+    if max_frames is not None:
+        seq = replace(seq, frames=seq.frames[:max_frames])
+    report = run_player(seq, rate=rate or None, wait_s=wait, mono=mono)
     typer.echo(json.dumps(report) if as_json else "\n".join(f"{k:>18}  {v}" for k, v in report.items()))
 
 

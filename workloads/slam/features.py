@@ -20,6 +20,7 @@ SCALE_FACTOR = 1.2
 LEVELS = 8
 GRID = (8, 6)  # cells across, down
 MIN_DEPTH_M, MAX_DEPTH_M = 0.1, 6.0
+EDGE_RATIO = 0.03  # depth spread in a 5 x 5 window, relative to the depth, above which a reading is dropped
 
 
 @dataclass(frozen=True)
@@ -45,7 +46,7 @@ class Extractor:
     def _orb(self) -> cv2.ORB:
         orb = getattr(self._local, "orb", None)
         if orb is None:
-            orb = cv2.ORB_create(self.features * 3, scaleFactor=SCALE_FACTOR, nlevels=LEVELS, fastThreshold=12)
+            orb = cv2.ORB.create(self.features * 3, scaleFactor=SCALE_FACTOR, nlevels=LEVELS, fastThreshold=12)
             self._local.orb = orb
         return orb
 
@@ -65,7 +66,10 @@ class Extractor:
             col = np.clip(np.round(uv[:, 0]).astype(int), 0, depth.shape[1] - 1)
             row = np.clip(np.round(uv[:, 1]).astype(int), 0, depth.shape[0] - 1)
             z = depth[row, col].astype(np.float32)
-            z[(z < MIN_DEPTH_M) | (z > MAX_DEPTH_M)] = 0.0
+            # Corners sit on depth edges; there the nearest pixel's depth may be the background's.
+            kernel = np.ones((5, 5), np.uint8)
+            spread = cv2.dilate(depth, kernel)[row, col] - cv2.erode(depth, kernel)[row, col]
+            z[(z < MIN_DEPTH_M) | (z > MAX_DEPTH_M) | (spread > EDGE_RATIO * z)] = 0.0
         return Features(index, stamp, uv, octave, desc, z)
 
 

@@ -84,7 +84,8 @@ class LoopDetector:
 
     def __init__(self, intrinsics: Intrinsics, *, train_after: int = 10, min_gap: int = 20, min_inliers: int = 40,
                  words: int = 500) -> None:
-        self.intrinsics, self.train_after, self.min_gap, self.min_inliers = intrinsics, train_after, min_gap, min_inliers
+        self.intrinsics, self.train_after = intrinsics, train_after
+        self.min_gap, self.min_inliers = min_gap, min_inliers
         self.words = words
         self.keyframes: list[LoopKeyframe] = []
         self.vectors: list[np.ndarray] = []

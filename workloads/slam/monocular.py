@@ -27,7 +27,8 @@ def _matches(a: Features, b: Features, *, ratio: float) -> np.ndarray:
     matcher = cv2.BFMatcher(cv2.NORM_HAMMING)
     if len(a) < 2 or len(b) < 2:
         return np.zeros((0, 2), np.int64)
-    pairs = [p[0] for p in matcher.knnMatch(a.desc, b.desc, k=2) if len(p) == 2 and p[0].distance < ratio * p[1].distance]
+    knn = matcher.knnMatch(a.desc, b.desc, k=2)
+    pairs = [p[0] for p in knn if len(p) == 2 and p[0].distance < ratio * p[1].distance]
     best: dict[int, tuple[float, int]] = {}
     for m in pairs:
         if m.trainIdx not in best or m.distance < best[m.trainIdx][0]:

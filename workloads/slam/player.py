@@ -98,7 +98,8 @@ def play(seq: Sequence, *, rate: float | None = None, wait_s: float = 30.0, ling
     time.sleep(linger_s)
     with lock:
         stamps = sorted(poses)
-        trajectory = Trajectory(np.array(stamps, dtype=np.float64) / 1e9, np.array([poses[s] for s in stamps]).reshape(-1, 4, 4))
+        trajectory = Trajectory(np.array(stamps, dtype=np.float64) / 1e9,
+                                np.array([poses[s] for s in stamps]).reshape(-1, 4, 4))
         trips = sorted(round_trips)
     report: dict[str, object] = {
         "frames": len(seq.frames), "poses": len(trajectory),

@@ -35,7 +35,7 @@ BOXES = (  # (low corner, high corner) of boxes standing on the floor (y = 1.5)
     ((-2.4, 0.1, -1.2), (-1.7, 1.5, -0.3)),
 )
 TILE = 1024  # texels per side of one face's texture
-TEXEL_M = 0.004  # metres per texel
+TEXEL_M = 0.005  # metres per texel: a tile spans 5.1 m, so no face (5 m at most) repeats its texture
 GRID = 6  # atlas tiles per row: 6 faces x (room + 5 boxes) = 36 tiles
 START_STAMP = 1000.0
 
@@ -75,9 +75,11 @@ class Scene:
         self.intrinsics = intrinsics
         self.atlas = _atlas(seed)
         self.tints = np.random.default_rng(seed + 1).uniform(0.65, 1.0, (GRID * GRID, 3)).astype(np.float32)
-        u, v = np.meshgrid(np.arange(intrinsics.width, dtype=np.float64), np.arange(intrinsics.height, dtype=np.float64))
+        u, v = np.meshgrid(np.arange(intrinsics.width, dtype=np.float64),
+                           np.arange(intrinsics.height, dtype=np.float64))
         self.rays = np.stack([(u - intrinsics.cx) / intrinsics.fx, (v - intrinsics.cy) / intrinsics.fy,
-                              np.ones_like(u)], axis=-1).reshape(-1, 3).astype(np.float32)  # camera z = 1: the hit's t is its depth
+                              np.ones_like(u)], axis=-1).reshape(-1, 3).astype(np.float32)
+        # Rays with camera z = 1: a hit's ray parameter t is its depth.
 
     def render(self, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(BGR uint8 image, depth float32 metres) seen from camera-to-world ``pose``, noise-free.
@@ -96,7 +98,8 @@ class Scene:
         for k in range(3):  # the room from inside: the first wall each ray leaves through
             t = np.where(d[k] > 0, (hi[k] - o[k]) * inv[k], (lo[k] - o[k]) * inv[k])
             closer = t < best
-            best, axis, face = np.where(closer, t, best), np.where(closer, k, axis), np.where(closer, 2 * k + (d[k] > 0), face)
+            face = np.where(closer, 2 * k + (d[k] > 0), face)
+            best, axis = np.where(closer, t, best), np.where(closer, k, axis)
         for b, (blo, bhi) in enumerate(BOXES, start=1):  # the boxes from outside: slab test
             near = np.full(len(d[0]), -np.inf, np.float32)
             far = np.full(len(d[0]), np.inf, np.float32)

@@ -27,10 +27,14 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import cv2
-import numpy as np
 
-from workloads.slam.backend import BundleJob, BundleResult, PoseGraphJob, PoseGraphResult, bundle_adjust
-from workloads.slam.backend import optimise_pose_graph
+from workloads.slam.backend import (
+    BundleResult,
+    PoseGraphJob,
+    PoseGraphResult,
+    bundle_adjust,
+    optimise_pose_graph,
+)
 from workloads.slam.camera import Intrinsics
 from workloads.slam.features import Extractor, Features
 from workloads.slam.geometry import ate_rmse
@@ -100,13 +104,15 @@ class Slam:
                 raise RuntimeError("a SLAM back-end process did not start")
         self._mapping_busy = False
         self._graphs_pending = 0
+        self._loop_sent = 0  # keyframes handed to loop closing so far
 
     def track(self, features: Features) -> TrackResult:
         self._poll()
         result = self.tracker.track(features)
         if result.keyframe:
-            for kf_id in self.tracker.new_keyframes:
+            for kf_id in range(self._loop_sent, len(self.tracker.map.keyframes)):
                 self._loop_in.put(self.tracker.loop_keyframe(kf_id))
+            self._loop_sent = len(self.tracker.map.keyframes)
             self._start_bundle()
         return result
 
@@ -179,7 +185,7 @@ class RunResult:
     wall_s: float
     keyframes: int
     map_points: int
-    loops: int
+    loops: tuple[tuple[int, int], ...]  # (query keyframe, matched keyframe) of each loop closed
     bundle_runs: int
     cores: int
     mono: bool
@@ -189,10 +195,11 @@ class RunResult:
 
     def summary(self) -> dict[str, object]:
         out: dict[str, object] = {
-            "frames": self.frames, "tracked": self.tracked, "tracked_ratio": round(self.tracked / max(self.frames, 1), 4),
-            "fps": round(self.fps, 2), "map_created_s": None if self.map_created_s is None else round(self.map_created_s, 3),
+            "frames": self.frames, "tracked": self.tracked,
+            "tracked_ratio": round(self.tracked / max(self.frames, 1), 4), "fps": round(self.fps, 2),
+            "map_created_s": None if self.map_created_s is None else round(self.map_created_s, 3),
             "wall_s": round(self.wall_s, 3), "keyframes": self.keyframes, "map_points": self.map_points,
-            "loops": self.loops, "bundle_runs": self.bundle_runs, "cores": self.cores,
+            "loops": len(self.loops), "bundle_runs": self.bundle_runs, "cores": self.cores,
             "mode": "mono" if self.mono else "rgbd",
         }
         if self.ate_rmse_m is not None:
@@ -247,7 +254,8 @@ def run_sequence(seq: Sequence, *, cores: int = 0, mono: bool = False, config: C
             frames=len(seq.frames), tracked=tracked, fps=len(seq.frames) / tracking_s,
             map_created_s=None if first_map is None else first_map - start, wall_s=wall_s,
             keyframes=len(slam.tracker.map.keyframes), map_points=slam.tracker.map.points.count,
-            loops=len(slam.stats.loops), bundle_runs=slam.stats.bundle_runs, cores=got, mono=mono, trajectory=trajectory,
+            loops=tuple((lp.query, lp.match) for lp in slam.stats.loops), bundle_runs=slam.stats.bundle_runs,
+            cores=got, mono=mono, trajectory=trajectory,
         )
     if seq.groundtruth is not None and len(trajectory) >= 3:
         rmse, scale = evaluate(trajectory, seq.groundtruth, mono=mono)

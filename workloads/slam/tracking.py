@@ -156,7 +156,8 @@ class Tracker:
                 local.update(range(max(0, other - 2), min(count, other + 3)))
         return sorted(local)
 
-    def _pose_against(self, f: Features, ids: np.ndarray, predicted: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
+    def _pose_against(self, f: Features, ids: np.ndarray,
+                      predicted: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
         """(pose, (M, 2) inlier pairs of feature index and map point id) or (None, empty)."""
         radius = self.config.search_radius_px
         pairs = np.zeros((0, 2), np.int64)
@@ -242,7 +243,8 @@ class Tracker:
         kf = Keyframe(len(self.map.keyframes), f, pose, point_ids)
         self.map.keyframes.append(kf)
         if self.mono:
-            monocular.triangulate_new_points(self.map, self.intrinsics, kf, self.map.keyframes[-2])
+            for previous in self.map.keyframes[-3:-1][::-1]:  # the two keyframes before, nearest first
+                monocular.triangulate_new_points(self.map, self.intrinsics, kf, previous)
         else:
             fresh = np.flatnonzero((point_ids < 0) & (f.depth > 0))
             cam = self.intrinsics.backproject(f.uv[fresh].astype(np.float64), f.depth[fresh].astype(np.float64))

@@ -73,7 +73,8 @@ def _list_file(path: Path) -> list[tuple[float, str]]:
     return rows
 
 
-def associate(first: np.ndarray, second: np.ndarray, *, max_difference: float = MAX_DIFFERENCE_S) -> list[tuple[int, int]]:
+def associate(first: np.ndarray, second: np.ndarray, *,
+              max_difference: float = MAX_DIFFERENCE_S) -> list[tuple[int, int]]:
     """Index pairs (i, j), each used once, closest stamps first, within ``max_difference`` seconds."""
     if len(first) == 0 or len(second) == 0:
         return []

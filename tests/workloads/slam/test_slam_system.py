@@ -40,10 +40,10 @@ def test_cli_rgbd_run_is_accurate_and_writes_its_trajectory(desk: Path, tmp_path
     assert abs(evaluate(written, seq.groundtruth, mono=False)[0] - summary["ate_rmse_m"]) < 1e-4
 
 
-def test_monocular_is_accurate_up_to_scale(desk: Path) -> None:
-    seq = read_sequence(desk)
+def test_monocular_is_accurate_up_to_scale(desk_full: Path) -> None:
+    seq = read_sequence(desk_full)
     assert seq.groundtruth is not None
-    result = run_sequence(seq, mono=True, config=Config(features=FEATURES))
+    result = run_sequence(seq, mono=True)
     assert result.ate_rmse_m is not None and result.ate_rmse_m <= 0.05
     assert result.summary()["alignment"] == "sim3"
     # The map's scale is its own (median depth 1 at start), not metres: only Sim(3) lines it up.

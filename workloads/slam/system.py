@@ -20,10 +20,12 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import queue
+import resource
 import time
 from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import cv2
@@ -52,6 +54,19 @@ def pin_cores(cores: int) -> int:
         allowed = allowed[:cores]
         os.sched_setaffinity(0, allowed)
     return len(allowed)
+
+
+def cpu_seconds(pids: list[int]) -> float:
+    """CPU seconds (user + system) so far of this process, all its threads, and the live processes ``pids``."""
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    total = own.ru_utime + own.ru_stime
+    for pid in pids:
+        try:
+            fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        total += (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime, stime
+    return total
 
 
 def _mapping_main(inbox: Any, outbox: Any) -> None:
@@ -161,6 +176,10 @@ class Slam:
         while (not self._flushed or self._graphs_pending or self._mapping_busy) and time.monotonic() < deadline:
             self._poll(block=0.05)
 
+    @property
+    def pids(self) -> list[int]:
+        return [p.pid for p in self._procs if p.pid is not None]
+
     def close(self) -> None:
         for inbox in (self._map_in, self._loop_in):
             inbox.put(None)
@@ -188,6 +207,7 @@ class RunResult:
     loops: tuple[tuple[int, int], ...]  # (query keyframe, matched keyframe) of each loop closed
     bundle_runs: int
     cores: int
+    cores_used: float  # CPU seconds of tracking, extraction, mapping and loop closing / tracking's wall seconds
     mono: bool
     trajectory: Trajectory
     ate_rmse_m: float | None = None
@@ -200,6 +220,7 @@ class RunResult:
             "map_created_s": None if self.map_created_s is None else round(self.map_created_s, 3),
             "wall_s": round(self.wall_s, 3), "keyframes": self.keyframes, "map_points": self.map_points,
             "loops": len(self.loops), "bundle_runs": self.bundle_runs, "cores": self.cores,
+            "cores_used": round(self.cores_used, 2),
             "mode": "mono" if self.mono else "rgbd",
         }
         if self.ate_rmse_m is not None:
@@ -241,11 +262,12 @@ def run_sequence(seq: Sequence, *, cores: int = 0, mono: bool = False, config: C
         seq = Sequence(seq.root, seq.frames[:max_frames], seq.intrinsics, seq.groundtruth)
     extractor = Extractor(seq.intrinsics, features=config.features)
     with Slam(seq.intrinsics, config, mono=mono) as slam, ThreadPoolExecutor(max_workers=got) as pool:
-        start = time.monotonic()
+        start, cpu_start = time.monotonic(), cpu_seconds(slam.pids)
         tracked = 0
         for features in _frames(seq, extractor, pool, mono=mono, ahead=2 * got + 1):
             tracked += slam.track(features).tracked
         tracking_s = time.monotonic() - start
+        cpu_s = cpu_seconds(slam.pids) - cpu_start
         slam.finish()
         wall_s = time.monotonic() - start
         first_map = slam.stats.first_map_at
@@ -255,7 +277,7 @@ def run_sequence(seq: Sequence, *, cores: int = 0, mono: bool = False, config: C
             map_created_s=None if first_map is None else first_map - start, wall_s=wall_s,
             keyframes=len(slam.tracker.map.keyframes), map_points=slam.tracker.map.points.count,
             loops=tuple((lp.query, lp.match) for lp in slam.stats.loops), bundle_runs=slam.stats.bundle_runs,
-            cores=got, mono=mono, trajectory=trajectory,
+            cores=got, cores_used=cpu_s / tracking_s, mono=mono, trajectory=trajectory,
         )
     if seq.groundtruth is not None and len(trajectory) >= 3:
         rmse, scale = evaluate(trajectory, seq.groundtruth, mono=mono)

@@ -106,6 +106,9 @@ def play(seq: Sequence, *, rate: float | None = None, wait_s: float = 30.0, ling
         "round_trip_ms_median": round(1000 * statistics.median(trips), 1) if trips else None,
         "round_trip_ms_p95": round(1000 * trips[int(0.95 * (len(trips) - 1))], 1) if trips else None,
         "compute_ms_median": round(1000 * statistics.median(compute), 1) if compute else None,
+        # Round trip less the node's own time: transport both ways (and, through fogiac, the relay).
+        "network_ms_median": round(1000 * (statistics.median(trips) - statistics.median(compute)), 1)
+        if trips and compute else None,
         "compute_time_messages": len(compute), "map_clouds": len(clouds), "map_points": clouds[-1] if clouds else 0,
     }
     if seq.groundtruth is not None and len(trajectory) >= 3:

@@ -318,8 +318,17 @@ class Tracker:
     def apply_bundle(self, result: BundleResult) -> bool:
         if result.epoch != self.map.epoch:
             return False
+        newest = int(result.kf_ids[-1])
+        delta = result.poses[-1] @ inverse(self.map.keyframes[newest].pose)
         for k, pose in zip(result.kf_ids, result.poses, strict=True):
             self.map.keyframes[int(k)].pose = pose
+        # Keyframes made while the adjustment ran, and their points, move with the newest one in it:
+        # they were placed against the map as it was, and would otherwise sit where it no longer is.
+        for kf in self.map.keyframes[newest + 1:]:
+            kf.pose = delta @ kf.pose
+        pts = self.map.points
+        later = np.flatnonzero(pts.ref[:pts.count] > newest)
+        pts.pos[later] = transform(delta, pts.pos[later])
         self.map.points.pos[result.point_ids] = result.positions
         for k, pid in result.outliers:
             ids = self.map.keyframes[int(k)].point_ids

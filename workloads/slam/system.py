@@ -21,6 +21,7 @@ import multiprocessing as mp
 import os
 import queue
 import resource
+import sys
 import time
 from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
@@ -29,7 +30,9 @@ from pathlib import Path
 from typing import Any
 
 import cv2
+import numpy as np
 
+from fogiac.errors import WorkloadError
 from workloads.slam.backend import (
     BundleResult,
     PoseGraphJob,
@@ -73,7 +76,12 @@ def _mapping_main(inbox: Any, outbox: Any) -> None:
     cv2.setNumThreads(1)
     outbox.put("ready")
     while (job := inbox.get()) is not None:
-        outbox.put(bundle_adjust(job))
+        try:
+            outbox.put(bundle_adjust(job))
+        except Exception as err:  # tracking waits for an answer before the next job: send one it will drop
+            print(f"slam mapping: {type(err).__name__}: {err}", file=sys.stderr, flush=True)
+            outbox.put(BundleResult(-1, job.kf_ids, job.poses, job.point_ids, job.positions,
+                                    np.zeros((0, 2), np.int64), 0.0))
 
 
 def _loop_main(inbox: Any, outbox: Any, intrinsics: Intrinsics, min_gap: int) -> None:
@@ -114,9 +122,12 @@ class Slam:
         ]
         for proc in self._procs:
             proc.start()
-        for outbox in (self._map_out, self._loop_out):
-            if outbox.get(timeout=120) != "ready":
-                raise RuntimeError("a SLAM back-end process did not start")
+        for outbox, proc in zip((self._map_out, self._loop_out), self._procs, strict=True):
+            try:
+                outbox.get(timeout=120)
+            except queue.Empty:
+                self.close()
+                raise WorkloadError(f"the {proc.name} process did not start within 120 s") from None
         self._mapping_busy = False
         self._graphs_pending = 0
         self._loop_sent = 0  # keyframes handed to loop closing so far

@@ -1,0 +1,1 @@
+"""Container recipe for the SLAM workload (Dockerfile.j2)."""

@@ -1,0 +1,1 @@
+"""Keyframe-based visual SLAM (ORB-SLAM2 family) on OpenCV and GTSAM; see README.md."""

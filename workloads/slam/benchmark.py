@@ -1,0 +1,136 @@
+"""Benchmark in the shape of the FogROS SLAM table: edge (1 core) against cloud (all cores).
+
+``python -m workloads.slam.benchmark --runs 3 [--sequence DIR ...] [--cores 1,2,4] [--out FILE]``
+
+Each sequence (rendered ``desk`` and ``loop`` at 640 x 480 by default, or TUM folders given with
+``--sequence``) runs as ``python -m workloads.slam run DIR --cores N --json`` in a child process,
+the core counts interleaved run by run so that load drifting during the benchmark hits every
+side alike. Per sequence and core count it prints the median FPS and map-creation time, the ratio
+of each against the 1-core baseline measured in the same run, the load average before the run,
+and the cores the run actually got: CPU seconds of all its threads and processes while tracking,
+over those wall seconds (a run pinned to 2 cores on a machine busy with other work gets less).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from workloads.slam.camera import Intrinsics
+from workloads.slam.render import render_sequence
+
+DEFAULT_SEQUENCES = (("desk", 150), ("loop", 260))
+
+
+@dataclass(frozen=True)
+class Run:
+    sequence: str
+    cores: int
+    fps: float
+    map_created_s: float | None
+    ate_rmse_m: float | None
+    tracked_ratio: float
+    load_before: float
+    cores_used: float  # CPU seconds / wall seconds while tracking, all of the run's processes and threads
+
+
+def run_once(folder: Path, cores: int, *, features: int) -> Run:
+    load = os.getloadavg()[0]
+    done = subprocess.run([sys.executable, "-m", "workloads.slam", "run", str(folder), "--cores", str(cores),
+                           "--features", str(features), "--json"], capture_output=True, text=True, check=False)
+    if done.returncode != 0:
+        raise SystemExit(f"slam run failed on {folder}: {done.stderr.strip()}")
+    summary = json.loads(done.stdout.strip().splitlines()[-1])
+    return Run(folder.name, summary["cores"], summary["fps"], summary["map_created_s"], summary.get("ate_rmse_m"),
+               summary["tracked_ratio"], load, summary["cores_used"])
+
+
+def prepare(root: Path, *, scale: float) -> list[Path]:
+    """The default rendered sequences under ``root``, rendered once (a marker file says done)."""
+    folders = []
+    for kind, frames in DEFAULT_SEQUENCES:
+        folder = root / f"{kind}-{frames}-{scale:g}"
+        if not (folder / "done").is_file():
+            render_sequence(folder, kind=kind, frames=frames, intrinsics=Intrinsics.fr1().scaled(scale))
+            (folder / "done").write_text("")
+        folders.append(folder)
+    return folders
+
+
+def _median(values: list[float | None]) -> float | None:
+    present = [v for v in values if v is not None]
+    return statistics.median(present) if present else None
+
+
+def table(runs: list[Run], core_counts: list[int]) -> list[dict[str, object]]:
+    rows = []
+    for sequence in dict.fromkeys(r.sequence for r in runs):
+        base = [r for r in runs if r.sequence == sequence and r.cores == core_counts[0]]
+        base_fps, base_map = _median([r.fps for r in base]), _median([r.map_created_s for r in base])
+        for c in core_counts:
+            mine = [r for r in runs if r.sequence == sequence and r.cores == c]
+            if not mine:
+                continue
+            fps, map_s = _median([r.fps for r in mine]), _median([r.map_created_s for r in mine])
+            rows.append({
+                "sequence": sequence, "cores": c, "runs": len(mine), "fps": fps, "map_created_s": map_s,
+                "fps_ratio": fps / base_fps if fps and base_fps else None,
+                "map_speedup": base_map / map_s if map_s and base_map else None,
+                "ate_rmse_m": _median([r.ate_rmse_m for r in mine]),
+                "tracked_ratio": min(r.tracked_ratio for r in mine),
+                "load_before": _median([r.load_before for r in mine]),
+                "cores_used": _median([r.cores_used for r in mine]),
+            })
+    return rows
+
+
+def _fmt(value: object, spec: str) -> str:
+    return "-" if value is None else format(value, spec)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sequence", type=Path, action="append", help="TUM folder (repeatable); default: rendered")
+    parser.add_argument("--cache", type=Path, default=Path("benchmarks/out/slam-sequences"))
+    parser.add_argument("--scale", type=float, default=1.0, help="rendered resolution as a fraction of 640 x 480")
+    parser.add_argument("--cores", default="", help="comma-separated core counts; the first is the baseline "
+                                                    "(default: 1 and every core this process may use)")
+    parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--features", type=int, default=1000)
+    parser.add_argument("--out", type=Path, help="write rows and runs as JSON here")
+    args = parser.parse_args(argv)
+    everything = len(os.sched_getaffinity(0))
+    core_counts = [int(c) for c in args.cores.split(",")] if args.cores else sorted({1, everything})
+    folders = args.sequence or prepare(args.cache, scale=args.scale)
+    runs: list[Run] = []
+    for i in range(args.runs):
+        for folder in folders:
+            for c in core_counts:
+                runs.append(run_once(folder, c, features=args.features))
+                r = runs[-1]
+                print(f"run {i + 1}/{args.runs} {r.sequence} cores={c}: {r.fps:.1f} FPS, "
+                      f"map {_fmt(r.map_created_s, '.2f')} s, "
+                      f"load {r.load_before:.2f}, used {r.cores_used:.2f} cores", flush=True)
+    rows = table(runs, core_counts)
+    print(f"\n{os.cpu_count()} CPUs here, {everything} usable; baseline: {core_counts[0]} core(s), same run")
+    print(f"{'sequence':<16}{'cores':>6}{'FPS':>8}{'x FPS':>7}{'map s':>8}{'x map':>7}{'ATE cm':>8}{'tracked':>9}"
+          f"{'load':>7}{'used':>7}")
+    for row in rows:
+        ate = row["ate_rmse_m"]
+        print(f"{row['sequence']:<16}{row['cores']:>6}{_fmt(row['fps'], '.1f'):>8}{_fmt(row['fps_ratio'], '.2f'):>7}"
+              f"{_fmt(row['map_created_s'], '.2f'):>8}{_fmt(row['map_speedup'], '.2f'):>7}"
+              f"{_fmt(None if ate is None else 100 * float(str(ate)), '.2f'):>8}{_fmt(row['tracked_ratio'], '.3f'):>9}"
+              f"{_fmt(row['load_before'], '.2f'):>7}{_fmt(row['cores_used'], '.2f'):>7}")
+    if args.out:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(json.dumps({"rows": rows, "runs": [asdict(r) for r in runs]}, indent=1))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,296 @@
+"""The SLAM system: tracking here, local mapping and loop closing in their own processes.
+
+Thread and process model (measured, not assumed: ``cv2`` releases the GIL while extracting ORB
+features, GTSAM does not while optimising):
+
+- the caller's thread tracks (``Tracker.track``) and owns the map;
+- ``run_sequence`` reads and extracts frames ahead of it in ``cores`` threads;
+- a mapping process runs local bundle adjustments; tracking hands it a new window whenever it
+  is idle and a keyframe has arrived since (ORB-SLAM2's local mapping also skips to the newest);
+- a loop process keeps the bag-of-words database, checks each keyframe for a loop and runs the
+  pose-graph optimisation that tracking asks for when one closes.
+
+``--cores N`` pins the process (and so its children) to N CPUs with ``sched_setaffinity``: the
+edge's one core and the cloud's many run the same program. Processes are spawned and warmed up
+before the clock starts; results come back on queues that tracking polls between frames.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import queue
+import resource
+import sys
+import time
+from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from fogiac.errors import WorkloadError
+from workloads.slam.backend import (
+    BundleResult,
+    PoseGraphJob,
+    PoseGraphResult,
+    bundle_adjust,
+    optimise_pose_graph,
+)
+from workloads.slam.camera import Intrinsics
+from workloads.slam.features import Extractor, Features
+from workloads.slam.geometry import ate_rmse
+from workloads.slam.loop import Loop, LoopDetector, LoopKeyframe
+from workloads.slam.tracking import Config, Tracker, TrackResult
+from workloads.slam.tum import Sequence, Trajectory, load_frame, matched_positions
+
+FLUSH = "flush"
+
+
+def pin_cores(cores: int) -> int:
+    """Restrict this process (and what it starts later) to ``cores`` of the CPUs it may use; 0: all."""
+    allowed = sorted(os.sched_getaffinity(0))
+    if cores > 0:
+        allowed = allowed[:cores]
+        os.sched_setaffinity(0, allowed)
+    return len(allowed)
+
+
+def cpu_seconds(pids: list[int]) -> float:
+    """CPU seconds (user + system) so far of this process, all its threads, and the live processes ``pids``."""
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    total = own.ru_utime + own.ru_stime
+    for pid in pids:
+        try:
+            fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        total += (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime, stime
+    return total
+
+
+def _mapping_main(inbox: Any, outbox: Any) -> None:
+    cv2.setNumThreads(1)
+    outbox.put("ready")
+    while (job := inbox.get()) is not None:
+        try:
+            outbox.put(bundle_adjust(job))
+        except Exception as err:  # tracking waits for an answer before the next job: send one it will drop
+            print(f"slam mapping: {type(err).__name__}: {err}", file=sys.stderr, flush=True)
+            outbox.put(BundleResult(-1, job.kf_ids, job.poses, job.point_ids, job.positions,
+                                    np.zeros((0, 2), np.int64), 0.0))
+
+
+def _loop_main(inbox: Any, outbox: Any, intrinsics: Intrinsics, min_gap: int) -> None:
+    cv2.setNumThreads(1)
+    detector = LoopDetector(intrinsics, min_gap=min_gap)
+    outbox.put("ready")
+    while (message := inbox.get()) is not None:
+        if isinstance(message, LoopKeyframe):
+            loop = detector.add(message)
+            if loop is not None:
+                outbox.put(loop)
+        elif isinstance(message, PoseGraphJob):
+            outbox.put(optimise_pose_graph(message))
+        else:
+            outbox.put(message)  # a flush marker: everything sent before it is done
+
+
+@dataclass
+class Stats:
+    bundle_runs: int = 0
+    bundle_s: float = 0.0
+    loops: list[Loop] = field(default_factory=list)
+    first_map_at: float | None = None  # monotonic time the first bundle-adjusted map was back
+
+
+class Slam:
+    """Feed :meth:`track` frames' features in order; :meth:`finish` waits for the back end."""
+
+    def __init__(self, intrinsics: Intrinsics, config: Config | None = None, *, mono: bool = False) -> None:
+        self.tracker = Tracker(intrinsics, config, mono=mono)
+        self.stats = Stats()
+        ctx = mp.get_context("spawn")
+        self._map_in, self._map_out, self._loop_in, self._loop_out = ctx.Queue(), ctx.Queue(), ctx.Queue(), ctx.Queue()
+        self._procs = [
+            ctx.Process(target=_mapping_main, args=(self._map_in, self._map_out), daemon=True, name="slam-mapping"),
+            ctx.Process(target=_loop_main, args=(self._loop_in, self._loop_out, intrinsics,
+                                                 self.tracker.config.loop_min_gap), daemon=True, name="slam-loop"),
+        ]
+        for proc in self._procs:
+            proc.start()
+        for outbox, proc in zip((self._map_out, self._loop_out), self._procs, strict=True):
+            try:
+                outbox.get(timeout=120)
+            except queue.Empty:
+                self.close()
+                raise WorkloadError(f"the {proc.name} process did not start within 120 s") from None
+        self._mapping_busy = False
+        self._graphs_pending = 0
+        self._loop_sent = 0  # keyframes handed to loop closing so far
+
+    def track(self, features: Features) -> TrackResult:
+        self._poll()
+        result = self.tracker.track(features)
+        if result.keyframe:
+            for kf_id in range(self._loop_sent, len(self.tracker.map.keyframes)):
+                self._loop_in.put(self.tracker.loop_keyframe(kf_id))
+            self._loop_sent = len(self.tracker.map.keyframes)
+            self._start_bundle()
+        return result
+
+    def _start_bundle(self) -> None:
+        if self._mapping_busy:
+            return
+        job = self.tracker.bundle_job()
+        if job is not None:
+            self._map_in.put(job)
+            self._mapping_busy = True
+
+    def _poll(self, *, block: float = 0.0) -> None:
+        """Apply whatever the back end has finished; wait up to ``block`` seconds for the first answer."""
+        for outbox in (self._map_out, self._loop_out):
+            while True:
+                try:
+                    message = outbox.get(timeout=block) if block else outbox.get_nowait()
+                except queue.Empty:
+                    break
+                block = 0.0
+                self._handle(message)
+
+    def _handle(self, message: object) -> None:
+        if isinstance(message, BundleResult):
+            self._mapping_busy = False
+            self.stats.bundle_runs += 1
+            self.stats.bundle_s += message.seconds
+            if self.tracker.apply_bundle(message) and self.stats.first_map_at is None:
+                self.stats.first_map_at = time.monotonic()
+            self._start_bundle()
+        elif isinstance(message, Loop):
+            self.stats.loops.append(message)
+            self._loop_in.put(self.tracker.pose_graph_job(message))
+            self._graphs_pending += 1
+        elif isinstance(message, PoseGraphResult):
+            self._graphs_pending -= 1
+            self.tracker.apply_pose_graph(message)
+        elif message == FLUSH:
+            self._flushed = True
+
+    def finish(self, *, timeout: float = 300.0) -> None:
+        """Wait until loop closing has seen every keyframe and mapping is idle."""
+        deadline = time.monotonic() + timeout
+        self._flushed = False
+        self._loop_in.put(FLUSH)
+        while (not self._flushed or self._graphs_pending or self._mapping_busy) and time.monotonic() < deadline:
+            self._poll(block=0.05)
+
+    @property
+    def pids(self) -> list[int]:
+        return [p.pid for p in self._procs if p.pid is not None]
+
+    def close(self) -> None:
+        for inbox in (self._map_in, self._loop_in):
+            inbox.put(None)
+        for proc in self._procs:
+            proc.join(timeout=10)
+            if proc.is_alive():
+                proc.terminate()
+
+    def __enter__(self) -> Slam:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+@dataclass(frozen=True)
+class RunResult:
+    frames: int
+    tracked: int
+    fps: float
+    map_created_s: float | None
+    wall_s: float
+    keyframes: int
+    map_points: int
+    loops: tuple[tuple[int, int], ...]  # (query keyframe, matched keyframe) of each loop closed
+    bundle_runs: int
+    cores: int
+    cores_used: float  # CPU seconds of tracking, extraction, mapping and loop closing / tracking's wall seconds
+    mono: bool
+    trajectory: Trajectory
+    ate_rmse_m: float | None = None
+    scale: float | None = None  # Sim(3) alignment's scale (monocular)
+
+    def summary(self) -> dict[str, object]:
+        out: dict[str, object] = {
+            "frames": self.frames, "tracked": self.tracked,
+            "tracked_ratio": round(self.tracked / max(self.frames, 1), 4), "fps": round(self.fps, 2),
+            "map_created_s": None if self.map_created_s is None else round(self.map_created_s, 3),
+            "wall_s": round(self.wall_s, 3), "keyframes": self.keyframes, "map_points": self.map_points,
+            "loops": len(self.loops), "bundle_runs": self.bundle_runs, "cores": self.cores,
+            "cores_used": round(self.cores_used, 2),
+            "mode": "mono" if self.mono else "rgbd",
+        }
+        if self.ate_rmse_m is not None:
+            out["ate_rmse_m"] = round(self.ate_rmse_m, 5)
+            out["alignment"] = "sim3" if self.mono else "se3"
+        if self.scale is not None:
+            out["scale"] = round(self.scale, 4)
+        return out
+
+
+def _frames(seq: Sequence, extractor: Extractor, pool: ThreadPoolExecutor, *, mono: bool,
+            ahead: int) -> Iterator[Features]:
+    """Features of every frame in order, read and extracted ``ahead`` frames in advance by the pool."""
+    def work(i: int) -> Features:
+        grey, depth = load_frame(seq.frames[i], seq.intrinsics)
+        return extractor(i, seq.frames[i].stamp, grey, None if mono else depth)
+
+    pending = [pool.submit(work, i) for i in range(min(ahead, len(seq.frames)))]
+    for i in range(len(seq.frames)):
+        if i + ahead < len(seq.frames):
+            pending.append(pool.submit(work, i + ahead))
+        yield pending[i].result()
+
+
+def evaluate(trajectory: Trajectory, truth: Trajectory, *, mono: bool) -> tuple[float, float]:
+    """(ATE RMSE in metres, alignment scale): SE(3) alignment for RGB-D, Sim(3) for monocular."""
+    estimate, true = matched_positions(trajectory, truth)
+    rmse, alignment = ate_rmse(estimate, true, with_scale=mono)
+    return rmse, alignment.scale
+
+
+def run_sequence(seq: Sequence, *, cores: int = 0, mono: bool = False, config: Config | None = None,
+                 max_frames: int | None = None) -> RunResult:
+    """Run the whole system on a sequence as fast as it goes; times count from the first frame."""
+    got = pin_cores(cores)
+    cv2.setNumThreads(1)
+    config = config or Config()
+    if max_frames is not None:
+        seq = Sequence(seq.root, seq.frames[:max_frames], seq.intrinsics, seq.groundtruth)
+    extractor = Extractor(seq.intrinsics, features=config.features)
+    with Slam(seq.intrinsics, config, mono=mono) as slam, ThreadPoolExecutor(max_workers=got) as pool:
+        start, cpu_start = time.monotonic(), cpu_seconds(slam.pids)
+        tracked = 0
+        for features in _frames(seq, extractor, pool, mono=mono, ahead=2 * got + 1):
+            tracked += slam.track(features).tracked
+        tracking_s = time.monotonic() - start
+        cpu_s = cpu_seconds(slam.pids) - cpu_start
+        slam.finish()
+        wall_s = time.monotonic() - start
+        first_map = slam.stats.first_map_at
+        trajectory = slam.tracker.trajectory()
+        result = RunResult(
+            frames=len(seq.frames), tracked=tracked, fps=len(seq.frames) / tracking_s,
+            map_created_s=None if first_map is None else first_map - start, wall_s=wall_s,
+            keyframes=len(slam.tracker.map.keyframes), map_points=slam.tracker.map.points.count,
+            loops=tuple((lp.query, lp.match) for lp in slam.stats.loops), bundle_runs=slam.stats.bundle_runs,
+            cores=got, cores_used=cpu_s / tracking_s, mono=mono, trajectory=trajectory,
+        )
+    if seq.groundtruth is not None and len(trajectory) >= 3:
+        rmse, scale = evaluate(trajectory, seq.groundtruth, mono=mono)
+        result = RunResult(**{**result.__dict__, "ate_rmse_m": rmse, "scale": scale if mono else None})
+    return result

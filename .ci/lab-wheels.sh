@@ -13,7 +13,7 @@ dest=/var/cache/fogiac-ci/lab-wheels
 mapfile -t reqs < <(.venv/bin/python -c '
 from fogiac.net import middleware
 from fogiac.provision.venv import requirements
-hosts = tuple(r for name in sorted(middleware.BUILTIN) for r in middleware.get(name).host_requirements)
+hosts = tuple(r for name in middleware.names() for r in middleware.get(name).host_requirements)
 print("\n".join(requirements(["grasp_planning", "motion_planning"], fogiac=True, middleware=hosts)))')
 want=$(printf '%s\n' "${reqs[@]}" | sha256sum | cut -d' ' -f1)
 if [ "$(cat "$dest/.stamp" 2>/dev/null)" = "$want" ]; then

@@ -20,7 +20,7 @@ EXTRAS: dict[str, str] = {
     "fabric": "ssh", "paramiko": "ssh",
     "zenoh": "ros2", "zenoh_ros2_sdk": "ros2",
     "torch": "workloads", "ompl": "workloads", "fcl": "workloads", "trimesh": "workloads",
-    "matplotlib": "workloads", "numpy": "workloads",
+    "matplotlib": "workloads", "numpy": "workloads", "cv2": "workloads", "gtsam": "workloads",
 }
 
 

@@ -88,7 +88,6 @@ def _manifest(root: Path, *, hosts: list[tuple[str, str]], key: Path, edge_port:
         ("  provider: aws\n  region: us-east-1\n", f"  provider: hosts\n  runtime: container\n  hosts:\n{machines}"),
         ("network:\n", f'edge: {{ros_master: "http://127.0.0.1:{edge_port}"}}\nnetwork:\n'),
         ("    gpu: true\n", "    gpu: false\n    host: h0\n"),
-        ("    image: registry.example.com/robot-lab/fogiac-grasp-planning:0.1.0\n", "    workload: grasp_planning\n"),
         ("relay:\n", "  - name: word\n    machine: t3.small\n    host: h1\n    build: {context: app}\n"
                      "    topics: {out: [/word]}\nrelay:\n"),
     ):

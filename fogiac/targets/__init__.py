@@ -13,7 +13,8 @@ else in fogiac names a target.
 from __future__ import annotations
 
 import importlib
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from typing import Any
 
 from fogiac.errors import PlanError
 from fogiac.plan.placement import Placement
@@ -27,6 +28,8 @@ BUILTIN: dict[str, str] = {"aws": "fogiac.targets.aws.target:AWS", "hosts": "fog
 # Where a built-in target's placement lives apart from its lifecycle, so that compiling (``validate``,
 # ``plan``, ``graph``) loads what the target decides at compile time and not its provisioning and engine.
 PLACEMENT: dict[str, str] = {name: f"fogiac.targets.{name}.placement:place" for name in BUILTIN}
+# Other formats a target's plan document exports to, by (target, format): what ``plan --format`` prints.
+EXPORTERS: dict[tuple[str, str], str] = {("aws", "terraform-json"): "fogiac.targets.aws.tfplan:export"}
 _REGISTRY: dict[str, Target] = {}
 
 
@@ -58,6 +61,16 @@ def placer(name: str) -> Place:
         found: Place = getattr(importlib.import_module(module), attr)
         return found
     return get(name).place
+
+
+def exporter(name: str, fmt: str) -> Callable[[Mapping[str, Any]], dict[str, Any]]:
+    """How target ``name`` writes its plan document as ``fmt``; fails in one line naming what exists."""
+    if (name, fmt) not in EXPORTERS:
+        known = ", ".join(f"{t} ({f})" for t, f in sorted(EXPORTERS)) or "none"
+        raise PlanError(f"target {name!r} cannot export its plan as {fmt!r}; available: {known}")
+    module, attr = EXPORTERS[(name, fmt)].split(":")
+    found: Callable[[Mapping[str, Any]], dict[str, Any]] = getattr(importlib.import_module(module), attr)
+    return found
 
 
 def names() -> tuple[str, ...]:

@@ -134,6 +134,7 @@ class Network(pulumi.ComponentResource):
         )
         self.flow_log_policy = aws.iam.RolePolicy(
             f"{name}-flow-logs-policy",
+            name="write-flow-logs",
             role=self.flow_log_role.id,
             policy=self.flow_log_group.arn.apply(_write_logs),
             opts=child,

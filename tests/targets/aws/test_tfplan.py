@@ -139,3 +139,9 @@ def test_checkov_finds_nothing_but_the_declared_checks(exported: dict[str, dict[
         assert {"CKV2_AWS_12", "CKV_AWS_130", "CKV_AWS_135", "CKV_AWS_79", "CKV_AWS_8"} <= passed, name
         if name == "proxy":
             assert "CKV2_AWS_11" in passed
+
+
+def test_readme_gives_every_by_design_reason() -> None:
+    readme = (REPO / "README.md").read_text()
+    for check, _, reason in tfplan.BY_DESIGN:
+        assert f"`{check}`" in readme and reason in readme.replace("\n", " "), check

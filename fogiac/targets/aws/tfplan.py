@@ -15,6 +15,7 @@ reason, for the CI gate to pass to the scanner (``.ci/policy.sh``: ``checkov --s
 
 from __future__ import annotations
 
+import copy
 import re
 from collections.abc import Mapping
 from typing import Any
@@ -129,6 +130,21 @@ def _convert(tf: str, inputs: Mapping[str, Any], addresses: Mapping[str, str]) -
     return values, unknown, expressions
 
 
+def _before_inputs(row: Mapping[str, Any]) -> dict[str, Any]:
+    """An updated or replaced resource's inputs before: its inputs with each changed path's old value."""
+    inputs = copy.deepcopy(dict(row["inputs"]))
+    for path, old in (row.get("before") or {}).items():
+        *parents, leaf = str(path).split(".")
+        here = inputs
+        for key in parents:
+            here = here.setdefault(key, {}) if isinstance(here.get(key, {}), dict) else {}
+        if old is None:
+            here.pop(leaf, None)
+        else:
+            here[leaf] = old
+    return inputs
+
+
 def _actions(action: str) -> list[str]:
     return {"replace": ["delete", "create"], "no-op": ["no-op"]}.get(action, [action])
 
@@ -142,7 +158,7 @@ def by_design(doc: Mapping[str, Any]) -> list[dict[str, str]]:
 
 def export(doc: Mapping[str, Any]) -> dict[str, Any]:
     """The plan document ``doc`` (``fogiac plan --json``) as Terraform plan JSON."""
-    rows = [r for r in doc["resources"] if r["type"] in TYPES or r["type"].startswith("aws:")]
+    rows = list(doc["resources"])
     addresses = {r["name"]: f"{tf_type(r['type'])}.{tf_name(r['name'])}" for r in rows}
     planned: list[dict[str, Any]] = []
     changes: list[dict[str, Any]] = []
@@ -153,12 +169,13 @@ def export(doc: Mapping[str, Any]) -> dict[str, Any]:
         values, unknown, expressions = _convert(tf, r["inputs"], addresses)
         head = {"address": address, "mode": "managed", "type": tf, "name": name}
         action = r.get("action", "create")
+        before = _convert(tf, _before_inputs(r), addresses)[0] if action in ("update", "replace") else values
         if action != "delete":
             planned.append({**head, "provider_name": PROVIDER, "schema_version": 0, "values": values,
                             "sensitive_values": {}})
         changes.append({**head, "provider_name": PROVIDER, "change": {
             "actions": _actions(action),
-            "before": None if action == "create" else values,
+            "before": None if action == "create" else before,
             "after": None if action == "delete" else values,
             "after_unknown": unknown, "before_sensitive": False, "after_sensitive": {}}})
         configured.append({**head, "provider_config_key": "aws", "expressions": expressions, "schema_version": 0})

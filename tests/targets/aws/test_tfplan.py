@@ -145,3 +145,17 @@ def test_readme_gives_every_by_design_reason() -> None:
     readme = (REPO / "README.md").read_text()
     for check, _, reason in tfplan.BY_DESIGN:
         assert f"`{check}`" in readme and reason in readme.replace("\n", " "), check
+
+
+def test_against_another_manifest_gives_terraform_actions_and_before(tmp_path: Path) -> None:
+    base = (REPO / "examples" / "minimal.yaml").read_text()
+    (tmp_path / "base.yaml").write_text(base)
+    (tmp_path / "head.yaml").write_text(base.replace("t3.small", "t3.medium"))
+    result = runner.invoke(app, ["plan", str(tmp_path / "head.yaml"), "--against", str(tmp_path / "base.yaml"),
+                                 "--format", "terraform-json"])
+    assert result.exit_code == 0, result.output
+    changes = by_address(json.loads(result.output)["resource_changes"])
+    instance = changes["aws_instance.minimal-dev-host-talker"]["change"]
+    assert instance["actions"] == ["update"]
+    assert (instance["before"]["instance_type"], instance["after"]["instance_type"]) == ("t3.small", "t3.medium")
+    assert changes["aws_vpc.minimal-dev-vpc"]["change"]["actions"] == ["no-op"]

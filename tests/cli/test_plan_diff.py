@@ -78,7 +78,7 @@ PAIRS = (
           "- hosts ingress tcp 22 203.0.113.7/32 (SSH from the operator)",
           "+ aws:vpc/securityGroupIngressRule:SecurityGroupIngressRule review-dev-hosts-in-tcp-22-203.0.113.0-24")),
     Pair("VPC CIDR change replaces the network and everything in it", BASE,
-         BASE.replace("10.10.0.0/16", "10.20.0.0/16"), 2, "Plan: 24 to add, 3 to change, 24 to destroy.",
+         BASE.replace("10.10.0.0/16", "10.20.0.0/16"), 2, "Plan: 25 to add, 2 to change, 25 to destroy.",
          ("-/+ aws:ec2/vpc:Vpc review-dev-vpc", "cidrBlock: 10.10.0.0/16 -> 10.20.0.0/16  # forces replacement",
           "-/+ aws:ec2/subnet:Subnet review-dev-subnet-hosts",
           "vpcId: <review-dev-vpc.id> -> (known after apply)  # forces replacement",

@@ -126,7 +126,7 @@ def _groups(rows: list[Mapping[str, Any]], seen: list[Mapping[str, Any]],
         out += [Drift(row["stack"], INGRESS, r["rule_id"], "added", detail=_rule_text(r, group["name"]))
                 for r in unmatched]
     default = by_name.get("default")
-    for row in (r for r in rows if r["type"] == DEFAULT_GROUP and default is not None):
+    for row in (r for r in rows if r["type"] == DEFAULT_GROUP):
         out += [Drift(row["stack"], INGRESS, r["rule_id"], "added", detail=_rule_text(r, "default"))
-                for r in default["ingress"]]
+                for r in (default or {}).get("ingress", [])]
     return out

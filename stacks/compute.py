@@ -1,6 +1,6 @@
 """Compute: the stack's SSH key pair and one EC2 instance per host.
 
-Every instance requires IMDSv2 (tokens), boots from an encrypted gp3 root volume of the node's
+Every instance requires IMDSv2 (tokens), is EBS-optimised, boots from an encrypted gp3 root volume of the node's
 ``disk_gb``, gets its AMI by lookup (current Ubuntu LTS; for GPU types an image with the NVIDIA
 driver and container toolkit) and user data that installs Docker and prints its SSH host keys
 on the console between HOST_KEYS_BEGIN and HOST_KEYS_END, so provisioning can pin them.
@@ -112,6 +112,7 @@ class Compute(pulumi.ComponentResource):
                 vpc_security_group_ids=list(args.security_group_ids),
                 key_name=self.key_pair.key_name,
                 associate_public_ip_address=True,
+                ebs_optimized=True,  # the default for every catalogued family; said, so scanners see it
                 metadata_options=aws.ec2.InstanceMetadataOptionsArgs(
                     http_endpoint="enabled", http_tokens="required", http_put_response_hop_limit=2
                 ),

@@ -1,12 +1,16 @@
 """Network: the VPC, its two subnets, the internet gateway and the routes.
 
-The hosts subnet is public (instances get a public address for SSH and, in proxy mode, the
-relay); the Client VPN target subnet is private and routes only inside the VPC, because the
-edge reaches nothing but the VPC over the VPN (split tunnel).
+The hosts subnet is public (each instance asks for a public address for SSH and, in proxy mode,
+the relay; the subnet itself maps none on launch); the Client VPN target subnet is private and
+routes only inside the VPC, because the edge reaches nothing but the VPC over the VPN (split
+tunnel). The VPC's default security group is adopted and left without rules: fogiac never uses
+it, so nothing launched into the VPC without a group can talk. With ``flow_logs`` the VPC's
+traffic is logged to a CloudWatch log group of the stack, written through a role of its own.
 """
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -17,6 +21,28 @@ from fogiac.plan.model import NetworkSpec
 from stacks.tags import tagged
 
 _ANYWHERE = "0.0.0.0/0"  # the public route table's default route (egress, not a firewall rule)
+LOG_RETENTION_DAYS = 365  # a year, as scanners ask; the group goes with the stack at down anyway
+
+
+def log_group_name(stack: str, what: str) -> str:
+    """Every log group of a stack sits under ``/fogiac/<stack>/``, so sweep finds them by prefix."""
+    return f"/fogiac/{stack}/{what}"
+
+
+def flow_logs_role_name(stack: str) -> str:
+    return f"fogiac-{stack}-flow-logs"[:64]
+
+
+def _assume_role(service: str) -> str:
+    return json.dumps({"Version": "2012-10-17", "Statement": [
+        {"Effect": "Allow", "Principal": {"Service": service}, "Action": "sts:AssumeRole"}]})
+
+
+def _write_logs(log_group_arn: str) -> str:
+    return json.dumps({"Version": "2012-10-17", "Statement": [
+        {"Effect": "Allow", "Action": ["logs:CreateLogStream", "logs:PutLogEvents", "logs:DescribeLogGroups",
+                                       "logs:DescribeLogStreams"],
+         "Resource": [log_group_arn, f"{log_group_arn}:*"]}]})
 
 
 @dataclass(frozen=True)
@@ -46,13 +72,16 @@ class Network(pulumi.ComponentResource):
         self.internet_gateway = aws.ec2.InternetGateway(
             f"{name}-igw", vpc_id=self.vpc.id, tags=tagged(args.tags, f"{name}-igw"), opts=child
         )
+        self.default_group = aws.ec2.DefaultSecurityGroup(  # no ingress, no egress: every rule removed
+            f"{name}-default-sg", vpc_id=self.vpc.id, tags=tagged(args.tags, f"{name}-default"), opts=child
+        )
         self.subnets = {
             subnet.name: aws.ec2.Subnet(
                 f"{name}-subnet-{subnet.name}",
                 vpc_id=self.vpc.id,
                 cidr_block=subnet.cidr,
                 availability_zone=args.zone,
-                map_public_ip_on_launch=subnet.public,
+                map_public_ip_on_launch=False,  # each instance asks for its own public address
                 tags=tagged(args.tags, f"{name}-{subnet.name}"),
                 opts=child,
             )
@@ -77,9 +106,46 @@ class Network(pulumi.ComponentResource):
             )
             for subnet in args.spec.subnets
         ]
+        self.flow_log: aws.ec2.FlowLog | None = None
+        if args.spec.flow_logs:
+            self._flow_logs(name, args, child)
         self.register_outputs(
             {
                 "vpc_id": self.vpc.id,
                 "subnet_ids": {key: subnet.id for key, subnet in self.subnets.items()},
             }
+        )
+
+    def _flow_logs(self, name: str, args: NetworkArgs, child: pulumi.ResourceOptions) -> None:
+        self.flow_log_group = aws.cloudwatch.LogGroup(
+            f"{name}-flow-logs",
+            name=log_group_name(name, "flow-logs"),
+            retention_in_days=LOG_RETENTION_DAYS,
+            tags=tagged(args.tags, f"{name}-flow-logs"),
+            opts=child,
+        )
+        self.flow_log_role = aws.iam.Role(
+            f"{name}-flow-logs-role",
+            name=flow_logs_role_name(name),
+            path=f"/fogiac/{name}/",
+            assume_role_policy=_assume_role("vpc-flow-logs.amazonaws.com"),
+            tags=tagged(args.tags, f"{name}-flow-logs"),
+            opts=child,
+        )
+        self.flow_log_policy = aws.iam.RolePolicy(
+            f"{name}-flow-logs-policy",
+            name="write-flow-logs",
+            role=self.flow_log_role.id,
+            policy=self.flow_log_group.arn.apply(_write_logs),
+            opts=child,
+        )
+        self.flow_log = aws.ec2.FlowLog(
+            f"{name}-flow-log",
+            vpc_id=self.vpc.id,
+            traffic_type="ALL",
+            log_destination_type="cloud-watch-logs",
+            log_destination=self.flow_log_group.arn,
+            iam_role_arn=self.flow_log_role.arn,
+            tags=tagged(args.tags, f"{name}-flow-log"),
+            opts=child,
         )

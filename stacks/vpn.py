@@ -3,7 +3,8 @@
 The endpoint's own server certificate (never a host's: each host's relay key stays on the
 host) and the client certificate (RSA 2048, as AWS requires) are imported into ACM; the client
 one's chain is the trust root the endpoint checks clients against (mutual TLS). Split
-tunnel: only VPC routes go through it, so the robot keeps its own internet path. Creating the
+tunnel: only VPC routes go through it, so the robot keeps its own internet path. Every connection
+is logged to a CloudWatch log group of the stack. Creating the
 association takes about ten minutes, hence the long timeouts.
 """
 
@@ -17,6 +18,7 @@ import pulumi_aws as aws
 
 from fogiac.certs import Bundle, KeyPair
 from fogiac.targets.aws.model import VpnSpec
+from stacks.network import LOG_RETENTION_DAYS, log_group_name
 from stacks.tags import tagged
 
 SLOW = pulumi.CustomTimeouts(create="30m", update="30m", delete="30m")
@@ -58,6 +60,13 @@ class ClientVpn(pulumi.ComponentResource):
         self.server_certificate = certificate("server", args.certs.vpn)
         self.client_certificate = certificate("client", args.certs.client)
         spec = args.spec
+        self.log_group = aws.cloudwatch.LogGroup(
+            f"{name}-vpn-logs",
+            name=log_group_name(name, "client-vpn"),
+            retention_in_days=LOG_RETENTION_DAYS,
+            tags=tagged(args.tags, f"{name}-vpn-logs"),
+            opts=child,
+        )
         self.endpoint = aws.ec2clientvpn.Endpoint(
             f"{name}-endpoint",
             description=f"fogiac {name}",
@@ -69,7 +78,9 @@ class ClientVpn(pulumi.ComponentResource):
                     root_certificate_chain_arn=self.client_certificate.arn,
                 )
             ],
-            connection_log_options=aws.ec2clientvpn.EndpointConnectionLogOptionsArgs(enabled=False),
+            connection_log_options=aws.ec2clientvpn.EndpointConnectionLogOptionsArgs(
+                enabled=True, cloudwatch_log_group=self.log_group.name
+            ),
             split_tunnel=spec.split_tunnel,
             transport_protocol=spec.transport,
             vpn_port=spec.port,

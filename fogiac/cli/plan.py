@@ -144,6 +144,10 @@ def plan(
         help="Compare with another version of the manifest (a path, or git:REF:PATH) instead of what was applied.",
     ),
     markdown: bool = typer.Option(False, "--markdown", help="Print the diff as a pull-request comment."),
+    fmt: str | None = typer.Option(
+        None, "--format", metavar="FORMAT",
+        help="terraform-json: the plan as Terraform plan JSON, for policy scanners (checkov, Trivy, conftest).",
+    ),
 ) -> None:
     """Show what the manifest would create, change or destroy, and what it costs, without touching the cloud."""
     # Compared with what is deployed, the plan is for the target the deployment went to.
@@ -163,7 +167,9 @@ def plan(
             write_json_atomic(out, doc, mode=0o644)
         except OSError as err:
             raise FogiacError(f"--out {out}: cannot write: {err.strerror or err}") from None
-    if as_json:
+    if fmt is not None:  # the target writes its own formats; the CLI only prints
+        typer.echo(json.dumps(targets.exporter(compiled.target, fmt)(doc), indent=2, sort_keys=True))
+    elif as_json:
         typer.echo(json.dumps(doc, indent=2, sort_keys=True))
     elif markdown:
         typer.echo(review.comment(diff, stack=compiled.stack, against=label), nl=False)

@@ -221,6 +221,21 @@ class Network(_Model):
     ssh_from: Literal["auto"] | tuple[ipaddress.IPv4Network, ...] = Field(
         default="auto", description="CIDRs allowed to SSH (and, in proxy mode, reach the relay); auto: your address."
     )
+    egress_tcp: tuple[int, ...] = Field(
+        default=(80, 443), description="TCP ports the hosts may open to the internet (packages, images); "
+        "DNS and time use the VPC's resolver and Amazon Time Sync, which security groups do not filter."
+    )
+    flow_logs: bool = Field(
+        default=False, description="VPC flow logs to a CloudWatch log group that goes with the stack (billed per GB)."
+    )
+
+    @field_validator("egress_tcp")
+    @classmethod
+    def _ports(cls, value: tuple[int, ...]) -> tuple[int, ...]:
+        for port in value:
+            if not 1 <= port <= 65535:
+                raise ValueError(f"{port} is not a TCP port (1-65535)")
+        return tuple(sorted(set(value)))
 
     @field_validator("vpc_cidr")
     @classmethod

@@ -237,7 +237,7 @@ def _network(cidr: str) -> ipaddress.IPv4Network | ipaddress.IPv6Network | None:
 
 
 def _exposure(rules: Section, topics: Section) -> tuple[str, ...]:
-    """Ingress rules added or widened, and topics that now reach the robot."""
+    """Ingress rules added or widened, egress opened to the internet, and topics that now reach the robot."""
     lines = []
     removed = [r for r in rules.removed if r["direction"] == "ingress"]
     for rule in (r for r in rules.added if r["direction"] == "ingress"):
@@ -251,6 +251,10 @@ def _exposure(rules: Section, topics: Section) -> tuple[str, ...]:
             lines.append(f"CIDR widened: {where} from {wider[0]['cidr']} to {rule['cidr']} ({rule['description']})")
         else:
             lines.append(f"ingress added: {where} from {rule['cidr']} ({rule['description']})")
+    for rule in (r for r in rules.added if r["direction"] == "egress"):
+        if (net := _network(str(rule["cidr"]))) is not None and net.prefixlen == 0:
+            lines.append(f"egress added to the internet: {rule['group']} {rule['protocol']} {rule['ports']} "
+                         f"to {rule['cidr']} ({rule['description']})")
     for topic in topics.added:
         if topic["direction"] == "to_edge":
             lines.append(f"topic added cloud -> edge: {topic['topic']} (from host {topic['host']} to the robot)")

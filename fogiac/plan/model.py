@@ -87,6 +87,7 @@ class Subnet:
 class NetworkSpec:
     vpc_cidr: str
     subnets: tuple[Subnet, ...]
+    flow_logs: bool = False  # VPC flow logs to a CloudWatch log group of the stack
 
 
 class EdgeVpn(typing.Protocol):

@@ -15,10 +15,11 @@ each loaded only when asked for. Nothing else in fogiac names a target.
 from __future__ import annotations
 
 import importlib
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 from typing import Any
 
+from fogiac.errors import PlanError
 from fogiac.lifecycle.driver import Target
 from fogiac.plan.placement import Placement
 from fogiac.registry import Registry
@@ -42,6 +43,7 @@ class TargetEntry:
     name: str
     driver: str
     placement: str = ""
+    exporters: Mapping[str, str] = field(default_factory=dict)  # format -> how the plan document becomes it
 
     def load_driver(self) -> Target:
         found: Target = _load(self.driver)
@@ -78,6 +80,17 @@ def placer(name: str) -> Place:
     if name in _DRIVERS:
         return _DRIVERS[name].place
     return _entry(name).load_placement()
+
+
+def exporter(name: str, fmt: str) -> Callable[[Mapping[str, Any]], dict[str, Any]]:
+    """How target ``name`` writes its plan document as ``fmt`` (``plan --format``); fails in one line
+    naming what exists."""
+    ref = _entry(name).exporters.get(fmt) if name in ENTRIES.names() else None
+    if ref is None:
+        known = ", ".join(f"{t} ({f})" for t in ENTRIES.names() for f in sorted(_entry(t).exporters)) or "none"
+        raise PlanError(f"target {name!r} cannot export its plan as {fmt!r}; available: {known}")
+    found: Callable[[Mapping[str, Any]], dict[str, Any]] = _load(ref)
+    return found
 
 
 def names() -> tuple[str, ...]:

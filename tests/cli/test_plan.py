@@ -54,7 +54,7 @@ def test_plan_reads_like_terraform_in_a_ci_log(minimal: Path) -> None:
     code, out = plan(str(minimal))
     assert code == 0, out
     lines = out.splitlines()
-    assert "network stack: 24 to create" in lines and "compute stack: 2 to create" in lines
+    assert "network stack: 29 to create" in lines and "compute stack: 2 to create" in lines
     # one line per resource, its full type token and name, key inputs indented below it
     endpoint = lines.index("  + aws:ec2clientvpn/endpoint:Endpoint minimal-dev-endpoint")
     assert lines[endpoint + 1] == "      clientCidrBlock: 10.200.0.0/22"

@@ -39,6 +39,9 @@ GRASP = """\
     gpu: true
 """
 
+FLOWS = BASE.replace("  ssh_from: [203.0.113.7/32]\n", "  ssh_from: [203.0.113.7/32]\n  flow_logs: true\n")
+WIDER_EGRESS = BASE.replace("  ssh_from: [203.0.113.7/32]\n", "  ssh_from: [203.0.113.7/32]\n  egress_tcp: [80, 443, 8883]\n")
+
 SPOT_PLANNER = BASE.replace("    workload: motion_planning\n", "    workload: motion_planning\n    spot: true\n")
 
 
@@ -75,7 +78,7 @@ PAIRS = (
           "- hosts ingress tcp 22 203.0.113.7/32 (SSH from the operator)",
           "+ aws:vpc/securityGroupIngressRule:SecurityGroupIngressRule review-dev-hosts-in-tcp-22-203.0.113.0-24")),
     Pair("VPC CIDR change replaces the network and everything in it", BASE,
-         BASE.replace("10.10.0.0/16", "10.20.0.0/16"), 2, "Plan: 21 to add, 2 to change, 21 to destroy.",
+         BASE.replace("10.10.0.0/16", "10.20.0.0/16"), 2, "Plan: 25 to add, 2 to change, 25 to destroy.",
          ("-/+ aws:ec2/vpc:Vpc review-dev-vpc", "cidrBlock: 10.10.0.0/16 -> 10.20.0.0/16  # forces replacement",
           "-/+ aws:ec2/subnet:Subnet review-dev-subnet-hosts",
           "vpcId: <review-dev-vpc.id> -> (known after apply)  # forces replacement",
@@ -91,6 +94,15 @@ PAIRS = (
          ("hourly cost: $0.2350 -> $0.4244 (+$0.1894), spot hosts at the catalogue's spot estimate of 2025-06-28; "
           "at on-demand prices $0.2350 -> $0.7610",
           "+ grasp (g4dn.xlarge, spot, about $0.1894/h est., $0.5260/h on-demand)")),
+    Pair("egress widened is flagged", BASE, WIDER_EGRESS, 2, "Plan: 1 to add, 0 to change, 0 to destroy.",
+         ("! egress added to the internet: hosts tcp 8883 to 0.0.0.0/0 "
+          "(TCP 8883 to the internet (updates, images and packages))",
+          "+ hosts egress tcp 8883 0.0.0.0/0 (TCP 8883 to the internet (updates, images and packages))",
+          "+ aws:vpc/securityGroupEgressRule:SecurityGroupEgressRule review-dev-hosts-out-tcp-8883-0.0.0.0-0")),
+    Pair("flow logs turned off removes their log group, role and flow log", FLOWS, BASE, 2,
+         "Plan: 0 to add, 0 to change, 4 to destroy.",
+         ("- aws:ec2/flowLog:FlowLog review-dev-flow-log", "- aws:cloudwatch/logGroup:LogGroup review-dev-flow-logs",
+          "- aws:iam/role:Role review-dev-flow-logs-role", "- aws:iam/rolePolicy:RolePolicy review-dev-flow-logs-policy")),
     Pair("no change", BASE, BASE, 0, "", ("No changes. Your infrastructure matches the configuration.",),
          ("Plan:",)),
 )
@@ -185,3 +197,16 @@ def test_markdown_comment_prices_spot_at_the_estimate(tmp_path: Path) -> None:
                     "spot_hourly_usd_after": 0.3683, "spot_as_of": "2025-06-28"}
     same = runner.invoke(app, ["plan", head, "--against", head, "--detailed-exitcode"])
     assert same.exit_code == 0, same.output  # equal spot totals: nothing to report
+
+
+def test_markdown_comment_shows_wider_egress_and_flow_logs_turned_off(tmp_path: Path) -> None:
+    """The pull-request comment warns about egress opened to the internet and lists the flow-log resources going."""
+    (tmp_path / "base.yaml").write_text(FLOWS)
+    (tmp_path / "head.yaml").write_text(WIDER_EGRESS)
+    result = runner.invoke(app, ["plan", str(tmp_path / "head.yaml"), "--against", str(tmp_path / "base.yaml"),
+                                 "--markdown"])
+    assert result.exit_code == 0, result.output
+    assert ("> - egress added to the internet: hosts tcp 8883 to 0.0.0.0/0 "
+            "(TCP 8883 to the internet (updates, images and packages))") in result.output.splitlines()
+    assert "**Plan: 1 to add, 0 to change, 4 to destroy.**  " in result.output.splitlines()
+    assert "- aws:ec2/flowLog:FlowLog review-dev-flow-log" in result.output.splitlines()

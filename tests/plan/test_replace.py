@@ -22,7 +22,7 @@ from fogiac.targets.aws.replace import RULES, ReplaceRule, forces_replacement, k
 MANIFEST = """\
 name: rules
 cloud: {provider: aws, region: us-west-2}
-network: {mode: vpn, vpc_cidr: 10.10.0.0/16, ssh_from: [203.0.113.7/32]}
+network: {mode: vpn, vpc_cidr: 10.10.0.0/16, ssh_from: [203.0.113.7/32], flow_logs: true}
 nodes:
   - {name: planner, machine: c5.large, image: "ros:noetic-ros-core", spot: true}
 """
@@ -37,6 +37,9 @@ IN_PLACE: dict[str, str | None] = {  # an input each type updates in place (None
     "aws:ec2clientvpn/endpoint:Endpoint": "splitTunnel",
     "aws:ec2/routeTable:RouteTable": "routes",
     "aws:ec2/routeTableAssociation:RouteTableAssociation": "routeTableId",
+    "aws:cloudwatch/logGroup:LogGroup": "retentionInDays",
+    "aws:iam/role:Role": "assumeRolePolicy",
+    "aws:iam/rolePolicy:RolePolicy": "policy",
 }
 
 

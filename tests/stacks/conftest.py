@@ -31,6 +31,11 @@ nodes:
     disk_gb: 50
 """
 
+# Proxy mode with flow logs on and one more TCP port open to the internet (MQTT over TLS).
+FLOWS = PROXY.replace("name: proxied", "name: flows").replace(
+    "  mode: proxy\n", "  mode: proxy\n  flow_logs: true\n  egress_tcp: [443, 80, 8883]\n"
+)
+
 GPU = """\
 name: grasp
 cloud:
@@ -73,6 +78,7 @@ def manifests(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         "minimal": EXAMPLES / "minimal.yaml",
         "proxy": write_manifest(directory, "proxy", PROXY),
         "gpu": write_manifest(directory, "gpu", GPU),
+        "flows": write_manifest(directory, "flows", FLOWS),
     }
 
 

@@ -72,7 +72,7 @@ def test_document_shape(offline: dict[str, OfflinePlan]) -> None:
     assert doc["stacks"] == ["network", "compute"]
     assert doc["manifest"] == {"path": "m.yaml", "sha256": "abc"}
     assert {r["action"] for r in doc["resources"]} == {"create"}
-    assert len(doc["resources"]) == 26  # components are not resources AWS creates
+    assert len(doc["resources"]) == 31  # components are not resources AWS creates
     assert doc["cost"]["hourly_usd"] == round(sum(line["total"] for line in doc["cost"]["lines"]), 4)
     assert [line["item"] for line in doc["cost"]["lines"]][1:] == [
         "Client VPN subnet association", "Client VPN connection (the edge)"

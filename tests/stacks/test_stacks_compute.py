@@ -36,6 +36,7 @@ def test_instances_are_hardened(offline: dict[str, OfflinePlan], key: str) -> No
             "volumeType": "gp3", "encrypted": True, "volumeSize": host.disk_gb, "deleteOnTermination": True
         }
         assert inputs["associatePublicIpAddress"] is True
+        assert inputs["ebsOptimized"] is True
         assert inputs["subnetId"] == f"<{plan.plan.stack}-subnet-hosts.id>"
         assert inputs["vpcSecurityGroupIds"] == (f"<{plan.plan.stack}-sg-hosts.id>",)
         assert inputs["keyName"] == f"fogiac-{plan.plan.stack}"

@@ -20,7 +20,12 @@ VPN_ASSOC = "aws:ec2clientvpn/networkAssociation:NetworkAssociation"
 AUTHZ = "aws:ec2clientvpn/authorizationRule:AuthorizationRule"
 KEY = "aws:ec2/keyPair:KeyPair"
 INSTANCE = "aws:ec2/instance:Instance"
-UNTAGGABLE = {ASSOC, VPN_ASSOC, AUTHZ}
+DEFAULT_SG = "aws:ec2/defaultSecurityGroup:DefaultSecurityGroup"
+LOGS = "aws:cloudwatch/logGroup:LogGroup"
+ROLE = "aws:iam/role:Role"
+POLICY = "aws:iam/rolePolicy:RolePolicy"
+FLOW_LOG = "aws:ec2/flowLog:FlowLog"
+UNTAGGABLE = {ASSOC, VPN_ASSOC, AUTHZ, POLICY}
 
 
 def counts(offline: OfflinePlan, layer: str) -> Counter[str]:
@@ -29,15 +34,15 @@ def counts(offline: OfflinePlan, layer: str) -> Counter[str]:
 
 def test_minimal_counts_per_stack(offline: dict[str, OfflinePlan]) -> None:
     assert counts(offline["minimal"], "network") == {
-        VPC: 1, SUBNET: 2, IGW: 1, ROUTES: 2, ASSOC: 2, SG: 2, INGRESS: 7, EGRESS: 2,
-        CERT: 2, ENDPOINT: 1, VPN_ASSOC: 1, AUTHZ: 1,
+        VPC: 1, DEFAULT_SG: 1, SUBNET: 2, IGW: 1, ROUTES: 2, ASSOC: 2, SG: 2, INGRESS: 7, EGRESS: 5,
+        CERT: 2, LOGS: 1, ENDPOINT: 1, VPN_ASSOC: 1, AUTHZ: 1,
     }
     assert counts(offline["minimal"], "compute") == {KEY: 1, INSTANCE: 1}
 
 
 def test_proxy_mode_has_no_vpn(offline: dict[str, OfflinePlan]) -> None:
     network = counts(offline["proxy"], "network")
-    assert network == {VPC: 1, SUBNET: 2, IGW: 1, ROUTES: 2, ASSOC: 2, SG: 1, INGRESS: 7, EGRESS: 1}
+    assert network == {VPC: 1, DEFAULT_SG: 1, SUBNET: 2, IGW: 1, ROUTES: 2, ASSOC: 2, SG: 1, INGRESS: 7, EGRESS: 3}
     assert "vpn_endpoint_id" not in offline["proxy"].outputs["network"]
 
 
@@ -58,7 +63,7 @@ def test_vpc_and_subnet_cidrs(offline: dict[str, OfflinePlan]) -> None:
     assert vpc.inputs["enableDnsHostnames"] is True
     subnets = {r.name: r.inputs for r in offline["proxy"].of_type(SUBNET)}
     assert subnets["proxied-dev-subnet-hosts"]["cidrBlock"] == "10.20.0.0/24"
-    assert subnets["proxied-dev-subnet-hosts"]["mapPublicIpOnLaunch"] is True
+    assert subnets["proxied-dev-subnet-hosts"]["mapPublicIpOnLaunch"] is False  # each instance asks for one
     assert subnets["proxied-dev-subnet-vpn"]["cidrBlock"] == "10.20.1.0/24"
     assert subnets["proxied-dev-subnet-vpn"]["mapPublicIpOnLaunch"] is False
     assert {s["availabilityZone"] for s in subnets.values()} == {"us-east-1b"}
@@ -101,3 +106,37 @@ def test_network_exports(offline: dict[str, OfflinePlan]) -> None:
     }
     assert outputs["vpn_endpoint_id"] == "<minimal-dev-endpoint.id>"
     assert outputs["vpn_dns_name"] == "<minimal-dev-endpoint.dnsName>"
+
+
+def test_default_security_group_is_adopted_without_rules(offline: dict[str, OfflinePlan]) -> None:
+    for plan in offline.values():
+        (group,) = plan.of_type(DEFAULT_SG)
+        assert group.inputs["vpcId"] == f"<{plan.plan.stack}-vpc.id>"
+        assert not group.inputs.get("ingress") and not group.inputs.get("egress")
+
+
+def test_hosts_egress_is_web_and_the_vpc_only(offline: dict[str, OfflinePlan]) -> None:
+    def world(plan: OfflinePlan) -> set[tuple[str, int]]:
+        return {(r.inputs["ipProtocol"], r.inputs["fromPort"]) for r in plan.of_type(EGRESS)
+                if r.inputs.get("cidrIpv4") == "0.0.0.0/0"}
+
+    assert world(offline["proxy"]) == {("tcp", 80), ("tcp", 443)}
+    assert world(offline["flows"]) == {("tcp", 80), ("tcp", 443), ("tcp", 8883)}
+    inside = [r for r in offline["proxy"].of_type(EGRESS) if r.inputs["ipProtocol"] == "-1"]
+    assert [r.inputs["cidrIpv4"] for r in inside] == ["10.20.0.0/20"]
+
+
+def test_flow_logs_are_opt_in(offline: dict[str, OfflinePlan]) -> None:
+    assert not offline["proxy"].of_type(FLOW_LOG) and not offline["proxy"].of_type(ROLE)
+    (flow,) = offline["flows"].of_type(FLOW_LOG)
+    (group,) = offline["flows"].of_type(LOGS)
+    (role,) = offline["flows"].of_type(ROLE)
+    (policy,) = offline["flows"].of_type(POLICY)
+    assert group.inputs["name"] == "/fogiac/flows-dev/flow-logs" and group.inputs["retentionInDays"] == 365
+    assert flow.inputs["vpcId"] == "<flows-dev-vpc.id>"
+    assert (flow.inputs["trafficType"], flow.inputs["logDestinationType"]) == ("ALL", "cloud-watch-logs")
+    assert flow.inputs["logDestination"] == "<flows-dev-flow-logs.arn>"
+    assert flow.inputs["iamRoleArn"] == "<flows-dev-flow-logs-role.arn>"
+    assert role.inputs["path"] == "/fogiac/flows-dev/"
+    assert "vpc-flow-logs.amazonaws.com" in role.inputs["assumeRolePolicy"]
+    assert '"Resource": ["<flows-dev-flow-logs.arn>", "<flows-dev-flow-logs.arn>:*"]' in policy.inputs["policy"]

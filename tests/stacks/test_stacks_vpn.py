@@ -44,7 +44,7 @@ def test_endpoint_uses_mutual_tls_and_split_tunnel(offline: dict[str, OfflinePla
     assert inputs["splitTunnel"] is True
     assert inputs["clientCidrBlock"] == "10.200.0.0/22"
     assert (inputs["transportProtocol"], inputs["vpnPort"]) == ("udp", 443)
-    assert inputs["connectionLogOptions"] == {"enabled": False}
+    assert inputs["connectionLogOptions"] == {"enabled": True, "cloudwatchLogGroup": "/fogiac/minimal-dev/client-vpn"}
     assert inputs["securityGroupIds"] == ("<minimal-dev-sg-vpn.id>",)
     assert inputs["vpcId"] == "<minimal-dev-vpc.id>"
 

@@ -14,4 +14,5 @@ The target itself is :data:`.target.AWS`; this package imports only the registry
 from fogiac.targets import TargetEntry
 
 ENTRY = TargetEntry(name="aws", driver="fogiac.targets.aws.target:AWS",
-                    placement="fogiac.targets.aws.placement:place")
+                    placement="fogiac.targets.aws.placement:place",
+                    exporters={"terraform-json": "fogiac.targets.aws.tfplan:export"})

@@ -23,6 +23,7 @@ from fogiac.targets.aws import api
 
 INSTANCE = "aws:ec2/instance:Instance"
 GROUP = "aws:ec2/securityGroup:SecurityGroup"
+DEFAULT_GROUP = "aws:ec2/defaultSecurityGroup:DefaultSecurityGroup"  # adopted with no rules: any rule is drift
 INGRESS = "aws:vpc/securityGroupIngressRule:SecurityGroupIngressRule"
 GONE = {"shutting-down", "terminated"}
 
@@ -124,4 +125,8 @@ def _groups(rows: list[Mapping[str, Any]], seen: list[Mapping[str, Any]],
                 unmatched.remove(found)
         out += [Drift(row["stack"], INGRESS, r["rule_id"], "added", detail=_rule_text(r, group["name"]))
                 for r in unmatched]
+    default = by_name.get("default")
+    for row in (r for r in rows if r["type"] == DEFAULT_GROUP):
+        out += [Drift(row["stack"], INGRESS, r["rule_id"], "added", detail=_rule_text(r, "default"))
+                for r in (default or {}).get("ingress", [])]
     return out

@@ -47,7 +47,18 @@ def _network(manifest: Manifest) -> NetworkSpec:
             Subnet(name="hosts", cidr=str(first), role="instances", public=True),
             Subnet(name="vpn", cidr=str(second), role="vpn", public=False),
         ),
+        flow_logs=manifest.network.flow_logs,
     )
+
+
+def _egress(manifest: Manifest, inside: list[str]) -> tuple[Rule, ...]:
+    """Anything inside the VPC (and to VPN clients), and only the manifest's TCP ports (80 and 443 by
+    default: packages, images, APIs) beyond it. DNS (the VPC's resolver) and time (Amazon Time Sync,
+    169.254.169.123) need no rule: security groups do not filter them."""
+    rules = [Rule("-1", 0, 0, cidr, "inside the VPC" if i == 0 else "to VPN clients") for i, cidr in enumerate(inside)]
+    rules += [Rule("tcp", port, port, _WORLD, f"TCP {port} to the internet (updates, images and packages)")
+              for port in manifest.network.egress_tcp]
+    return tuple(rules)
 
 
 def _firewall(manifest: Manifest, ssh_from: tuple[str, ...], *, vpn_mode: bool) -> tuple[SecurityGroup, ...]:
@@ -73,7 +84,7 @@ def _firewall(manifest: Manifest, ssh_from: tuple[str, ...], *, vpn_mode: bool) 
         name="hosts",
         description=f"fogiac hosts: SSH from the operator, ROS and {carrier.name} from inside only",
         ingress=tuple(ingress),
-        egress=(Rule("-1", 0, 0, _WORLD, "updates, images and packages"),),
+        egress=_egress(manifest, inside),
     )
     groups = [hosts]
     if vpn_mode:

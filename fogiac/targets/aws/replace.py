@@ -64,6 +64,19 @@ RULES: tuple[ReplaceRule, ...] = (
                 "associate_public_ip_address, key_name, private_ip, instance_market_options, "
                 "root_block_device.encrypted/kms_key_id, tenancy ForceNew; instance_type, user_data "
                 "(user_data_replace_on_change unset), volume size, metadata options in place"),
+    ReplaceRule("aws:ec2/defaultSecurityGroup:DefaultSecurityGroup", ("vpcId",),
+                "internal/service/ec2/vpc_default_security_group.go: vpc_id ForceNew; rules revoked in place"),
+    ReplaceRule("aws:cloudwatch/logGroup:LogGroup", ("name", "namePrefix", "logGroupClass"),
+                "internal/service/logs/group.go: name, name_prefix, log_group_class ForceNew; retention, "
+                "kms_key_id in place"),
+    ReplaceRule("aws:iam/role:Role", ("name", "namePrefix", "path"),
+                "internal/service/iam/role.go: name, name_prefix, path ForceNew; assume_role_policy in place"),
+    ReplaceRule("aws:iam/rolePolicy:RolePolicy", ("name", "namePrefix", "role"),
+                "internal/service/iam/role_policy.go: name, name_prefix, role ForceNew; policy in place"),
+    ReplaceRule("aws:ec2/flowLog:FlowLog",
+                ("vpcId", "trafficType", "logDestination", "logDestinationType", "iamRoleArn", "logFormat",
+                 "maxAggregationInterval", "destinationOptions"),
+                "internal/service/ec2/vpc_flow_log.go: every argument but tags ForceNew (no Update)"),
 )
 
 _BY_TYPE: dict[str, ReplaceRule] = {rule.type: rule for rule in RULES}

@@ -1,7 +1,9 @@
 """Find and delete everything a stack left in AWS, so ``down`` can prove nothing remains.
 
 Every resource fogiac makes carries ``fogiac:stack=<stack>``; a VPC with that tag is ours
-whole, so untagged things inside it (the default security group aside) count too. Deletion
+whole, so untagged things inside it (the default security group aside: AWS deletes it with the VPC
+and nothing else can) count too. Log groups and IAM roles are found by where fogiac puts them:
+log groups under ``/fogiac/<stack>/``, roles under the IAM path ``/fogiac/<stack>/``. Deletion
 goes in dependency order and repeats with growing pauses while AWS answers "still in use";
 then everything is listed again and what is left is returned, not hidden.
 Clients come from :mod:`fogiac.targets.aws.api` (this module imports no AWS SDK itself).
@@ -18,14 +20,16 @@ from fogiac.targets.aws.api import STACK_TAG, error_code, paginate, tag_filter, 
 
 # Kinds in the order they can be deleted: users before what they use.
 ORDER = (
-    "client-vpn-endpoint", "instance", "elastic-ip", "network-interface", "security-group",
-    "key-pair", "subnet", "route-table", "internet-gateway", "vpc", "acm-certificate",
+    "client-vpn-endpoint", "flow-log", "instance", "elastic-ip", "network-interface", "security-group",
+    "key-pair", "subnet", "route-table", "internet-gateway", "vpc", "acm-certificate", "log-group",
+    "iam-role",
 )
 MAX_DELAY_S = 60.0  # 8 rounds wait about 3 minutes in all: ENIs of a deleted Client VPN take minutes to go
 _GONE = {"InvalidVpcID.NotFound", "InvalidSubnetID.NotFound", "InvalidGroup.NotFound",
          "InvalidRouteTableID.NotFound", "InvalidInternetGatewayID.NotFound", "InvalidKeyPair.NotFound",
          "InvalidNetworkInterfaceID.NotFound", "InvalidAllocationID.NotFound", "InvalidInstanceID.NotFound",
-         "ResourceNotFoundException", "InvalidClientVpnEndpointId.NotFound"}
+         "ResourceNotFoundException", "InvalidClientVpnEndpointId.NotFound", "InvalidFlowLogId.NotFound",
+         "NoSuchEntity"}
 _UNSUPPORTED = {"NotImplemented", "UnsupportedOperation", "InvalidAction", "UnknownOperationException"}
 
 
@@ -58,7 +62,28 @@ class SweepResult:
         return not self.left
 
 
-def inventory(stack: str, *, ec2: Any, acm: Any) -> tuple[list[Found], list[str]]:
+def prefix(stack: str) -> str:
+    """Where ``stacks/`` puts a stack's log groups (by name) and IAM roles (by path)."""
+    return f"/fogiac/{stack}/"
+
+
+def _logs_and_roles(stack: str, *, logs: Any, iam: Any) -> tuple[list[Found], list[str]]:
+    found: list[Found] = []
+    skipped: list[str] = []
+    if logs is None:
+        skipped.append("log-group (no CloudWatch Logs client given)")
+    else:
+        for group in paginate(logs, "describe_log_groups", "logGroups", logGroupNamePrefix=prefix(stack)):
+            found.append(Found("log-group", group["logGroupName"]))
+    if iam is None:
+        skipped.append("iam-role (no IAM client given)")
+    else:
+        for role in paginate(iam, "list_roles", "Roles", PathPrefix=prefix(stack)):
+            found.append(Found("iam-role", role["RoleName"]))
+    return found, skipped
+
+
+def inventory(stack: str, *, ec2: Any, acm: Any, logs: Any = None, iam: Any = None) -> tuple[list[Found], list[str]]:
     """Everything of ``stack`` that exists now, and the kinds that could not be checked."""
     found: list[Found] = []
     skipped: list[str] = []
@@ -109,17 +134,25 @@ def inventory(stack: str, *, ec2: Any, acm: Any) -> tuple[list[Found], list[str]
             gateways[g["InternetGatewayId"]] = g
     for rid, g in sorted(gateways.items()):
         found.append(Found("internet-gateway", rid, ",".join(a["VpcId"] for a in g.get("Attachments", []))))
+    flows: dict[str, dict[str, Any]] = {}
+    for filters in [tags] + ([[{"Name": "resource-id", "Values": vpcs}]] if vpcs else []):
+        for flow in paginate(ec2, "describe_flow_logs", "FlowLogs", Filter=filters):
+            flows[flow["FlowLogId"]] = flow
+    found.extend(Found("flow-log", rid) for rid in sorted(flows))
     found.extend(Found("vpc", v) for v in sorted(vpcs))
     for cert in paginate(acm, "list_certificates", "CertificateSummaryList"):
         arn = cert["CertificateArn"]
         tag_list = acm.list_tags_for_certificate(CertificateArn=arn).get("Tags", [])
         if tags_of({"Tags": tag_list}).get(STACK_TAG) == stack:
             found.append(Found("acm-certificate", arn))
+    more, unchecked = _logs_and_roles(stack, logs=logs, iam=iam)
+    found += more
+    skipped += unchecked
     rank = {kind: i for i, kind in enumerate(ORDER)}
     return sorted(found, key=lambda f: (rank[f.kind], f.id)), skipped
 
 
-def _delete(item: Found, *, ec2: Any, acm: Any) -> None:
+def _delete(item: Found, *, ec2: Any, acm: Any, logs: Any = None, iam: Any = None) -> None:
     """One deletion attempt; raises the AWS error if it did not work."""
     kind, rid = item.kind, item.id
     if kind == "client-vpn-endpoint":
@@ -128,6 +161,18 @@ def _delete(item: Found, *, ec2: Any, acm: Any) -> None:
             if net.get("Status", {}).get("Code") not in {"disassociating", "disassociated"}:
                 ec2.disassociate_client_vpn_target_network(ClientVpnEndpointId=rid, AssociationId=net["AssociationId"])
         ec2.delete_client_vpn_endpoint(ClientVpnEndpointId=rid)
+    elif kind == "flow-log":
+        refused = ec2.delete_flow_logs(FlowLogIds=[rid]).get("Unsuccessful") or []
+        if refused:
+            raise RuntimeError(f"flow log {rid}: {refused[0].get('Error', {}).get('Message', refused[0])}")
+    elif kind == "log-group":
+        logs.delete_log_group(logGroupName=rid)
+    elif kind == "iam-role":
+        for name in paginate(iam, "list_role_policies", "PolicyNames", RoleName=rid):
+            iam.delete_role_policy(RoleName=rid, PolicyName=name)
+        for policy in paginate(iam, "list_attached_role_policies", "AttachedPolicies", RoleName=rid):
+            iam.detach_role_policy(RoleName=rid, PolicyArn=policy["PolicyArn"])
+        iam.delete_role(RoleName=rid)
     elif kind == "elastic-ip":
         addr = ec2.describe_addresses(AllocationIds=[rid])["Addresses"][0]
         if addr.get("AssociationId"):
@@ -198,12 +243,13 @@ def _revoke_group_rules(groups: list[Found], *, ec2: Any) -> None:
 
 
 def sweep(stack: str, *, ec2: Any, acm: Any, dry_run: bool, kinds: Collection[str] | None = None,
+          logs: Any = None, iam: Any = None,
           rounds: int = 8, first_delay_s: float = 1.0, sleep: Callable[[float], None] | None = None) -> SweepResult:
     """Delete all of ``stack`` (or only ``kinds`` of it) in dependency order, retrying "in use"
     with bounded backoff."""
 
     def listing() -> tuple[list[Found], list[str]]:
-        found, skipped = inventory(stack, ec2=ec2, acm=acm)
+        found, skipped = inventory(stack, ec2=ec2, acm=acm, logs=logs, iam=iam)
         return [f for f in found if kinds is None or f.kind in kinds], skipped
 
     first, skipped = listing()
@@ -227,7 +273,7 @@ def sweep(stack: str, *, ec2: Any, acm: Any, dry_run: bool, kinds: Collection[st
             if item.kind == "instance":
                 continue
             try:
-                _delete(item, ec2=ec2, acm=acm)
+                _delete(item, ec2=ec2, acm=acm, logs=logs, iam=iam)
             except Exception as err:  # noqa: BLE001 (retried next round, reported if it stays)
                 if error_code(err) in _GONE:
                     deleted.append(item)

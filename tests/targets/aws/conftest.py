@@ -73,7 +73,7 @@ def localstack(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     env = {k: v for k, v in os.environ.items() if not k.startswith(("AWS_", "LOCALSTACK_"))}
     env.update(GATEWAY_LISTEN=f"127.0.0.1:{port}", MOTO_AMIS_PATH=str(amis), SKIP_SSL_CERT_DOWNLOAD="1",
                DISABLE_EVENTS="1", LOCALSTACK_TELEMETRY="0", DISABLE_CORS_CHECKS="1",
-               SERVICES="ec2,sts,acm", FILESYSTEM_ROOT=str(work / "fs"))
+               SERVICES="ec2,sts,acm,logs,iam", FILESYSTEM_ROOT=str(work / "fs"))
     log = (work / "localstack.log").open("wb")
     proc = subprocess.Popen([str(VENV_PYTHON), "-m", "localstack.runtime.main"], cwd=work, env=env,
                             stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
@@ -126,12 +126,12 @@ def aws_env(localstack: str, monkeypatch: pytest.MonkeyPatch) -> str:
 
 @pytest.fixture(scope="session")
 def _clients(localstack: str) -> dict[str, Any]:
-    """One ec2 and one acm client for the session (making a boto3 client costs a second or two)."""
+    """One client per service for the session (making a boto3 client costs a second or two)."""
     from fogiac.targets.aws.api import client
 
     with pytest.MonkeyPatch.context() as monkeypatch:
         _point_at(localstack, monkeypatch)
-        return {"ec2": client("ec2", region=REGION), "acm": client("acm", region=REGION)}
+        return {name: client(name, region=REGION) for name in ("ec2", "acm", "logs", "iam")}
 
 
 @pytest.fixture
@@ -142,3 +142,13 @@ def ec2(aws_env: str, _clients: dict[str, Any]) -> Any:
 @pytest.fixture
 def acm(aws_env: str, _clients: dict[str, Any]) -> Any:
     return _clients["acm"]
+
+
+@pytest.fixture
+def logs(aws_env: str, _clients: dict[str, Any]) -> Any:
+    return _clients["logs"]
+
+
+@pytest.fixture
+def iam(aws_env: str, _clients: dict[str, Any]) -> Any:
+    return _clients["iam"]

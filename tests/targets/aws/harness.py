@@ -5,7 +5,8 @@ The stack programs run under Pulumi's mock runtime (:func:`fogiac.targets.aws.of
 so dependants receive real ids as Pulumi would give them. Like Pulumi, it keeps a state (ids
 by layer, type and logical name, in creation order) and a re-apply reuses what the state names
 and still exists: nothing new is created. ``destroy`` deletes in reverse, past errors.
-Client VPN, which LocalStack lacks, is only recorded, with its inputs, for assertions.
+Client VPN, which LocalStack lacks, is only recorded, with its inputs, for assertions. The VPC's
+default security group is adopted (its rules revoked), never deleted: AWS deletes it with the VPC.
 """
 
 from __future__ import annotations
@@ -58,6 +59,8 @@ class Harness:
 
     ec2: Any
     acm: Any
+    logs: Any = None  # CloudWatch Logs and IAM clients; made for the ec2 client's endpoint when not given
+    iam: Any = None
     path: Path | None = None
     fail_at: int | None = None  # raise instead of creating the Nth resource of an apply
     spot_capacity: bool = True  # False: refuse spot launches as AWS does when it has none (InsufficientInstanceCapacity)
@@ -67,6 +70,11 @@ class Harness:
     _lock: threading.Lock = field(default_factory=threading.Lock)
 
     def __post_init__(self) -> None:
+        from fogiac.targets.aws.api import client
+
+        region = self.ec2.meta.region_name
+        self.logs = self.logs if self.logs is not None else client("logs", region=region)
+        self.iam = self.iam if self.iam is not None else client("iam", region=region)
         if self.path is not None and self.path.exists():
             self.state = json.loads(self.path.read_text())
 
@@ -134,7 +142,7 @@ class Harness:
             try:
                 _DELETE[entry["type"]](self, entry)
             except Exception as err:  # noqa: BLE001 (like pulumi destroy --continue-on-error)
-                if not error_code(err).endswith(("NotFound", "NotFoundException")):
+                if not error_code(err).endswith(("NotFound", "NotFoundException", "NoSuchEntity")):
                     errors.append(f"{key}: {err}")
                     continue
             del self.state[key]
@@ -156,7 +164,7 @@ class Harness:
         try:
             return bool(check(self, rid, state))
         except Exception as err:  # noqa: BLE001
-            if error_code(err).endswith(("NotFound", "NotFoundException", "Malformed")):
+            if error_code(err).endswith(("NotFound", "NotFoundException", "NoSuchEntity", "Malformed")):
                 return False
             raise
 
@@ -266,6 +274,8 @@ def _instance(h: Harness, i: dict[str, Any]) -> tuple[str, dict[str, Any]]:
             "Encrypted": bool(root.get("encrypted")), "DeleteOnTermination": root.get("deleteOnTermination", True)}}],
         TagSpecifications=_tag_spec("instance", i.get("tags")) + _tag_spec("volume", i.get("volumeTags")),
     )
+    if i.get("ebsOptimized"):
+        args["EbsOptimized"] = True
     if i.get("instanceInitiatedShutdownBehavior"):  # what the watchdog's poweroff does: stop or terminate
         args["InstanceInitiatedShutdownBehavior"] = i["instanceInitiatedShutdownBehavior"]
     if i.get("instanceMarketOptions"):
@@ -284,6 +294,54 @@ def _certificate(h: Harness, i: dict[str, Any]) -> tuple[str, dict[str, Any]]:
         CertificateChain=i["certificateChain"].encode(),
         Tags=[{"Key": k, "Value": v} for k, v in (i.get("tags") or {}).items()])["CertificateArn"]
     return arn, {"arn": arn}
+
+
+def _default_group(h: Harness, i: dict[str, Any]) -> tuple[str, dict[str, Any]]:
+    """Adopt the VPC's default group as the AWS provider does: tag it and remove every rule."""
+    group = h.ec2.describe_security_groups(Filters=[{"Name": "vpc-id", "Values": [i["vpcId"]]},
+                                                    {"Name": "group-name", "Values": ["default"]}])["SecurityGroups"][0]
+    if group.get("IpPermissions"):
+        h.ec2.revoke_security_group_ingress(GroupId=group["GroupId"], IpPermissions=group["IpPermissions"])
+    if group.get("IpPermissionsEgress"):
+        h.ec2.revoke_security_group_egress(GroupId=group["GroupId"], IpPermissions=group["IpPermissionsEgress"])
+    if i.get("tags"):
+        h.ec2.create_tags(Resources=[group["GroupId"]], Tags=[{"Key": k, "Value": v} for k, v in i["tags"].items()])
+    return group["GroupId"], {}
+
+
+def _log_group(h: Harness, i: dict[str, Any]) -> tuple[str, dict[str, Any]]:
+    h.logs.create_log_group(logGroupName=i["name"], tags=i.get("tags") or {})
+    if i.get("retentionInDays"):
+        h.logs.put_retention_policy(logGroupName=i["name"], retentionInDays=i["retentionInDays"])
+    (group,) = h.logs.describe_log_groups(logGroupNamePrefix=i["name"])["logGroups"]
+    return i["name"], {"arn": group["arn"].removesuffix(":*")}  # Terraform's arn has no ":*"
+
+
+def _role(h: Harness, i: dict[str, Any]) -> tuple[str, dict[str, Any]]:
+    role = h.iam.create_role(RoleName=i["name"], Path=i.get("path", "/"), AssumeRolePolicyDocument=i["assumeRolePolicy"],
+                             Tags=[{"Key": k, "Value": v} for k, v in (i.get("tags") or {}).items()])["Role"]
+    return role["RoleName"], {"arn": role["Arn"]}
+
+
+def _role_policy(h: Harness, i: dict[str, Any]) -> tuple[str, dict[str, Any]]:
+    name = i.get("name") or "policy"
+    h.iam.put_role_policy(RoleName=i["role"], PolicyName=name, PolicyDocument=i["policy"])
+    return f"{i['role']}:{name}", {}
+
+
+def _flow_log(h: Harness, i: dict[str, Any]) -> tuple[str, dict[str, Any]]:
+    out = h.ec2.create_flow_logs(ResourceIds=[i["vpcId"]], ResourceType="VPC", TrafficType=i["trafficType"],
+                                 LogDestinationType=i["logDestinationType"], LogDestination=i["logDestination"],
+                                 DeliverLogsPermissionArn=i["iamRoleArn"],
+                                 TagSpecifications=_tag_spec("vpc-flow-log", i.get("tags")))
+    if out.get("Unsuccessful"):
+        raise RuntimeError(f"create_flow_logs: {out['Unsuccessful']}")
+    return out["FlowLogIds"][0], {}
+
+
+def _delete_role_policy(h: Harness, e: dict[str, Any]) -> None:
+    role, name = e["id"].split(":", 1)
+    h.iam.delete_role_policy(RoleName=role, PolicyName=name)
 
 
 def _recorded(prefix: str) -> Callable[[Harness, dict[str, Any]], tuple[str, dict[str, Any]]]:
@@ -336,6 +394,11 @@ _CREATE: dict[str, Callable[[Harness, dict[str, Any]], tuple[str, dict[str, Any]
     "aws:ec2/keyPair:KeyPair": _key_pair,
     "aws:ec2/instance:Instance": _instance,
     "aws:acm/certificate:Certificate": _certificate,
+    "aws:ec2/defaultSecurityGroup:DefaultSecurityGroup": _default_group,
+    "aws:cloudwatch/logGroup:LogGroup": _log_group,
+    "aws:iam/role:Role": _role,
+    "aws:iam/rolePolicy:RolePolicy": _role_policy,
+    "aws:ec2/flowLog:FlowLog": _flow_log,
     CLIENT_VPN[0]: _recorded("cvpn-endpoint"),
     CLIENT_VPN[1]: _recorded("cvpn-assoc"),
     CLIENT_VPN[2]: _recorded("cvpn-auth"),
@@ -354,6 +417,11 @@ _DELETE: dict[str, Callable[[Harness, dict[str, Any]], None]] = {
     "aws:ec2/keyPair:KeyPair": lambda h, e: h.ec2.delete_key_pair(KeyName=e["state"]["keyName"]),
     "aws:ec2/instance:Instance": _terminate,
     "aws:acm/certificate:Certificate": lambda h, e: h.acm.delete_certificate(CertificateArn=e["id"]),
+    "aws:ec2/defaultSecurityGroup:DefaultSecurityGroup": lambda h, e: None,  # AWS keeps it until the VPC goes
+    "aws:cloudwatch/logGroup:LogGroup": lambda h, e: h.logs.delete_log_group(logGroupName=e["id"]),
+    "aws:iam/role:Role": lambda h, e: h.iam.delete_role(RoleName=e["id"]),
+    "aws:iam/rolePolicy:RolePolicy": _delete_role_policy,
+    "aws:ec2/flowLog:FlowLog": lambda h, e: h.ec2.delete_flow_logs(FlowLogIds=[e["id"]]),
     CLIENT_VPN[0]: lambda h, e: None,
     CLIENT_VPN[1]: lambda h, e: None,
     CLIENT_VPN[2]: lambda h, e: None,
@@ -384,4 +452,12 @@ _EXISTS: dict[str, Callable[[Harness, str, Mapping[str, Any]], bool]] = {
     "aws:ec2/keyPair:KeyPair": lambda h, rid, s: h.ec2.describe_key_pairs(KeyNames=[s["keyName"]])["KeyPairs"],
     "aws:ec2/instance:Instance": _instance_alive,
     "aws:acm/certificate:Certificate": lambda h, rid, s: h.acm.describe_certificate(CertificateArn=rid),
+    "aws:ec2/defaultSecurityGroup:DefaultSecurityGroup": lambda h, rid, s: h.ec2.describe_security_groups(
+        GroupIds=[rid])["SecurityGroups"],
+    "aws:cloudwatch/logGroup:LogGroup": lambda h, rid, s: [
+        g for g in h.logs.describe_log_groups(logGroupNamePrefix=rid)["logGroups"] if g["logGroupName"] == rid],
+    "aws:iam/role:Role": lambda h, rid, s: h.iam.get_role(RoleName=rid),
+    "aws:iam/rolePolicy:RolePolicy": lambda h, rid, s: h.iam.get_role_policy(
+        RoleName=rid.split(":", 1)[0], PolicyName=rid.split(":", 1)[1]),
+    "aws:ec2/flowLog:FlowLog": lambda h, rid, s: h.ec2.describe_flow_logs(FlowLogIds=[rid])["FlowLogs"],
 }

@@ -53,10 +53,10 @@ def _actual_rules(ec2: Any, group_id: str) -> set[tuple[Any, ...]]:
              r["CidrIpv4"], r.get("Description", "")) for r in rules["SecurityGroupRules"]}
 
 
-def _inventory(ec2: Any, acm: Any, plan: Plan) -> set[str]:
+def _inventory(ec2: Any, acm: Any, plan: Plan, logs: Any = None, iam: Any = None) -> set[str]:
     from fogiac.targets.aws.sweep import inventory
 
-    return {f.id for f in inventory(plan.stack, ec2=ec2, acm=acm)[0]}
+    return {f.id for f in inventory(plan.stack, ec2=ec2, acm=acm, logs=logs, iam=iam)[0]}
 
 
 def test_apply_matches_plan_reapply_creates_nothing_down_leaves_nothing(ec2: Any, acm: Any, tmp_path: Path) -> None:
@@ -74,7 +74,7 @@ def test_apply_matches_plan_reapply_creates_nothing_down_leaves_nothing(ec2: Any
     for spec in plan.network.subnets:
         subnet = ec2.describe_subnets(SubnetIds=[net["subnet_ids"][spec.name]])["Subnets"][0]
         assert (subnet["CidrBlock"], subnet["AvailabilityZone"], subnet["MapPublicIpOnLaunch"], subnet["VpcId"]) == (
-            spec.cidr, report.zone, spec.public, vpc["VpcId"])
+            spec.cidr, report.zone, False, vpc["VpcId"])  # each instance asks for its own public address
         table = ec2.describe_route_tables(Filters=[{"Name": "association.subnet-id", "Values": [subnet["SubnetId"]]}])
         routes = {r.get("DestinationCidrBlock"): r.get("GatewayId") for r in table["RouteTables"][0]["Routes"]}
         assert ("0.0.0.0/0" in routes) == spec.public, routes
@@ -95,6 +95,7 @@ def test_apply_matches_plan_reapply_creates_nothing_down_leaves_nothing(ec2: Any
         assert [g["GroupId"] for g in inst["SecurityGroups"]] == [net["security_group_ids"]["hosts"]]
         assert inst["KeyName"] == f"fogiac-{plan.stack}"
         assert inst["MetadataOptions"]["HttpTokens"] == "required"
+        assert inst["EbsOptimized"] is True
         assert _tags(inst) == dict(host.tags)
         assert inst["ImageId"] == (report.image(host.name))
         assert hosts[host.name]["private_ip"] == inst["PrivateIpAddress"]
@@ -127,7 +128,7 @@ def test_apply_matches_plan_reapply_creates_nothing_down_leaves_nothing(ec2: Any
 
     assert again.destroy() == []
     assert again.state == {}
-    assert _inventory(ec2, acm, plan) == set()
+    assert _inventory(ec2, acm, plan, again.logs, again.iam) == set()
     assert sweep(plan.stack, dry_run=True, ec2=ec2, acm=acm).found == ()
 
 
@@ -145,3 +146,64 @@ def test_failed_apply_then_down_leaves_nothing(ec2: Any, acm: Any, tmp_path: Pat
     result = sweep(plan.stack, dry_run=False, ec2=ec2, acm=acm, first_delay_s=0.1)
     assert result.left == ()
     assert _inventory(ec2, acm, plan) == set()
+
+
+def test_flow_logs_default_group_and_vpn_logs_apply_and_down_leaves_none(
+        ec2: Any, acm: Any, logs: Any, iam: Any, tmp_path: Path) -> None:
+    """The posture resources: the VPC's default group without rules, flow logs to a log group through a role
+    of the stack, the Client VPN's log group; destroy leaves none of them (the default group goes with the VPC)."""
+    from fogiac.manifest.schema import load_manifest
+    from fogiac.plan.compile import compile_plan
+
+    from .plans import manifest_text
+
+    path = tmp_path / "flows.yaml"
+    path.write_text(manifest_text("flows").replace("  mode: vpn\n", "  mode: vpn\n  flow_logs: true\n"))
+    plan = compile_plan(load_manifest(path))
+    harness = Harness(ec2=ec2, acm=acm, logs=logs, iam=iam)
+    out = harness.apply(plan, certs=new_bundle(plan.stack), operator_cidrs=("203.0.113.7/32",),
+                        public_key_openssh=PUBLIC_KEY)
+    vpc = out["network"]["vpc_id"]
+    (default,) = ec2.describe_security_groups(Filters=[{"Name": "vpc-id", "Values": [vpc]},
+                                                       {"Name": "group-name", "Values": ["default"]}])["SecurityGroups"]
+    assert default["IpPermissions"] == [] and default["IpPermissionsEgress"] == []
+    assert _tags(default)["fogiac:stack"] == plan.stack
+    (flow,) = ec2.describe_flow_logs(Filters=[{"Name": "resource-id", "Values": [vpc]}])["FlowLogs"]
+    groups = {g["logGroupName"]: g for g in logs.describe_log_groups(logGroupNamePrefix=f"/fogiac/{plan.stack}/")[
+        "logGroups"]}
+    assert set(groups) == {f"/fogiac/{plan.stack}/flow-logs", f"/fogiac/{plan.stack}/client-vpn"}
+    assert {g["retentionInDays"] for g in groups.values()} == {365}
+    assert flow["TrafficType"] == "ALL" and flow["LogDestinationType"] == "cloud-watch-logs"
+    (role,) = iam.list_roles(PathPrefix=f"/fogiac/{plan.stack}/")["Roles"]
+    assert flow["DeliverLogsPermissionArn"] == role["Arn"]
+    assert iam.list_role_policies(RoleName=role["RoleName"])["PolicyNames"] == ["write-flow-logs"]
+    endpoint = harness.client_vpn()[CLIENT_VPN[0]]
+    assert endpoint["connectionLogOptions"] == {"enabled": True, "cloudwatchLogGroup": f"/fogiac/{plan.stack}/client-vpn"}
+    found = _inventory(ec2, acm, plan, logs, iam)
+    assert {flow["FlowLogId"], role["RoleName"], *groups} <= found
+    assert default["GroupId"] not in found  # sweep never touches the default group: AWS deletes it with the VPC
+
+    assert harness.destroy() == []
+    assert _inventory(ec2, acm, plan, logs, iam) == set()
+    assert ec2.describe_security_groups(Filters=[{"Name": "vpc-id", "Values": [vpc]}])["SecurityGroups"] == []
+    assert sweep(plan.stack, dry_run=True, ec2=ec2, acm=acm, logs=logs, iam=iam).found == ()
+
+
+def test_sweep_removes_flow_logs_a_failed_apply_left(ec2: Any, acm: Any, logs: Any, iam: Any, tmp_path: Path) -> None:
+    """An apply that fails after the flow log is made: down's sweep finds and removes every piece."""
+    from fogiac.manifest.schema import load_manifest
+    from fogiac.plan.compile import compile_plan
+
+    from .plans import manifest_text
+
+    path = tmp_path / "flowfail.yaml"
+    path.write_text(manifest_text("flowfail").replace("  mode: vpn\n", "  mode: proxy\n  flow_logs: true\n"))
+    plan = compile_plan(load_manifest(path))
+    harness = Harness(ec2=ec2, acm=acm, logs=logs, iam=iam, fail_at=14)
+    with pytest.raises(InjectedFailure):
+        harness.apply(plan, certs=new_bundle(plan.stack), operator_cidrs=("203.0.113.7/32",),
+                      public_key_openssh=PUBLIC_KEY)
+    assert any(key.endswith("aws:ec2/flowLog:FlowLog/flowfail-dev-flow-log") for key in harness.created)
+    result = sweep(plan.stack, dry_run=False, ec2=ec2, acm=acm, logs=logs, iam=iam, first_delay_s=0.1)
+    assert result.left == () and {f.kind for f in result.deleted} >= {"flow-log", "log-group", "iam-role", "vpc"}
+    assert _inventory(ec2, acm, plan, logs, iam) == set()

@@ -38,7 +38,8 @@ def test_refresh_then_plan_shows_what_changed_outside_fogiac(engine_is_harness: 
 
     clean = fogiac("refresh", str(path))
     assert clean.exit_code == 0, clean.output
-    assert "cloud: 1 instance(s) and 2 security group(s) as AWS reports them; no drift from what was applied" \
+    # The hosts' and the VPN's groups, and the VPC's default group fogiac adopted (and emptied).
+    assert "cloud: 1 instance(s) and 3 security group(s) as AWS reports them; no drift from what was applied" \
         in clean.stdout.splitlines()
     unchanged = fogiac("plan", str(path), "--detailed-exitcode")
     assert unchanged.exit_code == 0, unchanged.output
@@ -55,7 +56,7 @@ def test_refresh_then_plan_shows_what_changed_outside_fogiac(engine_is_harness: 
 
     refreshed = fogiac("refresh", str(path))
     assert refreshed.exit_code == 0, refreshed.output
-    assert (f"cloud: 1 instance(s) and 2 security group(s) as AWS reports them; 2 drifted: drifted-dev-host-planner "
+    assert (f"cloud: 1 instance(s) and 3 security group(s) as AWS reports them; 2 drifted: drifted-dev-host-planner "
             f"(changed outside fogiac), {rule} (made outside fogiac); `fogiac plan` shows how") \
         in refreshed.stdout.splitlines()
     drifted = fogiac("plan", str(path), "--detailed-exitcode")
@@ -81,6 +82,18 @@ def test_refresh_then_plan_shows_what_changed_outside_fogiac(engine_is_harness: 
     lines = [line.strip() for line in gone.stdout.splitlines()]
     assert "x aws:ec2/instance:Instance drifted-dev-host-planner deleted outside fogiac" in lines
     assert lines[-1] == "Plan: 0 to add, 0 to change, 0 to destroy. Drift: 1 deleted outside fogiac."
+
+    # A rule added to the VPC's default group (fogiac adopted it with none) is drift and widened exposure too.
+    (default,) = ec2.describe_security_groups(Filters=[{"Name": "tag:fogiac:stack", "Values": ["drifted-dev"]},
+                                                       {"Name": "group-name", "Values": ["default"]}])["SecurityGroups"]
+    opened_default = ec2.authorize_security_group_ingress(GroupId=default["GroupId"], IpPermissions=[
+        {"IpProtocol": "tcp", "FromPort": 22, "ToPort": 22, "IpRanges": [{"CidrIp": "0.0.0.0/0"}]}])
+    default_rule = opened_default["SecurityGroupRules"][0]["SecurityGroupRuleId"]
+    assert fogiac("refresh", str(path)).exit_code == 0
+    lines = [line.strip() for line in fogiac("plan", str(path)).stdout.splitlines()]
+    assert "! ingress added outside fogiac: default tcp port 22 from 0.0.0.0/0" in lines
+    assert f"!+ aws:vpc/securityGroupIngressRule:SecurityGroupIngressRule {default_rule} made outside fogiac: " \
+        "default tcp port 22 from 0.0.0.0/0" in lines
 
     assert down(str(path), "--yes").exit_code == 0
     assert not (folder / REFRESHED_FILE).exists()

@@ -50,6 +50,21 @@ def leak(ec2: Any, acm: Any, stack: str) -> dict[str, str]:
             "security-group": ",".join(groups)}
 
 
+def leak_logs(ec2: Any, logs: Any, iam: Any, stack: str, vpc: str) -> dict[str, str]:
+    """What flow logs leave (a log group, a role with an inline policy, the flow log) and the VPN's log group."""
+    group = f"/fogiac/{stack}/flow-logs"
+    logs.create_log_group(logGroupName=group)
+    logs.create_log_group(logGroupName=f"/fogiac/{stack}/client-vpn")
+    role = iam.create_role(RoleName=f"fogiac-{stack}-flow-logs", Path=f"/fogiac/{stack}/",
+                           AssumeRolePolicyDocument='{"Version": "2012-10-17", "Statement": []}')["Role"]
+    iam.put_role_policy(RoleName=role["RoleName"], PolicyName="write", PolicyDocument=(
+        '{"Version": "2012-10-17", "Statement": [{"Effect": "Allow", "Action": "logs:PutLogEvents", "Resource": "*"}]}'))
+    flow = ec2.create_flow_logs(ResourceIds=[vpc], ResourceType="VPC", TrafficType="ALL",
+                                LogDestinationType="cloud-watch-logs", LogGroupName=group,
+                                DeliverLogsPermissionArn=role["Arn"], TagSpecifications=_tags(stack, "vpc-flow-log"))
+    return {"flow-log": flow["FlowLogIds"][0], "log-group": group, "iam-role": role["RoleName"]}
+
+
 def test_dry_run_lists_and_deletes_nothing(ec2: Any, acm: Any) -> None:
     made = leak(ec2, acm, "sweep-dry-dev")
     result = sweep("sweep-dry-dev", dry_run=True, ec2=ec2, acm=acm)
@@ -61,11 +76,21 @@ def test_dry_run_lists_and_deletes_nothing(ec2: Any, acm: Any) -> None:
     assert sweep("sweep-dry-dev", dry_run=False, ec2=ec2, acm=acm, first_delay_s=0.1).clean
 
 
-def test_sweep_leaves_nothing_tagged(ec2: Any, acm: Any) -> None:
+def test_sweep_leaves_nothing_tagged(ec2: Any, acm: Any, logs: Any, iam: Any) -> None:
     made = leak(ec2, acm, "sweep-all-dev")
+    made.update(leak_logs(ec2, logs, iam, "sweep-all-dev", made["vpc"]))
+    kept = leak_logs(ec2, logs, iam, "sweep-all-dev2", made["vpc"])  # another stack's, by name prefix and path
     other = ec2.create_vpc(CidrBlock="10.61.0.0/16", TagSpecifications=_tags("someone-else", "vpc"))["Vpc"]["VpcId"]
-    result = sweep("sweep-all-dev", dry_run=False, ec2=ec2, acm=acm, first_delay_s=0.1)
+    result = sweep("sweep-all-dev", dry_run=False, ec2=ec2, acm=acm, logs=logs, iam=iam, first_delay_s=0.1)
     assert result.left == () and result.errors == ()
+    assert {"/fogiac/sweep-all-dev/flow-logs", "/fogiac/sweep-all-dev/client-vpn", made["iam-role"],
+            made["flow-log"]} <= {f.id for f in result.deleted}
+    assert logs.describe_log_groups(logGroupNamePrefix="/fogiac/sweep-all-dev/")["logGroups"] == []
+    assert iam.list_roles(PathPrefix="/fogiac/sweep-all-dev/")["Roles"] == []
+    assert ec2.describe_flow_logs(FlowLogIds=[made["flow-log"]])["FlowLogs"] == []
+    assert [g["logGroupName"] for g in logs.describe_log_groups(logGroupNamePrefix="/fogiac/sweep-all-dev2/")[
+        "logGroups"]] == ["/fogiac/sweep-all-dev2/client-vpn", "/fogiac/sweep-all-dev2/flow-logs"]
+    assert [r["RoleName"] for r in iam.list_roles(PathPrefix="/fogiac/sweep-all-dev2/")["Roles"]] == [kept["iam-role"]]
     assert {f.id for f in result.deleted} >= {v for v in made.values() if "," not in v}
     assert result.not_checked == (
         "client-vpn-endpoint (not supported by this endpoint: InternalFailure)",)
@@ -80,6 +105,7 @@ def test_sweep_leaves_nothing_tagged(ec2: Any, acm: Any) -> None:
     assert made["acm-certificate"] not in {c["CertificateArn"] for c in acm.list_certificates()["CertificateSummaryList"]}
     assert ec2.describe_vpcs(VpcIds=[other])["Vpcs"], "another stack's VPC must survive"
     ec2.delete_vpc(VpcId=other)
+    assert sweep("sweep-all-dev2", dry_run=False, ec2=ec2, acm=acm, logs=logs, iam=iam, first_delay_s=0.1).clean
 
 
 def test_sweep_waits_for_no_one_and_deletes_nothing_while_up_holds_the_lock(

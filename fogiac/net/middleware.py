@@ -75,6 +75,9 @@ class Middleware(Protocol):
     @property
     def launching(self) -> Launching: ...  # how its ROS generation builds a workspace and runs a launch file
 
+    @property
+    def block(self) -> type[Any] | None: ...  # the pydantic model of its own top-level manifest key (``name:``)
+
     def edge_entry(self, edge: Any) -> str:
         """What the robot's side is reached at (``Plan.edge_master``): a master URI, a router endpoint,
         read from the manifest's ``edge:`` block (typed ``Any``: the manifest is imported by no middleware)."""
@@ -208,3 +211,9 @@ def for_distro(distro: str) -> Middleware:
 def distros() -> tuple[str, ...]:
     """Every ROS distribution some middleware serves."""
     return tuple(d for name in names() for d in get(name).distros)
+
+
+def block_model(key: str) -> type[Any] | None:
+    """The model that validates the manifest's top-level ``key`` when an installed middleware of that name
+    owns a block (its settings, which reach its deployment as ``Plan.middleware_settings``); else None."""
+    return get(key).block if key in names() else None

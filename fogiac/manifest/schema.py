@@ -133,14 +133,25 @@ def _served(value: object, handler: ValidatorFunctionWrapHandler) -> object:
         raise
 
 
+def _contributed(value: object, handler: ValidatorFunctionWrapHandler) -> object:
+    """A provider an installed package contributes (entry point group ``fogiac.clouds``); the
+    distributions are read only for a name that is not built in, so ``validate`` stays fast."""
+    try:
+        return handler(value)
+    except ValidationError:
+        if isinstance(value, str) and value in providers():
+            return value
+        raise
+
+
 if TYPE_CHECKING:
     Distro = str
     Provider = str
 else:  # fogiac's own middlewares' distributions, and (_served) one another installed middleware serves;
     # on the type, not the field, so the checks across fields (crossfield.py) admit it too
     Distro = Annotated[Literal["noetic", "humble", "jazzy", "kilted"], WrapValidator(_served)]
-    # fogiac's own targets' ``cloud:`` variants; Cloud._installed admits another installed package's
-    Provider = Literal[providers(own=True)]
+    # fogiac's own targets' ``cloud:`` variants, and (_contributed) another installed package's
+    Provider = Annotated[Literal[providers(own=True)], WrapValidator(_contributed)]
 
 
 class Ros(_Model):
@@ -178,18 +189,6 @@ class Cloud(_Model):
     autostop: Literal["off"] | Autostop | None = Field(
         default=None, description="Idle shutdown; unset: the target's default (aws: 30 idle minutes, stop); off: never."
     )
-
-    @field_validator("provider", mode="wrap")
-    @classmethod
-    def _installed(cls, value: object, handler: ValidatorFunctionWrapHandler) -> object:
-        """A provider an installed package contributes (entry point group ``fogiac.clouds``); the
-        distributions are read only for a name that is not built in, so ``validate`` stays fast."""
-        try:
-            return handler(value)
-        except ValidationError:
-            if isinstance(value, str) and value in providers():
-                return value
-            raise
 
     @field_validator("autostop", mode="before")
     @classmethod

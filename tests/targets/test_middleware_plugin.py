@@ -83,6 +83,13 @@ def test_its_block_is_validated_in_its_words(beacon: None, tmp_path: Path) -> No
     assert ": beacon: the beacon middleware's block, but ROS noetic crosses through relay" in out, out
 
 
+def test_another_problem_reports_alone(beacon: None, tmp_path: Path) -> None:
+    path = _manifest(tmp_path, "tags: {'aws:x': y}")  # the checks across fields take its distribution too
+    code, out = run("validate", str(path))
+    assert code == 1
+    assert out.splitlines() == [f"{path}:8: tags: tag 'aws:x' uses a reserved prefix (fogiac:, aws:)"], out
+
+
 def test_its_block_reaches_the_plan(beacon: None, tmp_path: Path) -> None:
     code, out = run("plan", str(_manifest(tmp_path)), "--target", "local", "--json")
     assert code == 0, out

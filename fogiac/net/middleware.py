@@ -11,7 +11,10 @@ halves: its :class:`Middleware` (what compile, the targets' firewalls, plan, cos
 port and its words) and its :class:`Deployment` (what ``up``, ``down`` and provisioning ask), both
 named by the :class:`MiddlewareEntry` it publishes under the ``fogiac.middlewares`` entry point
 group. The halves load apart, so compiling never imports provisioning, certificates or templates.
-Nothing else in fogiac names a variant; another installed package can add one.
+Nothing else in fogiac names a variant; another installed package can add one, serving a ROS
+distribution fogiac does not list and owning a top-level manifest block named after it
+(:attr:`Middleware.block`), whose validated settings reach its deployment as ``Plan.middleware_settings``;
+the manifest asks through the ``fogiac.middleware`` entry points (``distros``, ``block_model``).
 """
 
 from __future__ import annotations

@@ -12,9 +12,10 @@ from __future__ import annotations
 import difflib
 import typing
 from collections.abc import Iterator
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import BaseModel, TypeAdapter, ValidationError
+from pydantic import BaseModel, TypeAdapter, ValidationError, WrapValidator
+from pydantic.fields import FieldInfo
 
 from fogiac.manifest.problems import FieldProblem, Loc, _parse_path, path_str, suggest
 
@@ -66,13 +67,20 @@ def _value(annotation: Any, raw: Any, name: str, path: Loc, found: list[tuple[Lo
         return _Broken(name)
 
 
+def _widened(info: FieldInfo) -> Any:
+    """The field's type with its wrap validators, which widen what it admits (a distribution an installed
+    middleware serves): a value the field took is not broken here. Its other constraints stay out, as before."""
+    wraps = [m for m in info.metadata if isinstance(m, WrapValidator)]
+    return Annotated[(info.annotation, *wraps)] if wraps else info.annotation
+
+
 def _partial(model: type[BaseModel], raw: dict[str, Any], path: Loc, found: list[tuple[Loc, BaseModel]]) -> BaseModel:
     values: dict[str, Any] = {}
     keys = {info.alias or name: name for name, info in model.model_fields.items()}
     for key, name in keys.items():
         info = model.model_fields[name]
         if key in raw:
-            values[name] = _value(info.annotation, raw[key], key, path + (key,), found)
+            values[name] = _value(_widened(info), raw[key], key, path + (key,), found)
         elif info.is_required():
             values[name] = _Broken(key, quiet=True)
     for key in raw:  # a misspelt key ('imag') stands for the field it was meant to be: broken, not absent

@@ -212,8 +212,10 @@ def _model_at(model: type[BaseModel], path: Loc) -> type[BaseModel] | None:
             return None
         fields = {info.alias or name: info for name, info in current.model_fields.items()}
         info = fields.get(str(part))
-        if info is None:
-            return None
+        if info is None:  # a block a plug-in owns (Manifest.owned_block): its own model names its keys
+            owner = getattr(current, "owned_block", None)
+            current = owner(str(part)) if owner is not None else None
+            continue
         current = _inner_model(info.annotation)
     return current if isinstance(current, type) and issubclass(current, BaseModel) else None
 

@@ -19,12 +19,15 @@ from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
+    PrivateAttr,
     ValidationError,
     ValidationInfo,
     ValidatorFunctionWrapHandler,
+    WrapValidator,
     field_validator,
     model_validator,
 )
+from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from fogiac import registry
 from fogiac.errors import ManifestError
@@ -119,11 +122,36 @@ def _dns_name(value: str) -> str:
 DnsName = Annotated[str, AfterValidator(_dns_name)]
 
 
-Distro = Literal["noetic", "humble", "jazzy", "kilted"]  # each served by one middleware (fogiac.net.middleware)
+def _served(value: object, handler: ValidatorFunctionWrapHandler) -> object:
+    """A distribution an installed middleware serves (entry point group ``fogiac.middlewares``); the
+    middlewares are asked only for a name that is not fogiac's own, so ``validate`` stays fast."""
+    try:
+        return handler(value)
+    except ValidationError:
+        if isinstance(value, str) and value in registry.load("fogiac.middleware", "distros")():
+            return value
+        raise
+
+
+def _contributed(value: object, handler: ValidatorFunctionWrapHandler) -> object:
+    """A provider an installed package contributes (entry point group ``fogiac.clouds``); the
+    distributions are read only for a name that is not built in, so ``validate`` stays fast."""
+    try:
+        return handler(value)
+    except ValidationError:
+        if isinstance(value, str) and value in providers():
+            return value
+        raise
+
+
 if TYPE_CHECKING:
+    Distro = str
     Provider = str
-else:  # fogiac's own targets' ``cloud:`` variants; Cloud._installed admits another installed package's
-    Provider = Literal[providers(own=True)]
+else:  # fogiac's own middlewares' distributions, and (_served) one another installed middleware serves;
+    # on the type, not the field, so the checks across fields (crossfield.py) admit it too
+    Distro = Annotated[Literal["noetic", "humble", "jazzy", "kilted"], WrapValidator(_served)]
+    # fogiac's own targets' ``cloud:`` variants, and (_contributed) another installed package's
+    Provider = Annotated[Literal[providers(own=True)], WrapValidator(_contributed)]
 
 
 class Ros(_Model):
@@ -161,18 +189,6 @@ class Cloud(_Model):
     autostop: Literal["off"] | Autostop | None = Field(
         default=None, description="Idle shutdown; unset: the target's default (aws: 30 idle minutes, stop); off: never."
     )
-
-    @field_validator("provider", mode="wrap")
-    @classmethod
-    def _installed(cls, value: object, handler: ValidatorFunctionWrapHandler) -> object:
-        """A provider an installed package contributes (entry point group ``fogiac.clouds``); the
-        distributions are read only for a name that is not built in, so ``validate`` stays fast."""
-        try:
-            return handler(value)
-        except ValidationError:
-            if isinstance(value, str) and value in providers():
-                return value
-            raise
 
     @field_validator("autostop", mode="before")
     @classmethod
@@ -498,6 +514,50 @@ class Manifest(_Model):
     nodes: tuple[Node, ...] = Field(min_length=1, description="The nodes that run off the robot.")
     relay: Relay = Field(default_factory=Relay, description="How topics cross between edge and cloud.")
     tags: dict[str, str] = Field(default_factory=dict, description="Extra tags on every cloud resource.")
+    _blocks: dict[str, BaseModel] = PrivateAttr(default_factory=dict)  # middleware name -> its block, validated
+
+    @classmethod
+    def owned_block(cls, key: str) -> type[BaseModel] | None:
+        """The model of a top-level key an installed middleware owns (``beacon:``), or None."""
+        if key in cls.model_fields:
+            return None
+        found: type[BaseModel] | None = registry.load("fogiac.middleware", "block_model")(key)
+        return found
+
+    def block(self, middleware: str) -> BaseModel | None:
+        """The middleware's own block, as its model validated it; None when the manifest has none."""
+        return self._blocks.get(middleware)
+
+    @model_validator(mode="wrap")
+    @classmethod
+    def _middleware_blocks(cls, data: object, handler: ValidatorFunctionWrapHandler) -> Manifest:
+        """A top-level key an installed middleware owns is validated by that middleware's model, with the
+        rest of the manifest in the same run (every problem at once); any other unknown key stays refused
+        by ``extra="forbid"``. The middlewares are asked only when the manifest has a key not fogiac's own."""
+        if not isinstance(data, dict) or all(key in cls.model_fields for key in data):
+            manifest: Manifest = handler(data)
+            return manifest
+        owned = {key: model for key in data if isinstance(key, str) and (model := cls.owned_block(key)) is not None}
+        problems: list[InitErrorDetails] = []
+        blocks: dict[str, BaseModel] = {}
+        for key, model in owned.items():
+            try:
+                blocks[key] = model.model_validate(data[key])
+            except ValidationError as err:
+                problems += _moved(err, (key,))
+        try:
+            manifest = handler({key: value for key, value in data.items() if key not in owned})
+        except ValidationError as err:
+            problems = _moved(err, ()) + problems
+        else:
+            chosen = registry.load("fogiac.middleware", "for_distro")(manifest.ros.distro).name
+            problems += [InitErrorDetails(type=PydanticCustomError("value_error", "{message}", {"message": (
+                f"the {key} middleware's block, but ROS {manifest.ros.distro} crosses through {chosen}")}),
+                loc=(key,), input=data[key]) for key in blocks if key != chosen]
+        if problems:
+            raise ValidationError.from_exception_data(cls.__name__, problems)
+        manifest._blocks.update(blocks)
+        return manifest
 
     @field_validator("tags")
     @classmethod
@@ -533,6 +593,12 @@ class Manifest(_Model):
                     field=f"nodes[{i}].topics",
                 )
         return self
+
+
+def _moved(err: ValidationError, prefix: tuple[str, ...]) -> list[InitErrorDetails]:
+    """``err``'s problems, re-rooted under ``prefix``, to be raised again with others."""
+    return [InitErrorDetails(type=e["type"], loc=prefix + tuple(e["loc"]), input=e["input"],
+                             ctx=e.get("ctx", {})) for e in err.errors(include_url=False)]
 
 
 def _resolve_paths(data: dict, base: Path) -> list[tuple[tuple, str]]:

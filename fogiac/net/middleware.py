@@ -11,7 +11,10 @@ halves: its :class:`Middleware` (what compile, the targets' firewalls, plan, cos
 port and its words) and its :class:`Deployment` (what ``up``, ``down`` and provisioning ask), both
 named by the :class:`MiddlewareEntry` it publishes under the ``fogiac.middlewares`` entry point
 group. The halves load apart, so compiling never imports provisioning, certificates or templates.
-Nothing else in fogiac names a variant; another installed package can add one.
+Nothing else in fogiac names a variant; another installed package can add one, serving a ROS
+distribution fogiac does not list and owning a top-level manifest block named after it
+(:attr:`Middleware.block`), whose validated settings reach its deployment as ``Plan.middleware_settings``;
+the manifest asks through the ``fogiac.middleware`` entry points (``distros``, ``block_model``).
 """
 
 from __future__ import annotations
@@ -74,6 +77,9 @@ class Middleware(Protocol):
 
     @property
     def launching(self) -> Launching: ...  # how its ROS generation builds a workspace and runs a launch file
+
+    @property
+    def block(self) -> type[Any] | None: ...  # the pydantic model of its own top-level manifest key (``name:``)
 
     def edge_entry(self, edge: Any) -> str:
         """What the robot's side is reached at (``Plan.edge_master``): a master URI, a router endpoint,
@@ -208,3 +214,9 @@ def for_distro(distro: str) -> Middleware:
 def distros() -> tuple[str, ...]:
     """Every ROS distribution some middleware serves."""
     return tuple(d for name in names() for d in get(name).distros)
+
+
+def block_model(key: str) -> type[Any] | None:
+    """The model that validates the manifest's top-level ``key`` when an installed middleware of that name
+    owns a block (its settings, which reach its deployment as ``Plan.middleware_settings``); else None."""
+    return get(key).block if key in names() else None

@@ -71,7 +71,14 @@ def compile_plan(manifest: Manifest, *, target: str | None = None, environment: 
         tags=tags,
         cost=placed.cost,
         autostop=placed.autostop,
+        middleware_settings=_settings(manifest, carrier.name),
     )
+
+
+def _settings(manifest: Manifest, carrier: str) -> tuple[tuple[str, object], ...]:
+    """The middleware's own manifest block (validated by its model), as sorted JSON-ready pairs."""
+    block = manifest.block(carrier)
+    return tuple(sorted(block.model_dump(mode="json").items())) if block is not None else ()
 
 
 def _node(node: Node, host: str) -> NodeSpec:

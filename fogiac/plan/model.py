@@ -255,6 +255,8 @@ class Plan:
     tags: tuple[tuple[str, str], ...]
     cost: tuple[CostLine, ...] = field(default=())
     autostop: AutostopSpec | None = None
+    # The manifest's block the middleware owns (a plug-in's ``beacon:``), JSON-ready, for its deployment.
+    middleware_settings: tuple[tuple[str, Any], ...] = ()
 
     @property
     def routes(self) -> tuple[Route, ...]:
@@ -287,6 +289,8 @@ class Plan:
 
     def to_dict(self) -> dict[str, Any]:
         out = dataclasses.asdict(self)
+        if not self.middleware_settings:  # none: the same bytes (and digest) as before there could be any
+            del out["middleware_settings"]
         out["hourly_usd"] = self.hourly_usd
         return out
 

@@ -70,6 +70,14 @@ def test_its_catalogue_and_words_validate_the_manifest(nimbus: None, tmp_path: P
     assert code == 1 and "'n9.huge' is not a nimbus shape" in out, out
 
 
+def test_another_problem_does_not_send_its_machines_to_the_default_catalogue(nimbus: None, tmp_path: Path) -> None:
+    path = _manifest(tmp_path)
+    path.write_text(path.read_text() + "tags: {'aws:x': y}\n")
+    code, out = run("validate", str(path))
+    assert code == 1
+    assert out.splitlines() == [f"{path}:11: tags: tag 'aws:x' uses a reserved prefix (fogiac:, aws:)"], out
+
+
 def test_its_stack_program_declares_the_plan_under_mocks(nimbus: None, tmp_path: Path) -> None:
     code, out = run("plan", str(_manifest(tmp_path)), "--json")
     assert code == 0, out

@@ -28,6 +28,7 @@ class RelayMiddleware:
     # roslaunch --wait: without it, a roslaunch that starts before the host's master service would
     # start a master of its own on the same port and make the real one crash-loop. catkin_make
     # leaves devel/setup.bash, which puts the package's built messages and scripts where roslaunch looks.
+    block: type[Any] | None = None  # its settings are the manifest's shared relay: block (compile reads it)
     launching: Launching = Launching(command=("roslaunch", "--wait"), has_packages="[ -f src/CMakeLists.txt ]",
                                      tool="catkin_make", build="catkin_make", overlay="devel/setup.bash",
                                      package_path=True, image_has_tool=True)

@@ -28,6 +28,7 @@ class ZenohMiddleware:
     host_requirements: tuple[str, ...] = ("eclipse-zenoh==1.10.2",)  # the router's; pyproject's ros2 extra pins it too
     # colcon installs each package under install/, whose setup.bash (over the distro's) lets
     # `ros2 launch` find it; the ros-core images lack colcon (ros-base has it).
+    block: type[Any] | None = None  # its settings are the manifest's shared relay: block (compile reads it)
     launching: Launching = Launching(
         command=("ros2", "launch"), has_packages='[ -n "$(find src -name package.xml -print -quit 2>/dev/null)" ]',
         tool="colcon", build="colcon build", overlay="install/setup.bash", package_path=False, image_has_tool=False)

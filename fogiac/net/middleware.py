@@ -61,9 +61,6 @@ class Middleware(Protocol):
     def rule_description(self) -> str: ...  # the security-group rule's description for ``port``
 
     @property
-    def needs_listed_topics(self) -> bool: ...  # True: topics "auto" cannot be honoured
-
-    @property
     def credentials_first(self) -> bool: ...  # True: host_credentials before host_services start, else at link
 
     @property

@@ -20,7 +20,6 @@ class RelayMiddleware:
     edge_side: str = "fogiac relay, edge end (dials out)"
     cloud_side: str = "fogiac relay, cloud end"
     rule_description: str = "fogiac relay (mutual TLS)"
-    needs_listed_topics: bool = False  # the relay discovers topics from both masters
     credentials_first: bool = False  # the cloud end starts at link, after the nodes
     node_master: bool = True  # a node is up once it registers with the host's roscore
     nodes_after: str = MASTER

@@ -21,7 +21,6 @@ class ZenohMiddleware:
     edge_side: str = "Zenoh edge router (dials out; rmw_zenoh nodes or zenoh-bridge-ros2dds connect to it)"
     cloud_side: str = "Zenoh router per host (mutual TLS, access control: the manifest's topics only)"
     rule_description: str = "Zenoh router (mutual TLS)"
-    needs_listed_topics: bool = True  # access control allows exactly the listed topics
     credentials_first: bool = True  # the router starts before the nodes, with its certificate
     node_master: bool = False  # ROS 2 has no master: a node is up while its process runs
     nodes_after: str = ROUTER  # rmw_zenoh nodes find their host's router at start

@@ -44,7 +44,6 @@ class BeaconMiddleware:
     edge_side: str = "beacon listener (dials out)"
     cloud_side: str = "beacon per host"
     rule_description: str = "beacon (plain TCP, tests only)"
-    needs_listed_topics: bool = False
     credentials_first: bool = False
     node_master: bool = False  # nothing registers: a node is up while its process runs
     nodes_after: str = SERVICE

@@ -74,7 +74,7 @@ def test_6_plan_cost_and_up_use_one_month() -> None:
     code, plan = run("plan", str(manifest))
     assert code == 0
     assert f"cost: ${hourly:.4f} per hour (about ${monthly} per month (730 h) if left running)" in plan
-    assert plan[-1] == "Plan: 26 to add, 0 to change, 0 to destroy."  # Terraform's summary comes last
+    assert plan[-1] == "Plan: 31 to add, 0 to change, 0 to destroy."  # Terraform's summary comes last
     code, cost = run("cost", str(manifest))
     assert code == 0
     assert any("$/month (730 h)" in line for line in cost), cost

@@ -37,7 +37,7 @@ def by_address(rows: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
 
 
 def test_names_and_sections(exported: dict[str, dict[str, Any]]) -> None:
-    assert set(exported) == {"grasp-planning", "minimal", "motion-planning", "orb-slam2", "proxy", "ros2-zenoh"}
+    assert set(exported) == {"grasp-planning", "minimal", "motion-planning", "proxy", "ros2-zenoh", "slam"}
     for doc in exported.values():
         assert doc["format_version"] == "1.2" and doc["terraform_version"].startswith("1.")
         planned = doc["planned_values"]["root_module"]["resources"]

@@ -80,6 +80,8 @@ def play(
     wait: float = typer.Option(30.0, help="seconds to wait for the node's subscriptions before playing"),
     mono: bool = typer.Option(False, "--mono", help="the node runs monocular: evaluate up to scale"),
     max_frames: int | None = typer.Option(None, help="publish only the first frames"),
+    lockstep: bool = typer.Option(False, "--lockstep", help="send each frame when the last one's answer came, "
+                                                            "not at the frame rate: no frame dropped, for benchmarks"),
     as_json: bool = typer.Option(False, "--json", help="print one JSON line of round-trip figures at the end"),
 ) -> None:
     """Robot side: publish a sequence's images at its frame rate and collect the poses that come back."""
@@ -88,7 +90,7 @@ def play(
     seq = read_sequence(folder)
     if max_frames is not None:
         seq = replace(seq, frames=seq.frames[:max_frames])
-    report = run_player(seq, rate=rate or None, wait_s=wait, mono=mono)
+    report = run_player(seq, rate=rate or None, wait_s=wait, mono=mono, lockstep=lockstep)
     typer.echo(json.dumps(report) if as_json else "\n".join(f"{k:>18}  {v}" for k, v in report.items()))
 
 

@@ -10,6 +10,8 @@ Topics (node name ``slam``, so ``~x`` is ``/slam/x``; TUM's bag names in, remap 
 - out ``~compute_time``  std_msgs/Float64: seconds from the frame's arrival to its pose
 - out ``~map_points``    sensor_msgs/PointCloud2 (x, y, z float32): the whole map, after each
   keyframe, at most once per ``~cloud_period`` seconds (default 1)
+- out ``~map_created``   std_msgs/Float64, latched, once: seconds from the first frame's arrival to the
+  first bundle-adjusted map back in tracking (``run``'s ``map_created_s``, measured in the node)
 
 Params: ``~cores`` (0 or unset: all), ``~mono`` (false), ``~features`` (1000).
 
@@ -92,9 +94,12 @@ class SlamNode:
         self._cond = threading.Condition()
         self._last_cloud = 0.0
         self._frames = 0
+        self._first_arrival: float | None = None
+        self._map_told = False
         self.pose_pub = rospy.Publisher("~pose", PoseStamped, queue_size=10)
         self.time_pub = rospy.Publisher("~compute_time", Float64, queue_size=10)
         self.cloud_pub = rospy.Publisher("~map_points", PointCloud2, queue_size=1, latch=True)
+        self.map_created_pub = rospy.Publisher("~map_created", Float64, queue_size=1, latch=True)
 
     def on_info(self, msg: Any) -> None:
         if self.slam is None:
@@ -141,9 +146,15 @@ class SlamNode:
         metres = None if depth is None else depth_to_metres(depth)
         features = self.extractor(self._frames, image.header.stamp.to_sec(), grey, metres)
         self._frames += 1
+        if self._first_arrival is None:
+            self._first_arrival = arrived
         result = self.slam.track(features)
         seconds = time.monotonic() - arrived
         self.time_pub.publish(Float64(seconds))
+        first_map = self.slam.stats.first_map_at
+        if first_map is not None and not self._map_told:
+            self._map_told = True
+            self.map_created_pub.publish(Float64(first_map - self._first_arrival))
         if result.tracked and result.pose is not None:
             header = Header(stamp=image.header.stamp, frame_id="map")
             self.pose_pub.publish(PoseStamped(header=header, pose=pose_to_msg(result.pose)))

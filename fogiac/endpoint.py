@@ -21,8 +21,8 @@ class Endpoint:
                 raise FogiacError(f"{text!r} is not HOST:PORT")
             host, port = text.strip(), str(default_port)
         host = host[1:-1] if host.startswith("[") and host.endswith("]") else host
-        if not host or not port.isdigit() or not 0 < int(port) < 65536:
-            raise FogiacError(f"{text!r} is not HOST:PORT (a port from 1 to 65535)")
+        if not host or not port.isdigit() or not 0 <= int(port) < 65536:  # 0: any free port, to listen on
+            raise FogiacError(f"{text!r} is not HOST:PORT (a port from 0 to 65535)")
         return cls(host, int(port))
 
     def __str__(self) -> str:

@@ -97,7 +97,7 @@ def edge_idle_since(plan: Plan, *, now: float) -> float | None:
     disconnected cannot be dated, nor can a relay this machine never ran: None, unknown.
     """
     last: list[float] = []
-    for route in plan.relay:
+    for route in plan.routes:
         path = edge_dir(plan) / f"relay-edge-{route.host}.stats.json"
         try:
             written = path.stat().st_mtime

@@ -71,7 +71,7 @@ def layout(plan: Plan) -> Drawing:
             what = node.workload or node.image or (f"{node.launch.package}/{node.launch.file}" if node.launch else "")
             lines = (what[:38], "GPU" if node.gpu else "CPU")
             boxes.append(Box(10.1 + j * 3.7, top - row_h + 0.15, 3.5, 1.25, node.name, lines, "node"))
-        route = next((r for r in plan.relay if r.host == host.name), None)
+        route = next((r for r in plan.routes if r.host == host.name), None)
         if route is None:
             continue
         y = top - row_h / 2

@@ -40,7 +40,7 @@ def topics(plan: Plan) -> list[dict[str, str]]:
     """The topics the edge relay carries, per host: ``to_cloud`` (robot -> node), ``to_edge``
     (node -> robot), ``either`` (relay.topics: whichever side publishes), ``*`` when discovered."""
     rows: list[dict[str, str]] = []
-    for route in plan.relay:
+    for route in plan.routes:
         for direction, names in (("to_cloud", route.to_cloud), ("to_edge", route.to_edge), ("either", route.listed)):
             rows += [{"topic": name, "direction": direction, "host": route.host} for name in names]
         if route.auto:
@@ -65,7 +65,7 @@ def security_rules(plan: Plan) -> list[dict[str, str]]:
 def middleware_doc(plan: Plan) -> dict[str, Any]:
     """Which middleware carries the topics, and what it runs on each side."""
     carrier = middleware.get(plan.middleware)
-    port = plan.relay[0].port if plan.relay else carrier.port  # the stack's own on shared lab machines
+    port = plan.routes[0].port if plan.routes else carrier.port  # the stack's own on shared lab machines
     return {"name": carrier.name, "ros_distro": plan.ros_distro, "port": port, "label": carrier.label,
             "edge": carrier.edge_side, "cloud": carrier.cloud_side}
 

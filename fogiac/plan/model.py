@@ -251,17 +251,12 @@ class Plan:
     vpn: EdgeVpn | None
     hosts: tuple[HostSpec, ...]
     nodes: tuple[NodeSpec, ...]
-    relay: tuple[Route, ...]  # the routes (named for the relay until the plan document's key moves too)
+    routes: tuple[Route, ...]  # what crosses between the edge and each host, in the middleware's neutral terms
     tags: tuple[tuple[str, str], ...]
     cost: tuple[CostLine, ...] = field(default=())
     autostop: AutostopSpec | None = None
     # The manifest's block the middleware owns (a plug-in's ``beacon:``), JSON-ready, for its deployment.
     middleware_settings: tuple[tuple[str, Any], ...] = ()
-
-    @property
-    def routes(self) -> tuple[Route, ...]:
-        """What crosses between the edge and each host, in the middleware's neutral terms."""
-        return self.relay
 
     @property
     def hourly_usd(self) -> float:
@@ -289,6 +284,7 @@ class Plan:
 
     def to_dict(self) -> dict[str, Any]:
         out = dataclasses.asdict(self)
+        out["relay"] = out.pop("routes")  # the document's key since version 1: applied plans compare as before
         if not self.middleware_settings:  # none: the same bytes (and digest) as before there could be any
             del out["middleware_settings"]
         out["hourly_usd"] = self.hourly_usd

@@ -46,7 +46,7 @@ class ExistingMachines:
         raise NotImplementedError
 
     def connect_address(self, plan: Plan, host: str, access: HostAccess) -> str:
-        return f"{access.address}:{next(r.port for r in plan.relay if r.host == host)}"  # type: ignore[attr-defined]
+        return f"{access.address}:{next(r.port for r in plan.routes if r.host == host)}"  # type: ignore[attr-defined]
 
     def leftovers(self, plan: Plan, folder: Path) -> list[str]:
         return []

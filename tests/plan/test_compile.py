@@ -77,7 +77,7 @@ def test_proxy_mode_opens_the_relay_to_ssh_from_only() -> None:
     assert {r.cidr for r in relay} == {"10.10.0.0/16", "198.51.100.0/24"}
     for rule in plan.security_groups[0].ingress:
         assert rule.cidr == OPERATOR or ipaddress.ip_network(rule.cidr).prefixlen > 0
-    assert plan.relay[0].connect_via == "public"
+    assert plan.routes[0].connect_via == "public"
 
 
 def test_a_ros2_stack_opens_only_ssh_and_the_zenoh_router() -> None:
@@ -113,7 +113,7 @@ def test_cost_counts_instances_and_client_vpn() -> None:
 
 def test_relay_routes_follow_node_topics_and_compression() -> None:
     plan = compile_plan(example("grasp-planning"))
-    (route,) = plan.relay
+    (route,) = plan.routes
     assert route.to_cloud == ("/depth/camera_info", "/depth/image")
     assert route.to_edge == ("/grasp", "/grasp/compute_time", "/grasp/quality")
     assert route.compression == (("/depth/image", "zstd"),)
@@ -125,7 +125,7 @@ def test_local_target_has_no_cloud_resources_and_costs_nothing() -> None:
     assert plan.network is None and plan.vpn is None and plan.security_groups == ()
     assert plan.hourly_usd == 0
     assert [h.address for h in plan.hosts] == ["127.0.0.1"]
-    assert plan.relay[0].connect_via == "loopback"
+    assert plan.routes[0].connect_via == "loopback"
 
 
 def test_hosts_target_places_nodes_and_checks_gpus(tmp_path: Path) -> None:

@@ -57,7 +57,7 @@ def test_warns_when_free_hosts_still_run_past_the_autostop_time() -> None:
 
 def test_edge_idle_since_reads_this_machines_edge_relay_stats(tmp_path: Path) -> None:
     plan = _plan(tmp_path, mode="proxy")
-    stats = edge_dir(plan) / f"relay-edge-{plan.relay[0].host}.stats.json"
+    stats = edge_dir(plan) / f"relay-edge-{plan.routes[0].host}.stats.json"
     assert edge_idle_since(plan, now=NOW) is None  # never ran here: unknown
     stats.parent.mkdir(parents=True, exist_ok=True)
     stats.write_text(json.dumps({"connected": True}))

@@ -49,7 +49,7 @@ def test_stacks_on_shared_hosts_get_ports_of_their_own_and_aws_hosts_keep_ros_de
     (a,), (b,) = alpha.hosts, beta.hosts
     assert (a.master_port, a.relay_port) == stack_ports("alpha-dev") == stack_ports("alpha-dev")
     assert {a.master_port, a.relay_port}.isdisjoint({b.master_port, b.relay_port, ROS_MASTER_PORT, RELAY_PORT})
-    assert alpha.relay[0].port == a.relay_port and 20000 <= a.master_port < 30000
+    assert alpha.routes[0].port == a.relay_port and 20000 <= a.master_port < 30000
     (access,) = HOSTS.access(alpha, state_dir=tmp_path).values()
     assert (access.master_port, access.relay_port) == (a.master_port, a.relay_port)
     (own,) = _plan(tmp_path, "alpha", provider="aws").hosts  # an instance of its own: ROS's usual ports

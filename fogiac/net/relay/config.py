@@ -7,7 +7,8 @@ import socket
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from fogiac.errors import RelayError
+from fogiac.endpoint import Endpoint
+from fogiac.errors import FogiacError, RelayError
 from fogiac.net.relay.compression import check_name
 from fogiac.net.relay.graph import TopicPolicy
 from fogiac.plan.model import RELAY_PORT as RELAY_PORT  # the port's one definition, beside the plan's others
@@ -19,13 +20,12 @@ def default_ros_host() -> str:
 
 
 def parse_hostport(text: str, *, default_port: int = RELAY_PORT) -> tuple[str, int]:
-    host, sep, port = text.rpartition(":")
-    if not sep:
-        return text, default_port
+    """``HOST[:PORT]`` as the relay's command line takes it (:class:`fogiac.endpoint.Endpoint` parses)."""
     try:
-        return host.strip("[]"), int(port)
-    except ValueError:
-        raise RelayError(f"{text!r} is not HOST:PORT") from None
+        found = Endpoint.parse(text, default_port=default_port)
+    except FogiacError as err:
+        raise RelayError(str(err)) from None
+    return found.host, found.port
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from fogiac.certs import KeyPair, load_bundle, load_or_create_bundle, write_private
+from fogiac.endpoint import Endpoint
 from fogiac.errors import ProvisionError
 from fogiac.hostmodel import NativeRos, Service, Where, autostop_service, make_service
 from fogiac.net.zenoh import tls
@@ -136,14 +137,14 @@ def router_stats(where: Where) -> str:
 
 
 def _port(endpoint: str) -> int:
-    return int(endpoint.rsplit(":", 1)[1])
+    return Endpoint.parse(endpoint).port
 
 
 def edge_up(plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path, folder: Path) -> list[str]:
     ca = load_or_create_bundle(plan.stack, certs).ca
     pair = _issued(certs, "edge", lambda: tls.edge_pair(ca, stack=plan.stack))
     files = tls.write_files(folder / "zenoh", "edge", pair, ca)
-    cloud = [(address.rsplit(":", 1)[0], int(address.rsplit(":", 1)[1])) for _, address in sorted(connect.items())]
+    cloud = [(e.host, e.port) for e in (Endpoint.parse(address) for _, address in sorted(connect.items()))]
     config = edge_router(cloud, tls=files, local_port=_port(entry))
     router_file, stats = folder / "zenoh-edge.json", folder / "zenoh-edge.stats.json"
     router_file.write_text(json.dumps(config, indent=1, sort_keys=True))

@@ -356,7 +356,7 @@ def access_from_outputs(plan: Plan, outputs: Mapping[str, Any], *, fingerprints:
             raise ProvisionError(f"host {spec.name}: the compute stack reported no public address")
         access[spec.name] = SshAccess(address=out["public_ip"], user=SSH_USER, key=key,
                                       fingerprints=fingerprints(out["instance_id"]))
-        route = next(r for r in plan.relay if r.host == spec.name)
+        route = next(r for r in plan.routes if r.host == spec.name)
         via = out["private_ip"] if route.connect_via == "private" else out["public_ip"]
         connect[spec.name] = f"{via}:{route.port}"
     return access, connect

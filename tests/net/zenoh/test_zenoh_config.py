@@ -69,7 +69,7 @@ def test_a_ros2_plan_says_zenoh_and_opens_the_router_port_to_ssh_from_or_the_vpn
     manifest = load_manifest(EXAMPLES / "ros2-zenoh.yaml")
     plan = compile_plan(manifest)
     assert plan.middleware == "zenoh" and plan.ros_distro == "jazzy"
-    assert [(r.port, r.to_cloud, r.to_edge) for r in plan.relay] == [
+    assert [(r.port, r.to_cloud, r.to_edge) for r in plan.routes] == [
         (ROUTER_PORT, ("/camera/image_raw",), ("/detections", "/overlay"))]
     rules = [r for g in plan.security_groups for r in g.ingress if r.from_port <= ROUTER_PORT <= r.to_port]
     assert {r.cidr for r in rules} == {"10.10.0.0/16", "198.51.100.0/24"}  # proxy: the VPC and ssh_from

@@ -9,8 +9,9 @@ Three ways in, one writer (:class:`Builder`), one format (read by :mod:`.catalog
   (availability) and ``DescribeSpotPriceHistory`` (the median of the latest Linux/UNIX spot price
   across the region's zones). An API that refuses or cannot be reached ends it with one
   :class:`CatalogueUnavailable` line naming the API and the region.
-* :func:`from_skypilot_csv`, a ``catalogs/v8/aws/vms.csv`` from the Apache-2.0
-  ``skypilot-org/skypilot-catalog`` (which SkyPilot's fetchers write from the same APIs), e.g.::
+* :func:`from_skypilot_csv`, a ``catalogs/v8/aws/vms.csv`` from ``skypilot-org/skypilot-catalog``
+  (which SkyPilot's fetchers write from the same APIs; the repository states no licence, SkyPilot
+  itself is Apache-2.0; prices and hardware counts are facts), e.g.::
 
       python -m fogiac.targets.aws.refresh --from-csv vms.csv --source-commit <sha> --source-date <date> \\
           --out fogiac/targets/aws/data/catalogue.json.gz
@@ -19,14 +20,16 @@ Three ways in, one writer (:class:`Builder`), one format (read by :mod:`.catalog
   vms.csv could not be brought onto the build machine that day::
 
       python -m fogiac.targets.aws.refresh --from-snapshots \\
-          --moto <site-packages>/moto/ec2/resources \\
+          --moto <moto-ext 5.1.54 site-packages>/moto/ec2/resources \\
+          --older-moto <moto 5.0.28 wheel, unpacked>/moto/ec2/resources \\
           --karpenter-prices pkg/providers/pricing/zz_generated.pricing_aws.go \\
           --spot-advisor internal/spot/data/spot-advisor-data.json \\
           --out fogiac/targets/aws/data/catalogue.json.gz
 
   Hardware and per-region availability come from moto-ext 5.1.54's ``instance_types.json.gz``
   and ``instance_type_offerings/region/*.json.gz`` (Apache-2.0; verbatim DescribeInstanceTypes
-  and DescribeInstanceTypeOfferings answers). us-east-1 on-demand prices come from Karpenter's
+  and DescribeInstanceTypeOfferings answers); moto 5.0.28 (2025-02-02) adds the previous generations
+  AWS stopped listing since (p2, p3, g4ad, f1, dl1). us-east-1 on-demand prices come from Karpenter's
   ``zz_generated.pricing_aws.go`` (aws/karpenter-provider-aws, Apache-2.0, generated from the
   Price List API 2026-07-20). Other regions are *estimates*: the us-east-1 price times the
   region's median price ratio, measured on the SkyPilot rows in :data:`_REGION_SAMPLES`; regions
@@ -62,6 +65,9 @@ _PRICE_FILTERS = [
         ("operatingSystem", "Linux"), ("tenancy", "Shared"), ("preInstalledSw", "NA"),
         ("capacitystatus", "Used"), ("licenseModel", "No License required"))
 ]
+
+
+_SKYPILOT_LICENSE = "none stated (no LICENSE file in skypilot-org/skypilot-catalog, checked 2026-11-26); facts"
 
 
 class CatalogueUnavailable(CloudError):
@@ -234,11 +240,11 @@ def from_skypilot_csv(path: str | Path, *, commit: str, date: str) -> Builder:
     spot the median over the region's zones."""
     b = Builder(provenance={"built": _dt.date.today().isoformat(), "how": "from_skypilot_csv",
                             "input": {"repo": "skypilot-org/skypilot-catalog", "path": "catalogs/v8/aws/vms.csv",
-                                      "commit": commit, "date": date, "license": "Apache-2.0"}})
+                                      "commit": commit, "date": date, "license": _SKYPILOT_LICENSE}})
     src = b.source(Source("skypilot-org/skypilot-catalog catalogs/v8/aws/vms.csv", date,
-                          f"commit {commit}; written by SkyPilot's fetchers from the AWS APIs", "Apache-2.0"))
+                          f"commit {commit}; written by SkyPilot's fetchers from the AWS APIs", _SKYPILOT_LICENSE))
     spot_src = b.source(Source("skypilot-org/skypilot-catalog catalogs/v8/aws/vms.csv SpotPrice", date,
-                               f"commit {commit}; median over the region's zones", "Apache-2.0", estimate=True))
+                               f"commit {commit}; median over the region's zones", _SKYPILOT_LICENSE, estimate=True))
     spots: dict[tuple[str, str], list[float]] = {}
     with open(path, newline="") as fh:
         for row in csv.DictReader(fh):
@@ -322,8 +328,11 @@ def karpenter_prices(text: str) -> dict[str, float]:
     return {name: float(value) for name, value in _KARPENTER_TYPE.findall(body) if float(value) > 0}
 
 
-def from_snapshots(*, moto: str | Path, karpenter_prices_go: str | Path, spot_advisor: str | Path) -> Builder:
-    """The shipped catalogue: see the module docstring for what each input is and how old."""
+def from_snapshots(*, moto: str | Path, karpenter_prices_go: str | Path, spot_advisor: str | Path,
+                   older_moto: str | Path | None = None) -> Builder:
+    """The shipped catalogue: see the module docstring for what each input is and how old.
+    ``older_moto`` (moto 5.0.28's resources) adds the previous generations AWS has since stopped
+    listing (p2, p3, g4ad, f1, dl1, ...), which users still name."""
     moto = Path(moto)
     b = Builder(provenance={
         "built": "2026-11-26", "how": "fogiac.targets.aws.refresh.from_snapshots",
@@ -334,10 +343,13 @@ def from_snapshots(*, moto: str | Path, karpenter_prices_go: str | Path, spot_ad
             {"what": "hardware, availability", "package": "moto-ext 5.1.54 (PyPI)", "license": "Apache-2.0",
              "files": ["moto/ec2/resources/instance_types.json.gz",
                        "moto/ec2/resources/instance_type_offerings/region/*.json.gz"]},
+            {"what": "previous generations' hardware, availability", "package": "moto 5.0.28 (PyPI, 2025-02-02)",
+             "license": "Apache-2.0", "files": ["moto/ec2/resources/instance_types.json.gz",
+                                              "moto/ec2/resources/instance_type_offerings/region/*.json.gz"]},
             {"what": "us-east-1 on-demand", "repo": "aws/karpenter-provider-aws", "license": "Apache-2.0",
              "commit": "1d927085dd81a9df9301e613f371dac5b4d16bfe",
              "path": "pkg/providers/pricing/zz_generated.pricing_aws.go", "date": "2026-07-20"},
-            {"what": "regional price ratios", "repo": "skypilot-org/skypilot-catalog", "license": "Apache-2.0",
+            {"what": "regional price ratios", "repo": "skypilot-org/skypilot-catalog", "license": _SKYPILOT_LICENSE,
              "commit": _SAMPLE_COMMIT, "path": "catalogs/v8/aws/vms.csv",
              "rows": {t: sorted(p) for t, p in _REGION_SAMPLES.items()}},
             {"what": "spot saving", "repo": "alexei-led/spotinfo", "license": "Apache-2.0 (data: AWS Spot "
@@ -350,7 +362,7 @@ def from_snapshots(*, moto: str | Path, karpenter_prices_go: str | Path, spot_ad
                          "2026-07-20", "us-east-1, Linux, shared tenancy, on-demand", "Apache-2.0"))
     est = b.source(Source("estimate: us-east-1 price x the region's median price ratio", "2026-07-20",
                           f"ratios from skypilot-org/skypilot-catalog vms.csv at {_SAMPLE_COMMIT[:12]}",
-                          "Apache-2.0", estimate=True))
+                          _SKYPILOT_LICENSE, estimate=True))
     spot_src = b.source(Source("estimate: on-demand x (1 - the Spot Instance Advisor's saving)", "2025-06-28",
                                "spot-advisor-data.json field 's', snapshot in alexei-led/spotinfo 5eedf20",
                                "Apache-2.0", estimate=True))
@@ -360,6 +372,20 @@ def from_snapshots(*, moto: str | Path, karpenter_prices_go: str | Path, spot_ad
         for item in json.loads(gzip.decompress(f.read_bytes())):
             if item["InstanceType"] in b.hardware:
                 b.offer(item["InstanceType"], item["Location"])
+    if older_moto is not None:
+        older = Path(older_moto)
+        old_hw = b.source(Source("AWS DescribeInstanceTypes / DescribeInstanceTypeOfferings, as recorded in "
+                                 "moto 5.0.28", "2025-02-02", "previous generations no longer listed since; "
+                                 "AWS may have retired them in some regions", "Apache-2.0"))
+        added = set()
+        for record in json.loads(gzip.decompress((older / "instance_types.json.gz").read_bytes())).values():
+            if record["InstanceType"] not in b.hardware:
+                b.add_hardware(record, old_hw)
+                added.add(record["InstanceType"])
+        for f in sorted((older / "instance_type_offerings" / "region").glob("*.json.gz")):
+            for item in json.loads(gzip.decompress(f.read_bytes())):
+                if item["InstanceType"] in added:
+                    b.offer(item["InstanceType"], item["Location"])
     base = karpenter_prices(Path(karpenter_prices_go).read_text())
     ratios = region_ratios()
     for name, regions in b.offered.items():
@@ -387,6 +413,7 @@ def main(argv: Iterable[str] | None = None) -> None:
     parser.add_argument("--source-date", default="unknown")
     parser.add_argument("--from-snapshots", action="store_true")
     parser.add_argument("--moto")
+    parser.add_argument("--older-moto")
     parser.add_argument("--karpenter-prices")
     parser.add_argument("--spot-advisor")
     args = parser.parse_args(list(argv) if argv is not None else None)
@@ -394,7 +421,7 @@ def main(argv: Iterable[str] | None = None) -> None:
         builder = from_skypilot_csv(args.from_csv, commit=args.source_commit, date=args.source_date)
     elif args.from_snapshots:
         builder = from_snapshots(moto=args.moto, karpenter_prices_go=args.karpenter_prices,
-                                 spot_advisor=args.spot_advisor)
+                                 spot_advisor=args.spot_advisor, older_moto=args.older_moto)
     else:
         parser.error("give --from-csv or --from-snapshots (the AWS path is `fogiac catalog update`)")
     out = builder.write(args.out)

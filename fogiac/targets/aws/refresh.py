@@ -32,10 +32,12 @@ Three ways in, one writer (:class:`Builder`), one format (read by :mod:`.catalog
   AWS stopped listing since (p2, p3, g4ad, f1, dl1). us-east-1 on-demand prices come from Karpenter's
   ``zz_generated.pricing_aws.go`` (aws/karpenter-provider-aws, Apache-2.0, generated from the
   Price List API 2026-07-20). Other regions are *estimates*: the us-east-1 price times the
-  region's median price ratio, measured on the SkyPilot rows in :data:`_REGION_SAMPLES`; regions
-  with no measured ratio stay unpriced. Spot is an estimate too: on-demand less the AWS Spot
-  Instance Advisor's saving (snapshot in alexei-led/spotinfo, 2025-06-28). Each of these is a
-  source in the file, flagged ``estimate`` where it is one; a refresh replaces them with AWS's own.
+  region's median price ratio, measured on the SkyPilot rows in :data:`_REGION_SAMPLES` (seven
+  types); regions with no measured ratio (sa-east-1, ap-south-2, ap-southeast-5, ca-west-1,
+  eu-central-2, il-central-1: SkyPilot's catalogue has no rows there) stay unpriced. Spot is an
+  estimate too: on-demand less the AWS Spot Instance Advisor's saving (snapshot in
+  alexei-led/spotinfo, 2025-06-28). Each of these is a source in the file, flagged ``estimate``
+  where it is one; a refresh replaces them with AWS's own.
 """
 
 from __future__ import annotations
@@ -303,6 +305,17 @@ _REGION_SAMPLES: Mapping[str, Mapping[str, float]] = {
                    "ap-south-1": 1.1739, "ap-southeast-2": 1.27107, "ca-central-1": 1.08547,
                    "eu-central-1": 1.22249, "eu-north-1": 1.03688, "eu-south-2": 1.03008, "eu-west-2": 1.24095,
                    "eu-west-3": 1.24095, "me-central-1": 1.20043, "us-east-2": 0.9776},
+    "t3.2xlarge": {"us-east-1": 0.3328, "af-south-1": 0.4339, "ap-east-1": 0.4672, "ap-northeast-1": 0.4352,
+                   "ap-northeast-2": 0.416, "ap-northeast-3": 0.4352, "ap-south-1": 0.3584, "ap-southeast-1": 0.4224,
+                   "ap-southeast-2": 0.4224, "ap-southeast-3": 0.4224, "ap-southeast-4": 0.4224,
+                   "ca-central-1": 0.3712, "eu-central-1": 0.384, "eu-north-1": 0.3456, "eu-south-1": 0.3834,
+                   "eu-south-2": 0.3648, "eu-west-1": 0.3648, "eu-west-2": 0.3776, "eu-west-3": 0.3776,
+                   "me-central-1": 0.4013, "me-south-1": 0.4013, "us-east-2": 0.3328, "us-west-1": 0.3968,
+                   "us-west-2": 0.3328},
+    "t2.xlarge": {"us-east-1": 0.1856, "ap-northeast-1": 0.2432, "ap-northeast-2": 0.2304, "ap-northeast-3": 0.2432,
+                  "ap-south-1": 0.1984, "ap-southeast-1": 0.2336, "ap-southeast-2": 0.2336, "ca-central-1": 0.2048,
+                  "eu-central-1": 0.2144, "eu-west-1": 0.2016, "eu-west-2": 0.2112, "eu-west-3": 0.2112,
+                  "us-east-2": 0.1856, "us-west-1": 0.2208, "us-west-2": 0.1856},
     "g6.24xlarge": {"us-east-1": 6.6752, "eu-central-1": 8.34732, "eu-north-1": 7.07996, "eu-south-2": 7.03351,
                     "eu-west-2": 8.47339, "eu-west-3": 8.47339, "me-central-1": 8.19669, "us-east-2": 6.6752,
                     "us-west-2": 6.6752},

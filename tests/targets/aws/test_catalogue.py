@@ -111,3 +111,11 @@ def test_loading_and_one_lookup_stay_cheap() -> None:
     cat = load()
     assert cat.price("g6.xlarge", "eu-central-1") is not None
     assert time.perf_counter() - start < 0.2  # validate's whole budget is 0.3 s
+
+
+def test_a_region_without_a_price_source_is_offered_but_unpriced(cat: catalogue.Catalogue) -> None:
+    # sa-east-1 has no measured price ratio in the shipped file: known, offered, cost unknown until a refresh
+    assert cat.offered("g4dn.xlarge", "sa-east-1")
+    assert cat.price("g4dn.xlarge", "sa-east-1") is None and cat.spot("g4dn.xlarge", "sa-east-1") is None
+    assert cat.search(region="sa-east-1", gpu="T4") == []
+    assert "g4dn.xlarge" in names(cat.search(region="sa-east-1", gpu="T4", priced_only=False))

@@ -13,7 +13,7 @@ from functools import cache
 
 from fogiac.targets.aws.catalogue import Catalogue
 from fogiac.targets.aws.manifest import CLOUD as AWS
-from fogiac.targets.aws.manifest import spot_estimate
+from fogiac.targets.aws.manifest import client_vpn, spot_estimate
 
 __all__ = ["AwsCatalog", "catalog", "on_demand", "spot_price"]
 
@@ -33,7 +33,7 @@ class AwsCatalog:
 @cache
 def catalog() -> AwsCatalog:
     prices, cat = AWS.prices(), AWS.catalogue
-    vpn = cat.client_vpn_usd_per_hour
+    vpn = client_vpn(cat)
     return AwsCatalog(source=prices.source, as_of=prices.as_of, spot_source=prices.spot_source,
                       spot_as_of=prices.spot_as_of, spot_method=prices.spot_method,
                       vpn_association_usd_per_hour=vpn["association"], vpn_connection_usd_per_hour=vpn["connection"],

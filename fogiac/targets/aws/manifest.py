@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
+from pathlib import Path
 
 from fogiac.manifest.machines import (
     ALTERNATIVES,
@@ -25,6 +26,7 @@ from fogiac.manifest.machines import (
     Requirement,
 )
 from fogiac.manifest.problems import FieldProblem
+from fogiac.state import state_root
 from fogiac.targets.aws import known
 from fogiac.targets.aws.catalogue import (
     Arch,
@@ -41,6 +43,9 @@ GPU_EXAMPLE = "g4dn.xlarge"  # named when a node sets gpu: true on a type withou
 EDGE_VPN_PREFIX = (12, 22)  # the Client VPN's shortest and longest client range
 SPOT_CEILING = "AWS never charges more than on-demand"
 NETWORK_ITEM = "the Client VPN association"
+# AWS Client VPN pricing page (aws.amazon.com/vpn/pricing), us-east-1, 2025-06: what a refreshed
+# catalogue (which the EC2 APIs cannot fill in) falls back to
+CLIENT_VPN_USD_PER_HOUR = {"association": 0.1, "connection": 0.05}
 REFRESH = "`fogiac catalog update` refreshes the catalogue"
 # A requirement without ``arch`` means x86_64: images and workloads are amd64 unless the manifest
 # says arm64 (Graviton); ``gpu: true`` means a CUDA GPU, since the GPU image is NVIDIA's.
@@ -102,12 +107,24 @@ def cheapest(cat: Catalogue, req: Requirement, region: str, *, spot: bool = Fals
                   chosen_for=req.describe(), ranked_by=by, spot_usd_per_hour=spot_estimate(best) if spot else None)
 
 
+def client_vpn(cat: Catalogue) -> dict[str, float]:
+    """The Client VPN's hourly prices (association, connection): the catalogue's, else the page's."""
+    return {k: float(cat.client_vpn_usd_per_hour.get(k, v)) for k, v in CLIENT_VPN_USD_PER_HOUR.items()}
+
+
+def user_catalogue() -> Path:
+    """Where ``fogiac catalog update`` writes the account's own catalogue, read in place of the shipped one."""
+    return state_root() / "catalogue" / "aws.json.gz"
+
+
 class AwsCloud:
     """The ``cloud:`` variant (:class:`fogiac.manifest.clouds.CloudVariant`) for EC2."""
 
     @property
     def catalogue(self) -> Catalogue:
-        return load()
+        """The user's refreshed catalogue when there is one, else the shipped one (each read once)."""
+        own = user_catalogue()
+        return load(str(own)) if own.is_file() else load()
 
     def regions(self) -> Sequence[str]:
         return self.catalogue.regions
@@ -174,11 +191,13 @@ class AwsCloud:
         spot = [s for s in cat.sources if "spot" in s.name.lower()]
         on_demand = [s for s in cat.sources if s not in spot and "DescribeInstanceTypes" not in s.name]
         return PriceSource(
-            source="; ".join(f"{s.name} ({s.detail})" for s in on_demand), as_of=max(s.date for s in on_demand),
-            spot_source="; ".join(f"{s.detail} ({s.name})" for s in spot), spot_as_of=max(s.date for s in spot),
+            source="; ".join(f"{s.name} ({s.detail})" for s in on_demand),
+            as_of=max((s.date for s in on_demand), default=""),
+            spot_source="; ".join(f"{s.detail} ({s.name})" for s in spot),
+            spot_as_of=max((s.date for s in spot), default=""),
             spot_method=("spot price = on-demand price x (1 - savings/100), rounded to 4 decimals: an estimate of a "
                          "typical recent spot price, not a quote; AWS never charges more than the on-demand price."),
-            spot_ceiling=SPOT_CEILING, network_usd_per_hour=cat.client_vpn_usd_per_hour["association"],
+            spot_ceiling=SPOT_CEILING, network_usd_per_hour=client_vpn(cat)["association"],
             network_item=NETWORK_ITEM)
 
     def price_note(self, name: str, region: str) -> str:

@@ -22,6 +22,9 @@ from typing import Any
 
 from fogiac.errors import CloudError
 from fogiac.extras import need
+from fogiac.plan.model import Plan
+from fogiac.targets.aws import api
+from fogiac.targets.base import Check
 
 SERVICE = "ec2"
 
@@ -186,3 +189,25 @@ def check(machines: Sequence[Machine], *, region: str, quotas: Any, ec2: Any = N
 
 def report(shortfalls: Iterable[Shortfall]) -> list[str]:
     return [s.line() for s in shortfalls]
+
+
+def for_plan(plan: Plan, *, quotas: Any = None, ec2: Any = None) -> list[Shortfall]:
+    """:func:`check` over the plan's hosts, in the plan's region (``quotas``: a Service Quotas client,
+    made from the user's credentials when not given)."""
+    if quotas is None:
+        quotas = api.client("service-quotas", region=plan.region)
+    machines = [Machine(h.name, h.machine, h.vcpus, spot=h.spot) for h in plan.hosts]
+    return check(machines, region=plan.region, quotas=quotas, ec2=ec2)
+
+
+def doctor_checks(plan: Plan, *, quotas: Any = None, ec2: Any = None) -> list[Check]:
+    """``fogiac doctor``'s lines: each machine that would exceed its quota, or that all fit; a quota
+    that cannot be read is said, not failed (the create would still tell)."""
+    try:
+        short = for_plan(plan, quotas=quotas, ec2=ec2)
+    except QuotaUnavailable as err:
+        return [Check("vCPU quotas", True, f"not checked: {err}")]
+    if not short:
+        families = sorted({family_of(h.machine).label for h in plan.hosts})
+        return [Check("vCPU quotas", True, f"the plan fits {', '.join(families)}" if families else "no machines")]
+    return [Check("vCPU quotas", False, line) for line in report(short)]

@@ -119,3 +119,59 @@ def test_no_permission_is_one_line() -> None:
     with pytest.raises(QuotaUnavailable, match=r"^cannot read EC2 vCPU quotas in us-east-1: the credentials lack "
                        r"servicequotas:GetServiceQuota \(add it, or skip the check\)$"):
         check([Machine("a", "m5.large", 2)], region=REGION, quotas=quotas)
+
+
+PLAN = """\
+name: quota
+cloud: {region: us-east-1}
+nodes:
+  - {name: planner, machine: c5.24xlarge, image: "ros:noetic"}
+  - {name: grasp, machine: g5.xlarge, image: "ros:noetic"}
+"""
+
+
+def _plan() -> Any:
+    from fogiac.manifest.schema import parse_manifest
+    from fogiac.plan.compile import compile_plan
+
+    return compile_plan(parse_manifest(PLAN, source="quota.yaml"), target="aws")
+
+
+def test_doctor_names_the_exceeded_quota_and_up_refuses_before_creating(monkeypatch: pytest.MonkeyPatch) -> None:
+    from fogiac.errors import CloudError
+    from fogiac.targets.aws import api, quotas
+    from fogiac.targets.aws.target import AWS
+
+    plan = _plan()
+    client, stubber = _client("service-quotas")
+    _quota(stubber, "L-1216C47A", 96)  # standard: c5.24xlarge's 96 vCPUs fit
+    _quota(stubber, "L-DB2E81BA", 0)  # G and VT: a new account's 0
+    with stubber:
+        checks = quotas.doctor_checks(plan, quotas=client)
+    assert [(c.what, c.ok, c.detail) for c in checks] == [(
+        "vCPU quotas", False,
+        "grasp (g5.xlarge, 4 vCPU) would exceed the on-demand G and VT vCPU quota in us-east-1: L-DB2E81BA allows 0, "
+        "the plan needs 4; ask for more: aws service-quotas request-service-quota-increase --region us-east-1 "
+        "--service-code ec2 --quota-code L-DB2E81BA --desired-value 4")]
+
+    # up: the preflight passes, then the quota check refuses before create is ever called
+    monkeypatch.setattr(api, "preflight", lambda *a, **k: type("R", (), {"zone": "us-east-1a"})())
+    monkeypatch.setattr("fogiac.targets.aws.target.engine.known_ids", lambda stack: frozenset())
+    client, stubber = _client("service-quotas")
+    _quota(stubber, "L-1216C47A", 96)
+    _quota(stubber, "L-DB2E81BA", 0)
+    monkeypatch.setattr(api, "client", lambda service, *, region: client)
+    with stubber, pytest.raises(CloudError, match=r"^grasp \(g5\.xlarge, 4 vCPU\) would exceed the on-demand G and VT "):
+        AWS.prepare(plan, ssh_from="203.0.113.7/32")
+
+
+def test_doctor_says_when_quotas_cannot_be_read() -> None:
+    from fogiac.targets.aws import quotas
+
+    client, stubber = _client("service-quotas")
+    stubber.add_client_error("get_service_quota", "AccessDeniedException", "no")
+    with stubber:
+        checks = quotas.doctor_checks(_plan(), quotas=client)
+    assert [(c.ok, c.detail) for c in checks] == [(True, "not checked: cannot read EC2 vCPU quotas in us-east-1: the "
+                                                         "credentials lack servicequotas:GetServiceQuota (add it, or "
+                                                         "skip the check)")]

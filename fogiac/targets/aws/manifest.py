@@ -10,6 +10,7 @@ catalogue itself is read on first use.
 
 from __future__ import annotations
 
+import re
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -33,6 +34,7 @@ from fogiac.targets.aws.catalogue import (
     Catalogue,
     InstanceType,
     Offer,
+    Source,
     load,
     not_offered,
     suggest_region,
@@ -51,6 +53,10 @@ REFRESH = "`fogiac catalog update` refreshes the catalogue"
 # says arm64 (Graviton); ``gpu: true`` means a CUDA GPU, since the GPU image is NVIDIA's.
 DEFAULT_ARCH: Arch = "x86_64"
 NOT_CUDA = ("Radeon", "Gaudi")
+
+
+_GRAVITON = re.compile(r"^(a1|[a-z]+\d+g[a-z]*)\.")  # c7g, m6gd, t4g, x2gd, im4gn, g5g ...
+_BOTOCORE = Source("botocore's EC2 service model: the type exists; its hardware is not in the catalogue", "", "")
 
 
 def _unpriced(what: str) -> None:
@@ -154,7 +160,13 @@ class AwsCloud:
         return self.catalogue.types
 
     def machine(self, name: str) -> InstanceType | None:
-        return self.catalogue.get(name)
+        """The type's hardware; for a real type the catalogue lacks, what its name says (arch) and zeros."""
+        spec = self.catalogue.get(name)
+        if spec is None and name in known.instance_types():
+            arch: Arch = "arm64" if _GRAVITON.match(name) else "x86_64"
+            return InstanceType(name=name, vcpus=0, memory_gib=0.0, arch=arch, gpus=0, gpu_model=None,
+                                gpu_memory_gib=0.0, accelerator_kind=None, hardware_source=_BOTOCORE)
+        return spec
 
     def check_machine(self, name: str) -> None:
         if name in self.catalogue or name in known.instance_types():

@@ -97,16 +97,17 @@ def test_unknown_constructs_give_one_line_each_naming_file_and_line(tmp_path: Pa
     text = LAUNCH.replace(
         'output="screen", machine=machine)', "machine=fogros2.GCP(zone='us-central1-a'))"
     ).replace("    ld.add_action(camera)\n", "    for extra in range(2):\n        ld.add_action(camera)\n").replace(
-        'ec2_instance_type="g4dn.xlarge"', 'ec2_instance_type="t2.micro"')
+        'ec2_instance_type="g4dn.xlarge"', 'ec2_instance_type="t2.mirco"')
     path = write(tmp_path, text)
     with pytest.raises(ManifestError) as info:
         import_launch(path)
     lines = text.splitlines()
-    at = {key: next(i + 1 for i, line in enumerate(lines) if key in line) for key in ("t2.micro", "for extra", "GCP")}
+    at = {key: next(i + 1 for i, line in enumerate(lines) if key in line) for key in ("t2.mirco", "for extra", "GCP")}
     assert info.value.problems == [
-        f"{path}:{at['t2.micro']}: ec2_instance_type 't2.micro' is not in fogiac's catalog; e.g. t3.medium, "
-        "c5.xlarge, g4dn.xlarge",
-        f"{path}:{at['GCP']}: machine must be an AWS(...) machine (FogROS2's other clouds are not imported)",
+        f"{path}:{at['t2.mirco']}: ec2_instance_type: 't2.mirco' is not a known instance type; did you mean "
+        "'t2.micro'?",
+        f"{path}:{at['GCP']}: FogROS2's GCP machines are not imported: fogiac runs on AWS (AWSCloudInstance, "
+        "target aws) or on machines you have (target hosts)",
         f"{path}:{at['for extra']}: fogiac cannot import 'for extra in range(2):' (not a FogROS2 construct it knows)",
     ]
 
@@ -139,3 +140,118 @@ def test_cli_imports_by_file_kind_and_refuses_others(tmp_path: Path) -> None:
         f"{other}: not a launch file fogiac imports; it reads: FogROS roslaunch XML (.launch, .xml); "
         "FogROS2 Python launch file (.py)")
     assert not (tmp_path / "x.yaml").exists()
+
+
+# FogROS2's own talker.aws.launch.py, as its repository ships it (the AMI helper runs only on the robot).
+TALKER = '''\
+from launch_ros.actions import Node
+
+import fogros2
+
+
+def ami_image():
+    import lsb_release
+
+    ubuntu_release = lsb_release.get_os_release()["RELEASE"]
+    if ubuntu_release == "20.04":
+        return "ami-00f25057ddc9b310b"
+    if ubuntu_release == "22.04":
+        return "ami-0b6030c78f8b2f076"
+    raise ValueError(f"No AMI for {ubuntu_release}")
+
+
+def generate_launch_description():
+    """Talker example that launches the listener locally and the talker in the cloud."""
+    ld = fogros2.FogROSLaunchDescription()
+    machine1 = fogros2.AWSCloudInstance(
+        region="us-west-1", ec2_instance_type="t2.micro", ami_image=ami_image()
+    )
+
+    listener_node = Node(
+        package="fogros2_examples", executable="listener", output="screen"
+    )
+
+    talker_node = fogros2.CloudNode(
+        package="fogros2_examples",
+        executable="talker",
+        output="screen",
+        machine=machine1,
+    )
+    ld.add_action(talker_node)
+    ld.add_action(listener_node)
+    return ld
+'''
+
+
+def test_fogros2s_talker_imports_and_plans(tmp_path: Path) -> None:
+    from fogiac.plan.compile import compile_plan
+
+    converted = import_launch(write(tmp_path, TALKER, "talker.aws.launch.py"))
+    assert (converted.manifest.cloud.region, [n.machine for n in converted.manifest.nodes]) == ("us-west-1",
+                                                                                               ["t2.micro"])
+    assert "#   - fogros2_examples/listener" in converted.text
+    assert "#   - ami_image dropped: fogiac picks each machine's image by its architecture" in converted.text
+    plan = compile_plan(converted.manifest, target="aws")
+    assert (plan.host("talker").machine, plan.host("talker").usd_per_hour) == ("t2.micro", 0.01382)
+    from fogiac.targets.aws.manifest import CLOUD
+
+    assert CLOUD.price_note("t2.micro", "us-west-1") == (
+        "t2.micro in us-west-1: $0.01382/h on-demand (estimate), estimate: us-east-1 price x the region's median "
+        "price ratio (2026-07-20)")
+
+
+# The way FogROS2's documentation and users write it today: AWSCloudInstance, the region helper, the
+# cheapest-type helper, a GPU machine in sa-east-1 (a region the catalogue cannot price) and a loop.
+CURRENT = '''\
+import fogros2
+from launch_ros.actions import Node
+
+REGIONS = {"eu-west-1": {"ami_image": "ami-0eu"}, "us-west-1": {"ami_image": "ami-0us"}}
+
+
+def generate_launch_description():
+    ld = fogros2.FogROSLaunchDescription()
+    region, ami = fogros2.find_nearest_region_and_ami(REGIONS)
+    arm = fogros2.AWSCloudInstance(region=region, ec2_instance_type="t2.xlarge", ami_image=ami)
+    cheap = fogros2.AWSCloudInstance(region=region, ami_image=ami,
+                                     ec2_instance_type=fogros2.find_cheapest_ec2_instance_type(region, "x86_64", 2))
+    talker = fogros2.CloudNode(package="demo", executable="talker", machine=arm)
+    listener = fogros2.CloudNode(package="demo", executable="listener", machine=cheap)
+    for a in (talker, listener):
+        ld.add_action(a)
+    return ld
+'''
+
+
+def test_the_current_style_imports_with_the_helpers_as_fogiac_choices(tmp_path: Path) -> None:
+    from fogiac.plan.compile import compile_plan
+
+    converted = import_launch(write(tmp_path, CURRENT, "current.launch.py"))
+    manifest = converted.manifest
+    assert manifest.cloud.region == "eu-west-1"
+    assert ("#   - cloud.region: FogROS2 picked the region nearest the robot at launch time among eu-west-1, "
+            "us-west-1 (find_nearest_region_and_ami); fogiac uses the first, eu-west-1: set yours") in converted.text
+    plan = compile_plan(manifest, target="aws")
+    assert plan.host("talker").machine == "t2.xlarge"
+    listener = plan.host("listener")
+    assert (listener.chosen_for, listener.vcpus) == ("vcpus == 2", 2)  # the requirement, resolved offline
+
+    gpu = CURRENT.replace("region=region, ec2_instance_type=\"t2.xlarge\"",
+                          "region=\"sa-east-1\", ec2_instance_type=\"g4dn.xlarge\"").replace(
+        "region=region, ami_image=ami,\n", "region=\"sa-east-1\",\n").replace(
+        "fogros2.find_cheapest_ec2_instance_type(region, \"x86_64\", 2)", "\"t3.small\"")
+    with pytest.warns(UserWarning, match=r"g4dn\.xlarge in sa-east-1: cost unknown"):
+        converted = import_launch(write(tmp_path, gpu, "gpu.launch.py"))
+    assert converted.manifest.cloud.region == "sa-east-1"
+
+
+def test_other_fogros2_clouds_are_refused_in_one_line(tmp_path: Path) -> None:
+    text = TALKER.replace('fogros2.AWSCloudInstance(\n        region="us-west-1", ec2_instance_type="t2.micro", '
+                          'ami_image=ami_image()\n    )', 'fogros2.GCPCloudInstance(project_id="lab")')
+    path = write(tmp_path, text, "gcp.launch.py")
+    with pytest.raises(ManifestError) as info:
+        import_launch(path)
+    line = next(i + 1 for i, t in enumerate(text.splitlines()) if "GCPCloudInstance" in t)
+    assert info.value.problems == [
+        f"{path}:{line}: FogROS2's GCP machines are not imported: fogiac runs on AWS (AWSCloudInstance, target aws) "
+        "or on machines you have (target hosts)"]

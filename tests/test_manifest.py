@@ -149,9 +149,9 @@ def test_zone_must_belong_to_the_region(tmp_path: Path) -> None:
 
 
 def test_unsupported_region_lists_the_supported_ones(tmp_path: Path) -> None:
-    text = VALID.replace("us-west-2", "us-west-9")
+    text = VALID.replace("us-west-2", "us-west-9")  # us-west-1 and -2 are one edit away: the name breaks the tie
     assert problems(tmp_path, text) == [
-        "4: cloud.region: 'us-west-9' is not a supported region; did you mean 'us-west-2'?"
+        "4: cloud.region: 'us-west-9' is not a supported region; did you mean 'us-west-1'?"
     ]
 
 

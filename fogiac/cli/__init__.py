@@ -11,7 +11,9 @@ here once and printed one line each, exit code 1, never a traceback.
 from __future__ import annotations
 
 import importlib
-from typing import TYPE_CHECKING, Any
+import sys
+import warnings
+from typing import TYPE_CHECKING, Any, TextIO
 
 import typer
 from typer.core import TyperGroup
@@ -109,7 +111,20 @@ def _root(version: bool = typer.Option(False, "--version", callback=_version, is
     """fogiac: plan before apply, undo everything on down."""
 
 
+_SHOW = warnings.showwarning
+
+
+def _one_line(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+              file: TextIO | None = None, line: str | None = None) -> None:
+    """A warning a user can act on (a cost the catalogue does not know) in one line, like an error."""
+    if issubclass(category, UserWarning):
+        print(f"warning: {message}", file=sys.stderr)
+    else:
+        _SHOW(message, category, filename, lineno, file, line)
+
+
 def main() -> None:
+    warnings.showwarning = _one_line
     app()
 
 

@@ -1,9 +1,13 @@
 """FogROS2 compatibility: read a FogROS2 Python launch file into a fogiac manifest, never running it.
 
 A FogROS2 launch file is Python: ``generate_launch_description`` builds a ``FogROSLaunchDescription``,
-machines ``AWS(region=..., ec2_instance_type=..., disk_size=...)`` (``machine.add_docker_container
-("docker run ... IMAGE CMD")`` adds a container to one) and nodes ``CloudNode(package=...,
-executable=..., machine=...)`` beside plain ``Node(...)`` ones that stay on the robot. Running that
+machines ``fogros2.AWSCloudInstance(region=..., ec2_instance_type=..., disk_size=...)`` (or the older
+``AWS(...)``; ``machine.add_docker_container("docker run ... IMAGE CMD")`` adds a container to one)
+and nodes ``CloudNode(package=..., executable=..., machine=...)`` beside plain ``Node(...)`` ones that
+stay on the robot, added one by one or in a loop over names. FogROS2's launch-time helpers become
+what fogiac decides offline: ``find_nearest_region_and_ami`` the first region listed (a to-do line
+names FogROS2's choice), ``find_cheapest_ec2_instance_type`` a machine requirement that ``plan``
+resolves to the cheapest fit; ``ami_image=`` is dropped (fogiac picks the image by architecture). Running that
 file would run whatever else it holds, so it is parsed with :mod:`ast` and read as data: only string
 and number literals (and names bound to them) are taken; any other statement fogiac does not know
 is one error line naming ``file:line``. Nothing here imports or executes the file.
@@ -18,7 +22,6 @@ FogROS2 file names none, so every node gets empty lists and the header says to f
 from __future__ import annotations
 
 import ast
-import shlex
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -28,7 +31,9 @@ import yaml
 from fogiac.errors import ManifestError
 from fogiac.manifest.clouds import variant
 from fogiac.manifest.fogros import _dns
+from fogiac.manifest.fogros2_docker import docker_node
 from fogiac.manifest.importers import Converted
+from fogiac.manifest.problems import FieldProblem
 from fogiac.manifest.schema import parse_manifest
 
 SUFFIXES = (".py",)
@@ -36,20 +41,17 @@ DISTRO = "humble"  # the ROS 2 distribution FogROS2 supports
 _ENTRY = "generate_launch_description"
 _AWS_IGNORED = {"ami_image", "ros_workspace", "working_dir_base", "launch_foxglove"}  # fogiac chooses these itself
 _NODE_IGNORED = {"output", "emulate_tty"}
-# docker run options that take a value (the next word, or after "="); every other option is a flag.
-_VALUED = {"-e", "--env", "-v", "--volume", "--net", "--network", "--name", "--gpus", "-p", "--publish", "-w",
-           "--workdir", "--entrypoint", "--runtime", "--ipc", "--shm-size", "-u", "--user", "--env-file",
-           "--mount", "--device", "--add-host", "--hostname", "-h", "--restart", "--pid", "--ulimit", "-m",
-           "--memory", "--cpus", "--label", "-l"}
 _FAILED = object()  # a name whose value could not be read (already reported)
-_DDS_ENV = {"RMW_IMPLEMENTATION", "CYCLONEDDS_URI", "FASTRTPS_DEFAULT_PROFILES_FILE"}  # fogiac's Zenoh replaces DDS
+_AMI = object()  # the AMI find_nearest_region_and_ami returns: fogiac picks its own image
+_AWS = ("AWS", "AWSCloudInstance")
+_OTHER_CLOUDS = {"GCP": "GCP", "GCPCloudInstance": "GCP", "KubeInstance": "Kubernetes", "Kubernetes": "Kubernetes"}
 
 
 @dataclass
 class _Machine:
     line: int
     region: str
-    instance_type: str
+    instance_type: str | dict[str, Any]  # a type, or a requirement (find_cheapest_ec2_instance_type)
     disk_gb: int | None
     containers: list[tuple[str, int]] = field(default_factory=list)
 
@@ -73,6 +75,7 @@ class _Reader:
         self.machines: list[_Machine] = []
         self.cloud: list[_CloudNode] = []
         self.local: list[str] = []
+        self.notes: list[str] = []
         self.found_entry = False
 
     def problem(self, node: ast.AST, what: str) -> None:
@@ -102,10 +105,19 @@ class _Reader:
             self.assign(stmt)
         elif isinstance(stmt, ast.Expr) and isinstance(stmt.value, ast.Call):
             self.method(stmt.value)
+        elif _is_loop_over_names(stmt):
+            assert isinstance(stmt, ast.For) and isinstance(stmt.target, ast.Name)
+            for item in stmt.iter.elts:  # type: ignore[attr-defined]
+                self.values[stmt.target.id] = self.values.get(item.id, _FAILED)
+                for inner in stmt.body:
+                    self.statement(inner)
         else:
             self.unsupported(stmt)
 
     def assign(self, stmt: ast.Assign) -> None:
+        if len(stmt.targets) == 1 and isinstance(stmt.value, ast.Call) \
+                and _callee(stmt.value) == "find_nearest_region_and_ami":
+            return self.nearest(stmt)
         if len(stmt.targets) != 1 or not isinstance(stmt.targets[0], ast.Name):
             return self.unsupported(stmt)
         name = stmt.targets[0].id
@@ -123,8 +135,14 @@ class _Reader:
         callee = _callee(call)
         if callee == "FogROSLaunchDescription":
             return "ld"
-        if callee == "AWS":
+        if callee in _AWS:
             return self.aws(call)
+        if callee == "find_cheapest_ec2_instance_type":
+            return self.cheapest(call)
+        if callee in _OTHER_CLOUDS:
+            self.problem(call, f"FogROS2's {_OTHER_CLOUDS[callee]} machines are not imported: fogiac runs on AWS "
+                               "(AWSCloudInstance, target aws) or on machines you have (target hosts)")
+            return None
         if callee == "CloudNode":
             return self.cloud_node(call)
         if callee == "Node":
@@ -169,20 +187,28 @@ class _Reader:
         if call.args or any(k.arg is None for k in call.keywords):
             self.problem(call, "AWS(...) takes keyword arguments only")
         region = self.string(kwargs["region"], "AWS region") if "region" in kwargs else "us-west-1"
-        kind = self.string(kwargs["ec2_instance_type"], "ec2_instance_type") if "ec2_instance_type" in kwargs \
-            else "t2.micro"  # FogROS2's defaults
+        given = kwargs.get("ec2_instance_type")
+        kind: str | dict[str, Any] | None = "t2.micro"  # FogROS2's defaults
+        if isinstance(given, ast.Call) and _callee(given) == "find_cheapest_ec2_instance_type":
+            kind = self.cheapest(given)
+        elif isinstance(given, ast.Name) and isinstance(self.values.get(given.id), dict):
+            kind = self.values[given.id]
+        elif given is not None:
+            kind = self.string(given, "ec2_instance_type")
         disk = self.literal(kwargs["disk_size"]) if "disk_size" in kwargs else None
+        if "ami_image" in kwargs and not any("ami_image" in n for n in self.notes):
+            self.notes.append("ami_image dropped: fogiac picks each machine's image by its architecture "
+                              "(Ubuntu 24.04, or AWS's Deep Learning image on GPU machines; amd64 or arm64)")
         if region is None or kind is None:
             return None
-        aws = variant("aws")  # FogROS2's AWS(...) names EC2 types and regions
-        if aws.machine(kind) is None:
-            self.problem(kwargs.get("ec2_instance_type", call),
-                         f"ec2_instance_type {kind!r} is not in fogiac's catalog; e.g. t3.medium, c5.xlarge, "
-                         "g4dn.xlarge")
-        regions = sorted(aws.regions())
-        if region not in regions:
-            self.problem(kwargs.get("region", call),
-                         f"region {region!r} is not one fogiac prices; valid: {', '.join(regions)}")
+        aws = variant("aws")  # FogROS2's machines name EC2 types and regions
+        for what, check, value in (("ec2_instance_type", aws.check_machine, kind), ("region", aws.check_region,
+                                                                                      region)):
+            try:
+                if isinstance(value, str):
+                    check(value)
+            except FieldProblem as err:
+                self.problem(kwargs.get(what, call), f"{what}: {err.message}")
         machine = _Machine(call.lineno, region, kind, disk if isinstance(disk, int) else None)
         self.machines.append(machine)
         return machine
@@ -199,8 +225,10 @@ class _Reader:
         package, executable = self.string(kwargs["package"], "package"), self.string(kwargs["executable"], "executable")
         name = self.string(kwargs["name"], "name") if "name" in kwargs else None
         where = kwargs["machine"]
-        machine = self.aws(where) if isinstance(where, ast.Call) and _callee(where) == "AWS" else \
-            self.values.get(where.id) if isinstance(where, ast.Name) else None
+        machine = self.call(where) if isinstance(where, ast.Call) and _callee(where) in (*_AWS, *_OTHER_CLOUDS) \
+            else self.values.get(where.id) if isinstance(where, ast.Name) else None
+        if machine is None or machine is _FAILED:
+            return None  # said where the machine was made
         if not isinstance(machine, _Machine):
             self.problem(where, "machine must be an AWS(...) machine (FogROS2's other clouds are not imported)")
             return None
@@ -209,6 +237,50 @@ class _Reader:
         node = _CloudNode(package, executable, name, machine, call.lineno)
         self.cloud.append(node)
         return node
+
+
+    def nearest(self, stmt: ast.Assign) -> None:
+        """``region, ami = find_nearest_region_and_ami(REGIONS)``: FogROS2 measures at launch time; fogiac
+        takes the first region listed and says so."""
+        target, call = stmt.targets[0], stmt.value
+        assert isinstance(call, ast.Call)
+        arg = call.args[0] if len(call.args) == 1 else None
+        listed = self.values.get(arg.id) if isinstance(arg, ast.Name) else self.literal(arg) if arg else None
+        names = [t.id for t in target.elts if isinstance(t, ast.Name)] if isinstance(target, ast.Tuple) else []
+        if not isinstance(listed, (dict, list, tuple)) or not listed or len(names) != 2:
+            return self.problem(stmt, "find_nearest_region_and_ami needs a literal list or dict of regions, "
+                                      "unpacked as 'region, ami = ...'")
+        regions = list(listed)
+        self.values[names[0]], self.values[names[1]] = regions[0], _AMI
+        self.notes.append(f"cloud.region: FogROS2 picked the region nearest the robot at launch time among "
+                          f"{', '.join(regions)} (find_nearest_region_and_ami); fogiac uses the first, {regions[0]}: "
+                          "set yours")
+        return None
+
+    def cheapest(self, call: ast.Call) -> dict[str, Any] | None:
+        """``find_cheapest_ec2_instance_type(region, cpu_architecture, default_cores,
+        default_threads_per_core, gpu)`` as the requirement ``plan`` resolves to the cheapest fit."""
+        names = ("region_name", "cpu_architecture", "default_cores", "default_threads_per_core", "gpu")
+        given = dict(zip(names, call.args, strict=False)) | {k.arg: k.value for k in call.keywords if k.arg}
+        args = {k: self.values.get(v.id) if isinstance(v, ast.Name) else self.literal(v) for k, v in given.items()}
+        if args.get("cpu_architecture", "x86_64") != "x86_64":
+            self.problem(call, "find_cheapest_ec2_instance_type for arm64: name a Graviton type instead "
+                               "(fogiac's requirement takes vCPUs, memory and GPU)")
+            return None
+        cores, threads = args.get("default_cores", 2), args.get("default_threads_per_core", 1)
+        if not isinstance(cores, int) or not isinstance(threads, int):
+            self.problem(call, "find_cheapest_ec2_instance_type's cores and threads must be numbers")
+            return None
+        need: dict[str, Any] = {"vcpus": f"=={cores * threads}"}
+        if args.get("gpu"):
+            need["gpu"] = True
+        return need
+
+
+def _is_loop_over_names(stmt: ast.stmt) -> bool:
+    """``for a in (x, y): ld.add_action(a)``: a loop over names bound earlier, nothing else."""
+    return (isinstance(stmt, ast.For) and isinstance(stmt.target, ast.Name) and not stmt.orelse
+            and isinstance(stmt.iter, (ast.Tuple, ast.List)) and all(isinstance(e, ast.Name) for e in stmt.iter.elts))
 
 
 def _name(nodes: list[ast.expr]) -> str:
@@ -222,28 +294,6 @@ def _callee(call: ast.Call) -> str:
 
 def _is_docstring(stmt: ast.stmt) -> bool:
     return isinstance(stmt, ast.Expr) and isinstance(stmt.value, ast.Constant) and isinstance(stmt.value.value, str)
-
-
-def docker_node(command: str) -> tuple[str, tuple[str, ...], dict[str, str], bool] | None:
-    """``docker run`` words -> (image, command after it, environment, wants GPUs); None if not a docker run."""
-    words = shlex.split(command)
-    words = words[1:] if words[:1] == ["sudo"] else words
-    if words[:2] != ["docker", "run"]:
-        return None
-    env: dict[str, str] = {}
-    gpus, i = False, 2
-    while i < len(words) and words[i].startswith("-"):
-        option, eq, value = words[i].partition("=")
-        i += 1
-        if not eq and option in _VALUED and i < len(words):
-            value, i = words[i], i + 1
-        if option in ("-e", "--env") and "=" in value and value.split("=", 1)[0] not in _DDS_ENV:
-            key, val = value.split("=", 1)
-            env[key] = val
-        gpus = gpus or option == "--gpus"
-    if i >= len(words):
-        return None
-    return words[i], tuple(words[i + 1:]), env, gpus
 
 
 def convert(path: Path) -> tuple[dict, list[str], list[str]]:
@@ -266,6 +316,7 @@ def convert(path: Path) -> tuple[dict, list[str], list[str]]:
     if reader.problems:
         raise ManifestError(reader.problems)
     nodes, notes = _nodes(reader)
+    notes = reader.notes + notes
     if not nodes:
         raise ManifestError([f"{source}:1: no CloudNode and no add_docker_container in this launch file"])
     data = {"name": _dns(path.name.removesuffix(".py").removesuffix(".launch")), "ros": {"distro": DISTRO},

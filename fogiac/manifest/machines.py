@@ -40,6 +40,10 @@ class MachineSpec(Protocol):
     def gpu_model(self) -> str | None: ...
     @property
     def has_gpu(self) -> bool: ...
+    @property
+    def arch(self) -> str: ...
+    @property
+    def gpu_memory_gib(self) -> float: ...
 
 
 @dataclass(frozen=True)
@@ -76,11 +80,14 @@ def parse_bound(text: str | int | float) -> Bound:
 
 @dataclass(frozen=True)
 class Requirement:
-    """What a node needs; ``gpu`` is True (any GPU), a model such as ``"T4"``, or None (no need)."""
+    """What a node needs; ``gpu`` is True (any GPU), a model such as ``"T4"``, or None (no need);
+    ``arch`` is ``x86_64``, ``arm64`` or None (either)."""
 
     gpu: bool | str | None = None
     vcpus: Bound | None = None
     memory_gib: Bound | None = None
+    arch: Literal["x86_64", "arm64"] | None = None
+    gpu_memory_gib: Bound | None = None  # all the machine's GPUs together
 
     def describe(self) -> str:
         parts = []
@@ -92,6 +99,10 @@ class Requirement:
             parts.append(f"vcpus {self.vcpus}")
         if self.memory_gib is not None:
             parts.append(f"memory_gib {self.memory_gib}")
+        if self.gpu_memory_gib is not None:
+            parts.append(f"gpu_memory_gib {self.gpu_memory_gib}")
+        if self.arch is not None:
+            parts.append(f"arch {self.arch}")
         return ", ".join(parts) or "any machine"
 
     def _gpu_miss(self, spec: MachineSpec) -> float:
@@ -110,6 +121,10 @@ class Requirement:
             total += self.vcpus.miss(spec.vcpus)
         if self.memory_gib is not None:
             total += self.memory_gib.miss(spec.memory_gib)
+        if self.gpu_memory_gib is not None:
+            total += self.gpu_memory_gib.miss(spec.gpu_memory_gib)
+        if self.arch is not None and spec.arch != self.arch:
+            total += 1.0
         return total
 
 
@@ -152,6 +167,10 @@ class PriceSource:
     spot_ceiling: str = ""  # why a spot estimate is at most on-demand, in the provider's words
     network_usd_per_hour: float = 0.0  # billed while the network exists, whether or not an edge is connected
     network_item: str = ""  # that charge in words, as a status line and a cost note name it
+
+
+class CostUnknown(UserWarning):
+    """A machine or region the provider has but the catalogue cannot price: accepted, and said in one line."""
 
 
 class NoMachine(ValueError):

@@ -89,7 +89,7 @@ def test_8_import_infers_the_gpu_from_the_machine_type_and_says_what_next(tmp_pa
     assert code == 0, out
     assert out == [
         f"wrote {out_file}: 2 cloud node(s) from {robot}",
-        "inferred dexnet: gpu: true, because g4dn.xlarge has 1 GPU(s) (NVIDIA T4)",
+        "inferred dexnet: gpu: true, because g4dn.xlarge has 1 GPU(s) (T4)",
         f"next: fogiac validate {out_file} && fogiac plan {out_file}",
     ]
     nodes = {n.name: n for n in load_manifest(out_file).nodes}

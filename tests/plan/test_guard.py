@@ -8,7 +8,7 @@ from pathlib import Path
 
 from fogiac.manifest.schema import load_manifest
 from fogiac.lifecycle.edge import edge_dir, edge_idle_since
-from fogiac.targets.aws.catalog import catalog
+from fogiac.targets.aws.catalog import spot_price
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.guard import Billed, duration, guard, render, up_summary
 from fogiac.plan.model import Plan
@@ -93,7 +93,7 @@ def test_spot_lines_are_priced_at_the_estimate_and_say_so() -> None:
 
 
 def test_up_summary_prices_spot_hosts_at_the_estimate_with_on_demand_as_the_ceiling(tmp_path: Path) -> None:
-    spot = catalog().types["g4dn.xlarge"].spot_usd_per_hour("us-west-2")
+    spot = spot_price("g4dn.xlarge", "us-west-2")
     assert spot is not None
     assert up_summary(_plan(tmp_path, spot=True)) == (
         f"cost: about ${spot + 0.15:.4f}/h while up (spot hosts at the catalogue's spot estimate of 2025-06-28; "

@@ -18,17 +18,23 @@ def req(gpu: bool | str | None = None, vcpus: str | None = None, memory: str | N
                        memory_gib=parse_bound(memory) if memory else None)
 
 
-# (requirement, region, chosen, the two alternatives) -- prices from the checked-in catalogue
+# (requirement, region, chosen, the two alternatives) -- prices from the shipped catalogue (every
+# current and previous family; a requirement without arch is x86_64, and a CPU one pays for no accelerator)
 CHEAPEST = [
     (req(gpu="T4", vcpus=">=8", memory=">=16"), "us-west-2", "g4dn.2xlarge", ("g4dn.4xlarge", "g4dn.8xlarge")),
     (req(gpu="t4"), "us-east-1", "g4dn.xlarge", ("g4dn.2xlarge", "g4dn.4xlarge")),
-    (req(gpu=True), "us-west-2", "g4dn.xlarge", ("g4dn.2xlarge", "g5.xlarge")),
+    (req(gpu=True), "us-west-2", "g4dn.xlarge", ("g4dn.2xlarge", "g6.xlarge")),
     (req(gpu="NVIDIA A10G", memory="32"), "us-west-2", "g5.2xlarge", ("g5.4xlarge", "g5.8xlarge")),
-    (req(gpu="V100"), "us-west-2", "p3.2xlarge", ("p3.8xlarge",)),
-    (req(vcpus="2", memory=">=1"), "us-west-2", "t3.micro", ("t3.small", "t3.medium")),
-    (req(vcpus=">=64"), "us-west-2", "c6i.16xlarge", ("c5.18xlarge", "m5.16xlarge")),
-    (req(vcpus="==4", memory="<=8"), "us-west-2", "c5.xlarge", ("c6i.xlarge",)),
-    (req(vcpus=">2", memory="<16"), "us-west-2", "c5.xlarge", ("c6i.xlarge",)),
+    (req(gpu="V100"), "us-west-2", "p3.2xlarge", ("p3.8xlarge", "p3.16xlarge")),
+    (req(vcpus="2", memory=">=1"), "us-west-2", "t3a.micro", ("t3.micro", "t3a.small")),
+    (req(vcpus=">=64"), "us-west-2", "c6a.16xlarge", ("c5a.16xlarge", "c7i-flex.16xlarge")),
+    (req(vcpus="==4", memory="<=8"), "us-west-2", "c6a.xlarge", ("c5a.xlarge", "c7i-flex.xlarge")),
+    (req(vcpus=">2", memory="<16"), "us-west-2", "c6a.xlarge", ("c5a.xlarge", "c7i-flex.xlarge")),
+    (Requirement(arch="arm64", vcpus=parse_bound(">=8")), "us-west-2", "a1.2xlarge", ("t4g.2xlarge", "c6g.2xlarge")),
+    # EC2 reports a 24 GB card (A10G, L4) as 22.4 GiB
+    (Requirement(gpu_memory_gib=parse_bound(">=22")), "us-east-1", "g6.xlarge", ("g6.2xlarge", "g5.xlarge")),
+    (req(gpu="L4", vcpus=">=4"), "us-east-1", "g6.xlarge", ("g6.2xlarge", "g6.4xlarge")),
+    (req(gpu="A10G", vcpus=">=16"), "us-west-2", "g5.4xlarge", ("g5.8xlarge", "g5.16xlarge")),
 ]
 
 
@@ -42,11 +48,11 @@ def test_cheapest_match_and_next_two(requirement: Requirement, region: str, chos
     assert prices == sorted(prices)
 
 
-# Equal prices: the smaller machine first, then the name (c5.2xlarge and c6i.2xlarge are both $0.34, 8 vCPU, 16 GiB).
+# Equal prices: the smaller machine first, then the name.
 TIES = [
-    (req(vcpus="==8", memory="==16"), "c5.2xlarge", ("c6i.2xlarge",)),
-    (req(vcpus=">=48", memory="<=96"), "c5.12xlarge", ("c6i.12xlarge",)),
-    (req(vcpus="==96", memory="192"), "c5.24xlarge", ("c6i.24xlarge", "m5.24xlarge")),
+    (req(vcpus=">=48", memory="<=96"), "c6a.12xlarge", ("c5a.12xlarge", "c7i-flex.12xlarge")),
+    (req(vcpus="==48", memory="==96"), "c6a.12xlarge", ("c5a.12xlarge", "c7i-flex.12xlarge")),
+    (req(vcpus="==96", memory="192"), "c6a.24xlarge", ("c5a.24xlarge", "c5.24xlarge")),
 ]
 
 
@@ -58,10 +64,10 @@ def test_ties_go_to_the_smaller_then_the_name(requirement: Requirement, chosen: 
 
 
 NOTHING = [
-    (req(gpu="A100"), r"^no instance type in us-west-2 has gpu A100; closest: g4dn\.xlarge \(1x NVIDIA T4, "
-                      r"4 vCPU, 16 GiB, \$0\.526/h\), g4dn\.2xlarge .*, g5\.xlarge \(1x NVIDIA A10G, .*\)$"),
+    (req(gpu="MI300"), r"^no instance type in us-west-2 has gpu MI300; closest: g4ad\.xlarge \(1x Radeon Pro V520, "
+                       r"4 vCPU, 16 GiB, \$0\.37853/h\), g4dn\.xlarge .*$"),
     (req(gpu="T4", vcpus=">=200"), r"^no instance type in us-west-2 has gpu T4, vcpus >= 200; "
-                                   r"closest: g4dn\.16xlarge .*, g4dn\.12xlarge .*, g4dn\.8xlarge .*$"),
+                                   r"closest: g4dn\.metal .*, g4dn\.16xlarge .*, g4dn\.12xlarge .*$"),
     (req(vcpus=">=8", memory="<2"), r"^no instance type in us-west-2 has vcpus >= 8, memory_gib < 2; closest: "),
 ]
 
@@ -114,7 +120,7 @@ def test_plain_type_name_keeps_working_and_has_no_menu() -> None:
 
 
 @pytest.mark.parametrize(("machine", "message"), [
-    ("{gpu: A100}", "nodes[0].machine: no instance type in us-west-2 has gpu A100; closest: g4dn.xlarge"),
+    ("{gpu: MI300}", "nodes[0].machine: no instance type in us-west-2 has gpu MI300; closest: "),
     ("{type: c5.large, vcpus: 4}", "nodes[0].machine: give either type or requirements (vcpus), not both"),
     ("{}", "nodes[0].machine: needs a type or at least one of gpu, vcpus, memory_gib"),
     ("{vcpu: 8}", "nodes[0].machine.vcpu: unknown key; did you mean 'vcpus'?"),

@@ -14,7 +14,8 @@ from typer.testing import CliRunner
 
 from fogiac.cli import app
 from fogiac.manifest.schema import parse_manifest
-from fogiac.targets.aws.catalog import catalog
+from fogiac.targets.aws.catalog import catalog, spot_price
+from fogiac.targets.aws.catalog import on_demand as on_demand_price
 from fogiac.plan.compile import compile_plan
 from fogiac.manifest.machines import NoMachine, Requirement
 from fogiac.targets.aws.machines import choose
@@ -24,11 +25,11 @@ from .test_machines import manifest, req
 # (requirement, region, chosen at spot, its two alternatives at spot, chosen at on-demand)
 SPOT_CHEAPEST = [
     (req(gpu="NVIDIA A10G", memory="32"), "us-west-2", "g5.4xlarge", ("g5.2xlarge", "g5.8xlarge"), "g5.2xlarge"),
-    (req(vcpus=">=64"), "us-east-1", "c5.18xlarge", ("m5.16xlarge", "c6i.16xlarge"), "c6i.16xlarge"),
-    (req(vcpus="==4", memory="<=8"), "us-west-2", "c6i.xlarge", ("c5.xlarge",), "c5.xlarge"),
-    (req(vcpus=">=4"), "us-east-1", "m5.xlarge", ("t3.xlarge", "c6i.xlarge"), "t3.xlarge"),
-    (req(vcpus=">=4"), "us-west-2", "t3.xlarge", ("m5.xlarge", "c6i.xlarge"), "t3.xlarge"),  # same pick, new menu
-    (req(gpu=True), "us-west-2", "g4dn.xlarge", ("g4dn.2xlarge", "g4dn.4xlarge"), "g4dn.xlarge"),
+    (req(vcpus=">=64"), "us-east-1", "c7i-flex.16xlarge", ("r6a.16xlarge", "c5.18xlarge"), "c6a.16xlarge"),
+    (req(vcpus="==4", memory="<=8"), "us-west-2", "c6a.xlarge", ("c6i.xlarge", "c5ad.xlarge"), "c6a.xlarge"),
+    (req(vcpus=">=4"), "us-east-1", "t3a.xlarge", ("t2.xlarge", "c6a.xlarge"), "t3a.xlarge"),  # same pick, new menu
+    (req(vcpus=">=4"), "us-west-2", "c6a.xlarge", ("t3.xlarge", "t3a.xlarge"), "t3a.xlarge"),
+    (req(gpu=True), "us-west-2", "g4dn.xlarge", ("g4dn.2xlarge", "p2.xlarge"), "g4dn.xlarge"),
     (req(gpu="T4", vcpus=">=8", memory=">=16"), "us-west-2", "g4dn.2xlarge", ("g4dn.4xlarge", "g4dn.8xlarge"),
      "g4dn.2xlarge"),
 ]
@@ -40,33 +41,26 @@ def test_spot_ranks_by_the_spot_estimate(requirement: Requirement, region: str, 
     choice = choose(requirement, region, spot=True)
     assert (choice.machine, tuple(o.name for o in choice.alternatives)) == (chosen, alternatives)
     assert choice.ranked_by == "spot"
-    types = catalog().types
     estimates = [choice.spot_usd_per_hour] + [o.spot_usd_per_hour for o in choice.alternatives]
-    assert estimates == [types[n].spot_usd_per_hour(region) for n in (chosen, *alternatives)]
+    assert estimates == [spot_price(n, region) for n in (chosen, *alternatives)]
     assert estimates == sorted(estimates)  # type: ignore[type-var]
-    assert choice.usd_per_hour == types[chosen].usd_per_hour[region]  # on-demand still carried: spot's ceiling
+    assert choice.usd_per_hour == on_demand_price(chosen, region)  # on-demand still carried: spot's ceiling
     plain = choose(requirement, region)
     assert (plain.machine, plain.ranked_by, plain.spot_usd_per_hour) == (on_demand, "on-demand", None)
 
 
-# Equal spot estimates: the smaller machine first, then the name, as at on-demand.
-SPOT_TIES = [
-    (req(vcpus=">=48", memory="<=96"), "us-east-1", "c5.12xlarge", ("c6i.12xlarge",)),  # both $0.6732/h spot
-]
-
-
-@pytest.mark.parametrize(("requirement", "region", "chosen", "alternatives"), SPOT_TIES)
-def test_spot_ties_go_to_the_smaller_then_the_name(requirement: Requirement, region: str, chosen: str,
-                                                   alternatives: tuple[str, ...]) -> None:
-    choice = choose(requirement, region, spot=True)
-    assert (choice.machine, tuple(o.name for o in choice.alternatives)) == (chosen, alternatives)
-    assert {choice.spot_usd_per_hour} == {o.spot_usd_per_hour for o in choice.alternatives}  # a real tie
+def test_spot_ties_go_to_the_smaller_then_the_name() -> None:
+    """Equal spot estimates: the smaller machine first, then the name, as at on-demand."""
+    assert spot_price("c5.12xlarge", "us-east-1") == spot_price("c6i.12xlarge", "us-east-1") == 0.6732  # a real tie
+    offers = catalog().facts.search(region="us-east-1", vcpus="==48", memory="==96", spot=True)
+    names = [o.type.name for o in offers]
+    assert names.index("c6i.12xlarge") == names.index("c5.12xlarge") + 1
 
 
 def test_nothing_fits_names_the_closest_with_their_spot_estimates() -> None:
-    with pytest.raises(NoMachine, match=r"^no instance type in us-west-2 has gpu A100; closest: g4dn\.xlarge "
-                                        r"\(1x NVIDIA T4, 4 vCPU, 16 GiB, \$0\.526/h, spot about \$0\.1894/h\), "):
-        choose(req(gpu="A100"), "us-west-2", spot=True)
+    with pytest.raises(NoMachine, match=r"^no instance type in us-west-2 has gpu MI300; closest: g4ad\.xlarge "
+                                        r"\(1x Radeon Pro V520, 4 vCPU, 16 GiB, \$0\.37853/h, spot about \$0\.1438/h\), "):
+        choose(req(gpu="MI300"), "us-west-2", spot=True)
 
 
 @pytest.mark.parametrize(("target", "machine", "ranked_by", "spot_each"), [
@@ -83,7 +77,7 @@ def test_compile_ranks_a_spot_node_by_what_the_target_buys(target: str, machine:
 def test_plain_type_with_spot_keeps_working() -> None:
     host = compile_plan(parse_manifest(manifest("g5.xlarge", extra="    spot: true\n"))).host("planner")
     assert (host.machine, host.chosen_for, host.ranked_by, host.alternatives) == ("g5.xlarge", None, None, ())
-    assert host.spot and host.spot_usd_per_hour == catalog().types["g5.xlarge"].spot_usd_per_hour("us-west-2")
+    assert host.spot and host.spot_usd_per_hour == spot_price("g5.xlarge", "us-west-2")
 
 
 def test_plan_shows_which_price_ranked_the_menu(tmp_path: Path) -> None:

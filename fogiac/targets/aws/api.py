@@ -21,7 +21,7 @@ from typing import Any
 from fogiac.errors import CloudError, CredentialsError, PreflightError
 from fogiac.manifest.schema import ssh_from_problem
 from fogiac.plan.model import OPERATOR, Plan
-from fogiac.targets.aws.catalog import catalog
+from fogiac.targets.aws.catalog import on_demand, spot_price
 from fogiac.targets.aws.model import ImageQuery, image_of
 from fogiac.targets.aws.sdk import need
 from stacks import HOST_KEYS_BEGIN, HOST_KEYS_END
@@ -323,7 +323,6 @@ def status(stack: str, *, region: str, ec2: Any = None,
     estimate, any other, or a spot type without an estimate, at on-demand."""
     ec2 = ec2 or client("ec2", region=region)
     now = now or _dt.datetime.now(_dt.timezone.utc)
-    prices = catalog().types
     rows = []
     for reservation in paginate(ec2, "describe_instances", "Reservations", Filters=tag_filter(stack)):
         for inst in reservation["Instances"]:
@@ -333,11 +332,9 @@ def status(stack: str, *, region: str, ec2: Any = None,
             launched = inst["LaunchTime"]
             running = state in {"pending", "running", "stopping"}
             uptime = max(0.0, (now - launched).total_seconds()) if running else 0.0
-            known = prices.get(inst["InstanceType"])
             spot = inst.get("InstanceLifecycle") == "spot"
-            on_demand = known.usd_per_hour.get(region, 0.0) if known is not None else 0.0
-            estimate = known.spot_usd_per_hour(region) if known is not None and spot else None
-            price = on_demand if estimate is None else estimate
+            estimate = spot_price(inst["InstanceType"], region) if spot else None
+            price = on_demand(inst["InstanceType"], region) if estimate is None else estimate
             tags = tags_of(inst)
             stopped_at, stopped_by = stop_time(inst)
             rows.append(InstanceStatus(

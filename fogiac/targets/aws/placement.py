@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from fogiac.manifest.machines import MachineSpec
 from fogiac.manifest.schema import Manifest
 from fogiac.net import middleware
 from fogiac.plan.model import (
@@ -10,6 +11,7 @@ from fogiac.plan.model import (
     SSH_PORT,
     CostLine,
     HostSpec,
+    MachineImage,
     NetworkSpec,
     Rule,
     SecurityGroup,
@@ -17,14 +19,15 @@ from fogiac.plan.model import (
     server_name,
 )
 from fogiac.plan.placement import Placement, Tags, autostop_for, host_per_node, ssh_sources
-from fogiac.targets.aws.catalog import catalog
+from fogiac.targets.aws.catalog import catalog, on_demand, spot_price
 from fogiac.targets.aws.model import ImageQuery, VpnSpec
 
 _WORLD = "0.0.0.0/0"
 AUTOSTOP_MINUTES = 30  # unless the manifest says otherwise, an EC2 host idle this long powers itself off
 
 # Ubuntu LTS from Canonical for CPU types; AWS's Deep Learning Base image (NVIDIA driver and
-# container toolkit preinstalled) for GPU types. ROS itself runs in containers on the hosts.
+# container toolkit preinstalled) for GPU types; each for the machine's architecture (Graviton is
+# arm64). ROS itself runs in containers on the hosts.
 UBUNTU = ImageQuery(
     owners=("099720109477",),
     name_pattern="ubuntu/images/hvm-ssd-gp3/ubuntu-noble-24.04-amd64-server-*",
@@ -35,6 +38,23 @@ NVIDIA = ImageQuery(
     name_pattern="Deep Learning Base OSS Nvidia Driver GPU AMI (Ubuntu 22.04) *",
     description="AWS Deep Learning Base, NVIDIA driver, Ubuntu 22.04",
 )
+UBUNTU_ARM64 = ImageQuery(
+    owners=("099720109477",),
+    name_pattern="ubuntu/images/hvm-ssd-gp3/ubuntu-noble-24.04-arm64-server-*",
+    description="Ubuntu 24.04 LTS (Canonical), arm64",
+)
+NVIDIA_ARM64 = ImageQuery(
+    owners=("amazon",),
+    name_pattern="Deep Learning ARM64 Base OSS Nvidia Driver GPU AMI (Ubuntu 22.04) *",
+    description="AWS Deep Learning ARM64 Base, NVIDIA driver, Ubuntu 22.04",
+)
+IMAGES = {("x86_64", False): UBUNTU, ("x86_64", True): NVIDIA, ("arm64", False): UBUNTU_ARM64,
+          ("arm64", True): NVIDIA_ARM64}
+
+
+def image_for(spec: MachineSpec) -> MachineImage:
+    """The image the machine's architecture and GPU call for."""
+    return IMAGES[(spec.arch if spec.arch == "arm64" else "x86_64", spec.has_gpu)]
 
 
 def _network(manifest: Manifest) -> NetworkSpec:
@@ -127,11 +147,9 @@ def place(manifest: Manifest, *, stack: str, tags: Tags) -> Placement:
     region = manifest.cloud.region
     vpn_mode = manifest.network.mode == "vpn"
     network = _network(manifest)
-    types = catalog().types
     hosts, node_hosts = host_per_node(
-        manifest, stack=stack, tags=tags, usd_per_hour=lambda spec: types[spec.name].usd_per_hour[region], spot=True,
-        spot_usd_per_hour=lambda spec: types[spec.name].spot_usd_per_hour(region),
-        image=lambda spec: NVIDIA if spec.has_gpu else UBUNTU)
+        manifest, stack=stack, tags=tags, usd_per_hour=lambda spec: on_demand(spec.name, region), spot=True,
+        spot_usd_per_hour=lambda spec: spot_price(spec.name, region), image=image_for)
     vpn = _vpn(manifest, stack, network) if vpn_mode else None
     return Placement(
         hosts=hosts, node_hosts=node_hosts, mode=manifest.network.mode,

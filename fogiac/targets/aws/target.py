@@ -24,7 +24,7 @@ from fogiac.plan.placement import Placement, Tags
 from fogiac.provision import SshAccess, idle, recorded_access
 from fogiac.state import StackState, read_json, stack_lock
 from fogiac.tables import table
-from fogiac.targets.aws import api, engine, observe, offline, placement, spot
+from fogiac.targets.aws import api, engine, observe, offline, placement, quotas, spot
 from fogiac.targets.aws import sweep as sweeping
 from fogiac.targets.aws.catalog import catalog
 from fogiac.targets.aws.vpn import write_client_profile
@@ -80,6 +80,9 @@ class AwsTarget:
         if recorded.get("zone") and not plan.zone_chosen:  # keep the subnets where they are
             plan = dataclasses.replace(plan, zone=recorded["zone"], zone_chosen=True)
         report = api.preflight(plan, operator_cidr=ssh_from, known_ids=engine.known_ids(plan.stack))
+        with contextlib.suppress(quotas.QuotaUnavailable):  # unknown is not 0: the create would still tell
+            if short := quotas.for_plan(plan):
+                raise CloudError("\n".join(quotas.report(short)))
         plan = dataclasses.replace(plan, zone=report.zone)
         spot_hourly = plan.spot_hourly_usd
         price = f"${plan.hourly_usd:.4f}/h" + (f", about ${spot_hourly:.4f}/h with spot" if spot_hourly else "")
@@ -225,6 +228,7 @@ class AwsTarget:
             Check("zone", True, f"{report.zone} offers {machines}"),
             Check("images", True, ", ".join(f"{h}: {ami}" for h, ami in report.images) or "none needed"),
             Check("ssh_from", True, ", ".join(report.operator_cidrs)),
+            *quotas.doctor_checks(plan),
         ]
 
     def refresh(self, plan: Plan) -> list[Refreshed]:

@@ -18,7 +18,7 @@ import pytest
 from typer.testing import CliRunner
 
 from fogiac.cli import app
-from fogiac.targets.aws.catalog import catalog
+from fogiac.targets.aws.catalog import catalog, spot_price
 from fogiac.state import stack_dir
 from fogiac.targets.aws.engine import OUTPUTS_FILE
 from fogiac.targets.aws.spot import ON_DEMAND, no_capacity
@@ -100,7 +100,7 @@ def test_spot_when_there_is_capacity(engine_is_harness: Harness, ec2: Any, tmp_p
                                                 Attribute="instanceInitiatedShutdownBehavior")
     assert behaviour["InstanceInitiatedShutdownBehavior"]["Value"] == "terminate"  # one-time spot cannot stop
     assert ON_DEMAND not in json.loads((stack_dir("gotspot-dev") / OUTPUTS_FILE).read_text())
-    spot = catalog().types["c5.large"].spot_usd_per_hour("us-west-2")
+    spot = spot_price("c5.large", "us-west-2")
     assert spot is not None and spot < 0.085
     assert result.stdout.splitlines()[-1].startswith(
         f"cost: about ${spot + 0.15:.4f}/h while up (spot hosts at the catalogue's spot estimate of "

@@ -1,0 +1,81 @@
+"""``fogiac catalog`` (search the EC2 catalogue, cheapest first) and ``fogiac catalog update``
+(rebuild it from AWS's own APIs with the user's credentials).
+
+Thin: parses, asks :mod:`.catalogue` or :mod:`.refresh`, prints. The refreshed catalogue is written
+to the state folder (:func:`.manifest.user_catalogue`), where the aws ``cloud:`` variant reads it
+in place of the shipped one. The aws target contributes these commands (plug-in group
+``fogiac.commands``); the CLI imports no target.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import typer
+
+from fogiac.tables import console, table
+from fogiac.targets.aws import api, refresh
+from fogiac.targets.aws.catalogue import Arch, Offer
+from fogiac.targets.aws.manifest import CLOUD, spot_estimate, user_catalogue
+
+_REGION = typer.Option("us-east-1", "--region", help="The region to search.")
+
+
+def _row(offer: Offer) -> tuple[str, ...]:
+    spec, price, spot = offer.type, offer.on_demand, spot_estimate(offer)
+    gpu = f"{spec.gpus}x {spec.gpu_model}" if spec.gpus else "-"
+    when = f"{price.source.date}{' est.' if price.source.estimate else ''}" if price else "-"
+    return (spec.name, str(spec.vcpus), f"{spec.memory_gib:g}", spec.arch, gpu,
+            f"{price.usd_per_hour:.4f}" if price else "unknown", f"{spot:.4f}" if spot is not None else "-", when)
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``fogiac catalog`` to the CLI (the ``fogiac.commands`` entry point ``catalog`` names this module)."""
+    app.add_typer(commands(), name="catalog")
+
+
+def commands() -> typer.Typer:
+    """``fogiac catalog`` and its ``update``."""
+    cat = typer.Typer(help="Search the EC2 catalogue (cheapest first), or refresh it from AWS.")
+
+    @cat.callback(invoke_without_command=True)
+    def search(ctx: typer.Context, region: str = _REGION,
+               gpu: str | None = typer.Option(None, "--gpu", help="A GPU model (L4, A10G) or 'any'."),
+               arch: str | None = typer.Option(None, "--arch", help="x86_64 or arm64."),
+               vcpus: str | None = typer.Option(None, "--vcpus", help="A bound such as '>=8'."),
+               memory: str | None = typer.Option(None, "--memory", help="GiB, a bound such as '>=16'."),
+               spot: bool = typer.Option(False, "--spot", help="Rank by the spot estimate."),
+               limit: int = typer.Option(20, "--limit", help="How many rows to show.")) -> None:
+        """Types offered in the region that meet every filter, cheapest first, with their price's date."""
+        if ctx.invoked_subcommand is not None:
+            return
+        if arch not in (None, "x86_64", "arm64"):
+            raise typer.BadParameter(f"{arch!r} is not x86_64 or arm64", param_hint="--arch")
+        chosen: Arch | None = "arm64" if arch == "arm64" else ("x86_64" if arch else None)
+        found = CLOUD.catalogue.search(region=region, gpu=True if gpu == "any" else gpu, arch=chosen, vcpus=vcpus,
+                                       memory=memory, spot=spot)
+        out = table(f"EC2 in {region}: {len(found)} types", "type", "vCPU", "GiB", "arch", "GPU", "$/hour",
+                    "spot $/hour", "price as of")
+        for offer in found[:limit]:
+            out.add_row(*_row(offer))
+        console().print(out)
+
+    @cat.command("update")
+    def update(regions: list[str] = typer.Option(None, "--region", help="Regions to read (default: all known)."),
+               out: Path | None = typer.Option(None, "--out", help="Write here instead of the state folder."),
+               spot: bool = typer.Option(True, "--spot/--no-spot", help="Read spot price history too.")) -> None:
+        """Rebuild the catalogue from DescribeInstanceTypes, the Price List API and spot price history."""
+        wanted = list(regions or CLOUD.catalogue.regions)
+        clients: dict[str, Any] = {}
+
+        def ec2_for(region: str) -> Any:
+            return clients.setdefault(region, api.client("ec2", region=region))
+
+        built = refresh.from_aws(regions=wanted, ec2_for=ec2_for, spot=spot,
+                                 pricing=api.client("pricing", region=refresh.PRICING_REGION))
+        path = built.write(out or user_catalogue())
+        typer.echo(f"{path}: {len(built.hardware)} types in {len(wanted)} regions, "
+                   f"{len(built.on_demand)} on-demand prices")
+
+    return cat

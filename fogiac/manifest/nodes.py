@@ -66,6 +66,9 @@ class TopicLists(_Model):
     )
 
 
+_NEEDS = ("gpu", "vcpus", "memory_gib", "arch", "gpu_memory_gib")  # what a requirement may name
+
+
 class Machine(_Model):
     """What a node needs instead of a type name: compile picks the cheapest catalogue type that fits."""
 
@@ -73,8 +76,11 @@ class Machine(_Model):
     gpu: bool | str | None = Field(default=None, description="true (any GPU) or a model such as T4, A10G, V100.")
     vcpus: int | str | None = Field(default=None, description="vCPUs: a number (at least) or a bound like '>=8'.")
     memory_gib: float | str | None = Field(default=None, description="Memory in GiB: a number (at least) or '>=16'.")
+    arch: Literal["x86_64", "arm64"] | None = Field(default=None, description="CPU architecture (arm64: Graviton).")
+    gpu_memory_gib: float | str | None = Field(default=None,
+                                               description="GPU memory in GiB, all GPUs together, e.g. '>=24'.")
 
-    @field_validator("vcpus", "memory_gib")
+    @field_validator("vcpus", "memory_gib", "gpu_memory_gib")
     @classmethod
     def _bound(cls, value: int | float | str | None) -> int | float | str | None:
         if value is not None:
@@ -90,11 +96,11 @@ class Machine(_Model):
 
     @model_validator(mode="after")
     def _type_or_needs(self) -> Machine:
-        needs = [k for k in ("gpu", "vcpus", "memory_gib") if getattr(self, k) is not None]
+        needs = [k for k in _NEEDS if getattr(self, k) is not None]
         if self.type is not None and needs:
             raise FieldProblem(f"give either type or requirements ({', '.join(needs)}), not both")
         if self.type is None and not needs:
-            raise FieldProblem("needs a type or at least one of gpu, vcpus, memory_gib")
+            raise FieldProblem(f"needs a type or at least one of {', '.join(_NEEDS)}")
         return self
 
     def requirement(self, *, gpu: bool = False) -> Requirement:
@@ -103,6 +109,8 @@ class Machine(_Model):
             gpu=self.gpu if self.gpu not in (None, False) else (True if gpu else None),
             vcpus=parse_bound(self.vcpus) if self.vcpus is not None else None,
             memory_gib=parse_bound(self.memory_gib) if self.memory_gib is not None else None,
+            arch=self.arch,
+            gpu_memory_gib=parse_bound(self.gpu_memory_gib) if self.gpu_memory_gib is not None else None,
         )
 
 

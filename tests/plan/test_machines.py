@@ -122,7 +122,7 @@ def test_plain_type_name_keeps_working_and_has_no_menu() -> None:
 @pytest.mark.parametrize(("machine", "message"), [
     ("{gpu: MI300}", "nodes[0].machine: no instance type in us-west-2 has gpu MI300; closest: "),
     ("{type: c5.large, vcpus: 4}", "nodes[0].machine: give either type or requirements (vcpus), not both"),
-    ("{}", "nodes[0].machine: needs a type or at least one of gpu, vcpus, memory_gib"),
+    ("{}", "nodes[0].machine: needs a type or at least one of gpu, vcpus, memory_gib, arch, gpu_memory_gib"),
     ("{vcpu: 8}", "nodes[0].machine.vcpu: unknown key; did you mean 'vcpus'?"),
     ('{vcpus: "about 8"}', "nodes[0].machine.vcpus: 'about 8' is not a bound"),
     ("{type: c5.lrge}", "nodes[0].machine.type: 'c5.lrge' is not a known instance type; did you mean 'c5.large'?"),

@@ -94,3 +94,16 @@ def test_a_type_not_offered_in_the_region_names_the_regions_that_offer_it() -> N
     with pytest.raises(ManifestError, match=r"nodes\[0\]\.machine: 'p5\.48xlarge' is not offered in af-south-1; "
                                             r"regions that offer it: ap-northeast-1, "):
         plan("p5.48xlarge", "af-south-1")
+
+
+def test_a_requirement_may_name_the_architecture_and_the_gpu_memory() -> None:
+    """``{arch: arm64, vcpus: ">=8"}`` picks a Graviton machine, with the arm64 image; ``gpu_memory_gib``
+    bounds all the machine's GPUs together."""
+    graviton = plan('{arch: arm64, vcpus: ">=8"}', "eu-west-1").host("n")
+    assert CLOUD.machine(graviton.machine).arch == "arm64" and graviton.vcpus >= 8
+    assert graviton.image.description.endswith("arm64")
+    big = plan('{gpu: true, gpu_memory_gib: ">=40"}', "us-east-1").host("n")
+    spec = CLOUD.machine(big.machine)
+    assert spec.gpus >= 1 and spec.gpu_memory_gib >= 40
+    with pytest.raises(ManifestError, match=r"nodes\[0\]\.machine\.arch: 'sparc' is not one of 'x86_64', 'arm64'"):
+        plan("{arch: sparc}", "us-east-1")

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import threading
+from collections.abc import Mapping
 from typing import Any
 
 from fogiac.errors import RelayError
@@ -12,7 +14,7 @@ from fogiac.net.relay.graph import GraphState, from_system_state
 from fogiac.net.relay.monitor import Monitor
 from fogiac.net.relay.node import RelayNode
 from fogiac.net.relay.session import Session
-from fogiac.net.relay.stats import RelayStats, write_stats
+from fogiac.net.relay.stats import RelayStats, TopicStats, write_stats
 
 log = logging.getLogger(__name__)
 
@@ -74,8 +76,8 @@ class RelayEnd:
             rtt_ms=None if rtt is None else round(rtt / 1e6, 3),
             clock_offset_ms=round(session.clock.offset_ns / 1e6, 3) if live and session else 0.0,
             reconnects=self.reconnects, refused=session.refused if live and session else 0,
-            topics=tuple(sorted((c.snapshot() for c in session.counters()), key=lambda t: (t.topic, t.direction)))
-            if live and session else (),
+            topics=tuple(sorted((_with_peer_latency(c.snapshot(), session.peer_latency) for c in session.counters()),
+                                key=lambda t: (t.topic, t.direction))) if live and session else (),
         )
 
     # --- for subclasses --------------------------------------------------------------------
@@ -123,3 +125,11 @@ class RelayEnd:
                     write_stats(self.config.stats_file, stats)
                 except OSError as err:
                     log.warning("cannot write %s: %s", self.config.stats_file, err)
+
+
+def _with_peer_latency(stats: TopicStats, peer: Mapping[str, tuple[float | None, float | None]]) -> TopicStats:
+    """A topic this end sends shows the one-way latency the peer measured where it arrives."""
+    if stats.direction != "out" or stats.latency_ms is not None or stats.topic not in peer:
+        return stats
+    median, p99 = peer[stats.topic]
+    return dataclasses.replace(stats, latency_ms=median, latency_p99_ms=p99)

@@ -45,6 +45,7 @@ class Kind(enum.IntEnum):
     DATA = 7  # topic id + stamp (sender's ns clock) + serialized message bytes
     PING = 8  # stamp
     PONG = 9  # echoed stamp + responder's stamp
+    REPORT = 10  # JSON {"latency": {topic: [median_ms, p99_ms]}}: one-way latency where the sender receives
 
 
 @dataclass(frozen=True)

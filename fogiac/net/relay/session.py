@@ -120,9 +120,12 @@ class Session:
         self.closed = threading.Event()
         self._last_rx = time.monotonic()
         self._writing_since: float | None = None  # set while a write is in the kernel's hands
+        # One-way latency of the topics this end sends, as the peer measured them where they arrive
+        # (a REPORT each ping interval): so this end's stats show it for both directions.
+        self.peer_latency: dict[str, tuple[float | None, float | None]] = {}
         self.handlers: dict[Kind, Handler] = {
             Kind.OPEN: self._on_open, Kind.CLOSE: self._on_close, Kind.DATA: self._on_data,
-            Kind.PING: self._on_ping, Kind.PONG: self._on_pong,
+            Kind.PING: self._on_ping, Kind.PONG: self._on_pong, Kind.REPORT: self._on_report,
         }
 
     # --- public ----------------------------------------------------------------------------
@@ -257,6 +260,8 @@ class Session:
         n = 0
         while not self._closing.is_set():
             self.send(framing.ping(time.time_ns()))
+            if n >= 8:  # with each ping at the steady interval, what arrived here and how late
+                self._report()
             n += 1
             self._closing.wait(0.05 if n < 8 else self.config.ping_interval)
             now = time.monotonic()
@@ -266,6 +271,24 @@ class Session:
             if since is not None and now - since > self.config.write_timeout:
                 # shutdown() in close() makes the blocked sendall fail, so the writer ends too
                 self.close(f"a write has not finished in {self.config.write_timeout:g} s: the peer does not read")
+
+    def _report(self) -> None:
+        with self._lock:
+            sinks = [s.counters.snapshot() for s in self._sinks.values()]
+        latency = {t.topic: [t.latency_ms, t.latency_p99_ms] for t in sinks if t.latency_ms is not None}
+        if latency:
+            self.send(framing.json_frame(Kind.REPORT, {"latency": latency}))
+
+    def _on_report(self, frame: Frame) -> None:
+        body = framing.parse_json(frame).get("latency")
+        if not isinstance(body, dict):
+            raise FrameError("REPORT frame without a latency object")
+        with self._lock:
+            sources = set(self._sources)
+        for topic, pair in body.items():
+            if topic in sources and isinstance(pair, list) and len(pair) == 2 and \
+                    all(v is None or isinstance(v, (int, float)) for v in pair):
+                self.peer_latency[topic] = (pair[0], pair[1])  # only topics this end sends: no stray keys
 
     def _on_ping(self, frame: Frame) -> None:
         self.send(framing.pong(framing.parse_ping(frame), time.time_ns()))

@@ -49,7 +49,8 @@ class TopicStats:
     msgs: int
     bytes: int
     drops: int
-    latency_ms: float | None  # median one-way over the last second that carried messages ("in" only)
+    latency_ms: float | None  # median one-way over the last second that carried messages (measured where
+    # a message arrives: an "out" topic shows what the peer reported, Kind.REPORT)
     latency_p99_ms: float | None
     compression: str
 

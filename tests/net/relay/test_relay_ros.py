@@ -269,3 +269,25 @@ def test_first_message_reaches_a_subscriber_already_waiting_on_the_far_side(
         procs.node(edge_m, "pub", "/once", "--count", "1", "--wait-subs", "--prefix", "only")
         wait_for(lambda: len(sub.data()) >= 1, 20, "the single message")
     assert indices(sub.data()) == [0]
+
+
+def test_the_sending_end_shows_the_latency_its_peer_measured(masters: tuple[Master, Master], certs: Path,
+                                                              procs: Procs) -> None:
+    """A topic the robot sends (camera images) is timed where it arrives, on the cloud end; the cloud
+    reports it back each ping interval, so the edge's stats (what ``fogiac status`` reads) show it too."""
+    edge_m, cloud_m = masters
+    with relay_pair(masters, certs, policy=TopicPolicy(auto=True)) as (edge, cloud):
+        procs.node(edge_m, "pub", "/camera", "--forever", "--rate", "50", "--size", "2000")
+        sub = procs.node(cloud_m, "sub", "/camera", "--count", "100000")
+        wait_for(lambda: len(sub.data()) >= 20, 20, "images on the cloud side")
+
+        def sent() -> object:
+            (mine,) = [t for t in edge.stats().topics if t.topic == "/camera"]
+            return mine if mine.latency_ms is not None else None
+
+        wait_for(sent, 20, "the cloud's latency report")
+        mine = sent()
+        (theirs,) = [t for t in cloud.stats().topics if t.topic == "/camera"]
+        assert mine.direction == "out" and theirs.direction == "in"
+        assert 0 <= mine.latency_ms <= mine.latency_p99_ms
+        assert theirs.latency_ms is not None

@@ -55,10 +55,20 @@ class HostMachine(_Model):
 class Autostop(_Model):
     """Stop (or terminate) cloud hosts nobody uses: no edge connected and no message for idle_minutes."""
 
-    idle_minutes: float = Field(default=30, gt=0, description="Minutes without an edge and without traffic.")
+    idle_minutes: float = Field(default=30, ge=0.05, le=10080, allow_inf_nan=False,
+                                description="Minutes without an edge and without traffic: 0.05 (3 s, for demos) to "
+                                            "10080 (a week).")
     action: Literal["stop", "terminate"] = Field(
         default="stop", description="stop: keep the disk, `up` starts it again; terminate: delete the machine."
     )
+
+    @field_validator("idle_minutes", mode="before")
+    @classmethod
+    def _minutes(cls, value: object) -> object:
+        """YAML's ``true`` would read as 1 minute: a number of minutes is a number."""
+        if isinstance(value, bool):
+            raise ValueError(f"{str(value).lower()} is not a number of minutes")
+        return value
 
 
 class Cloud(_Model):

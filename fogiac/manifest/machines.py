@@ -66,16 +66,23 @@ class Bound:
         return f"{self.op} {self.value:g}"
 
 
+MAX_BOUND = 65536.0  # beyond any machine's vCPUs, GiB of memory or of GPU memory
+
+
 def parse_bound(text: str | int | float) -> Bound:
     """``">=8"``, ``"< 64"``, ``16`` (at least 16); anything else fails naming the forms allowed."""
     if isinstance(text, bool):
         raise ValueError(f"{text!r} is not a bound; write a number or e.g. '>=8', '<=64', '==16'")
     if isinstance(text, int | float):
-        return Bound(">=", float(text))
-    match = _BOUND.match(text)
-    if not match:
-        raise ValueError(f"{text!r} is not a bound; write a number or e.g. '>=8', '<=64', '==16'")
-    return Bound(match.group(1) or ">=", float(match.group(2)))
+        found = Bound(">=", float(text))
+    else:
+        match = _BOUND.match(text)
+        if not match:
+            raise ValueError(f"{text!r} is not a bound; write a number or e.g. '>=8', '<=64', '==16'")
+        found = Bound(match.group(1) or ">=", float(match.group(2)))
+    if not 0 <= found.value <= MAX_BOUND:  # a machine has no negative vCPUs, nor 1e30 of them
+        raise ValueError(f"{text!r} is out of range: a bound is a number from 0 to {MAX_BOUND:g}")
+    return found
 
 
 @dataclass(frozen=True)

@@ -135,7 +135,7 @@ def plan(
     target: str | None = TARGET,
     env: str = ENV,
     as_json: bool = typer.Option(False, "--json", help="Print the versioned JSON document."),
-    out: Path | None = typer.Option(None, "--out", help="Also save the JSON document to this file."),
+    out: Path | None = typer.Option(None, "--out", help="Also save the JSON document to this file (-: print it)."),
     detailed_exitcode: bool = typer.Option(
         False, "--detailed-exitcode", help="Exit 0 when the diff is empty, 2 when something would change."
     ),
@@ -160,13 +160,10 @@ def plan(
     if refreshed is not None:  # what `fogiac refresh` found changed outside fogiac since the apply
         diff = with_drift(diff, refreshed.drift, refreshed_at=refreshed.at)
     doc = annotate(declared, diff)
-    if out is not None:
-        if out.is_dir():
-            raise FogiacError(f"--out {out}: is a directory; name the file to write")
-        try:
-            write_json_atomic(out, doc, mode=0o644)
-        except OSError as err:
-            raise FogiacError(f"--out {out}: cannot write: {err.strerror or err}") from None
+    if out is not None and str(out) == "-":  # the document on stdout, instead of the table
+        as_json = True
+    elif out is not None:
+        _save(out, doc)
     if fmt is not None:  # the target writes its own formats; the CLI only prints
         typer.echo(json.dumps(targets.exporter(compiled.target, fmt)(doc), indent=2, sort_keys=True))
     elif as_json:
@@ -179,6 +176,18 @@ def plan(
         _render_diff(doc, diff, against=label)
     if detailed_exitcode:
         raise typer.Exit(0 if diff.empty else 2)
+
+
+def _save(out: Path, doc: Mapping[str, Any]) -> None:
+    """``--out FILE``: a regular file, replaced whole. A link, device or FIFO is refused: replacing it would
+    turn ``/dev/null`` into a file or write through a link somewhere else."""
+    if out.is_symlink() or (out.exists() and not out.is_file()):
+        kind = "a symbolic link" if out.is_symlink() else "a directory" if out.is_dir() else "not a regular file"
+        raise FogiacError(f"--out {out}: is {kind}; name a regular file to write (or - for stdout)")
+    try:
+        write_json_atomic(out, doc, mode=0o644)
+    except OSError as err:
+        raise FogiacError(f"--out {out}: cannot write: {err.strerror or err}") from None
 
 
 def register(app: typer.Typer) -> None:

@@ -3,6 +3,9 @@ folder and nothing left behind."""
 
 from __future__ import annotations
 
+import json
+import os
+
 from pathlib import Path
 
 import pytest
@@ -35,8 +38,27 @@ def test_env_must_be_dns_safe(env: str, state: Path) -> None:
 def test_plan_out_to_a_directory_is_one_line(tmp_path: Path, state: Path) -> None:
     result = runner.invoke(app, ["plan", str(EXAMPLES / "minimal.yaml"), "--out", str(tmp_path)])
     assert result.exit_code == 1
-    assert result.output.strip().splitlines() == [f"error: --out {tmp_path}: is a directory; name the file to write"]
+    assert result.output.strip().splitlines() == [
+        f"error: --out {tmp_path}: is a directory; name a regular file to write (or - for stdout)"]
     assert list(tmp_path.iterdir()) == []  # no temporary file left beside it
+
+
+def test_plan_out_never_replaces_a_link_a_device_or_a_fifo(tmp_path: Path, state: Path) -> None:
+    """Issue 26 item 3: replacing by rename turned /dev/null into a regular file and a link into a file."""
+    target = tmp_path / "elsewhere.json"
+    target.write_text("keep\n")
+    (tmp_path / "link.json").symlink_to(target)
+    os.mkfifo(tmp_path / "fifo.json")
+    # (/dev/null is refused the same way as the FIFO; a test never points fogiac at the real one)
+    for out, kind in ((tmp_path / "link.json", "a symbolic link"), (tmp_path / "fifo.json", "not a regular file")):
+        result = runner.invoke(app, ["plan", str(EXAMPLES / "minimal.yaml"), "--out", str(out)])
+        assert result.exit_code == 1
+        assert result.output.strip().splitlines() == [
+            f"error: --out {out}: is {kind}; name a regular file to write (or - for stdout)"]
+    assert target.read_text() == "keep\n" and (tmp_path / "link.json").is_symlink()
+    printed = runner.invoke(app, ["plan", str(EXAMPLES / "minimal.yaml"), "--out", "-"])
+    assert printed.exit_code == 0 and json.loads(printed.output)["stack"] == "minimal-dev"
+    assert not Path("-").exists()
 
 
 def test_down_of_a_never_deployed_local_stack_leaves_nothing(state: Path) -> None:

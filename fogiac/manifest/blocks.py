@@ -193,7 +193,8 @@ class Edge(_Model):
     @classmethod
     def _uri(cls, value: str) -> str:
         url = urlparse(value)
-        if url.scheme != "http" or not url.hostname or url.port is None:
+        printable = value.isprintable() and value.strip() == value  # no line break or escape reaches a command line
+        if not printable or url.scheme != "http" or not url.hostname or url.port is None:
             raise ValueError(f"{value!r} is not a ROS master URI like 'http://localhost:11311'")
         return value
 

@@ -147,7 +147,8 @@ class AwsCloud:
         raise FieldProblem(f"{region!r} is not a supported region" + (f"; did you mean {near[0]!r}?" if near else ""))
 
     def check_zone(self, zone: str, region: str) -> None:
-        if not (zone.startswith(region) and len(zone) == len(region) + 1):
+        if not (zone.startswith(region) and len(zone) == len(region) + 1 and zone[-1].isascii()
+                and zone[-1].islower()):  # us-west-2a: the region and one letter, nothing else
             raise FieldProblem(f"{zone!r} is not a zone of {region}", field="zone")
 
     def check_edge_vpn_range(self, cidr: str, prefix: int) -> None:

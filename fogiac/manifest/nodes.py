@@ -162,9 +162,11 @@ class Node(_Model):
     @field_validator("env")
     @classmethod
     def _env(cls, value: dict[str, str]) -> dict[str, str]:
-        for key in value:
+        for key, text in value.items():
             if not _ENV_NAME.match(key):
                 raise ValueError(f"{key!r} is not an environment variable name")
+            if not text.replace("\t", "").isprintable():  # an env file holds one variable a line
+                raise ValueError(f"{key}: {text!r} holds a line break or control character; env values are one line")
         return value
 
     @model_validator(mode="after")

@@ -11,6 +11,7 @@ also :meth:`Registry.register` an object for the life of the process.
 from __future__ import annotations
 
 import functools
+import importlib
 from collections.abc import Callable
 from importlib import metadata
 from typing import Any, Generic, TypeVar
@@ -62,6 +63,12 @@ def load(group: str, name: str) -> Any:
     if point is None:
         raise PlanError(f"unknown {group.rpartition('.')[2]} {name!r}; valid: {', '.join(names(group))}")
     return point.load()
+
+
+def resolve(ref: str) -> Any:
+    """The object a ``module:attr`` reference names (what an entry's own references into its folder are)."""
+    module, _, attr = ref.partition(":")
+    return getattr(importlib.import_module(module), attr)
 
 
 def value(group: str, name: str) -> str:

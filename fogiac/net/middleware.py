@@ -19,12 +19,12 @@ the manifest asks through the ``fogiac.middleware`` entry points (``distros``, `
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
+from fogiac import registry
 from fogiac.errors import PlanError
 from fogiac.hostmodel import Launching as Launching  # re-exported: what a middleware answers
 from fogiac.hostmodel import NativeRos as NativeRos
@@ -157,11 +157,6 @@ _REGISTRY: dict[str, Middleware] = {}
 _DEPLOYED: dict[str, Deployment] = {}
 
 
-def _load(ref: str) -> Any:
-    module, _, attr = ref.partition(":")
-    return getattr(importlib.import_module(module), attr)
-
-
 def register(middleware: Middleware, deployment: Deployment) -> Middleware:
     """Add (or replace) a middleware for this process (tests, embedders); returns it."""
     _REGISTRY[middleware.name] = middleware
@@ -180,14 +175,14 @@ def names() -> tuple[str, ...]:
 
 def get(name: str) -> Middleware:
     if name not in _REGISTRY:
-        _REGISTRY[name] = _load(_entry(name).middleware)
+        _REGISTRY[name] = registry.resolve(_entry(name).middleware)
     return _REGISTRY[name]
 
 
 def deployment(name: str) -> Deployment:
     """How ``name`` is deployed (imported on first use: see the module docstring)."""
     if name not in _DEPLOYED:
-        _DEPLOYED[name] = _load(_entry(name).deployment)
+        _DEPLOYED[name] = registry.resolve(_entry(name).deployment)
     return _DEPLOYED[name]
 
 

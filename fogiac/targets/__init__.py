@@ -14,22 +14,17 @@ each loaded only when asked for. Nothing else in fogiac names a target.
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from fogiac import registry
 from fogiac.errors import PlanError
 from fogiac.lifecycle.driver import Target
 from fogiac.plan.placement import Placement
 from fogiac.registry import Registry
 
 Place = Callable[..., Placement]  # place(manifest, *, stack, tags) -> Placement, as Target.place
-
-
-def _load(ref: str) -> Any:
-    module, _, attr = ref.partition(":")
-    return getattr(importlib.import_module(module), attr)
 
 
 @dataclass(frozen=True)
@@ -46,11 +41,11 @@ class TargetEntry:
     exporters: Mapping[str, str] = field(default_factory=dict)  # format -> how the plan document becomes it
 
     def load_driver(self) -> Target:
-        found: Target = _load(self.driver)
+        found: Target = registry.resolve(self.driver)
         return found
 
     def load_placement(self) -> Place:
-        found: Place = _load(self.placement) if self.placement else self.load_driver().place
+        found: Place = registry.resolve(self.placement) if self.placement else self.load_driver().place
         return found
 
 
@@ -89,7 +84,7 @@ def exporter(name: str, fmt: str) -> Callable[[Mapping[str, Any]], dict[str, Any
     if ref is None:
         known = ", ".join(f"{t} ({f})" for t in ENTRIES.names() for f in sorted(_entry(t).exporters)) or "none"
         raise PlanError(f"target {name!r} cannot export its plan as {fmt!r}; available: {known}")
-    found: Callable[[Mapping[str, Any]], dict[str, Any]] = _load(ref)
+    found: Callable[[Mapping[str, Any]], dict[str, Any]] = registry.resolve(ref)
     return found
 
 

@@ -29,6 +29,15 @@ def log_group_name(stack: str, what: str) -> str:
     return f"/fogiac/{stack}/{what}"
 
 
+def log_group(name: str, logical: str, group: str, *, tags: Mapping[str, str],
+              opts: pulumi.ResourceOptions) -> aws.cloudwatch.LogGroup:
+    """One of the stack's log groups (flow logs, Client VPN connections): ``{name}-{logical}`` to Pulumi,
+    ``/fogiac/{name}/{group}`` to AWS, kept LOG_RETENTION_DAYS, tagged like every resource of the stack."""
+    return aws.cloudwatch.LogGroup(f"{name}-{logical}", name=log_group_name(name, group),
+                                   retention_in_days=LOG_RETENTION_DAYS, tags=tagged(tags, f"{name}-{logical}"),
+                                   opts=opts)
+
+
 def flow_logs_role_name(stack: str) -> str:
     return f"fogiac-{stack}-flow-logs"[:64]
 
@@ -117,13 +126,7 @@ class Network(pulumi.ComponentResource):
         )
 
     def _flow_logs(self, name: str, args: NetworkArgs, child: pulumi.ResourceOptions) -> None:
-        self.flow_log_group = aws.cloudwatch.LogGroup(
-            f"{name}-flow-logs",
-            name=log_group_name(name, "flow-logs"),
-            retention_in_days=LOG_RETENTION_DAYS,
-            tags=tagged(args.tags, f"{name}-flow-logs"),
-            opts=child,
-        )
+        self.flow_log_group = log_group(name, "flow-logs", "flow-logs", tags=args.tags, opts=child)
         self.flow_log_role = aws.iam.Role(
             f"{name}-flow-logs-role",
             name=flow_logs_role_name(name),

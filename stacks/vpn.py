@@ -18,7 +18,7 @@ import pulumi_aws as aws
 
 from fogiac.certs import Bundle, KeyPair
 from fogiac.targets.aws.model import VpnSpec
-from stacks.network import LOG_RETENTION_DAYS, log_group_name
+from stacks.network import log_group
 from stacks.tags import tagged
 
 SLOW = pulumi.CustomTimeouts(create="30m", update="30m", delete="30m")
@@ -60,13 +60,7 @@ class ClientVpn(pulumi.ComponentResource):
         self.server_certificate = certificate("server", args.certs.vpn)
         self.client_certificate = certificate("client", args.certs.client)
         spec = args.spec
-        self.log_group = aws.cloudwatch.LogGroup(
-            f"{name}-vpn-logs",
-            name=log_group_name(name, "client-vpn"),
-            retention_in_days=LOG_RETENTION_DAYS,
-            tags=tagged(args.tags, f"{name}-vpn-logs"),
-            opts=child,
-        )
+        self.log_group = log_group(name, "vpn-logs", "client-vpn", tags=args.tags, opts=child)
         self.endpoint = aws.ec2clientvpn.Endpoint(
             f"{name}-endpoint",
             description=f"fogiac {name}",

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 import random
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import trimesh
@@ -188,11 +188,16 @@ def maze(out: Path, *, cells: int = 6, cell: float = 2.0, seed: int = 7) -> None
 GENERATORS = {"easy": easy, "twisty": twisty, "cubicles": cubicles, "maze": maze}
 
 
+def write_all(generators: Mapping[str, Callable[[Path], None]], folder: Path) -> None:
+    """Write each generator's problem (its .cfg and meshes) into ``folder``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, make in generators.items():
+        make(folder)
+        print(f"wrote {folder / name}.cfg")
+
+
 def main() -> None:
-    PROBLEMS_DIR.mkdir(parents=True, exist_ok=True)
-    for name, make in GENERATORS.items():
-        make(PROBLEMS_DIR)
-        print(f"wrote {name}")
+    write_all(GENERATORS, PROBLEMS_DIR)
 
 
 if __name__ == "__main__":

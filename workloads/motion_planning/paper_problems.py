@@ -28,7 +28,7 @@ from pathlib import Path
 
 import trimesh
 
-from workloads.motion_planning.generate_problems import box, box_between, export, wall_with_door
+from workloads.motion_planning.generate_problems import box, box_between, export, wall_with_door, write_all
 from workloads.motion_planning.problem import PROBLEMS_DIR
 
 PAPER_DIR = PROBLEMS_DIR / "paper"
@@ -133,10 +133,7 @@ GENERATORS = {"apartment": apartment, "home": home, "twistycool": twistycool}
 
 
 def main() -> None:
-    PAPER_DIR.mkdir(parents=True, exist_ok=True)
-    for name, make in GENERATORS.items():
-        make(PAPER_DIR)
-        print(f"wrote {PAPER_DIR / name}.cfg")
+    write_all(GENERATORS, PAPER_DIR)
 
 
 if __name__ == "__main__":

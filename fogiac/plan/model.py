@@ -172,6 +172,22 @@ class HostSpec:
         return self.gpus > 0
 
 
+HedgeMode = Literal["all", "delayed"]  # every request to every replica at once, or to the others after a delay
+
+
+@dataclass(frozen=True)
+class Replica:
+    """One of a replicated node's copies, each on a host of its own: the edge sends each request to every
+    live replica (``hedge``) and hands the robot the first reply to each request, never a duplicate."""
+
+    group: str  # the replicated node's name: the routes of one group are merged at the edge
+    index: int  # 0 .. count - 1; 0 is the one a "delayed" hedge asks first
+    count: int
+    match: str  # how a reply names its request: "header.stamp" (a std_msgs/Header's stamp, the default) or a field
+    hedge: HedgeMode = "all"
+    hedge_delay_s: float = 0.0  # "delayed": how long the first replica has before the others are asked too
+
+
 @dataclass(frozen=True)
 class Route:
     """What crosses between the edge and one host, and where the edge dials it (whichever middleware)."""
@@ -185,6 +201,7 @@ class Route:
     listed: tuple[str, ...]  # relay.topics: relayed in whichever direction has the publisher
     compression: tuple[tuple[str, str], ...]  # ("*", alg) for all topics, or per topic
     queue_size: int
+    replica: Replica | None = None  # set when the host carries one copy of a replicated node (and nothing else)
 
     def policy_argv(self) -> list[str]:
         """``--out/--in/--topics`` for ``fogiac relay edge|cloud``: both ends enforce the same
@@ -285,6 +302,9 @@ class Plan:
     def to_dict(self) -> dict[str, Any]:
         out = dataclasses.asdict(self)
         out["relay"] = out.pop("routes")  # the document's key since version 1: applied plans compare as before
+        for route in out["relay"]:
+            if route["replica"] is None:  # unreplicated: the same bytes (and digest) as before replicas existed
+                del route["replica"]
         if not self.middleware_settings:  # none: the same bytes (and digest) as before there could be any
             del out["middleware_settings"]
         out["hourly_usd"] = self.hourly_usd

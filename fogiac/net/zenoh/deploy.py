@@ -145,7 +145,8 @@ def edge_up(plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path, 
     pair = _issued(certs, "edge", lambda: tls.edge_pair(ca, stack=plan.stack))
     files = tls.write_files(folder / "zenoh", "edge", pair, ca)
     cloud = [(e.host, e.port) for e in (Endpoint.parse(address) for _, address in sorted(connect.items()))]
-    config = edge_router(cloud, tls=files, local_port=_port(entry))
+    policy = [(tls.host_name(plan.stack, r.host), r) for r in plan.routes if r.host in connect]
+    config = edge_router(cloud, tls=files, local_port=_port(entry), policy=policy)
     router_file, stats = folder / "zenoh-edge.json", folder / "zenoh-edge.stats.json"
     router_file.write_text(json.dumps(config, indent=1, sort_keys=True))
     supervise.start(folder, EDGE_ROUTER, [sys.executable, "-m", "fogiac.net.zenoh.router", str(router_file),

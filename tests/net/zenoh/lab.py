@@ -108,10 +108,11 @@ class ZenohLab:
         policy = [(tls.host_name(STACK, r.host), r) for r in routes]
         return edge_router(cloud, tls=files, local_port=local_port, policy=policy)
 
-    def router(self, name: str, config: dict[str, Any]) -> subprocess.Popen:
+    def router(self, name: str, config: dict[str, Any], *args: str) -> subprocess.Popen:
+        """``python -m fogiac.net.zenoh.router`` on ``config``, with its other ``args`` (``--stats-file``...)."""
         path = self.root / f"{name}.json"
         path.write_text(json.dumps(config, indent=1))
-        return self._start(["-m", "fogiac.net.zenoh.router", str(path)], name)
+        return self._start(["-m", "fogiac.net.zenoh.router", str(path), *args], name)
 
     def node(self, name: str, port: int, *, pub: tuple[str, ...] = (), sub: tuple[str, ...] = (),
              size: int = 64) -> Path:

@@ -137,7 +137,7 @@ class CloudRelay(RelayEnd):
         """Tell the edge about this master's graph whenever it changes (it decides routes)."""
         last: GraphState | None = None
         while session.alive and not self._stopping.is_set():
-            graph = self.local_graph()
+            graph = self.local_graph(types=True)  # the edge tells its master the types (rostopic echo)
             if graph is not None and graph != last:
                 self._graph = graph
                 session.send(framing.json_frame(Kind.STATE, graph.to_json()))

@@ -62,10 +62,20 @@ def prepare_edge(uri: str, *, folder: Path, start: bool) -> None:
         raise FogiacError(f"no ROS master answers at {uri} (edge.ros_master); start roscore, "
                           "or pass --start-edge-master to let fogiac run one")
     url = urlparse(uri)
-    supervise.start(folder, EDGE_MASTER, ["roscore", "-p", str(url.port)])
+    argv = ["roscore", "-p", str(url.port)]
+    if _loopback(url.hostname):
+        # rosmaster binds where ROS_IP says: loopback, not 0.0.0.0. The master alone, without roscore's
+        # rosout: roscpp's XML-RPC server binds every interface whatever ROS_IP says, and through it
+        # anyone on the network could point rosout at a publisher of their own.
+        argv = ["env", "-u", "ROS_HOSTNAME", "ROS_IP=127.0.0.1", "rosmaster", "--core", "-p", str(url.port)]
+    supervise.start(folder, EDGE_MASTER, argv)
     if not _master_up(uri, timeout=30):
         supervise.stop(folder, EDGE_MASTER)
         raise FogiacError(f"the edge roscore did not come up at {uri}; see {folder / (EDGE_MASTER + '.log')}")
+
+
+def _loopback(host: str | None) -> bool:
+    return host == "localhost" or (host or "").startswith("127.")
 
 
 def _stats(folder: Path, host: str) -> Path:
@@ -87,6 +97,8 @@ def edge_argv(route: Route, *, stack: str, connect: str, master: str, certs: Pat
             "--certs", str(certs), "--stats-file", str(stats), "--queue-depth", str(route.queue_size),
             "--name", name, "--server-name", relay_name(stack, route.host)]
     argv += route.policy_argv()
+    if _loopback(urlparse(master).hostname):  # its XML-RPC and TCPROS sockets on loopback beside the master
+        argv += ["--ros-host", "127.0.0.1"]
     compression = dict(route.compression)
     if "*" in compression:
         argv += ["--compression", compression["*"]]

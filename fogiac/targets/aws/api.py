@@ -166,8 +166,17 @@ def _zones(ec2: Any, types: Sequence[str]) -> dict[str, set[str]]:
 
 
 def choose_zone(plan: Plan, offered: dict[str, set[str]], problems: list[str]) -> str:
-    """The manifest's zone if it offers every type, else the first zone (sorted) that does."""
-    wanted = sorted({h.machine for h in plan.hosts})
+    """The manifest's zone if it offers every type, else the first zone (sorted) that does. A replica's
+    host has a zone of its own (checked here too); the plan's zone is chosen for the others."""
+    for host in plan.hosts:
+        if host.zone is not None and host.machine not in offered.get(host.zone, set()):
+            where = "is not an available zone of " + plan.region if host.zone not in offered else \
+                f"does not offer {host.machine}"
+            problems.append(f"{host.name}: zone {host.zone} {where} (replicas go to zones of their own; "
+                            "`fogiac catalog update` refreshes which zones offer what)")
+    wanted = sorted({h.machine for h in plan.hosts if h.zone is None})
+    if not wanted:
+        return plan.zone  # every host a replica in its own zone: the plan's zone holds only the VPN's subnet
     if plan.zone_chosen:
         missing = [t for t in wanted if t not in offered.get(plan.zone, set())]
         if plan.zone not in offered:

@@ -27,7 +27,15 @@ from fogiac.manifest.fields import (
 )
 from fogiac.manifest.machines import Choice, Requirement, parse_bound
 from fogiac.manifest.problems import FieldProblem
-from fogiac.manifest.replicas import DEFAULT_MATCH, MAX_REPLICAS, Hedge, check_match, check_type, match_problems
+from fogiac.manifest.replicas import (
+    DEFAULT_MATCH,
+    MAX_REPLICAS,
+    Hedge,
+    check_match,
+    check_type,
+    match_problems,
+    unchecked,
+)
 
 
 class Launch(_Model):
@@ -206,8 +214,7 @@ class Node(_Model):
         if self.topics == "auto" or not self.topics.outputs:
             raise FieldProblem(f"replicas: {self.replicas} needs its out topics listed (topics: {{in: [...], out: "
                                "[...]}}): the edge merges the replicas' replies on them", field="topics")
-        for message, field in match_problems(f"node {self.name}", self.topics.outputs, self.message_types,
-                                             self.reply_match):
+        for message, field in match_problems(self.topics.outputs, self.message_types, self.reply_match):
             raise FieldProblem(message, field=field)
         return self
 
@@ -233,6 +240,12 @@ class Node(_Model):
         named = self.machine if isinstance(self.machine, str) else self.machine.type
         need = self.machine.requirement(gpu=self.gpu) if isinstance(self.machine, Machine) and named is None else None
         return variant(provider).choose(named, need, region, spot=spot)
+
+    def unchecked_match(self) -> str | None:
+        """For a replicated node, the line naming out topics whose reply match validate could not check."""
+        if self.replicas == 1 or self.topics == "auto":
+            return None
+        return unchecked(f"node {self.name}", self.topics.outputs, self.message_types, self.reply_match)
 
     @property
     def needs_gpu(self) -> bool:

@@ -5,8 +5,8 @@ and hands the robot the first reply to each request (:class:`fogiac.plan.model.R
 request a reply answers is ``reply_match``: by default its ``std_msgs/Header`` stamp (ROS practice: a
 reply copies its request's header), else a field the node names. The manifest's topics carry no
 message types, so a node may state them (``message_types``); a stated type is checked against the
-table below at ``validate``, and an out topic without one is accepted with a one-line warning that its
-match is unchecked (the edge then finds out at the first reply).
+table below at ``validate``, and an out topic without one is accepted with a one-line warning (and a
+line in the plan) that its match is unchecked: the edge finds out at the first reply.
 """
 
 from __future__ import annotations
@@ -89,19 +89,23 @@ def has_header(type_name: str) -> bool | None:
     return name.endswith("Stamped") or None  # the ROS convention for "X with a header"
 
 
-def match_problems(where: str, outputs: tuple[str, ...], types: dict[str, str],
-                   match: str) -> list[tuple[str, str]]:
-    """(problem, field) for each out topic whose stated type cannot carry ``match``; warns for untyped ones."""
-    problems: list[tuple[str, str]] = []
+def match_problems(outputs: tuple[str, ...], types: dict[str, str], match: str) -> list[tuple[str, str]]:
+    """(problem, field) for each out topic whose stated type cannot carry ``match``."""
     if not match.startswith("header."):
-        return problems  # a field of the node's own choosing: the types are the node's business
+        return []  # a field of the node's own choosing: the types are the node's business
+    return [(f"{topic}: {types[topic]} has no std_msgs/Header, so replies cannot be matched by {match}; set "
+             "reply_match to a field the reply copies from its request", "reply_match")
+            for topic in outputs if topic in types and has_header(types[topic]) is False]
+
+
+def unchecked(node: str, outputs: tuple[str, ...], types: dict[str, str], match: str) -> str | None:
+    """The line saying which of a replicated node's out topics have no stated type (its match unchecked)."""
     untyped = [t for t in outputs if t not in types]
-    for topic in outputs:
-        if topic in types and has_header(types[topic]) is False:
-            problems.append((f"{topic}: {types[topic]} has no std_msgs/Header, so replies cannot be matched by "
-                             f"{match}; set reply_match to a field the reply copies from its request", "reply_match"))
-    if untyped:
-        warnings.warn(MatchUnchecked(
-            f"{where}: replies on {', '.join(untyped)} are matched by {match}, unchecked (no type in "
-            "message_types)"), stacklevel=2)
-    return problems
+    if not untyped or not match.startswith("header."):
+        return None
+    return f"{node}: replies on {', '.join(untyped)} are matched by {match}, unchecked (no type in message_types)"
+
+
+def warn_unchecked(line: str) -> None:
+    """Said once the manifest is valid (never beside its errors), as a one-line warning."""
+    warnings.warn(MatchUnchecked(line), stacklevel=3)

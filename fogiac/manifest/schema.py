@@ -28,8 +28,8 @@ from fogiac.manifest.crossfield import cross_field_problems
 from fogiac.manifest.fields import DnsName, _Model, ssh_from_problem
 from fogiac.manifest.machines import NoMachine
 from fogiac.manifest.nodes import Build, Launch, Machine, Node, NodeKind, TopicLists, Workload
-from fogiac.manifest.replicas import Hedge
 from fogiac.manifest.problems import FieldProblem, format_errors, line_index, parse_yaml
+from fogiac.manifest.replicas import Hedge
 from fogiac.manifest.requirements import RequirementsProblem, specifiers
 
 
@@ -217,6 +217,6 @@ def node_types() -> tuple[type[BaseModel], ...]:
 
 
 # What other modules import from here (the blocks and nodes live in blocks.py and nodes.py).
-__all__ = ["Autostop", "Build", "Cloud", "Edge", "Hedge", "HostMachine", "Launch", "Machine", "Manifest", "Network", "Node",
-           "NodeKind", "Relay", "Ros", "TopicLists", "Workload", "json_schema", "load_manifest", "parse_manifest",
-           "ssh_from_problem"]
+__all__ = ["Autostop", "Build", "Cloud", "Edge", "Hedge", "HostMachine", "Launch", "Machine", "Manifest", "Network",
+           "Node", "NodeKind", "Relay", "Ros", "TopicLists", "Workload", "json_schema", "load_manifest",
+           "parse_manifest", "ssh_from_problem"]

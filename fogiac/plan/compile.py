@@ -13,6 +13,7 @@ import re
 
 from fogiac import targets
 from fogiac.errors import FogiacError
+from fogiac.manifest.replicas import warn_unchecked
 from fogiac.manifest.schema import Manifest, Node
 from fogiac.net import middleware
 from fogiac.plan.model import (
@@ -74,8 +75,16 @@ def compile_plan(manifest: Manifest, *, target: str | None = None, environment: 
         cost=placed.cost,
         autostop=placed.autostop,
         middleware_settings=_settings(manifest, carrier.name),
-        notes=placed.notes,
+        notes=placed.notes + _unchecked(manifest),
     )
+
+
+def _unchecked(manifest: Manifest) -> tuple[str, ...]:
+    """Replicated nodes' out topics without a stated type: said in the plan, and warned in one line."""
+    lines = tuple(line for node in manifest.nodes if (line := node.unchecked_match()) is not None)
+    for line in lines:
+        warn_unchecked(line)
+    return lines
 
 
 def _replicas(manifest: Manifest, placed: Placement) -> dict[str, Replica]:

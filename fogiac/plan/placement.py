@@ -113,7 +113,9 @@ def host_per_node(manifest: Manifest, *, stack: str, tags: Tags,
             if node.replicas > 1 and name in names:
                 raise PlanError(f"nodes.{node.name}: its replica host {name!r} has the name of another node; "
                                 "rename one of them")
-            replica = (("fogiac:replica", f"{index + 1}/{node.replicas}"),) if node.replicas > 1 else ()
+            # a replica's host is not named after its node: the target finds it by fogiac:host
+            replica = ((("fogiac:host", name), ("fogiac:replica", f"{index + 1}/{node.replicas}"))
+                       if node.replicas > 1 else ())
             hosts.append(HostSpec(
                 name=name, machine=choice.machine, alternatives=choice.alternatives,
                 chosen_for=choice.chosen_for, ranked_by=choice.ranked_by,

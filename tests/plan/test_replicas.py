@@ -174,6 +174,9 @@ def test_aws_two_replicas_two_zones_priced_twice() -> None:
     r1, r2 = plan.hosts
     assert (r1.name, r1.zone, r2.name, r2.zone) == ("planner-r1", "us-west-2a", "planner-r2", "us-west-2b")
     assert r1.spot and r2.spot
+    # each instance says which host it is (status and drift find it by that, not by its node)
+    assert (dict(r1.tags)["fogiac:host"], dict(r2.tags)["fogiac:replica"], dict(r2.tags)["fogiac:node"]) == \
+        ("planner-r1", "2/2", "planner")
     each = on_demand("c5.large", "us-west-2")
     assert each > 0
     instances = [line for line in plan.cost if line.item.startswith("instance ")]

@@ -14,7 +14,7 @@ import os
 import re
 import time
 import urllib.request
-from collections.abc import Collection, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -28,6 +28,12 @@ from stacks import HOST_KEYS_BEGIN, HOST_KEYS_END
 
 STACK_TAG = "fogiac:stack"
 NODE_TAG = "fogiac:node"
+HOST_TAG = "fogiac:host"  # on a replica's instance (its host is <node>-rN); every other host is its node's name
+
+
+def host_of(tags: Mapping[str, str], default: str = "") -> str:
+    """The plan's host an instance is: its fogiac:host tag (a replica), else its fogiac:node tag."""
+    return tags.get(HOST_TAG) or tags.get(NODE_TAG) or default
 OPERATOR_ENV = "FOGIAC_OPERATOR_CIDR"
 CHECKIP_URL = "https://checkip.amazonaws.com"
 _NO_CREDENTIALS = (
@@ -347,7 +353,7 @@ def status(stack: str, *, region: str, ec2: Any = None,
             tags = tags_of(inst)
             stopped_at, stopped_by = stop_time(inst)
             rows.append(InstanceStatus(
-                name=tags.get(NODE_TAG, tags.get("Name", inst["InstanceId"])), instance_id=inst["InstanceId"],
+                name=host_of(tags, tags.get("Name", inst["InstanceId"])), instance_id=inst["InstanceId"],
                 state=state, machine=inst["InstanceType"], public_ip=inst.get("PublicIpAddress"),
                 private_ip=inst.get("PrivateIpAddress"), launched=launched, uptime_s=uptime,
                 cost_usd=round(uptime / 3600 * price, 4), usd_per_hour=price if running else 0.0,

@@ -247,3 +247,66 @@ def test_aws_small_vpc_without_room_for_the_zones_subnets_is_refused() -> None:
     text = (f"name: rep\ncloud: {AWS_CLOUD}\nnetwork: {{vpc_cidr: 10.10.0.0/24}}\nnodes:\n{PLANNER}")
     with pytest.raises(PlanError, match=r"network.vpc_cidr: 10.10.0.0/24 has room for 2 subnets"):
         compile_plan(parse_manifest(text, source="fogiac.yaml"))
+
+
+def test_catalogue_zones_round_trip_and_an_older_catalogue_without_them(tmp_path: Path) -> None:
+    """What the refresh writes (type -> region -> zones) is what the catalogue answers; a catalogue written
+    before zones were listed answers None, and placement then assumes zones and says so."""
+    from fogiac.targets.aws.catalogue import read
+    from fogiac.targets.aws.refresh import Builder
+
+    b = Builder()
+    b.add_hardware({"InstanceType": "c5.large", "VCpuInfo": {"DefaultVCpus": 2}, "MemoryInfo": {"SizeInMiB": 4096},
+                    "ProcessorInfo": {"SupportedArchitectures": ["x86_64"]}}, b.source(
+        AWS.catalogue.sources[0]))
+    for region in ("us-west-2", "eu-west-1"):
+        b.offer("c5.large", region)
+    for zone in ("us-west-2c", "us-west-2a"):
+        b.zone("c5.large", zone)
+    path = b.write(tmp_path / "cat.json.gz")
+    cat = read(path)
+    assert cat.zones_offering("c5.large", "us-west-2") == ("us-west-2a", "us-west-2c")
+    assert cat.region_zones("us-west-2") == ("us-west-2a", "us-west-2c")
+    assert cat.zones_offering("c5.large", "eu-west-1") is None  # no zone facts there
+    b.zones.clear()
+    assert read(b.write(tmp_path / "old.json.gz")).zones_offering("c5.large", "us-west-2") is None
+    shipped = AWS.catalogue  # the shipped one lists zones from moto's per-zone offerings
+    assert shipped.zones_offering("c5.large", "us-west-2") == ("us-west-2a", "us-west-2b", "us-west-2c",
+                                                                "us-west-2d")
+
+
+def test_a_catalogue_without_zones_assumes_them_and_says_so(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The user's own catalogue (``fogiac catalog update``) written without zone facts: the replicas go to
+    the plan's zone and the next letters, and the plan says preflight checks them."""
+    import gzip
+    import json
+    from importlib import resources
+
+    from fogiac.targets.aws.manifest import user_catalogue
+
+    monkeypatch.setenv("FOGIAC_STATE_DIR", str(tmp_path))
+    raw = json.loads(gzip.decompress(resources.files("fogiac").joinpath(
+        "targets/aws/data/catalogue.json.gz").read_bytes()))
+    del raw["zones"]
+    own = user_catalogue()
+    own.parent.mkdir(parents=True)
+    own.write_bytes(gzip.compress(json.dumps(raw).encode()))
+    plan = compile_plan(manifest("{provider: aws, region: us-west-2, zone: us-west-2c}", PLANNER))
+    assert [h.zone for h in plan.hosts] == ["us-west-2c", "us-west-2a"]
+    assert ("planner: the catalogue lists no zones of us-west-2; replicas assumed in us-west-2c, us-west-2a "
+            "(`fogiac up` checks them)") in plan.notes
+
+
+def test_preflight_checks_each_replicas_zone_against_what_ec2_offers() -> None:
+    from fogiac.targets.aws.api import choose_zone
+
+    solo = "  - name: solo\n    machine: t3.small\n    image: ros:noetic-ros-core\n"
+    plan = compile_plan(manifest(AWS_CLOUD, PLANNER, solo))
+    problems: list[str] = []
+    offered = {"us-west-2a": {"c5.large", "t3.small"}, "us-west-2b": {"t3.small"}}
+    assert choose_zone(plan, offered, problems) == "us-west-2a"
+    assert problems == ["planner-r2: zone us-west-2b does not offer c5.large (replicas go to zones of their own; "
+                        "`fogiac catalog update` refreshes which zones offer what)"]
+    problems.clear()
+    offered["us-west-2b"].add("c5.large")
+    assert choose_zone(plan, offered, problems) == "us-west-2a" and problems == []

@@ -6,6 +6,7 @@ Real parts: fogiac's own up/status/down, the supervisor, a real roscore per sand
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -63,7 +64,8 @@ nodes:
         doomed = [pid for pid in started_pids(r2) if alive(pid)]
         assert doomed
         for pid in doomed:
-            os.kill(pid, signal.SIGKILL)
+            with contextlib.suppress(ProcessLookupError):  # a child may go with its supervisor
+                os.kill(pid, signal.SIGKILL)
         shutil.rmtree(r2)
         assert alive(first)
 

@@ -97,15 +97,18 @@ def render(doc: Mapping[str, Any]) -> None:
     for h in doc["hosts"]:
         hosts.add_row(h["name"], h["machine"], escape(str(h["address"] or "-")), str(h["vcpus"]), str(h["gpus"]),
                       f"{h['memory_gib']:g}", str(h["disk_gb"]), f"{h['usd_per_hour']:.4f}", _spot_cell(h),
-                      ", ".join(h["nodes"]))
+                      ", ".join(h["nodes"]) + "".join(f" ({h[k]})" for k in ("replica", "zone") if h.get(k)))
     out.print(hosts)
     for h in doc["hosts"]:
         if h["chosen_for"]:
             out.print(escape(menu_line(h, spot_as_of=price_source(doc["target"]).spot_as_of)), highlight=False)
     nodes = table("nodes", "node", "host", "kind", "runs", "GPU")
     for n in doc["nodes"]:
-        nodes.add_row(n["name"], n["host"], n["kind"], escape(n["runs"]), "yes" if n["gpu"] else "no")
+        nodes.add_row(n["name"], ", ".join(n.get("replica_hosts") or [n["host"]]), n["kind"], escape(n["runs"]),
+                      "yes" if n["gpu"] else "no")
     out.print(nodes)
+    for note in doc.get("notes", ()):  # where placement put replicas, and what it skipped
+        out.print(f"note: {escape(note)}", highlight=False)
     spot = doc["cost"].get("spot_hourly_usd")
     columns = ("item", "quantity", "$/h each", "$/h") + (("spot $/h",) if spot is not None else ())
     cost = table("hourly cost (on-demand prices" + ("; spot estimate beside)" if spot is not None else ")"), *columns)

@@ -29,6 +29,7 @@ from fogiac.manifest.fields import DnsName, _Model, ssh_from_problem
 from fogiac.manifest.machines import NoMachine
 from fogiac.manifest.nodes import Build, Launch, Machine, Node, NodeKind, TopicLists, Workload
 from fogiac.manifest.problems import FieldProblem, format_errors, line_index, parse_yaml
+from fogiac.manifest.replicas import Hedge
 from fogiac.manifest.requirements import RequirementsProblem, specifiers
 
 
@@ -113,6 +114,12 @@ class Manifest(_Model):
                 raise FieldProblem(
                     f"{node.host!r} is not in cloud.hosts", field=f"nodes[{i}].host", choices=tuple(host_names)
                 )
+            for name in node.replica_hosts:
+                if name not in host_names:
+                    raise FieldProblem(f"{name!r} is not in cloud.hosts", field=f"nodes[{i}].replica_hosts",
+                                       choices=tuple(host_names))
+            if node.host is not None and node.replica_hosts:
+                raise FieldProblem("give host or replica_hosts, not both", field=f"nodes[{i}].replica_hosts")
         chosen = registry.load("fogiac.middleware", "for_distro")(self.ros.distro)
         for message, field in chosen.manifest_problems(self):  # the middleware's own rules, in its words
             raise FieldProblem(message, field=field)
@@ -204,11 +211,12 @@ def json_schema() -> dict:
 
 def node_types() -> tuple[type[BaseModel], ...]:
     """Every model of the manifest, for the README reference test."""
-    return (Manifest, Ros, Cloud, Autostop, HostMachine, Network, Edge, Node, Machine, Launch, TopicLists, Relay)
+    return (Manifest, Ros, Cloud, Autostop, HostMachine, Network, Edge, Node, Machine, Launch, TopicLists, Relay,
+            Hedge)
 
 
 
 # What other modules import from here (the blocks and nodes live in blocks.py and nodes.py).
-__all__ = ["Autostop", "Build", "Cloud", "Edge", "HostMachine", "Launch", "Machine", "Manifest", "Network", "Node",
-           "NodeKind", "Relay", "Ros", "TopicLists", "Workload", "json_schema", "load_manifest", "parse_manifest",
-           "ssh_from_problem"]
+__all__ = ["Autostop", "Build", "Cloud", "Edge", "Hedge", "HostMachine", "Launch", "Machine", "Manifest", "Network",
+           "Node", "NodeKind", "Relay", "Ros", "TopicLists", "Workload", "json_schema", "load_manifest",
+           "parse_manifest", "ssh_from_problem"]

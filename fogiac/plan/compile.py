@@ -13,6 +13,7 @@ import re
 
 from fogiac import targets
 from fogiac.errors import FogiacError
+from fogiac.manifest.replicas import warn_unchecked
 from fogiac.manifest.schema import Manifest, Node
 from fogiac.net import middleware
 from fogiac.plan.model import (
@@ -23,9 +24,10 @@ from fogiac.plan.model import (
     NodeSpec,
     Plan,
     RelayRoute,
+    Replica,
     check_ingress,
 )
-from fogiac.plan.placement import ssh_sources
+from fogiac.plan.placement import Placement, ssh_sources
 
 _ENVIRONMENT = re.compile(r"^[a-z]([a-z0-9-]{0,38}[a-z0-9])?$")
 
@@ -67,12 +69,37 @@ def compile_plan(manifest: Manifest, *, target: str | None = None, environment: 
         vpn=placed.vpn,
         hosts=placed.hosts,
         nodes=nodes,
-        routes=tuple(_route(manifest, host, nodes, placed.connect_via, carrier.port) for host in placed.hosts),
+        routes=tuple(_route(manifest, host, nodes, placed.connect_via, carrier.port, _replicas(manifest, placed))
+                     for host in placed.hosts),
         tags=tags,
         cost=placed.cost,
         autostop=placed.autostop,
         middleware_settings=_settings(manifest, carrier.name),
+        notes=placed.notes + _unchecked(manifest),
     )
+
+
+def _unchecked(manifest: Manifest) -> tuple[str, ...]:
+    """Replicated nodes' out topics without a stated type: said in the plan, and warned in one line."""
+    lines = tuple(line for node in manifest.nodes if (line := node.unchecked_match()) is not None)
+    for line in lines:
+        warn_unchecked(line)
+    return lines
+
+
+def _replicas(manifest: Manifest, placed: Placement) -> dict[str, Replica]:
+    """host -> the replica it carries, for every replicated node's hosts."""
+    found: dict[str, Replica] = {}
+    for node in manifest.nodes:
+        hosts = placed.replica_hosts.get(node.name, ())
+        if node.replicas > 1 and len(hosts) != node.replicas:
+            raise FogiacError(f"nodes.{node.name}: the target placed {len(hosts)} of its {node.replicas} replicas")
+        hedge = node.hedge
+        for index, host in enumerate(hosts):
+            found[host] = Replica(group=node.name, index=index, count=node.replicas, match=node.reply_match,
+                                  hedge="all" if hedge == "all" else "delayed",
+                                  hedge_delay_s=0.0 if hedge == "all" else hedge.delay_ms / 1000)
+    return found
 
 
 def _settings(manifest: Manifest, carrier: str) -> tuple[tuple[str, object], ...]:
@@ -111,8 +138,8 @@ def _node(node: Node, host: str) -> NodeSpec:
 
 
 def _route(manifest: Manifest, host: HostSpec, nodes: tuple[NodeSpec, ...], via: ConnectVia,
-           port: int) -> RelayRoute:
-    mine = [n for n in nodes if n.host == host.name]
+           port: int, replicas: dict[str, Replica]) -> RelayRoute:
+    mine = [n for n in nodes if n.name in host.nodes]
     relay = manifest.relay
     listed = relay.topics if relay.topics != "auto" else ()
     to_cloud = tuple(sorted({t for n in mine for t in n.topics_in}))
@@ -130,4 +157,5 @@ def _route(manifest: Manifest, host: HostSpec, nodes: tuple[NodeSpec, ...], via:
         listed=tuple(sorted(listed)),
         compression=compression,
         queue_size=relay.queue_size,
+        replica=replicas.get(host.name),
     )

@@ -28,7 +28,7 @@ from fogiac.manifest.crossfield import cross_field_problems
 from fogiac.manifest.fields import DnsName, _Model, ssh_from_problem
 from fogiac.manifest.machines import NoMachine
 from fogiac.manifest.nodes import Build, Launch, Machine, Node, NodeKind, TopicLists, Workload
-from fogiac.manifest.problems import FieldProblem, format_errors, line_index, parse_yaml
+from fogiac.manifest.problems import FieldProblem, format_errors, line_index, parse_yaml, raise_all
 from fogiac.manifest.requirements import RequirementsProblem, specifiers
 
 
@@ -98,24 +98,26 @@ class Manifest(_Model):
 
     @model_validator(mode="after")
     def _across(self) -> Manifest:
+        problems: list[FieldProblem] = []  # every one, each by its path: validate reports in one run
         names = [n.name for n in self.nodes]
         for i, name in enumerate(names):
             if name in names[:i]:
-                raise FieldProblem(f"duplicate node name {name!r}", field=f"nodes[{i}].name")
+                problems.append(FieldProblem(f"duplicate node name {name!r}", field=f"nodes[{i}].name"))
         for i, node in enumerate(self.nodes):
             try:
                 node.machine_choice(self.cloud.region, spot=node.spot, provider=self.cloud.chosen())
             except NoMachine as err:
-                raise FieldProblem(str(err), field=f"nodes[{i}].machine") from None
+                problems.append(FieldProblem(str(err), field=f"nodes[{i}].machine"))
         host_names = [h.name for h in self.cloud.hosts]
         for i, node in enumerate(self.nodes):
             if node.host is not None and node.host not in host_names:
-                raise FieldProblem(
+                problems.append(FieldProblem(
                     f"{node.host!r} is not in cloud.hosts", field=f"nodes[{i}].host", choices=tuple(host_names)
-                )
+                ))
         chosen = registry.load("fogiac.middleware", "for_distro")(self.ros.distro)
         for message, field in chosen.manifest_problems(self):  # the middleware's own rules, in its words
-            raise FieldProblem(message, field=field)
+            problems.append(FieldProblem(message, field=field))
+        raise_all(problems)
         return self
 
 

@@ -30,6 +30,7 @@ from fogiac.manifest.machines import NoMachine
 from fogiac.manifest.nodes import Build, Launch, Machine, Node, NodeKind, TopicLists, Workload
 from fogiac.manifest.problems import FieldProblem, format_errors, line_index, parse_yaml, raise_all
 from fogiac.manifest.requirements import RequirementsProblem, specifiers
+from fogiac.manifest.source import read_source
 
 
 class Manifest(_Model):
@@ -188,12 +189,7 @@ def parse_manifest(text: str, *, source: str = "<manifest>", base: Path | None =
 
 def load_manifest(path: str | Path) -> Manifest:
     path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise ManifestError([f"{path}: no such file"]) from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise ManifestError([f"{path}: cannot read: {err}"]) from None
+    text = read_source(path)
     return parse_manifest(text, source=str(path), base=path.resolve().parent)
 
 

@@ -89,6 +89,13 @@ class Manifest(_Model):
         manifest._blocks.update(blocks)
         return manifest
 
+    @field_validator("name")
+    @classmethod
+    def _single_dashes(cls, value: str) -> str:
+        if "--" in value:  # '--' joins a name and an environment that holds a '-' into the stack's name
+            raise ValueError(f"{value!r} holds '--', which fogiac keeps for joining the name and the environment")
+        return value
+
     @field_validator("tags")
     @classmethod
     def _tags(cls, value: dict[str, str]) -> dict[str, str]:

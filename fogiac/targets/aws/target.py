@@ -262,7 +262,8 @@ class AwsTarget:
     def _sweep(self, plan: Plan, *, dry_run: bool, kinds: tuple[str, ...] | None = None) -> sweeping.SweepResult:
         return sweeping.sweep(plan.stack, ec2=api.client("ec2", region=plan.region),
                               acm=api.client("acm", region=plan.region), logs=api.client("logs", region=plan.region),
-                              iam=api.client("iam", region=plan.region), dry_run=dry_run, kinds=kinds)
+                              iam=api.client("iam", region=plan.region), dry_run=dry_run, kinds=kinds,
+                              owner=plan.manifest_name)
 
 
 def watchdogs(plan: Plan, rows: list[api.InstanceStatus]) -> dict[str, dict[str, Any] | None]:

@@ -14,7 +14,7 @@ import time
 from typing import Any
 
 from fogiac import deployment
-from fogiac.errors import FogiacError
+from fogiac.errors import CredentialsError, FogiacError
 from fogiac.lifecycle.driver import (
     Created,
     DownOptions,
@@ -140,9 +140,19 @@ def status(target: Target, plan: Plan, *, now: float | None = None) -> dict[str,
     record = deployment.read(plan.stack)
     known = record is not None and record.exists
     provisioned = bool(recorded_access(folder))  # provisioning's own record of the hosts it reached
+    nothing = {**head, "deployed": False, "hosts": [], "relays": [], "edge": []}
     if not known and not provisioned and not target.recorded(plan):
-        return {**head, "deployed": False, "hosts": [], "relays": [], "edge": []}
-    described = target.describe(plan, now=now)  # first: a target that cannot answer (no credentials) stops here
+        return nothing
+    try:
+        described = target.describe(plan, now=now)  # a target that cannot answer (no credentials) stops here...
+    except CredentialsError as err:
+        if known or provisioned:
+            raise
+        # ...unless nothing here says the stack exists: never deployed from this machine, and the cloud was
+        # not asked for what another machine may have left (aws: status asks the cloud, not only the record)
+        return {**nothing, "unchecked": str(err)}
+    if not known and not provisioned and not described.get("hosts"):
+        return {**nothing, "checked": "the cloud reports no instances"}  # asked, and nothing runs there
     saved = state.read(DEPLOYMENT_FILE) or {}
     relays = middleware.deployment(plan.middleware).edge_links(plan, folder=edge_dir(plan, create=False),
                                                                connect=saved.get("relays", {}))

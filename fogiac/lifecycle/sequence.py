@@ -122,6 +122,7 @@ def down(target: Target, plan: Plan, opts: DownOptions) -> DownResult:
         left = [f"process {e['name']} (pid {e['pid']})" for e in running_edge(plan)] + list(destroyed.left)
         if not left and not errors:
             state.remove(DEPLOYMENT_FILE, APPLIED_FILE)
+            shutil.rmtree(state.edge, ignore_errors=True)  # nothing runs there now: its logs (the edge master's too)
             target.forget(plan, keep_network=opts.keep_network)
             if destroyed.kept:
                 deployment.cut_back(plan.stack)

@@ -54,6 +54,9 @@ def _master_up(uri: str, *, timeout: float) -> bool:
     return poll(answers, timeout=timeout, interval=0.2, backoff=1.0) is not None
 
 
+EDGE_ROS_HOME = "ros"  # the edge master's ROS_HOME, in the edge folder
+
+
 def prepare_edge(uri: str, *, folder: Path, start: bool) -> None:
     """The edge's ROS master must answer; for demos fogiac can run it (supervised, stopped by down)."""
     if _master_up(uri, timeout=0.5):
@@ -62,7 +65,10 @@ def prepare_edge(uri: str, *, folder: Path, start: bool) -> None:
         raise FogiacError(f"no ROS master answers at {uri} (edge.ros_master); start roscore, "
                           "or pass --start-edge-master to let fogiac run one")
     url = urlparse(uri)
-    supervise.start(folder, EDGE_MASTER, ["roscore", "-p", str(url.port)])
+    # its logs in the stack's edge folder (down removes it), not the operator's ~/.ros/log
+    home = folder / EDGE_ROS_HOME
+    supervise.start(folder, EDGE_MASTER, ["env", f"ROS_HOME={home}", f"ROS_LOG_DIR={home / 'log'}",
+                                          "roscore", "-p", str(url.port)])
     if not _master_up(uri, timeout=30):
         supervise.stop(folder, EDGE_MASTER)
         raise FogiacError(f"the edge roscore did not come up at {uri}; see {folder / (EDGE_MASTER + '.log')}")

@@ -9,8 +9,10 @@ A target (:class:`~fogiac.lifecycle.driver.Target`) answers only the questions t
 
 from __future__ import annotations
 
+import dataclasses
 import shutil
 import time
+from collections.abc import Mapping
 from typing import Any
 
 from fogiac import deployment
@@ -95,6 +97,18 @@ def _edge_or_undo(plan: Plan, master: str, *, start: bool, before: deployment.De
         raise
 
 
+def _recorded_hosts_too(plan: Plan, access: Mapping[str, Any]) -> tuple[Plan, dict[str, Any]]:
+    """The plan's hosts and every other host the stack's provisioning record names, with their access: a
+    ``down --force`` with another manifest of the same stack stops the first manifest's hosts too."""
+    recorded = recorded_access(StackState(plan.stack).folder)
+    extra = {name: entry for name, entry in recorded.items() if name not in access}
+    if not extra or not plan.hosts:
+        return plan, dict(access)
+    specs = tuple(dataclasses.replace(plan.hosts[0], name=name, nodes=entry[2]) for name, entry in extra.items())
+    return (dataclasses.replace(plan, hosts=plan.hosts + specs),
+            {**access, **{name: entry[0] for name, entry in extra.items()}})
+
+
 def down(target: Target, plan: Plan, opts: DownOptions) -> DownResult:
     """Stop the edge, stop what runs on machines that stay, destroy what was made, prove nothing is left."""
     target.ready(plan, verb="down")  # missing credentials: one line, before anything is destroyed
@@ -110,8 +124,9 @@ def down(target: Target, plan: Plan, opts: DownOptions) -> DownResult:
         stop_edge(plan, keep_master=True)  # the edge relays first: their peers are about to go
         if Feature.CREATES_MACHINES not in target.features:  # the machines stay: stop what fogiac runs there
             try:
-                report = teardown(plan, hosts=target.reach(plan, Created(plan=plan), announce=lambda _: None).access,
-                                  state_dir=folder)
+                access = target.reach(plan, Created(plan=plan), announce=lambda _: None).access
+                every, hosts = _recorded_hosts_too(plan, access)
+                report = teardown(every, hosts=hosts, state_dir=folder)
                 errors += [o.error or f"{o.host}: failed" for o in report.failed]
                 deleted += [f"{o.host} process {name}" for o in report.hosts for name in o.stopped]
             except FogiacError as err:

@@ -32,6 +32,8 @@ from fogiac.manifest.problems import FieldProblem, format_errors, line_index, pa
 from fogiac.manifest.requirements import RequirementsProblem, specifiers
 from fogiac.manifest.source import read_source
 
+MAX_TAGS, FOGIAC_TAGS, MAX_TAG_KEY, MAX_TAG_VALUE = 50, 4, 128, 256  # AWS's limits per resource
+
 
 class Manifest(_Model):
     """A fogiac deployment: which ROS nodes run off the robot, where, over which network."""
@@ -102,6 +104,16 @@ class Manifest(_Model):
         for key in value:
             if key.startswith(("fogiac:", "aws:")):
                 raise ValueError(f"tag {key!r} uses a reserved prefix (fogiac:, aws:)")
+        # the cloud's limits, found at validate rather than at up (AWS: 50 tags a resource, keys of 128
+        # characters, values of 256); fogiac's own take FOGIAC_TAGS of the 50
+        if len(value) > MAX_TAGS - FOGIAC_TAGS:
+            raise ValueError(f"{len(value)} tags; a cloud resource holds {MAX_TAGS} and fogiac sets {FOGIAC_TAGS} "
+                             f"(fogiac:stack, fogiac:manifest, fogiac:node, Name): at most {MAX_TAGS - FOGIAC_TAGS}")
+        for key, text in value.items():
+            if len(key) > MAX_TAG_KEY:
+                raise ValueError(f"tag key {key[:20]!r}... is {len(key)} characters; the limit is {MAX_TAG_KEY}")
+            if len(text) > MAX_TAG_VALUE:
+                raise ValueError(f"tag {key!r}: its value is {len(text)} characters; the limit is {MAX_TAG_VALUE}")
         return value
 
     @model_validator(mode="after")

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import ipaddress
+
+from fogiac.errors import FogiacError
 from fogiac.manifest.machines import MachineSpec
 from fogiac.manifest.schema import Manifest
 from fogiac.net import middleware
@@ -69,6 +72,19 @@ def _network(manifest: Manifest) -> NetworkSpec:
         ),
         flow_logs=manifest.network.flow_logs,
     )
+
+
+AWS_RESERVED_PER_SUBNET = 5  # the network, the router, DNS, one for the future, the broadcast
+
+
+def _room_for(manifest: Manifest, network: NetworkSpec, machines: int) -> None:
+    """The hosts subnet holds an address for every machine: found at validate, not when EC2 runs out at up."""
+    subnet = next(s for s in network.subnets if s.role == "instances")
+    usable = ipaddress.IPv4Network(subnet.cidr).num_addresses - AWS_RESERVED_PER_SUBNET
+    if machines > usable:
+        raise FogiacError(
+            f"network.vpc_cidr: {manifest.network.vpc_cidr} gives the hosts subnet {subnet.cidr}, {usable} usable "
+            f"addresses (AWS keeps 5), for {machines} machines; give vpc_cidr a shorter prefix (a /24 or wider)")
 
 
 def _egress(manifest: Manifest, inside: list[str]) -> tuple[Rule, ...]:
@@ -150,6 +166,7 @@ def place(manifest: Manifest, *, stack: str, tags: Tags) -> Placement:
     hosts, node_hosts = host_per_node(
         manifest, stack=stack, tags=tags, usd_per_hour=lambda spec: on_demand(spec.name, region), spot=True,
         spot_usd_per_hour=lambda spec: spot_price(spec.name, region), image=image_for)
+    _room_for(manifest, network, len(hosts))
     vpn = _vpn(manifest, stack, network) if vpn_mode else None
     return Placement(
         hosts=hosts, node_hosts=node_hosts, mode=manifest.network.mode,

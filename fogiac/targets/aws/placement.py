@@ -82,9 +82,11 @@ def _room_for(manifest: Manifest, network: NetworkSpec, machines: int) -> None:
     subnet = next(s for s in network.subnets if s.role == "instances")
     usable = ipaddress.IPv4Network(subnet.cidr).num_addresses - AWS_RESERVED_PER_SUBNET
     if machines > usable:
+        wider = ("give vpc_cidr a shorter prefix (a /24 or wider)" if ipaddress.IPv4Network(subnet.cidr).prefixlen > 24
+                 else "fogiac's hosts subnet is a /24 at most: split the nodes into several stacks")
         raise FogiacError(
             f"network.vpc_cidr: {manifest.network.vpc_cidr} gives the hosts subnet {subnet.cidr}, {usable} usable "
-            f"addresses (AWS keeps 5), for {machines} machines; give vpc_cidr a shorter prefix (a /24 or wider)")
+            f"addresses (AWS keeps 5), for {machines} machines; {wider}")
 
 
 def _egress(manifest: Manifest, inside: list[str]) -> tuple[Rule, ...]:
@@ -163,10 +165,10 @@ def place(manifest: Manifest, *, stack: str, tags: Tags) -> Placement:
     region = manifest.cloud.region
     vpn_mode = manifest.network.mode == "vpn"
     network = _network(manifest)
+    _room_for(manifest, network, len(manifest.nodes))  # one machine a node: refused before any is placed
     hosts, node_hosts = host_per_node(
         manifest, stack=stack, tags=tags, usd_per_hour=lambda spec: on_demand(spec.name, region), spot=True,
         spot_usd_per_hour=lambda spec: spot_price(spec.name, region), image=image_for)
-    _room_for(manifest, network, len(hosts))
     vpn = _vpn(manifest, stack, network) if vpn_mode else None
     return Placement(
         hosts=hosts, node_hosts=node_hosts, mode=manifest.network.mode,

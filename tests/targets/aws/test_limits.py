@@ -37,3 +37,13 @@ def test_a_hosts_subnet_too_small_is_refused(tmp_path: Path, _state_dir: Path, v
 def test_the_subnet_that_fits_passes(tmp_path: Path, _state_dir: Path) -> None:
     assert runner.invoke(app, ["validate", str(_manifest(tmp_path, nodes=27, vpc="10.10.0.0/26"))]).exit_code == 0
     assert runner.invoke(app, ["validate", str(_manifest(tmp_path, nodes=40, vpc="10.10.0.0/24"))]).exit_code == 0
+
+
+def test_a_stack_of_more_nodes_than_a_hosts_subnet_holds_is_refused_before_placing_any(
+        tmp_path: Path, _state_dir: Path) -> None:
+    """Issue 26 item 24: plan of 1600 aws nodes took 15-25 s and 530 MB; now one line (~1 s, 55 MB)."""
+    result = runner.invoke(app, ["plan", str(_manifest(tmp_path, nodes=1600, vpc="10.10.0.0/16"))])
+    assert result.exit_code == 1, result.output
+    assert result.output.strip().splitlines() == [
+        f"{tmp_path / 'fogiac.yaml'}:4: nodes: 1600 nodes; a stack holds at most 250: split them into several "
+        "manifests (or environments)"]

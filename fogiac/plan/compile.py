@@ -33,19 +33,33 @@ _ENVIRONMENT = re.compile(r"^[a-z]([a-z0-9-]{0,38}[a-z0-9])?$")
 
 
 def stack_name(manifest: Manifest, environment: str = "dev") -> str:
-    """``<name>-<environment>``: a folder name, a tag and a word in rendered units and scripts, so
-    the environment obeys the same DNS-safe rule as the manifest's name."""
+    """``<name>-<environment>``, or ``<name>--<environment>`` when the environment holds a '-': a folder
+    name, a tag and a word in rendered units and scripts, so the environment obeys the same DNS-safe
+    rule as the manifest's name. Neither holds '--', so no two (name, environment) pairs share a stack
+    (``robot-prod`` + ``dev`` and ``robot`` + ``prod-dev`` were both ``robot-prod-dev``); an environment
+    without a '-' (``dev``, ``prod``) keeps the name it always had."""
     if not _ENVIRONMENT.match(environment):
         raise FogiacError(f"--env {environment!r} is not DNS-safe (lowercase letters, digits, '-', up to 40)")
-    return f"{manifest.name}-{environment}"
+    if "--" in environment:
+        raise FogiacError(f"--env {environment!r} holds '--', which fogiac keeps for joining the name and the "
+                          "environment")
+    return f"{manifest.name}{'--' if '-' in environment else '-'}{environment}"
 
 
-def compile_plan(manifest: Manifest, *, target: str | None = None, environment: str = "dev") -> Plan:
-    """Compile ``manifest`` for ``target`` (default: the manifest's own provider)."""
+def legacy_stack_name(manifest: Manifest, environment: str) -> str | None:
+    """The name fogiac gave this stack before ``--`` (``<name>-<environment>``), where it differs."""
+    old = f"{manifest.name}-{environment}"
+    return old if old != stack_name(manifest, environment) else None
+
+
+def compile_plan(manifest: Manifest, *, target: str | None = None, environment: str = "dev",
+                 stack: str | None = None) -> Plan:
+    """Compile ``manifest`` for ``target`` (default: the manifest's own provider); ``stack``: the name a
+    deployment made under an older naming still has (:func:`legacy_stack_name`), else :func:`stack_name`."""
     name = target or manifest.cloud.provider
     place = targets.placer(name)  # loads only what the target decides at compile time
     carrier = middleware.for_distro(manifest.ros.distro)
-    stack = stack_name(manifest, environment)
+    stack = stack or stack_name(manifest, environment)
     tags = (("fogiac:stack", stack), ("fogiac:manifest", manifest.name)) + tuple(sorted(manifest.tags.items()))
     placed = place(manifest, stack=stack, tags=tags)
     for group in placed.security_groups:

@@ -54,6 +54,9 @@ def _master_up(uri: str, *, timeout: float) -> bool:
     return poll(answers, timeout=timeout, interval=0.2, backoff=1.0) is not None
 
 
+EDGE_ROS_HOME = "ros"  # the edge master's ROS_HOME, in the edge folder
+
+
 def prepare_edge(uri: str, *, folder: Path, start: bool) -> None:
     """The edge's ROS master must answer; for demos fogiac can run it (supervised, stopped by down)."""
     if _master_up(uri, timeout=0.5):
@@ -62,12 +65,15 @@ def prepare_edge(uri: str, *, folder: Path, start: bool) -> None:
         raise FogiacError(f"no ROS master answers at {uri} (edge.ros_master); start roscore, "
                           "or pass --start-edge-master to let fogiac run one")
     url = urlparse(uri)
-    argv = ["roscore", "-p", str(url.port)]
+    # its logs in the stack's edge folder (down removes it), not the operator's ~/.ros/log
+    home = folder / EDGE_ROS_HOME
+    logs = [f"ROS_HOME={home}", f"ROS_LOG_DIR={home / 'log'}"]
+    argv = ["env", *logs, "roscore", "-p", str(url.port)]
     if _loopback(url.hostname):
         # rosmaster binds where ROS_IP says: loopback, not 0.0.0.0. The master alone, without roscore's
         # rosout: roscpp's XML-RPC server binds every interface whatever ROS_IP says, and through it
         # anyone on the network could point rosout at a publisher of their own.
-        argv = ["env", "-u", "ROS_HOSTNAME", "ROS_IP=127.0.0.1", "rosmaster", "--core", "-p", str(url.port)]
+        argv = ["env", "-u", "ROS_HOSTNAME", *logs, "ROS_IP=127.0.0.1", "rosmaster", "--core", "-p", str(url.port)]
     supervise.start(folder, EDGE_MASTER, argv)
     if not _master_up(uri, timeout=30):
         supervise.stop(folder, EDGE_MASTER)

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import dataclasses
+import ipaddress
 from collections.abc import Mapping
 
-from fogiac.errors import PlanError
+from fogiac.errors import FogiacError, PlanError
 from fogiac.manifest.machines import MachineSpec
 from fogiac.manifest.schema import Manifest
 from fogiac.net import middleware
@@ -123,6 +124,21 @@ def replica_zones(manifest: Manifest, hosts: tuple[HostSpec, ...],
     return placed, tuple(notes)
 
 
+AWS_RESERVED_PER_SUBNET = 5  # the network, the router, DNS, one for the future, the broadcast
+
+
+def _room_for(manifest: Manifest, network: NetworkSpec, machines: int) -> None:
+    """The hosts subnet holds an address for every machine: found at validate, not when EC2 runs out at up."""
+    subnet = next(s for s in network.subnets if s.role == "instances")
+    usable = ipaddress.IPv4Network(subnet.cidr).num_addresses - AWS_RESERVED_PER_SUBNET
+    if machines > usable:
+        wider = ("give vpc_cidr a shorter prefix (a /24 or wider)" if ipaddress.IPv4Network(subnet.cidr).prefixlen > 24
+                 else "fogiac's hosts subnet is a /24 at most: split the nodes into several stacks")
+        raise FogiacError(
+            f"network.vpc_cidr: {manifest.network.vpc_cidr} gives the hosts subnet {subnet.cidr}, {usable} usable "
+            f"addresses (AWS keeps 5), for {machines} machines; {wider}")
+
+
 def _egress(manifest: Manifest, inside: list[str]) -> tuple[Rule, ...]:
     """Anything inside the VPC (and to VPN clients), and only the manifest's TCP ports (80 and 443 by
     default: packages, images, APIs) beyond it. DNS (the VPC's resolver) and time (Amazon Time Sync,
@@ -202,6 +218,7 @@ def place(manifest: Manifest, *, stack: str, tags: Tags) -> Placement:
     hosts, node_hosts = host_per_node(
         manifest, stack=stack, tags=tags, usd_per_hour=lambda spec: on_demand(spec.name, region), spot=True,
         spot_usd_per_hour=lambda spec: spot_price(spec.name, region), image=image_for)
+    _room_for(manifest, _network(manifest), len(hosts))  # a machine a node (and a replica): before any zone is chosen
     groups = replica_groups(manifest)
     hosts, notes = replica_zones(manifest, hosts, groups)
     network = _network(manifest, tuple(sorted({h.zone for h in hosts if h.zone is not None})))

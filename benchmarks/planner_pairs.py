@@ -33,6 +33,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from fogiac.procs import cpu_seconds  # noqa: E402
 from workloads.motion_planning.paper_problems import PAPER_DIR  # noqa: E402
 from workloads.motion_planning.planner import Solution, warm_up  # noqa: E402
 from workloads.motion_planning.pool import WarmPlanner  # noqa: E402
@@ -76,7 +77,8 @@ def describe(name: str, runs: list[tuple[Solution, Solution, Solution]], cores: 
                  f"of {len(split)}; search CPU seconds, one worker / busiest of {cores}: median {_median(cpu):.2f}x "
                  f"(cores the {cores} workers got while searching: median {_median(got):.2f}); serial share median "
                  f"{_median([d.serial_share for d in many_div]):.1%} "
-                 f"(max {max(d.serial_share for d in many_div):.1%}), imbalance "
+                 f"(max {max(d.serial_share for d in many_div):.1%}; of the CPU seconds "
+                 f"{_median([d.serial_cpu_share for d in many_div]):.1%}), imbalance "
                  f"{_median([d.imbalance_s / d.wall_s for d in many_div]):.1%}; projection (Amdahl, these figures): "
                  f"{_median([d.projected_speedup(16) for d in many_div]):.1f}x at 16 cores, "
                  f"{_median([d.projected_speedup(96) for d in many_div]):.1f}x at 96")
@@ -119,22 +121,49 @@ def pairs(problems: dict[str, Problem], *, cores: int, runs: int, seed: int) -> 
 
 
 def curve(problems: dict[str, Problem], counts: list[int], *, runs: int, seed: int) -> None:
-    """The divided search on each worker count, the same seeds (so the same searches up to 8 workers):
-    median search and solve time, and their speedup over the first count. For a machine with the cores."""
+    """The divided search on each worker count, the same seeds (the same searches up to 8 workers; beyond,
+    a bigger batch per round). Per count: median search and solve time and their speedup over the first
+    count, the work per worker, the serial share and imbalance of the search, and the cores the workers
+    got over the whole solve (search, lift and finish). For a machine with that many cores."""
     for name in problems:
-        times: dict[int, list[Solution]] = {}
+        rows: dict[int, list[tuple[Solution, float]]] = {}
         for n in counts:
             with WarmPlanner({name: problems[name]}, workers=n, seed=seed, mode="divide") as planner:
-                times[n] = [planner.solve(name, seed=seed + 1000 * run) for run in range(runs)]
+                rows[n] = [_timed(planner, name, seed + 1000 * run) for run in range(runs)]
         base = counts[0]
-        search0 = _median([s.plan_time_s for s in times[base]])
-        solve0 = _median([s.solve_time_s for s in times[base]])
+        search0 = _median([s.plan_time_s for s, _ in rows[base]])
+        solve0 = _median([s.solve_time_s for s, _ in rows[base]])
+        checks0 = _median([float(sum(d.checks)) for s, _ in rows[base] if (d := s.division) is not None])
         for n in counts:
-            search, solve = _median([s.plan_time_s for s in times[n]]), _median([s.solve_time_s for s in times[n]])
-            shares = [d.serial_share for s in times[n] if (d := s.division) is not None]
+            sols = [s for s, _ in rows[n]]
+            search, solve = _median([s.plan_time_s for s in sols]), _median([s.solve_time_s for s in sols])
+            divs = [d for s in sols if s.solved and (d := s.division) is not None and d.checks]
+            # each worker's checks over its run's total / n (1.00: an exact split), and the run's total
+            # against the first count's (above 1: the bigger batch or the lag cost extra work)
+            split = [c * n / sum(d.checks) for d in divs for c in d.checks if sum(d.checks)]
+            total = _median([sum(d.checks) - sum(d.stolen_checks) for d in divs]) / checks0 if checks0 else 0.0
             print(f"  {name:<10} {n:>3} workers: search {search:6.2f}s ({search0 / search:5.2f}x), solve "
-                  f"{solve:6.2f}s ({solve0 / solve:5.2f}x), serial share {_median(shares):.1%}, solved "
-                  f"{sum(s.solved for s in times[n])}/{runs}", flush=True)
+                  f"{solve:6.2f}s ({solve0 / solve:5.2f}x); work per worker "
+                  f"{min(split, default=0):.2f}-{max(split, default=0):.2f} of total/{n}, total {total:.2f}x "
+                  f"{base} worker's; serial share {_median([d.serial_share for d in divs]):.1%} (of the CPU seconds "
+                  f"{_median([d.serial_cpu_share for d in divs]):.1%}), imbalance "
+                  f"{_median([d.imbalance_s / d.wall_s for d in divs if d.wall_s]):.1%}; cores used: search "
+                  f"{_median([sum(d.cpu_s) / d.wall_s for d in divs if d.wall_s]):.2f}, solve "
+                  f"{_median([c for _, c in rows[n]]):.2f}; solved {sum(s.solved for s in sols)}/{runs}",
+                  flush=True)
+        last = [d for s, _ in rows[counts[-1]] if (d := s.division) is not None and d.checks]
+        if last:
+            print(f"  {name:<10} projection (Amdahl, {counts[-1]} workers' figures): "
+                  f"{_median([d.projected_speedup(96) for d in last]):.1f}x at 96 cores", flush=True)
+
+
+def _timed(planner: WarmPlanner, name: str, seed: int) -> tuple[Solution, float]:
+    """A solve, and the cores its workers got over it (their CPU seconds over its wall seconds)."""
+    pids = planner.pids()
+    cpu = sum(map(cpu_seconds, pids))
+    solution = planner.solve(name, seed=seed)
+    used = sum(map(cpu_seconds, pids)) - cpu
+    return solution, used / solution.solve_time_s if solution.solve_time_s > 0 else 0.0
 
 
 if __name__ == "__main__":

@@ -5,15 +5,17 @@ workers do k times the work for the luck of the best draw. Here the workers grow
 trees (one from the start, one from the goal, RRT-Connect's extend-then-connect) in rounds:
 
 - every round has a fixed batch of samples, drawn from ``(seed, round)``, after the connects the
-  last round left unfinished; sample ``i`` extends the start tree when ``i + round`` is even, else
-  the goal tree, from its nearest node (as the trees stood when the round began) by at most
+  merge before left unfinished; sample ``i`` extends the start tree when ``i + round`` is even, else
+  the goal tree, from its nearest node (in the trees as merged ``rounds.LAG`` rounds back, so the
+  workers need not wait for a round's last tasks before the next round starts) by at most
   ``step`` (and ``EXTEND_CHECKS`` checks), to the last pose its motion check passed; the other
   tree's nearest node then goes straight toward the new node for at most ``CONNECT_CHECKS``
   checks, its valid prefix added as nodes a step apart; a full reach joins the trees;
 - each task is a pure function of the trees and the seed (:meth:`TreeWorker.task`), so it does not
   matter which worker runs it; ``rounds.py`` hands them out, and every worker applies the same
   :func:`merge_round` (task order) to its own copy of the trees;
-- the first round with a joining task ends the search: the lowest such task's path.
+- the first round with a joining task ends the search: the lowest such task's path (the rounds
+  already started after it are dropped).
 
 So the k workers together do the work one worker would do, each about 1/k of it, and the
 answer depends on the seed alone, not on k or on which worker took which task (the batch is
@@ -115,6 +117,7 @@ class TreeWorker:
         self.resolution = 0.0
         self.seed = 0
         self.batch = DEFAULT_BATCH
+        self.view = (1, 1)
 
     def begin(self, start: Pose, goal: Pose, *, resolution: float, seed: int, batch: int) -> str | None:
         """New trees; a status when no search is needed (``invalid start``, ``invalid goal``, ``straight``:
@@ -129,14 +132,23 @@ class TreeWorker:
             return "invalid goal"
         return "straight" if self.valid_prefix(a, b, limit=None)[0] == 1.0 else None
 
-    def task(self, i: int, number: int, pending: list[tuple[int, int, int]], samples: np.ndarray) -> tuple[Any, ...]:
-        """Task ``i`` of round ``number``: first the connects the last round left unfinished (``pending``:
-        the tree of the node to reach, that node, the other tree's node to go on from), then the samples."""
+    def task(self, i: int, number: int, pending: list[tuple[int, int, int]], samples: np.ndarray,
+             view: tuple[int, int] | None = None) -> tuple[Any, ...]:
+        """Task ``i`` of round ``number``: first the connects an earlier round left unfinished (``pending``:
+        the tree of the node to reach, that node, the other tree's node to go on from), then the samples.
+
+        ``view``: how many nodes of each tree the round sees (the trees as they stood ``LAG`` rounds back;
+        later nodes are ignored, so the answer does not depend on how far this worker's copy has got)."""
         assert self.trees is not None
+        self.view = view or (self.trees.size(0), self.trees.size(1))
         if i < len(pending):
             tree, x, c = pending[i]
             return (i, tree, x, None, *self.connect(tree, self.trees.poses[tree][x], c))
         return self.extend(i, (i + number) % 2, samples[i - len(pending)])
+
+    def _seen(self, tree: int) -> np.ndarray:
+        assert self.trees is not None
+        return self.trees.poses[tree][:self.view[tree]]
 
     def samples(self, number: int) -> np.ndarray:
         """The round's batch of uniform poses, the same in every worker: drawn from (seed, round)."""
@@ -149,7 +161,7 @@ class TreeWorker:
         """(index, tree, near, new pose or None, other tree's node, its chain toward the new pose, joined,
         the connect goes on next round)."""
         assert self.trees is not None
-        poses = self.trees.poses[tree]
+        poses = self._seen(tree)
         d = distances(poses, sample, self.radius)
         near = int(np.argmin(d))
         target = sample if d[near] <= self.step else between(poses[near], sample,
@@ -158,7 +170,7 @@ class TreeWorker:
         if reached == 0.0:
             return (index, tree, near, None, -1, [], False, False)
         new = target if reached == 1.0 else between(poses[near], target, np.array([reached]))[0]
-        y = int(np.argmin(distances(self.trees.poses[1 - tree], new, self.radius)))
+        y = int(np.argmin(distances(self._seen(1 - tree), new, self.radius)))
         return (index, tree, near, new, *self.connect(tree, new, y))
 
     def connect(self, tree: int, new: np.ndarray, y: int) -> tuple[int, list[np.ndarray], bool, bool]:

@@ -19,7 +19,7 @@ one-worker and N-worker runs search the very same trees: the work each of the N 
   measurement (no machine with more than 2 cores was measured here).
 
 ``--curve 1,2,4,8,16`` measures the divided search alone on each worker count instead (for a machine
-with that many cores), ``--runs`` 3 and a 40 s limit per search unless given: per problem and count
+with that many cores), ``--runs`` 3 and a 30 s limit per search unless given: per problem and count
 the median search and solve time, the speedup of each over the first count, the work per worker
 (a share of that run's total over the count) and the total against the first count's, the serial
 share (of the wall and of the CPU seconds), the imbalance, the cores the workers got (search, and
@@ -49,7 +49,7 @@ from workloads.motion_planning.rounds import Division  # noqa: E402
 
 PAIRS_RUNS = 5
 CURVE_RUNS = 3  # six problems at 1, 2, 4, 8 and 16 workers in about 4 minutes on 16 cores
-CURVE_TIME_LIMIT = 40.0  # a search the curve gives up on counts as unsolved, at this time
+CURVE_TIME_LIMIT = 30.0  # a search the curve gives up on counts as unsolved, at this time
 
 
 def _median(values: list[float]) -> float:

@@ -4,7 +4,7 @@ A race (``planner.py``) runs one whole search per worker and keeps the first to 
 workers do k times the work for the luck of the best draw. Here the workers grow the *same* two
 trees (one from the start, one from the goal, RRT-Connect's extend-then-connect) in rounds:
 
-- every round has a fixed batch of samples, drawn from ``(seed, round)``, after the connects the
+- every round has a fixed batch of samples, drawn from the seed's stream, after the connects the
   merge before left unfinished; sample ``i`` extends the start tree when ``i + round`` is even, else
   the goal tree, from its nearest node (in the trees as merged ``rounds.LAG`` rounds back, so the
   workers need not wait for a round's last tasks before the next round starts) by at most
@@ -40,6 +40,7 @@ STEP_FRACTION = 0.2  # the extend step, of the space's extent (RRT-Connect's def
 CONNECT_CHECKS = 64  # a connect checks at most this many poses per round, then goes on in the next
 EXTEND_CHECKS = 64  # an extension checks at most this many poses (and steps no farther than RRT-Connect would)
 MAX_CHAIN = 4  # nodes a connect adds in one round
+DRAW_ROUNDS = 16  # rounds whose samples are drawn at once (one draw a round cost as much as the merge)
 
 
 def batch_size(workers: int) -> int:
@@ -118,12 +119,14 @@ class TreeWorker:
         self.seed = 0
         self.batch = DEFAULT_BATCH
         self.view = (1, 1)
+        self._rng, self._drawn, self._ahead = np.random.default_rng(0), 0, np.empty((0, 7))
 
     def begin(self, start: Pose, goal: Pose, *, resolution: float, seed: int, batch: int) -> str | None:
         """New trees; a status when no search is needed (``invalid start``, ``invalid goal``, ``straight``:
         the straight move is free). Every worker checks this alike: a few checks, the same answer."""
         self.trees = Trees(as_array(start), as_array(goal))
         self.resolution, self.seed, self.batch = resolution, seed, batch
+        self._rng, self._drawn, self._ahead = np.random.default_rng(seed), 0, np.empty((0, 7))
         self.step = min(STEP_FRACTION * self.extent, EXTEND_CHECKS * resolution)
         a, b = self.trees.poses[0][0], self.trees.poses[1][0]
         if not self._free(a):
@@ -151,11 +154,19 @@ class TreeWorker:
         return self.trees.poses[tree][:self.view[tree]]
 
     def samples(self, number: int) -> np.ndarray:
-        """The round's batch of uniform poses, the same in every worker: drawn from (seed, round)."""
-        rng = np.random.default_rng([self.seed, number])
-        positions = rng.uniform(self.lo, self.hi, size=(self.batch, 3))
-        q = rng.normal(size=(self.batch, 4))
-        return np.hstack([positions, q / np.linalg.norm(q, axis=1)[:, None]])
+        """The round's batch of uniform poses, the same in every worker: the seed's one stream, drawn a
+        round at a time in round order (every worker draws every round, in order; a fresh generator per
+        round cost as much as merging it)."""
+        if number != self._drawn:
+            raise ValueError(f"round {number}'s samples drawn out of order (next: {self._drawn})")
+        self._drawn += 1
+        at = (number % DRAW_ROUNDS) * self.batch
+        if at == 0:  # the next DRAW_ROUNDS rounds' samples at once
+            n = DRAW_ROUNDS * self.batch
+            positions = self._rng.uniform(self.lo, self.hi, size=(n, 3))
+            q = self._rng.normal(size=(n, 4))
+            self._ahead = np.hstack([positions, q / np.linalg.norm(q, axis=1)[:, None]])
+        return self._ahead[at:at + self.batch]
 
     def extend(self, index: int, tree: int, sample: np.ndarray) -> tuple[Any, ...]:
         """(index, tree, near, new pose or None, other tree's node, its chain toward the new pose, joined,

@@ -210,7 +210,8 @@ def run_rounds(worker: TreeWorker, sync: Sync, *, index: int, start: Pose, goal:
             report["serial_cpu_s"] += time.process_time() - cpu
             began = time.perf_counter()
             report["wait_s"] += began - waited
-            while (i := sync.claim(number, tasks_of(number))) < tasks_of(number):
+            tasks = tasks_of(number)
+            while (i := sync.claim(number, tasks)) < tasks:
                 run(number, i)
                 report["samples"] += i >= len(pendings[number])
                 if sync.finished.value:
@@ -234,7 +235,7 @@ def run_rounds(worker: TreeWorker, sync: Sync, *, index: int, start: Pose, goal:
                 waited -= time.perf_counter() - ran
             report["wait_s"] += time.perf_counter() - waited
             cpu = time.process_time()
-            results = [_read(records, (base + i) * RECORD, i) for i in range(tasks)]
+            results = _read_round(records, base, tasks)
             _, pending, path = merge_round(trees, results)
             report["serial_cpu_s"] += time.process_time() - cpu
             # the round LAG + 1 on sees it; the oldest connects go on (a slot holds a batch plus as many)
@@ -284,9 +285,12 @@ def _write(buf: np.ndarray, at: int, result: tuple[Any, ...]) -> None:
     buf[at:at + RECORD] = row
 
 
-def _read(buf: np.ndarray, at: int, i: int) -> tuple[Any, ...]:
-    row = buf[at:at + RECORD]
-    tree, near, has_new, y, joined, goes_on, count, _ = (int(v) for v in row[:_HEAD])
-    new = row[_HEAD:_HEAD + 7].copy() if has_new else None
-    chain = [row[_HEAD + 7 * (j + 1):_HEAD + 7 * (j + 2)].copy() for j in range(count)]
-    return (i, tree, near, new, y, chain, bool(joined), bool(goes_on))
+def _read_round(buf: np.ndarray, base: int, tasks: int) -> list[tuple[Any, ...]]:
+    """The round's records, in task order, as ``merge_round`` takes them."""
+    rows = buf[base * RECORD:(base + tasks) * RECORD].reshape(tasks, RECORD)
+    out: list[tuple[Any, ...]] = []
+    for i, (tree, near, has_new, y, joined, goes_on, count, _) in enumerate(rows[:, :_HEAD].astype(np.int64).tolist()):
+        new = rows[i, _HEAD:_HEAD + 7].copy() if has_new else None
+        chain = list(rows[i, _HEAD + 7:_HEAD + 7 * (count + 1)].reshape(count, 7).copy()) if count else []
+        out.append((i, tree, near, new, y, chain, bool(joined), bool(goes_on)))
+    return out

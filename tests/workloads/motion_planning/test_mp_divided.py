@@ -88,13 +88,15 @@ def test_the_merge_keeps_task_order_and_joins_the_lowest_task() -> None:
 
 def test_figures_and_projection() -> None:
     reports = [{"checks": 60, "samples": 30, "rounds": 7, "busy_s": 3.0, "wait_s": 0.5, "stolen_checks": 0,
-                "cpu_s": 3.2},
+                "cpu_s": 3.2, "serial_cpu_s": 0.1},
                {"checks": 40, "samples": 34, "rounds": 6, "busy_s": 2.0, "wait_s": 1.5, "stolen_checks": 10,
-                "cpu_s": 3.1}]
+                "cpu_s": 3.1, "serial_cpu_s": 0.2}]
     d = Division.from_reports(reports, wall_s=4.5)
     assert (d.checks, d.samples, d.rounds, d.stolen_checks) == ((60, 40), (30, 34), 7, (0, 10))
     # waiting for a round's last tasks, averaged: 1 s; serial: the rest of the wall beside the average task time
     assert d.imbalance_s == pytest.approx(1.0) and d.serial_s == pytest.approx(4.5 - 2.5 - 1.0)
     assert d.serial_share == pytest.approx(1.0 / 4.5)
+    # and in CPU seconds, which other jobs' load does not stretch: samples and merge over the search's CPU
+    assert d.serial_cpu_share == pytest.approx(0.3 / 6.3)
     # Amdahl: 2 s serial (imbalance counted in) stays; 5 s of tasks less the 10% run twice (0.5 s) divide
     assert d.projected_speedup(16) == pytest.approx((2.0 + 4.5) / (2.0 + 4.5 / 16))

@@ -93,7 +93,9 @@ def describe(name: str, runs: list[tuple[Solution, Solution, Solution]], cores: 
                  f"{_median([d.serial_cpu_share for d in many_div]):.1%}), imbalance "
                  f"{_median([d.imbalance_s / d.wall_s for d in many_div]):.1%}; projection (Amdahl, these figures): "
                  f"{_median([d.projected_speedup(16) for d in many_div]):.1f}x at 16 cores, "
-                 f"{_median([d.projected_speedup(96) for d in many_div]):.1f}x at 96")
+                 f"{_median([d.projected_speedup(96) for d in many_div]):.1f}x at 96 (from CPU seconds: "
+                 f"{_median([d.projected_speedup_cpu(16) for d in many_div]):.1f}x, "
+                 f"{_median([d.projected_speedup_cpu(96) for d in many_div]):.1f}x)")
     return lines
 
 
@@ -171,7 +173,8 @@ def curve(problems: dict[str, Problem], counts: list[int], *, runs: int, seed: i
     for name, divs in last.items():
         if divs:
             print(f"  {name:<10} projection (Amdahl, {counts[-1]} workers' figures): "
-                  f"{_median([d.projected_speedup(96) for d in divs]):.1f}x at 96 cores", flush=True)
+                  f"{_median([d.projected_speedup(96) for d in divs]):.1f}x at 96 cores (from CPU seconds: "
+                  f"{_median([d.projected_speedup_cpu(96) for d in divs]):.1f}x)", flush=True)
 
 
 def _timed(planner: WarmPlanner, name: str, seed: int, time_limit: float | None) -> tuple[Solution, float]:

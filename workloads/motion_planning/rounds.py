@@ -123,6 +123,17 @@ class Division:
         serial, work = self.serial_s + self.imbalance_s, sum(self.busy_s) - self._stolen_s()
         return (serial + work) / (serial + work / cores) if serial + work > 0 else 1.0
 
+    def projected_speedup_cpu(self, cores: int) -> float:
+        """The same law on CPU seconds, which other jobs' load does not stretch: one worker's serial CPU
+        (samples and merge, done by every worker) stays, the rest of the workers' CPU (less the tasks run
+        twice) divides by ``cores``. Leaves out waiting, which the wall-time projection counts."""
+        if not self.cpu_s:
+            return 1.0
+        serial = sum(self.serial_cpu_s) / len(self.cpu_s)
+        total = sum(self.checks)
+        work = (sum(self.cpu_s) - sum(self.serial_cpu_s)) * (1 - sum(self.stolen_checks) / total if total else 1)
+        return (serial + work) / (serial + work / cores) if serial + work > 0 else 1.0
+
     def _stolen_s(self) -> float:
         total = sum(self.checks)
         return sum(self.busy_s) * sum(self.stolen_checks) / total if total else 0.0

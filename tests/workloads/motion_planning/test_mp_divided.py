@@ -100,3 +100,5 @@ def test_figures_and_projection() -> None:
     assert d.serial_cpu_share == pytest.approx(0.3 / 6.3)
     # Amdahl: 2 s serial (imbalance counted in) stays; 5 s of tasks less the 10% run twice (0.5 s) divide
     assert d.projected_speedup(16) == pytest.approx((2.0 + 4.5) / (2.0 + 4.5 / 16))
+    # on CPU seconds: one worker's serial CPU (0.15 s) stays; the rest (6.0 s, less the 10% run twice) divides
+    assert d.projected_speedup_cpu(16) == pytest.approx((0.15 + 5.4) / (0.15 + 5.4 / 16))

@@ -19,7 +19,7 @@ one-worker and N-worker runs search the very same trees: the work each of the N 
   measurement (no machine with more than 2 cores was measured here).
 
 ``--curve 1,2,4,8,16`` measures the divided search alone on each worker count instead (for a machine
-with that many cores), ``--runs`` 3 and a 30 s limit per search unless given: per problem and count
+with that many cores), ``--runs`` 2 and a 30 s limit per search unless given: per problem and count
 the median search and solve time, the speedup of each over the first count, the work per worker
 (a share of that run's total over the count) and the total against the first count's, the serial
 share (of the wall and of the CPU seconds), the imbalance, the cores the workers got (search, and
@@ -48,7 +48,7 @@ from workloads.motion_planning.problem import PROBLEMS_DIR, Problem, load_proble
 from workloads.motion_planning.rounds import Division  # noqa: E402
 
 PAIRS_RUNS = 5
-CURVE_RUNS = 3  # six problems at 1, 2, 4, 8 and 16 workers in about 4 minutes on 16 cores
+CURVE_RUNS = 2  # six problems at 1, 2, 4, 8 and 16 workers in 3-4 minutes on 16 cores (twistycool: half of it)
 CURVE_TIME_LIMIT = 30.0  # a search the curve gives up on counts as unsolved, at this time
 
 

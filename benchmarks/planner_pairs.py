@@ -152,7 +152,9 @@ def curve(problems: dict[str, Problem], counts: list[int], *, runs: int, seed: i
             for name in problems:
                 rows = [_timed(planner, name, seed + 1000 * run, time_limit) for run in range(runs)]
                 sols = [s for s, _ in rows]
-                search, solve = _median([s.plan_time_s for s in sols]), _median([s.solve_time_s for s in sols])
+                # an unsolved request counts at the time it took (about the limit), not as a 0 s search
+                search = _median([s.plan_time_s if s.solved else s.solve_time_s for s in sols])
+                solve = _median([s.solve_time_s for s in sols])
                 divs = [d for s in sols if s.solved and (d := s.division) is not None and d.checks]
                 checks = _median([float(sum(d.checks) - sum(d.stolen_checks)) for d in divs])
                 search0, solve0, checks0 = first.setdefault(name, (search, solve, checks))

@@ -10,6 +10,7 @@ from tests.workloads.motion_planning.mp_support import PROBLEMS
 
 from workloads.motion_planning import Pose, load_problem, path_is_collision_free
 from workloads.motion_planning.divided import Trees, as_array, batch_size, merge_round
+from workloads.motion_planning.paper_problems import PAPER_DIR
 from workloads.motion_planning.pool import WarmPlanner
 from workloads.motion_planning.rounds import LAG, Division
 
@@ -102,3 +103,13 @@ def test_figures_and_projection() -> None:
     assert d.projected_speedup(16) == pytest.approx((2.0 + 4.5) / (2.0 + 4.5 / 16))
     # on CPU seconds: one worker's serial CPU (0.15 s) stays; the rest (6.0 s, less the 10% run twice) divides
     assert d.projected_speedup_cpu(16) == pytest.approx((0.15 + 5.4) / (0.15 + 5.4 / 16))
+
+
+def test_blocked_motions_stop_short_of_the_wall() -> None:
+    """A node at the last pose a blocked motion passed touches the wall; as a path vertex it can be neither
+    lifted clear nor proven (home, seed 1234: "unproven path" after 3 failed repairs). Backed off, it is."""
+    problem = load_problem(PAPER_DIR / "home.cfg")
+    with WarmPlanner({"home": problem}, workers=1, seed=3, mode="divide") as planner:
+        solution = planner.solve("home", seed=1234)
+    assert solution.solved and solution.repairs == 0, (solution.status, solution.repairs)
+    assert path_is_collision_free(problem, solution.path, resolution=solution.resolution / 5)

@@ -8,9 +8,10 @@ trees (one from the start, one from the goal, RRT-Connect's extend-then-connect)
   merge before left unfinished; sample ``i`` extends the start tree when ``i + round`` is even, else
   the goal tree, from its nearest node (in the trees as merged ``rounds.LAG`` rounds back, so the
   workers need not wait for a round's last tasks before the next round starts) by at most
-  ``step`` (and ``EXTEND_CHECKS`` checks), to the last pose its motion check passed; the other
-  tree's nearest node then goes straight toward the new node for at most ``CONNECT_CHECKS``
-  checks, its valid prefix added as nodes a step apart; a full reach joins the trees;
+  ``step`` (and ``EXTEND_CHECKS`` checks), to ``BACK_OFF`` checks short of the last pose its check
+  passed when blocked (a node touching a wall is a path vertex no proof can pass); the other tree's
+  nearest node then goes straight toward the new node for at most ``CONNECT_CHECKS`` checks, its
+  valid prefix (backed off alike) added as nodes a step apart; a full reach joins the trees;
 - each task is a pure function of the trees and the seed (:meth:`TreeWorker.task`), so it does not
   matter which worker runs it; ``rounds.py`` hands them out, and every worker applies the same
   :func:`merge_round` (task order) to its own copy of the trees;

@@ -11,15 +11,22 @@ one-worker and N-worker runs search the very same trees: the work each of the N 
 - the robot's baseline: whichever one-core planner had the lower median here (both medians shown);
 - the cloud's median time and the speedup (ratio of medians; every pair is also printed);
 - work per worker as a share of the one-worker total over N (1.00 = an exact split);
-- the share of the search's wall time that was serial (merging, messages) and the imbalance
-  (waiting for a round's last tasks), medians; the search's CPU seconds on one worker over the
+- the share of the search's wall time that was serial (merging, messages; and of its CPU seconds,
+  drawing and merging the rounds, which load does not stretch) and the imbalance (waiting for a
+  round's last tasks), medians; the search's CPU seconds on one worker over the
   busiest of N's (what load from other jobs does not stretch), and how many cores the N got;
 - the speedup at 16 and 96 cores that these figures give by Amdahl's law: a projection, not a
   measurement (no machine with more than 2 cores was measured here).
 
 ``--curve 1,2,4,8,16`` measures the divided search alone on each worker count instead (for a machine
-with that many cores; none was lent here). ``--paper`` adds the paper-class problems
-(``problems/paper/``: apartment, home, twistycool); they may also be named one by one.
+with that many cores), ``--runs`` 2 and a 30 s limit per search unless given: per problem and count
+the median search and solve time, the speedup of each over the first count, the work per worker
+(a share of that run's total over the count) and the total against the first count's, the serial
+share (of the wall and of the CPU seconds), the imbalance, the cores the workers got (search, and
+the whole solve), solved of runs; then an Amdahl projection to 96 cores from the last count. It
+needs only numpy, ompl, python-fcl and trimesh beside this source tree (no fogiac install).
+``--paper`` adds the paper-class problems (``problems/paper/``: apartment, home, twistycool); they
+may also be named one by one.
 Figures are ratios against baselines measured in the same run; the load average is printed.
 """
 
@@ -33,10 +40,16 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from fogiac.procs import cpu_seconds  # noqa: E402
 from workloads.motion_planning.paper_problems import PAPER_DIR  # noqa: E402
 from workloads.motion_planning.planner import Solution, warm_up  # noqa: E402
 from workloads.motion_planning.pool import WarmPlanner  # noqa: E402
 from workloads.motion_planning.problem import PROBLEMS_DIR, Problem, load_problem  # noqa: E402
+from workloads.motion_planning.rounds import Division  # noqa: E402
+
+PAIRS_RUNS = 5
+CURVE_RUNS = 2  # six problems at 1, 2, 4, 8 and 16 workers in 3-4 minutes on 16 cores (twistycool: half of it)
+CURVE_TIME_LIMIT = 30.0  # a search the curve gives up on counts as unsolved, at this time
 
 
 def _median(values: list[float]) -> float:
@@ -76,21 +89,27 @@ def describe(name: str, runs: list[tuple[Solution, Solution, Solution]], cores: 
                  f"of {len(split)}; search CPU seconds, one worker / busiest of {cores}: median {_median(cpu):.2f}x "
                  f"(cores the {cores} workers got while searching: median {_median(got):.2f}); serial share median "
                  f"{_median([d.serial_share for d in many_div]):.1%} "
-                 f"(max {max(d.serial_share for d in many_div):.1%}), imbalance "
+                 f"(max {max(d.serial_share for d in many_div):.1%}; of the CPU seconds "
+                 f"{_median([d.serial_cpu_share for d in many_div]):.1%}), imbalance "
                  f"{_median([d.imbalance_s / d.wall_s for d in many_div]):.1%}; projection (Amdahl, these figures): "
                  f"{_median([d.projected_speedup(16) for d in many_div]):.1f}x at 16 cores, "
-                 f"{_median([d.projected_speedup(96) for d in many_div]):.1f}x at 96")
+                 f"{_median([d.projected_speedup(96) for d in many_div]):.1f}x at 96 (from CPU seconds: "
+                 f"{_median([d.projected_speedup_cpu(16) for d in many_div]):.1f}x, "
+                 f"{_median([d.projected_speedup_cpu(96) for d in many_div]):.1f}x)")
     return lines
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("problems", nargs="*", default=["cubicles", "maze", "twisty"])
-    parser.add_argument("--runs", type=int, default=5)
+    parser.add_argument("--runs", type=int, default=None,
+                        help=f"requests per problem and worker count (default {PAIRS_RUNS}; {CURVE_RUNS} with --curve)")
     parser.add_argument("--cores", type=int, default=2)
     parser.add_argument("--seed", type=int, default=1234)
     parser.add_argument("--paper", action="store_true", help="add apartment, home and twistycool (problems/paper/)")
     parser.add_argument("--curve", default="", help="worker counts, e.g. 1,2,4,8,16: the measured curve instead")
+    parser.add_argument("--time-limit", type=float, default=None,
+                        help=f"per search (default: the cfg's; {CURVE_TIME_LIMIT:g} s with --curve)")
     args = parser.parse_args()
     warm_up()
     paths = {name: next((d / f"{name}.cfg" for d in (PROBLEMS_DIR, PAPER_DIR) if (d / f"{name}.cfg").exists()),
@@ -100,9 +119,10 @@ def main() -> None:
     problems = {name: load_problem(path) for name, path in paths.items()}
     print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}", flush=True)
     if args.curve:
-        curve(problems, [int(n) for n in args.curve.split(",")], runs=args.runs, seed=args.seed)
+        curve(problems, [int(n) for n in args.curve.split(",")], runs=args.runs or CURVE_RUNS, seed=args.seed,
+              time_limit=args.time_limit or CURVE_TIME_LIMIT)
     else:
-        pairs(problems, cores=args.cores, runs=args.runs, seed=args.seed)
+        pairs(problems, cores=args.cores, runs=args.runs or PAIRS_RUNS, seed=args.seed)
     print(f"load average at end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
 
 
@@ -118,23 +138,54 @@ def pairs(problems: dict[str, Problem], *, cores: int, runs: int, seed: int) -> 
             print("\n".join(describe(name, done, cores)), flush=True)
 
 
-def curve(problems: dict[str, Problem], counts: list[int], *, runs: int, seed: int) -> None:
-    """The divided search on each worker count, the same seeds (so the same searches up to 8 workers):
-    median search and solve time, and their speedup over the first count. For a machine with the cores."""
-    for name in problems:
-        times: dict[int, list[Solution]] = {}
-        for n in counts:
-            with WarmPlanner({name: problems[name]}, workers=n, seed=seed, mode="divide") as planner:
-                times[n] = [planner.solve(name, seed=seed + 1000 * run) for run in range(runs)]
-        base = counts[0]
-        search0 = _median([s.plan_time_s for s in times[base]])
-        solve0 = _median([s.solve_time_s for s in times[base]])
-        for n in counts:
-            search, solve = _median([s.plan_time_s for s in times[n]]), _median([s.solve_time_s for s in times[n]])
-            shares = [d.serial_share for s in times[n] if (d := s.division) is not None]
-            print(f"  {name:<10} {n:>3} workers: search {search:6.2f}s ({search0 / search:5.2f}x), solve "
-                  f"{solve:6.2f}s ({solve0 / solve:5.2f}x), serial share {_median(shares):.1%}, solved "
-                  f"{sum(s.solved for s in times[n])}/{runs}", flush=True)
+def curve(problems: dict[str, Problem], counts: list[int], *, runs: int, seed: int,
+          time_limit: float | None) -> None:
+    """The divided search on each worker count, the same seeds (the same searches up to 8 workers; beyond,
+    a bigger batch per round). Per problem and count, printed as measured (one warm pool per count, every
+    problem loaded once): median search and solve time and their speedup over the first count, the work
+    per worker, the serial share and imbalance of the search, and the cores the workers got over the
+    whole solve (search, lift and finish). For a machine with that many cores."""
+    first: dict[str, tuple[float, float, float]] = {}
+    last: dict[str, list[Division]] = {}
+    for n in counts:
+        with WarmPlanner(problems, workers=n, seed=seed, mode="divide") as planner:
+            for name in problems:
+                rows = [_timed(planner, name, seed + 1000 * run, time_limit) for run in range(runs)]
+                sols = [s for s, _ in rows]
+                # an unsolved request counts at the time it took (about the limit), not as a 0 s search
+                search = _median([s.plan_time_s if s.solved else s.solve_time_s for s in sols])
+                solve = _median([s.solve_time_s for s in sols])
+                divs = [d for s in sols if s.solved and (d := s.division) is not None and d.checks]
+                checks = _median([float(sum(d.checks) - sum(d.stolen_checks)) for d in divs])
+                search0, solve0, checks0 = first.setdefault(name, (search, solve, checks))
+                # each worker's checks over its run's total / n (1.00: an exact split), and the median run's
+                # total against the first count's (above 1: the bigger batch beyond 8 workers cost extra work)
+                split = [c * n / sum(d.checks) for d in divs for c in d.checks if sum(d.checks)]
+                print(f"  {name:<10} {n:>3} workers: search {search:6.2f}s ({search0 / search:5.2f}x), solve "
+                      f"{solve:6.2f}s ({solve0 / solve:5.2f}x); work per worker "
+                      f"{min(split, default=0):.2f}-{max(split, default=0):.2f} of total/{n}, total "
+                      f"{checks / checks0 if checks0 else float('nan'):.2f}x {counts[0]} worker's; serial share "
+                      f"{_median([d.serial_share for d in divs]):.1%} (of the CPU seconds "
+                      f"{_median([d.serial_cpu_share for d in divs]):.1%}), imbalance "
+                      f"{_median([d.imbalance_s / d.wall_s for d in divs if d.wall_s]):.1%}; cores used: search "
+                      f"{_median([sum(d.cpu_s) / d.wall_s for d in divs if d.wall_s]):.2f}, solve "
+                      f"{_median([c for _, c in rows]):.2f}; solved {sum(s.solved for s in sols)}/{runs}",
+                      flush=True)
+                last[name] = divs
+    for name, divs in last.items():
+        if divs:
+            print(f"  {name:<10} projection (Amdahl, {counts[-1]} workers' figures): "
+                  f"{_median([d.projected_speedup(96) for d in divs]):.1f}x at 96 cores (from CPU seconds: "
+                  f"{_median([d.projected_speedup_cpu(96) for d in divs]):.1f}x)", flush=True)
+
+
+def _timed(planner: WarmPlanner, name: str, seed: int, time_limit: float | None) -> tuple[Solution, float]:
+    """A solve, and the cores its workers got over it (their CPU seconds over its wall seconds)."""
+    pids = planner.pids()
+    cpu = sum(map(cpu_seconds, pids))
+    solution = planner.solve(name, seed=seed, time_limit=time_limit)
+    used = sum(map(cpu_seconds, pids)) - cpu
+    return solution, used / solution.solve_time_s if solution.solve_time_s > 0 else 0.0
 
 
 if __name__ == "__main__":

@@ -4,16 +4,19 @@ A race (``planner.py``) runs one whole search per worker and keeps the first to 
 workers do k times the work for the luck of the best draw. Here the workers grow the *same* two
 trees (one from the start, one from the goal, RRT-Connect's extend-then-connect) in rounds:
 
-- every round has a fixed batch of samples, drawn from ``(seed, round)``, after the connects the
-  last round left unfinished; sample ``i`` extends the start tree when ``i + round`` is even, else
-  the goal tree, from its nearest node (as the trees stood when the round began) by at most
-  ``step`` (and ``EXTEND_CHECKS`` checks), to the last pose its motion check passed; the other
-  tree's nearest node then goes straight toward the new node for at most ``CONNECT_CHECKS``
-  checks, its valid prefix added as nodes a step apart; a full reach joins the trees;
+- every round has a fixed batch of samples, drawn from the seed's stream, after the connects the
+  merge before left unfinished; sample ``i`` extends the start tree when ``i + round`` is even, else
+  the goal tree, from its nearest node (in the trees as merged ``rounds.LAG`` rounds back, so the
+  workers need not wait for a round's last tasks before the next round starts) by at most
+  ``step`` (and ``EXTEND_CHECKS`` checks), to ``BACK_OFF`` checks short of the last pose its check
+  passed when blocked (a node touching a wall is a path vertex no proof can pass); the other tree's
+  nearest node then goes straight toward the new node for at most ``CONNECT_CHECKS`` checks, its
+  valid prefix (backed off alike) added as nodes a step apart; a full reach joins the trees;
 - each task is a pure function of the trees and the seed (:meth:`TreeWorker.task`), so it does not
   matter which worker runs it; ``rounds.py`` hands them out, and every worker applies the same
   :func:`merge_round` (task order) to its own copy of the trees;
-- the first round with a joining task ends the search: the lowest such task's path.
+- the first round with a joining task ends the search: the lowest such task's path (the rounds
+  already started after it are dropped).
 
 So the k workers together do the work one worker would do, each about 1/k of it, and the
 answer depends on the seed alone, not on k or on which worker took which task (the batch is
@@ -38,6 +41,8 @@ STEP_FRACTION = 0.2  # the extend step, of the space's extent (RRT-Connect's def
 CONNECT_CHECKS = 64  # a connect checks at most this many poses per round, then goes on in the next
 EXTEND_CHECKS = 64  # an extension checks at most this many poses (and steps no farther than RRT-Connect would)
 MAX_CHAIN = 4  # nodes a connect adds in one round
+BACK_OFF = 2  # a blocked motion's last node this many checks short of the last pose that passed
+DRAW_ROUNDS = 16  # rounds whose samples are drawn at once (one draw a round cost as much as the merge)
 
 
 def batch_size(workers: int) -> int:
@@ -115,12 +120,15 @@ class TreeWorker:
         self.resolution = 0.0
         self.seed = 0
         self.batch = DEFAULT_BATCH
+        self.view = (1, 1)
+        self._rng, self._drawn, self._ahead = np.random.default_rng(0), 0, np.empty((0, 7))
 
     def begin(self, start: Pose, goal: Pose, *, resolution: float, seed: int, batch: int) -> str | None:
         """New trees; a status when no search is needed (``invalid start``, ``invalid goal``, ``straight``:
         the straight move is free). Every worker checks this alike: a few checks, the same answer."""
         self.trees = Trees(as_array(start), as_array(goal))
         self.resolution, self.seed, self.batch = resolution, seed, batch
+        self._rng, self._drawn, self._ahead = np.random.default_rng(seed), 0, np.empty((0, 7))
         self.step = min(STEP_FRACTION * self.extent, EXTEND_CHECKS * resolution)
         a, b = self.trees.poses[0][0], self.trees.poses[1][0]
         if not self._free(a):
@@ -129,27 +137,44 @@ class TreeWorker:
             return "invalid goal"
         return "straight" if self.valid_prefix(a, b, limit=None)[0] == 1.0 else None
 
-    def task(self, i: int, number: int, pending: list[tuple[int, int, int]], samples: np.ndarray) -> tuple[Any, ...]:
-        """Task ``i`` of round ``number``: first the connects the last round left unfinished (``pending``:
-        the tree of the node to reach, that node, the other tree's node to go on from), then the samples."""
+    def task(self, i: int, number: int, pending: list[tuple[int, int, int]], samples: np.ndarray,
+             view: tuple[int, int] | None = None) -> tuple[Any, ...]:
+        """Task ``i`` of round ``number``: first the connects an earlier round left unfinished (``pending``:
+        the tree of the node to reach, that node, the other tree's node to go on from), then the samples.
+
+        ``view``: how many nodes of each tree the round sees (the trees as they stood ``LAG`` rounds back;
+        later nodes are ignored, so the answer does not depend on how far this worker's copy has got)."""
         assert self.trees is not None
+        self.view = view or (self.trees.size(0), self.trees.size(1))
         if i < len(pending):
             tree, x, c = pending[i]
             return (i, tree, x, None, *self.connect(tree, self.trees.poses[tree][x], c))
         return self.extend(i, (i + number) % 2, samples[i - len(pending)])
 
+    def _seen(self, tree: int) -> np.ndarray:
+        assert self.trees is not None
+        return self.trees.poses[tree][:self.view[tree]]
+
     def samples(self, number: int) -> np.ndarray:
-        """The round's batch of uniform poses, the same in every worker: drawn from (seed, round)."""
-        rng = np.random.default_rng([self.seed, number])
-        positions = rng.uniform(self.lo, self.hi, size=(self.batch, 3))
-        q = rng.normal(size=(self.batch, 4))
-        return np.hstack([positions, q / np.linalg.norm(q, axis=1)[:, None]])
+        """The round's batch of uniform poses, the same in every worker: the seed's one stream, drawn a
+        round at a time in round order (every worker draws every round, in order; a fresh generator per
+        round cost as much as merging it)."""
+        if number != self._drawn:
+            raise ValueError(f"round {number}'s samples drawn out of order (next: {self._drawn})")
+        self._drawn += 1
+        at = (number % DRAW_ROUNDS) * self.batch
+        if at == 0:  # the next DRAW_ROUNDS rounds' samples at once
+            n = DRAW_ROUNDS * self.batch
+            positions = self._rng.uniform(self.lo, self.hi, size=(n, 3))
+            q = self._rng.normal(size=(n, 4))
+            self._ahead = np.hstack([positions, q / np.linalg.norm(q, axis=1)[:, None]])
+        return self._ahead[at:at + self.batch]
 
     def extend(self, index: int, tree: int, sample: np.ndarray) -> tuple[Any, ...]:
         """(index, tree, near, new pose or None, other tree's node, its chain toward the new pose, joined,
         the connect goes on next round)."""
         assert self.trees is not None
-        poses = self.trees.poses[tree]
+        poses = self._seen(tree)
         d = distances(poses, sample, self.radius)
         near = int(np.argmin(d))
         target = sample if d[near] <= self.step else between(poses[near], sample,
@@ -158,7 +183,7 @@ class TreeWorker:
         if reached == 0.0:
             return (index, tree, near, None, -1, [], False, False)
         new = target if reached == 1.0 else between(poses[near], target, np.array([reached]))[0]
-        y = int(np.argmin(distances(self.trees.poses[1 - tree], new, self.radius)))
+        y = int(np.argmin(distances(self._seen(1 - tree), new, self.radius)))
         return (index, tree, near, new, *self.connect(tree, new, y))
 
     def connect(self, tree: int, new: np.ndarray, y: int) -> tuple[int, list[np.ndarray], bool, bool]:
@@ -181,14 +206,18 @@ class TreeWorker:
     def valid_prefix(self, a: np.ndarray, b: np.ndarray, *, limit: int | None) -> tuple[float, bool]:
         """The fraction of a -> b whose poses, no robot point moving more than the resolution between two,
         all pass the collision check, from a onward (a itself is taken as checked); and whether it
-        stopped at ``limit`` checks, all passed, short of b."""
+        stopped at ``limit`` checks, all passed, short of b.
+
+        Stopped by a collision, the fraction ends ``BACK_OFF`` checks short of the last pose that
+        passed: a node there would touch the wall, and a path vertex with no clearance can be neither
+        lifted clear nor proven, so its path ended "unproven" (home, 2 seeds of 13)."""
         sweep = float(distances(a[None, :], b, self.radius)[0])
         n = max(1, math.ceil(sweep / self.resolution))
         upto = n if limit is None else min(n, limit)
         poses = between(a, b, np.arange(1, upto + 1) / n)
         for i, pose in enumerate(poses):
             if not self.checker.is_free(pose[:3], pose[3:]):
-                return i / n, False
+                return max(0, i - BACK_OFF) / n, False
         return upto / n, upto < n
 
     def _free(self, pose: np.ndarray) -> bool:

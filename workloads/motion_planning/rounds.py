@@ -1,23 +1,31 @@
 """The divided search's rounds, run by the workers among themselves in shared memory.
 
 Thread model: k worker processes, no coordinator between rounds. The parent sends each worker
-the request once and reads k reports. Round r lives in slot ``r % SLOTS`` of the shared arrays:
+the request once and reads k reports. Round r lives in slot ``r % SLOTS`` of the shared arrays,
+and its tasks see the trees as merged through round r - LAG - 1 (``TreeWorker.task``'s view), so
+no worker waits for round r - 1's last tasks before it starts on round r:
 
 1. a worker entering round r waits until every worker has merged round r - SLOTS (so the slot is
    free), then claims tasks one at a time from the slot's counter (the first to claim in round r
    clears the slot, under the slot's lock) and writes each task's outcome into the task's record,
    then marks it done;
-2. when the claims run out it waits for the round's other tasks; one still not done after
-   ``STEAL_AFTER_S`` (its worker is likely parked by the kernel on a busy machine) it runs itself:
-   a task's outcome depends only on the trees and the seed, so both copies write the same bytes;
-3. it reads every record of the round and applies the same merge (``divided.merge_round``) to its
-   own copy of the trees, so all copies stay identical and all see the same joining task.
+2. when the claims run out it turns to round r - LAG: its tasks were all claimed before round
+   r's first, so the other workers have had a whole round's claims to finish them in and it
+   rarely waits. One still not done after ``STEAL_AFTER_S`` (its worker is likely parked by the
+   kernel on a busy machine) it runs itself: a task's outcome depends only on the trees, the
+   round's view of them and the seed, so both copies write the same bytes;
+3. it reads every record of round r - LAG and applies the same merge (``divided.merge_round``)
+   to its own copy of the trees, so all copies stay identical and all see the same joining task;
+   then it claims round r + 1's tasks.
 
-So a worker can be up to SLOTS - 1 rounds ahead of another, and a parked worker delays the others
-by at most the steal time, never a whole time slice per round. The search ends for everyone when
-one worker raises ``finished`` (a path merged, time up, parent gone); the path is the same in any
-report that has it. What stays serial is the merge, which every worker does; waiting for the
-round's last tasks is imbalance. :class:`Division` puts figures on both.
+So the search depends on the seed alone (1 and k workers grow the same trees), a worker can be up
+to SLOTS - 1 rounds ahead of another, a parked worker delays the others by at most the steal
+time, and the price of the lag is LAG rounds of tasks that see slightly older trees, and LAG
+rounds run after the one that joins the trees (the path is that round's: the same for any k).
+The search ends for everyone when one worker raises ``finished`` (a path merged, time up, parent
+gone); the path is the same in any report that has it. What stays serial is drawing the samples
+and the merge, which every worker does; waiting for a round's last tasks is imbalance.
+:class:`Division` puts figures on both.
 """
 
 from __future__ import annotations
@@ -34,6 +42,7 @@ from workloads.motion_planning.divided import MAX_CHAIN, TreeWorker, merge_round
 from workloads.motion_planning.problem import Pose
 
 SLOTS = 4  # rounds in flight: a worker may run SLOTS - 1 rounds ahead of the slowest
+LAG = 1  # round r's tasks see the trees as merged through round r - LAG - 1 (see the module doc)
 STEAL_AFTER_S = 0.002  # a task not done this long after the claims ran out is run again by a waiting worker
 SPIN_S, NAP_S = 0.0002, 0.0002
 _HEAD = 8  # tree, near, has new, y, joined, goes on, chain length, spare
@@ -95,15 +104,34 @@ class Division:
     imbalance_s: float  # waiting for a round's last tasks, averaged over the workers
     stolen_checks: tuple[int, ...] = ()  # checks in tasks a worker ran again for a parked one
     cpu_s: tuple[float, ...] = ()  # CPU seconds each worker's process used in the search (waiting included)
+    serial_cpu_s: tuple[float, ...] = ()  # of which drawing the rounds' samples and merging them (every worker)
 
     @property
     def serial_share(self) -> float:
         return self.serial_s / self.wall_s if self.wall_s > 0 else 0.0
 
+    @property
+    def serial_cpu_share(self) -> float:
+        """The workers' CPU seconds in the serial part (the samples and the merge, which every worker does)
+        over their CPU seconds in the search: what other jobs' load does not stretch, unlike the wall."""
+        total = sum(self.cpu_s)
+        return sum(self.serial_cpu_s) / total if total > 0 else 0.0
+
     def projected_speedup(self, cores: int) -> float:
         """Amdahl's law from this run's figures: the serial time (and the imbalance, counted as serial)
         stays, the tasks' work divides by ``cores``. A projection, not a measurement."""
         serial, work = self.serial_s + self.imbalance_s, sum(self.busy_s) - self._stolen_s()
+        return (serial + work) / (serial + work / cores) if serial + work > 0 else 1.0
+
+    def projected_speedup_cpu(self, cores: int) -> float:
+        """The same law on CPU seconds, which other jobs' load does not stretch: one worker's serial CPU
+        (samples and merge, done by every worker) stays, the rest of the workers' CPU (less the tasks run
+        twice) divides by ``cores``. Leaves out waiting, which the wall-time projection counts."""
+        if not self.cpu_s:
+            return 1.0
+        serial = sum(self.serial_cpu_s) / len(self.cpu_s)
+        total = sum(self.checks)
+        work = (sum(self.cpu_s) - sum(self.serial_cpu_s)) * (1 - sum(self.stolen_checks) / total if total else 1)
         return (serial + work) / (serial + work / cores) if serial + work > 0 else 1.0
 
     def _stolen_s(self) -> float:
@@ -118,13 +146,15 @@ class Division:
         serial = max(0.0, wall_s - sum(busy) / k - waiting)
         return cls(tuple(r["checks"] for r in reports), tuple(r["samples"] for r in reports), tuple(busy),
                    max(r["rounds"] for r in reports), wall_s, serial, waiting,
-                   tuple(r["stolen_checks"] for r in reports), tuple(r["cpu_s"] for r in reports))
+                   tuple(r["stolen_checks"] for r in reports), tuple(r["cpu_s"] for r in reports),
+                   tuple(r.get("serial_cpu_s", 0.0) for r in reports))
 
     def as_dict(self) -> dict[str, Any]:
         return {"checks": list(self.checks), "samples": list(self.samples), "busy_s": list(self.busy_s),
                 "rounds": self.rounds, "wall_s": self.wall_s, "serial_s": self.serial_s,
                 "imbalance_s": self.imbalance_s, "serial_share": self.serial_share,
-                "stolen_checks": list(self.stolen_checks), "cpu_s": list(self.cpu_s)}
+                "stolen_checks": list(self.stolen_checks), "cpu_s": list(self.cpu_s),
+                "serial_cpu_s": list(self.serial_cpu_s), "serial_cpu_share": self.serial_cpu_share}
 
 
 def worker_step(op: str, request: dict[str, Any], trees: TreeWorker, search: Any, sync: Sync, index: int,
@@ -151,14 +181,17 @@ def run_rounds(worker: TreeWorker, sync: Sync, *, index: int, start: Pose, goal:
     status = worker.begin(start, goal, resolution=resolution, seed=seed, batch=batch)
     # the endpoints' and the straight move's checks, the same in every worker: kept apart from the shared work
     report: dict[str, Any] = {"busy_s": 0.0, "wait_s": 0.0, "samples": 0, "rounds": 0, "stolen_checks": 0,
-                              "setup_checks": worker.checker.checks, "cpu_s": time.process_time()}
+                              "setup_checks": worker.checker.checks, "cpu_s": time.process_time(), "serial_cpu_s": 0.0}
     worker.checker.checks = 0
     if status is not None:
         return _report(report, worker, [start, goal] if status == "straight" else None, status)
     trees = worker.trees
     assert trees is not None
     records, done = np.frombuffer(sync.records, dtype=float), np.frombuffer(sync.done, dtype=np.int8)
-    pending: list[tuple[int, int, int]] = []
+    # per round in flight: the connects it goes on with, the tree sizes its tasks see, its samples
+    pendings: dict[int, list[tuple[int, int, int]]] = {r: [] for r in range(LAG + 1)}
+    views: dict[int, tuple[int, int]] = {r: (1, 1) for r in range(LAG + 1)}
+    drawn: dict[int, np.ndarray] = {}
 
     def stop_now() -> bool:
         if sync.finished.value:
@@ -168,42 +201,61 @@ def run_rounds(worker: TreeWorker, sync: Sync, *, index: int, start: Pose, goal:
             return True
         return False
 
-    number = 0
+    def tasks_of(r: int) -> int:
+        return len(pendings[r]) + batch
+
+    def run(r: int, i: int) -> None:
+        """Task i of round r: its outcome into its record, then marked done."""
+        base = (r % SLOTS) * sync.max_tasks
+        _write(records, (base + i) * RECORD, worker.task(i, r, pendings[r], drawn[r], views[r]))
+        done[base + i] = 1
+
+    number = 0  # the round whose tasks this worker claims next; it has merged rounds up to number - LAG - 1
     try:
         while True:
-            slot = number % SLOTS
-            base = slot * sync.max_tasks
-            tasks = len(pending) + batch
             waited = time.perf_counter()
             while min(sync.reached) < number - SLOTS + 1:  # the slot's last round not merged by all yet
                 _idle(stop_now, waited)
-            samples = worker.samples(number)
+            cpu = time.process_time()
+            drawn[number] = worker.samples(number)
+            report["serial_cpu_s"] += time.process_time() - cpu
             began = time.perf_counter()
             report["wait_s"] += began - waited
+            tasks = tasks_of(number)
             while (i := sync.claim(number, tasks)) < tasks:
-                _run(worker, records, done, base, i, number, pending, samples)
-                report["samples"] += i >= len(pending)
+                run(number, i)
+                report["samples"] += i >= len(pendings[number])
                 if sync.finished.value:
                     raise _Stop
             report["busy_s"] += time.perf_counter() - began
+            number += 1
+            merge = number - 1 - LAG  # its tasks have had LAG rounds' claims to finish in
+            if merge < 0:
+                continue
+            base, tasks = (merge % SLOTS) * sync.max_tasks, tasks_of(merge)
             waited = time.perf_counter()
-            while not done[base:base + tasks].all():  # the round's last tasks, in other workers' hands
+            while not done[base:base + tasks].all():  # its last tasks, in other workers' hands
                 if time.perf_counter() - waited < STEAL_AFTER_S:
                     _idle(stop_now, waited)
                     continue
                 i = int(np.argmin(done[base:base + tasks]))
                 checks, ran = worker.checker.checks, time.perf_counter()
-                _run(worker, records, done, base, i, number, pending, samples)  # its claimer counts the sample
+                run(merge, i)  # its claimer counts the sample
                 report["stolen_checks"] += worker.checker.checks - checks
                 report["busy_s"] += time.perf_counter() - ran
                 waited -= time.perf_counter() - ran
             report["wait_s"] += time.perf_counter() - waited
-            results = [_read(records, (base + i) * RECORD, i) for i in range(tasks)]
+            cpu = time.process_time()
+            results = _read_round(records, base, tasks)
             _, pending, path = merge_round(trees, results)
-            pending = pending[:batch]  # the oldest go on; the slots hold a round's samples plus as many
-            number += 1
-            sync.reached[index] = number
-            report["rounds"] = number
+            report["serial_cpu_s"] += time.process_time() - cpu
+            # the round LAG + 1 on sees it; the oldest connects go on (a slot holds a batch plus as many)
+            pendings[merge + LAG + 1] = pending[:batch]
+            views[merge + LAG + 1] = (trees.size(0), trees.size(1))
+            for old in (pendings, views, drawn):
+                old.pop(merge, None)
+            sync.reached[index] = merge + 1
+            report["rounds"] = merge + 1
             if path is not None:
                 sync.finished.value = 1
                 return _report(report, worker, path, "first path")
@@ -212,13 +264,6 @@ def run_rounds(worker: TreeWorker, sync: Sync, *, index: int, start: Pose, goal:
     except _Stop:
         sync.reached[index] = 1 << 30  # never again a worker to wait for
         return _report(report, worker, None, "timeout")
-
-
-def _run(worker: TreeWorker, records: np.ndarray, done: np.ndarray, base: int, i: int, number: int,
-         pending: list[tuple[int, int, int]], samples: np.ndarray) -> None:
-    """Task i of the round: its outcome into its record, then marked done."""
-    _write(records, (base + i) * RECORD, worker.task(i, number, pending, samples))
-    done[base + i] = 1
 
 
 def _idle(stop_now: Callable[[], bool], since: float) -> None:
@@ -251,9 +296,12 @@ def _write(buf: np.ndarray, at: int, result: tuple[Any, ...]) -> None:
     buf[at:at + RECORD] = row
 
 
-def _read(buf: np.ndarray, at: int, i: int) -> tuple[Any, ...]:
-    row = buf[at:at + RECORD]
-    tree, near, has_new, y, joined, goes_on, count, _ = (int(v) for v in row[:_HEAD])
-    new = row[_HEAD:_HEAD + 7].copy() if has_new else None
-    chain = [row[_HEAD + 7 * (j + 1):_HEAD + 7 * (j + 2)].copy() for j in range(count)]
-    return (i, tree, near, new, y, chain, bool(joined), bool(goes_on))
+def _read_round(buf: np.ndarray, base: int, tasks: int) -> list[tuple[Any, ...]]:
+    """The round's records, in task order, as ``merge_round`` takes them."""
+    rows = buf[base * RECORD:(base + tasks) * RECORD].reshape(tasks, RECORD)
+    out: list[tuple[Any, ...]] = []
+    for i, (tree, near, has_new, y, joined, goes_on, count, _) in enumerate(rows[:, :_HEAD].astype(np.int64).tolist()):
+        new = rows[i, _HEAD:_HEAD + 7].copy() if has_new else None
+        chain = list(rows[i, _HEAD + 7:_HEAD + 7 * (count + 1)].reshape(count, 7).copy()) if count else []
+        out.append((i, tree, near, new, y, chain, bool(joined), bool(goes_on)))
+    return out

@@ -10,8 +10,9 @@ from tests.workloads.motion_planning.mp_support import PROBLEMS
 
 from workloads.motion_planning import Pose, load_problem, path_is_collision_free
 from workloads.motion_planning.divided import Trees, as_array, batch_size, merge_round
+from workloads.motion_planning.paper_problems import PAPER_DIR
 from workloads.motion_planning.pool import WarmPlanner
-from workloads.motion_planning.rounds import Division
+from workloads.motion_planning.rounds import LAG, Division
 
 
 @pytest.fixture(scope="module")
@@ -35,7 +36,8 @@ def test_two_workers_do_one_workers_search_between_them(planners: tuple[WarmPlan
     # a task still running after the others were done may be run again by a waiting worker (its
     # worker parked by the kernel): the same outcome, its checks counted apart
     assert (sum(b.checks) - sum(b.stolen_checks), sum(b.samples), b.rounds) == (a.checks[0], a.samples[0], a.rounds)
-    assert a.rounds > 1 and a.samples[0] == a.rounds * batch_size(1)
+    # the rounds merged, and LAG more whose tasks ran while the last merged round's were finishing
+    assert a.rounds > 1 and a.samples[0] == (a.rounds + LAG) * batch_size(1)
     # claimed one at a time: each worker did a real part of it (not a copy of the whole, not nothing)
     assert all(0.25 * a.checks[0] < c < 0.75 * a.checks[0] for c in b.checks)
     assert all(s > 0 for s in b.samples)
@@ -87,13 +89,27 @@ def test_the_merge_keeps_task_order_and_joins_the_lowest_task() -> None:
 
 def test_figures_and_projection() -> None:
     reports = [{"checks": 60, "samples": 30, "rounds": 7, "busy_s": 3.0, "wait_s": 0.5, "stolen_checks": 0,
-                "cpu_s": 3.2},
+                "cpu_s": 3.2, "serial_cpu_s": 0.1},
                {"checks": 40, "samples": 34, "rounds": 6, "busy_s": 2.0, "wait_s": 1.5, "stolen_checks": 10,
-                "cpu_s": 3.1}]
+                "cpu_s": 3.1, "serial_cpu_s": 0.2}]
     d = Division.from_reports(reports, wall_s=4.5)
     assert (d.checks, d.samples, d.rounds, d.stolen_checks) == ((60, 40), (30, 34), 7, (0, 10))
     # waiting for a round's last tasks, averaged: 1 s; serial: the rest of the wall beside the average task time
     assert d.imbalance_s == pytest.approx(1.0) and d.serial_s == pytest.approx(4.5 - 2.5 - 1.0)
     assert d.serial_share == pytest.approx(1.0 / 4.5)
+    # and in CPU seconds, which other jobs' load does not stretch: samples and merge over the search's CPU
+    assert d.serial_cpu_share == pytest.approx(0.3 / 6.3)
     # Amdahl: 2 s serial (imbalance counted in) stays; 5 s of tasks less the 10% run twice (0.5 s) divide
     assert d.projected_speedup(16) == pytest.approx((2.0 + 4.5) / (2.0 + 4.5 / 16))
+    # on CPU seconds: one worker's serial CPU (0.15 s) stays; the rest (6.0 s, less the 10% run twice) divides
+    assert d.projected_speedup_cpu(16) == pytest.approx((0.15 + 5.4) / (0.15 + 5.4 / 16))
+
+
+def test_blocked_motions_stop_short_of_the_wall() -> None:
+    """A node at the last pose a blocked motion passed touches the wall; as a path vertex it can be neither
+    lifted clear nor proven (home, seed 1234: "unproven path" after 3 failed repairs). Backed off, it is."""
+    problem = load_problem(PAPER_DIR / "home.cfg")
+    with WarmPlanner({"home": problem}, workers=1, seed=3, mode="divide") as planner:
+        solution = planner.solve("home", seed=1234)
+    assert solution.solved and solution.repairs == 0, (solution.status, solution.repairs)
+    assert path_is_collision_free(problem, solution.path, resolution=solution.resolution / 5)

@@ -12,6 +12,7 @@ from tests.workloads.motion_planning.mp_support import PROBLEMS, descendants
 from fogiac.errors import WorkloadError
 from workloads.motion_planning import Pose, load_problem, path_is_collision_free, solve
 from workloads.motion_planning.generate_problems import GENERATORS, twisty
+from workloads.motion_planning.paper_problems import GENERATORS as PAPER_GENERATORS, PAPER_DIR
 
 
 @pytest.fixture(scope="module")
@@ -97,10 +98,12 @@ def test_bad_arguments(easy, kwargs: dict, message: str) -> None:
         solve(easy, **kwargs)
 
 
-def test_shipped_problems_are_what_the_generator_writes(tmp_path: Path) -> None:
-    for make in GENERATORS.values():
+@pytest.mark.parametrize(("generators", "folder"), [(GENERATORS, PROBLEMS), (PAPER_GENERATORS, PAPER_DIR)],
+                         ids=["shipped", "paper"])
+def test_shipped_problems_are_what_the_generator_writes(generators, folder: Path, tmp_path: Path) -> None:
+    for make in generators.values():
         make(tmp_path)
-    shipped = sorted(p.name for p in PROBLEMS.iterdir() if p.suffix in (".cfg", ".stl"))
+    shipped = sorted(p.name for p in folder.iterdir() if p.suffix in (".cfg", ".stl"))
     assert shipped == sorted(p.name for p in tmp_path.iterdir())
     for name in shipped:
-        assert (tmp_path / name).read_bytes() == (PROBLEMS / name).read_bytes(), name
+        assert (tmp_path / name).read_bytes() == (folder / name).read_bytes(), name

@@ -109,6 +109,8 @@ class Stats:
     loops: list[Loop] = field(default_factory=list)
     first_map_at: float | None = None  # monotonic time the first bundle-adjusted map was back
     first_map_frame: int | None = None  # frames tracked by then
+    first_job_at: float | None = None  # monotonic time the first bundle adjustment was handed to mapping
+    first_bundle_s: float | None = None  # the first map's adjustment's own seconds, in the mapping process
     frames: int = 0
 
 
@@ -146,13 +148,26 @@ class Slam:
                 self._loop_in.put(self.tracker.loop_keyframe(kf_id))
             self._loop_sent = len(self.tracker.map.keyframes)
             self._start_bundle()
+            if self.stats.first_map_at is None and self._mapping_busy:
+                self._await_first_map()
         return result
+
+    def _await_first_map(self, timeout: float = 60.0) -> None:
+        """Block until the first adjustment is back. The first map is the one serial chain in the system
+        (frames to the second keyframe, then its adjustment): while tracking waits, the adjustment has a
+        core of its own where there are two or more, instead of sharing it with the frames that tracking
+        would run ahead on an unadjusted map (extraction keeps reading ahead meanwhile)."""
+        deadline = time.monotonic() + timeout
+        while self.stats.first_map_at is None and self._mapping_busy and time.monotonic() < deadline:
+            self._poll(block=0.5)
 
     def _start_bundle(self) -> None:
         if self._mapping_busy:
             return
         job = self.tracker.bundle_job()
         if job is not None:
+            if self.stats.first_job_at is None:
+                self.stats.first_job_at = time.monotonic()
             self._map_in.put(job)
             self._mapping_busy = True
 
@@ -175,6 +190,7 @@ class Slam:
             if self.tracker.apply_bundle(message) and self.stats.first_map_at is None:
                 self.stats.first_map_at = time.monotonic()
                 self.stats.first_map_frame = self.stats.frames
+                self.stats.first_bundle_s = message.seconds
             self._start_bundle()
         elif isinstance(message, Loop):
             self.stats.loops.append(message)
@@ -229,6 +245,7 @@ class RunResult:
     mono: bool
     stage_cpu_s: dict[str, float]  # CPU seconds per stage while tracking: read, extract, track, mapping, loop
     first_map_frame: int | None  # frames handed to tracking when the first adjusted map came back
+    map_chain_s: dict[str, float]  # the first map's chain: second keyframe made, adjustment's own time, map back
     trajectory: Trajectory
     ate_rmse_m: float | None = None
     scale: float | None = None  # Sim(3) alignment's scale (monocular)
@@ -243,6 +260,7 @@ class RunResult:
             "cores_used": round(self.cores_used, 2),
             "stage_cpu_s": {k: round(v, 3) for k, v in self.stage_cpu_s.items()},
             "first_map_frame": self.first_map_frame,
+            "map_chain_s": {k: round(v, 3) for k, v in self.map_chain_s.items()},
             "mode": "mono" if self.mono else "rgbd",
         }
         if self.ate_rmse_m is not None:
@@ -299,6 +317,17 @@ def _frames(seq: Sequence, pool: ProcessPoolExecutor, *, ahead: int, cpu: dict[s
         yield features
 
 
+def _map_chain(stats: Stats, start: float) -> dict[str, float]:
+    chain = {}
+    if stats.first_job_at is not None:
+        chain["keyframes_s"] = stats.first_job_at - start
+    if stats.first_bundle_s is not None:
+        chain["bundle_s"] = stats.first_bundle_s
+    if stats.first_map_at is not None:
+        chain["map_back_s"] = stats.first_map_at - start
+    return chain
+
+
 def evaluate(trajectory: Trajectory, truth: Trajectory, *, mono: bool) -> tuple[float, float]:
     """(ATE RMSE in metres, alignment scale): SE(3) alignment for RGB-D, Sim(3) for monocular."""
     estimate, true = matched_positions(trajectory, truth)
@@ -341,6 +370,7 @@ def run_sequence(seq: Sequence, *, cores: int = 0, mono: bool = False, config: C
             loops=tuple((lp.query, lp.match) for lp in slam.stats.loops), bundle_runs=slam.stats.bundle_runs,
             cores=got, cores_used=cpu_s / tracking_s, mono=mono, trajectory=trajectory,
             stage_cpu_s=stages, first_map_frame=slam.stats.first_map_frame,
+            map_chain_s=_map_chain(slam.stats, start),
         )
     if seq.groundtruth is not None and len(trajectory) >= 3:
         rmse, scale = evaluate(trajectory, seq.groundtruth, mono=mono)

@@ -1,14 +1,17 @@
-"""Benchmark in the shape of the FogROS SLAM table: edge (1 core) against cloud (all cores).
+"""Benchmark in the shape of the FogROS SLAM table: edge (1 core) against cloud (all cores), or a curve.
 
-``python -m workloads.slam.benchmark --runs 3 [--sequence DIR ...] [--cores 1,2,4] [--out FILE]``
+``python -m workloads.slam.benchmark --runs 3 [--sequence DIR ...] [--cores 1,2,4,8,16] [--frames N]
+[--scale S] [--out FILE]``
 
-Each sequence (rendered ``desk`` and ``loop`` at 640 x 480 by default, or TUM folders given with
-``--sequence``) runs as ``python -m workloads.slam run DIR --cores N --json`` in a child process,
-the core counts interleaved run by run so that load drifting during the benchmark hits every
-side alike. Per sequence and core count it prints the median FPS and map-creation time, the ratio
-of each against the 1-core baseline measured in the same run, the load average before the run,
-and the cores the run actually got: CPU seconds of all its threads and processes while tracking,
-over those wall seconds (a run pinned to 2 cores on a machine busy with other work gets less).
+Each sequence (rendered ``desk`` and ``loop`` at 640 x 480 by default, each in its own process, once
+per cache folder; or TUM folders given with ``--sequence``) runs in a child process (``--one``: the
+SLAM libraries only, no CLI packages, so it runs where only numpy, OpenCV and GTSAM are installed),
+the core counts interleaved run by run so that load drifting during the benchmark hits every side
+alike. Per sequence and core count it prints the median FPS and map-creation time, each against the
+first core count measured in the same run, the load average before the runs, the cores the runs
+actually got (CPU seconds of all their threads and processes while tracking, over those wall
+seconds: a run pinned to 2 cores on a machine busy with other work gets less), and each stage's
+CPU milliseconds per frame (read, extract, track, mapping, loop), which do not depend on the load.
 """
 
 from __future__ import annotations

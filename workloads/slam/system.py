@@ -23,8 +23,9 @@ import queue
 import resource
 import sys
 import time
+from collections import deque
 from collections.abc import Iterator
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -45,7 +46,7 @@ from workloads.slam.features import Extractor, Features
 from workloads.slam.geometry import ate_rmse
 from workloads.slam.loop import Loop, LoopDetector, LoopKeyframe
 from workloads.slam.tracking import Config, Tracker, TrackResult
-from workloads.slam.tum import Sequence, Trajectory, load_frame, matched_positions
+from workloads.slam.tum import FrameFiles, Sequence, Trajectory, load_frame, matched_positions
 
 FLUSH = "flush"
 
@@ -62,14 +63,16 @@ def pin_cores(cores: int) -> int:
 def cpu_seconds(pids: list[int]) -> float:
     """CPU seconds (user + system) so far of this process, all its threads, and the live processes ``pids``."""
     own = resource.getrusage(resource.RUSAGE_SELF)
-    total = own.ru_utime + own.ru_stime
-    for pid in pids:
-        try:
-            fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-        except OSError:
-            continue
-        total += (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime, stime
-    return total
+    return own.ru_utime + own.ru_stime + sum(process_cpu_seconds(pid) for pid in pids)
+
+
+def process_cpu_seconds(pid: int) -> float:
+    """CPU seconds (user + system) so far of the live process ``pid``; 0 if it is gone."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime, stime
 
 
 def _mapping_main(inbox: Any, outbox: Any) -> None:
@@ -105,6 +108,10 @@ class Stats:
     bundle_s: float = 0.0
     loops: list[Loop] = field(default_factory=list)
     first_map_at: float | None = None  # monotonic time the first bundle-adjusted map was back
+    first_map_frame: int | None = None  # frames tracked by then
+    first_job_at: float | None = None  # monotonic time the first bundle adjustment was handed to mapping
+    first_bundle_s: float | None = None  # the first map's adjustment's own seconds, in the mapping process
+    frames: int = 0
 
 
 class Slam:
@@ -134,19 +141,33 @@ class Slam:
 
     def track(self, features: Features) -> TrackResult:
         self._poll()
+        self.stats.frames += 1
         result = self.tracker.track(features)
         if result.keyframe:
             for kf_id in range(self._loop_sent, len(self.tracker.map.keyframes)):
                 self._loop_in.put(self.tracker.loop_keyframe(kf_id))
             self._loop_sent = len(self.tracker.map.keyframes)
             self._start_bundle()
+            if self.stats.first_map_at is None and self._mapping_busy:
+                self._await_first_map()
         return result
+
+    def _await_first_map(self, timeout: float = 60.0) -> None:
+        """Block until the first adjustment is back. The first map is the one serial chain in the system
+        (frames to the second keyframe, then its adjustment): while tracking waits, the adjustment has a
+        core of its own where there are two or more, instead of sharing it with the frames that tracking
+        would run ahead on an unadjusted map (extraction keeps reading ahead meanwhile)."""
+        deadline = time.monotonic() + timeout
+        while self.stats.first_map_at is None and self._mapping_busy and time.monotonic() < deadline:
+            self._poll(block=0.5)
 
     def _start_bundle(self) -> None:
         if self._mapping_busy:
             return
         job = self.tracker.bundle_job()
         if job is not None:
+            if self.stats.first_job_at is None:
+                self.stats.first_job_at = time.monotonic()
             self._map_in.put(job)
             self._mapping_busy = True
 
@@ -168,6 +189,8 @@ class Slam:
             self.stats.bundle_s += message.seconds
             if self.tracker.apply_bundle(message) and self.stats.first_map_at is None:
                 self.stats.first_map_at = time.monotonic()
+                self.stats.first_map_frame = self.stats.frames
+                self.stats.first_bundle_s = message.seconds
             self._start_bundle()
         elif isinstance(message, Loop):
             self.stats.loops.append(message)
@@ -220,6 +243,9 @@ class RunResult:
     cores: int
     cores_used: float  # CPU seconds of tracking, extraction, mapping and loop closing / tracking's wall seconds
     mono: bool
+    stage_cpu_s: dict[str, float]  # CPU seconds per stage while tracking: read, extract, track, mapping, loop
+    first_map_frame: int | None  # frames handed to tracking when the first adjusted map came back
+    map_chain_s: dict[str, float]  # the first map's chain: second keyframe made, adjustment's own time, map back
     trajectory: Trajectory
     ate_rmse_m: float | None = None
     scale: float | None = None  # Sim(3) alignment's scale (monocular)
@@ -232,6 +258,9 @@ class RunResult:
             "wall_s": round(self.wall_s, 3), "keyframes": self.keyframes, "map_points": self.map_points,
             "loops": len(self.loops), "bundle_runs": self.bundle_runs, "cores": self.cores,
             "cores_used": round(self.cores_used, 2),
+            "stage_cpu_s": {k: round(v, 3) for k, v in self.stage_cpu_s.items()},
+            "first_map_frame": self.first_map_frame,
+            "map_chain_s": {k: round(v, 3) for k, v in self.map_chain_s.items()},
             "mode": "mono" if self.mono else "rgbd",
         }
         if self.ate_rmse_m is not None:
@@ -242,18 +271,61 @@ class RunResult:
         return out
 
 
-def _frames(seq: Sequence, extractor: Extractor, pool: ThreadPoolExecutor, *, mono: bool,
-            ahead: int) -> Iterator[Features]:
-    """Features of every frame in order, read and extracted ``ahead`` frames in advance by the pool."""
-    def work(i: int) -> Features:
-        grey, depth = load_frame(seq.frames[i], seq.intrinsics)
-        return extractor(i, seq.frames[i].stamp, grey, None if mono else depth)
+_WORKER: dict[str, Any] = {}
 
-    pending = [pool.submit(work, i) for i in range(min(ahead, len(seq.frames)))]
+
+def _extract_init(intrinsics: Intrinsics, features: int, mono: bool) -> None:
+    cv2.setNumThreads(1)
+    _WORKER.update(extractor=Extractor(intrinsics, features=features), intrinsics=intrinsics, mono=mono)
+
+
+def _extract_ready(delay: float) -> int:
+    time.sleep(delay)  # long enough that each warm-up call lands on a worker of its own
+    return os.getpid()
+
+
+def _extract_frame(index: int, frame: FrameFiles) -> tuple[Features, float, float]:
+    """(features, CPU seconds reading, CPU seconds extracting) of one frame, in an extraction process."""
+    t0 = time.thread_time()
+    grey, depth = load_frame(frame, _WORKER["intrinsics"])
+    t1 = time.thread_time()
+    features = _WORKER["extractor"](index, frame.stamp, grey, None if _WORKER["mono"] else depth)
+    return features, t1 - t0, time.thread_time() - t1
+
+
+def extraction_pool(intrinsics: Intrinsics, *, workers: int, features: int, mono: bool) -> ProcessPoolExecutor:
+    """``workers`` extraction processes, started and warmed up (OpenCV imported, ORB made) before any clock."""
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
+                               initializer=_extract_init, initargs=(intrinsics, features, mono))
+    list(pool.map(_extract_ready, [0.2] * workers))
+    return pool
+
+
+def _frames(seq: Sequence, pool: ProcessPoolExecutor, *, ahead: int, cpu: dict[str, float]) -> Iterator[Features]:
+    """Features of every frame in order, read and extracted ``ahead`` frames in advance by the pool's
+    processes (not threads: reading and extracting hold the GIL for part of each frame, and tracking
+    holds it for most of its own); adds each stage's CPU seconds to ``cpu``."""
+    pending = deque(pool.submit(_extract_frame, i, seq.frames[i]) for i in range(min(ahead, len(seq.frames))))
     for i in range(len(seq.frames)):
         if i + ahead < len(seq.frames):
-            pending.append(pool.submit(work, i + ahead))
-        yield pending[i].result()
+            pending.append(pool.submit(_extract_frame, i + ahead, seq.frames[i + ahead]))
+        t0 = time.monotonic()
+        features, read_s, extract_s = pending.popleft().result()
+        cpu["wait_wall"] += time.monotonic() - t0
+        cpu["read"] += read_s
+        cpu["extract"] += extract_s
+        yield features
+
+
+def _map_chain(stats: Stats, start: float) -> dict[str, float]:
+    chain = {}
+    if stats.first_job_at is not None:
+        chain["keyframes_s"] = stats.first_job_at - start
+    if stats.first_bundle_s is not None:
+        chain["bundle_s"] = stats.first_bundle_s
+    if stats.first_map_at is not None:
+        chain["map_back_s"] = stats.first_map_at - start
+    return chain
 
 
 def evaluate(trajectory: Trajectory, truth: Trajectory, *, mono: bool) -> tuple[float, float]:
@@ -271,14 +343,22 @@ def run_sequence(seq: Sequence, *, cores: int = 0, mono: bool = False, config: C
     config = config or Config()
     if max_frames is not None:
         seq = Sequence(seq.root, seq.frames[:max_frames], seq.intrinsics, seq.groundtruth)
-    extractor = Extractor(seq.intrinsics, features=config.features)
-    with Slam(seq.intrinsics, config, mono=mono) as slam, ThreadPoolExecutor(max_workers=got) as pool:
-        start, cpu_start = time.monotonic(), cpu_seconds(slam.pids)
+    with (Slam(seq.intrinsics, config, mono=mono) as slam,
+          extraction_pool(seq.intrinsics, workers=got, features=config.features, mono=mono) as pool):
+        pids = [*slam.pids, *(p.pid for p in pool._processes.values() if p.pid is not None)]  # noqa: SLF001
+        stages = {"read": 0.0, "extract": 0.0, "track": 0.0, "track_wall": 0.0, "wait_wall": 0.0}
+        back_start = [process_cpu_seconds(pid) for pid in slam.pids]
+        start, cpu_start = time.monotonic(), cpu_seconds(pids)
         tracked = 0
-        for features in _frames(seq, extractor, pool, mono=mono, ahead=2 * got + 1):
+        for features in _frames(seq, pool, ahead=2 * got + 1, cpu=stages):
+            t0, w0 = time.thread_time(), time.monotonic()
             tracked += slam.track(features).tracked
+            stages["track"] += time.thread_time() - t0
+            stages["track_wall"] += time.monotonic() - w0
         tracking_s = time.monotonic() - start
-        cpu_s = cpu_seconds(slam.pids) - cpu_start
+        cpu_s = cpu_seconds(pids) - cpu_start
+        for name, pid, before in zip(("mapping", "loop"), slam.pids, back_start, strict=True):
+            stages[name] = process_cpu_seconds(pid) - before
         slam.finish()
         wall_s = time.monotonic() - start
         first_map = slam.stats.first_map_at
@@ -289,6 +369,8 @@ def run_sequence(seq: Sequence, *, cores: int = 0, mono: bool = False, config: C
             keyframes=len(slam.tracker.map.keyframes), map_points=slam.tracker.map.points.count,
             loops=tuple((lp.query, lp.match) for lp in slam.stats.loops), bundle_runs=slam.stats.bundle_runs,
             cores=got, cores_used=cpu_s / tracking_s, mono=mono, trajectory=trajectory,
+            stage_cpu_s=stages, first_map_frame=slam.stats.first_map_frame,
+            map_chain_s=_map_chain(slam.stats, start),
         )
     if seq.groundtruth is not None and len(trajectory) >= 3:
         rmse, scale = evaluate(trajectory, seq.groundtruth, mono=mono)

@@ -34,27 +34,45 @@ POPCOUNT = np.array([bin(i).count("1") for i in range(256)], np.uint8)
 
 def hamming(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise Hamming distances of two (N, 32) uint8 descriptor arrays."""
+    if hasattr(np, "bitwise_count"):  # numpy >= 2.0: popcount on 64-bit words
+        words = np.bitwise_xor(np.ascontiguousarray(a).view(np.uint64), np.ascontiguousarray(b).view(np.uint64))
+        return np.bitwise_count(words).sum(axis=1, dtype=np.int32)
     return POPCOUNT[np.bitwise_xor(a, b)].sum(axis=1, dtype=np.int32)
 
 
 def near_pairs(features: np.ndarray, points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
-    """(feature index, point index) of every pair closer than ``radius`` px, through a grid of radius-sized cells."""
-    cells_x = int(features[:, 0].max() // radius) + 3 if len(features) else 1
-    fcell = (features[:, 1] // radius).astype(np.int64) * cells_x + (features[:, 0] // radius).astype(np.int64)
+    """(feature index, point index) of every pair closer than ``radius`` px, through a grid of radius-sized cells.
+
+    Features are sorted by cell once and a table gives each cell's first feature, so each point's
+    nine neighbouring cells are two lookups each (on the tracking thread, the system's serial stage).
+    """
+    if len(features) == 0 or len(points) == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    fx, fy = (features[:, 0] // radius).astype(np.int64) + 1, (features[:, 1] // radius).astype(np.int64) + 1
+    px, py = (points[:, 0] // radius).astype(np.int64) + 1, (points[:, 1] // radius).astype(np.int64) + 1
+    cells_x = int(max(fx.max(), px.max())) + 2
+    cells_y = int(max(fy.max(), py.max())) + 2
+    fcell = fy * cells_x + fx
     order = np.argsort(fcell, kind="stable")
-    sorted_cells = fcell[order]
-    px, py = (points[:, 0] // radius).astype(np.int64), (points[:, 1] // radius).astype(np.int64)
+    first = np.searchsorted(fcell[order], np.arange(cells_x * cells_y + 1))
     feats, pts = [], []
     for dy in (-1, 0, 1):
+        y = py + dy
         for dx in (-1, 0, 1):
             x = px + dx
-            cell = np.where((x >= 0) & (x < cells_x), (py + dy) * cells_x + x, -1)
-            lo, hi = np.searchsorted(sorted_cells, cell, "left"), np.searchsorted(sorted_cells, cell, "right")
-            count = hi - lo
-            point = np.repeat(np.arange(len(points)), count)
-            offset = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+            ok = (x >= 0) & (y >= 0)  # the +1 offset keeps every feature's cell at x, y >= 1
+            cell = np.where(ok, y * cells_x + x, cells_x * cells_y)  # the last, empty entry for none
+            lo = first[np.minimum(cell, cells_x * cells_y)]
+            count = first[np.minimum(cell + 1, cells_x * cells_y)] - lo
+            total = int(count.sum())
+            if total == 0:
+                continue
+            ends = np.cumsum(count)
+            offset = np.arange(total) - np.repeat(ends - count, count)
             feats.append(order[np.repeat(lo, count) + offset])
-            pts.append(point)
+            pts.append(np.repeat(np.arange(len(points)), count))
+    if not feats:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
     feat, point = np.concatenate(feats), np.concatenate(pts)
     close = ((features[feat] - points[point]) ** 2).sum(axis=1) < radius * radius
     return feat[close], point[close]
@@ -62,7 +80,7 @@ def near_pairs(features: np.ndarray, points: np.ndarray, radius: float) -> tuple
 
 def best_matches(feat: np.ndarray, point: np.ndarray, dist: np.ndarray, *, ratio: float) -> np.ndarray:
     """(feature, point) pairs: each point's nearest feature if clearly better than its second, each feature once."""
-    order = np.lexsort((dist, point))
+    order = np.argsort(point * 512 + dist, kind="stable")  # by point, then distance (at most 256)
     feat, point, dist = feat[order], point[order], dist[order]
     first = np.ones(len(point), bool)
     first[1:] = point[1:] != point[:-1]
@@ -76,7 +94,7 @@ def best_matches(feat: np.ndarray, point: np.ndarray, dist: np.ndarray, *, ratio
     keep = (dist[idx] <= MAX_HAMMING) & (~has_second | (dist[idx] < ratio * second))
     idx = idx[keep]
     feat, point, dist = feat[idx], point[idx], dist[idx]
-    by_feature = np.lexsort((dist, feat))  # a feature claimed by several points keeps the closest
+    by_feature = np.argsort(feat * 512 + dist, kind="stable")  # a feature claimed by several points keeps the closest
     feat, point = feat[by_feature], point[by_feature]
     unique = np.ones(len(feat), bool)
     unique[1:] = feat[1:] != feat[:-1]

@@ -30,6 +30,7 @@ from fogiac.plan.cost import MONTH, per_month
 from fogiac.plan.guard import up_summary
 from fogiac.plan.model import Plan
 from fogiac.plan.saved import check_saved_plan
+from fogiac.provision import secrets
 from fogiac.provision.report import report_table
 from fogiac.tables import console, table
 
@@ -114,6 +115,8 @@ def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str |
     need_yes(yes, "apply")
     if plan_file is not None:
         check_saved_plan(plan_file, manifest=manifest, stack=plan.stack, target=plan.target)
+    if not infra_only:
+        secrets.check(plan)  # every named secret readable before anything is created
     try:
         with _one_line_each(), _Progress() as progress:
             result = sequence.up(chosen, plan, UpOptions(

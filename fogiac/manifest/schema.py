@@ -153,6 +153,12 @@ def _resolve_paths(data: dict, base: Path) -> list[tuple[tuple, str]]:
             fix(node["launch"], "requirements", ("nodes", i, "launch"), folder=False)
         if isinstance(node, dict) and isinstance(node.get("build"), dict):
             fix(node["build"], "context", ("nodes", i, "build"), folder=True)
+        for value in (node.get("env") or {}).values() if isinstance(node, dict) and isinstance(
+                node.get("env"), dict) else ():
+            ref = value.get("secret") if isinstance(value, dict) else None
+            if isinstance(ref, str) and ref.startswith("file:") and not any(ord(c) < 32 for c in ref):
+                # read at `up` on the operator's machine, wherever it is (not pushed): only made absolute
+                value["secret"] = "file:" + str((base / Path(ref[5:]).expanduser()).resolve())
     cloud = data.get("cloud")
     if isinstance(cloud, dict):
         hosts = cloud.get("hosts")

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from fogiac import registry
+from fogiac.plan.document import shown_env
 from fogiac.plan.drift import Drift
 
 Action = Literal["create", "update", "replace", "delete", "no-op"]
@@ -221,8 +222,9 @@ def _section(before: Sequence[Mapping[str, Any]] | None, after: Sequence[Mapping
     changed = []
     if compare:
         for name in (n for n in new if n in old):
+            # a field the older document did not have yet is not a change (an applied plan of an older fogiac)
             fields = tuple((f, old[name].get(f), new[name].get(f)) for f in new[name]
-                           if old[name].get(f) != new[name].get(f))
+                           if f in old[name] and old[name].get(f) != new[name].get(f))
             if fields:
                 changed.append(RowChange(name, fields))
     return Section(added=tuple(r for n, r in new.items() if n not in old),
@@ -279,7 +281,7 @@ def diff_documents(before: Mapping[str, Any] | None, after: Mapping[str, Any], *
         against=against,
         resources=_resources(before.get("resources", []), after.get("resources", [])),
         hosts=_section(before.get("hosts"), after.get("hosts"), ("name",), compare=True),
-        nodes=_section(before.get("nodes"), after.get("nodes"), ("name",), compare=True),
+        nodes=_section(_hidden_env(before.get("nodes")), after.get("nodes"), ("name",), compare=True),
         topics=topics, security_rules=rules, settings=settings,
         cost_before=float(before.get("cost", {}).get("hourly_usd", 0.0)),
         cost_after=float(after.get("cost", {}).get("hourly_usd", 0.0)),
@@ -288,6 +290,15 @@ def diff_documents(before: Mapping[str, Any] | None, after: Mapping[str, Any], *
         spot_as_of=str((after.get("cost", {}).get("spot_prices") or before.get("cost", {}).get("spot_prices")
                         or {}).get("as_of", "")),
     )
+
+
+def _hidden_env(nodes: Any) -> Any:
+    """Node rows with their env as plans show it now: an applied document recorded before values were
+    hidden held them whole; compared as digests they show no spurious change (and no value)."""
+    if not isinstance(nodes, list):
+        return nodes
+    return [{**row, "env": shown_env(row["env"])} if isinstance(row, Mapping) and isinstance(row.get("env"), Mapping)
+            else row for row in nodes]
 
 
 def _spot_hourly(doc: Mapping[str, Any]) -> float | None:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -31,8 +32,36 @@ FORMAT_VERSION = 2
 APPLIED_FILE = StackState.APPLIED  # the document of the last successful up, in the stack's folder
 
 
+# Env values a plan shows as they are: settings, not secrets. Anything else is shown as a digest, so a
+# change still shows in a diff but the value never reaches a plan, the recorded state or a PR comment.
+HARMLESS_ENV = frozenset({
+    "ROS_DOMAIN_ID", "ROS_LOCALHOST_ONLY", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_STATIC_PEERS", "RMW_IMPLEMENTATION",
+    "ROS_PYTHON_VERSION", "ROSCONSOLE_FORMAT", "RCUTILS_CONSOLE_OUTPUT_FORMAT", "RCUTILS_COLORIZED_OUTPUT",
+    "PYTHONUNBUFFERED", "PYTHONDONTWRITEBYTECODE", "LOG_LEVEL", "LOGLEVEL", "CUDA_VISIBLE_DEVICES",
+    "NVIDIA_VISIBLE_DEVICES", "OMP_NUM_THREADS", "TZ", "LANG", "LC_ALL",
+})
+_SECRETISH = re.compile(r"TOKEN|SECRET|PASS|KEY|CREDENTIAL|AUTH|COOKIE|SESSION|PRIVATE|CERT", re.I)
+_HARMLESS_VALUE = re.compile(
+    r"^(-?[0-9]{1,6}(\.[0-9]+)?|true|false|yes|no|on|off|debug|info|warn|warning|error|fatal)$", re.I)
+_SHOWN = re.compile(r"^(sha256:[0-9a-f]{12}|\[secret [^\]]*\])$")  # already as a plan shows it
+
+
+def env_value(key: str, value: str) -> str:
+    """How a plan shows one env value: as it is when known harmless, else ``sha256:`` and 12 hex digits."""
+    if _SHOWN.match(value) or key in HARMLESS_ENV or (_HARMLESS_VALUE.match(value) and not _SECRETISH.search(key)):
+        return value
+    return "sha256:" + hashlib.sha256(value.encode()).hexdigest()[:12]
+
+
+def shown_env(env: Mapping[str, Any], secrets: Mapping[str, str] | None = None) -> dict[str, str]:
+    """A node's env as plans show it: harmless values whole, others as digests, secrets by reference.
+    Idempotent, so a document recorded before values were hidden compares with one made now."""
+    out = {str(k): env_value(str(k), str(v)) for k, v in env.items()}
+    return dict(sorted({**out, **{k: f"[secret {ref}]" for k, ref in (secrets or {}).items()}}.items()))
+
+
 def _node(node: NodeSpec) -> dict[str, Any]:
-    return {**cost.node_row(node), "command": list(node.command), "env": dict(node.env),
+    return {**cost.node_row(node), "command": list(node.command), "env": shown_env(dict(node.env), dict(node.secrets)),
             "in": list(node.topics_in), "out": list(node.topics_out)}
 
 

@@ -135,6 +135,8 @@ class NodeSpec:
     topics_in: tuple[str, ...]
     topics_out: tuple[str, ...]
     build: BuildSpec | None = None
+    # (NAME, reference): env values read at `up` (env:NAME, file:PATH), never held in the plan
+    secrets: tuple[tuple[str, str], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -305,6 +307,9 @@ class Plan:
         for route in out["relay"]:
             if route["replica"] is None:  # unreplicated: the same bytes (and digest) as before replicas existed
                 del route["replica"]
+        for node in out["nodes"]:
+            if not node["secrets"]:  # none: the same bytes (and digest) as before secrets could be named
+                del node["secrets"]
         if not self.middleware_settings:  # none: the same bytes (and digest) as before there could be any
             del out["middleware_settings"]
         out["hourly_usd"] = self.hourly_usd

@@ -15,7 +15,7 @@ from fogiac.errors import ProvisionError
 from fogiac.hostmodel import NativeRos, NodeRun, Where, container_name, node_env_file, node_image, ros_image
 from fogiac.net import middleware
 from fogiac.plan.model import HostSpec, NodeSpec, Plan
-from fogiac.provision import images, workload
+from fogiac.provision import images, secrets, workload
 from fogiac.provision.host import q
 from fogiac.provision.probe import Facts
 from fogiac.provision.runtimes.base import CHANGED, OK, Run, StepResult, source_overlay
@@ -70,7 +70,7 @@ def docker_run(node: NodeSpec, *, plan: Plan, spec: HostSpec, where: Where) -> s
         image, command = _built(node, where), ("python", "-m", workload.package(node.workload or ""), "node")
     return render("provision/docker_run.j2", engine=where.engine, stack=plan.stack, host=spec.name,
                   gpus=spec.has_gpu, container=container_name(plan.stack, node.name), env=env,
-                  env_file=node_env_file(where.layout, node.name) if node.env else "", volumes=volumes,
+                  env_file=node_env_file(where.layout, node.name) if node.env or node.secrets else "", volumes=volumes,
                   workdir=workdir, image=image, command=command).strip()
 
 
@@ -101,7 +101,9 @@ class ContainerRuntime:
         return command, _remove_first(where, container)
 
     def node(self, node: NodeSpec, plan: Plan, spec: HostSpec, where: Where) -> NodeRun:
-        files = ((node_env_file(where.layout, node.name), env_file_text(node.env), 0o600),) if node.env else ()
+        # The node's env and its secrets (read now, on the operator's machine) in one 0600 file on the host.
+        env = node.env + secrets.resolve(node)
+        files = ((node_env_file(where.layout, node.name), env_file_text(env), 0o600),) if env else ()
         return NodeRun(command=docker_run(node, plan=plan, spec=spec, where=where), check="any", files=files,
                        pre=_remove_first(where, container_name(plan.stack, node.name)))
 

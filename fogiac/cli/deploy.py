@@ -29,6 +29,7 @@ from fogiac.lifecycle.report import render_status
 from fogiac.plan.cost import MONTH, per_month
 from fogiac.plan.guard import up_summary
 from fogiac.plan.model import Plan
+from fogiac.plan.review import visible, visible_doc
 from fogiac.plan.saved import check_saved_plan
 from fogiac.provision import secrets
 from fogiac.provision.report import report_table
@@ -42,8 +43,9 @@ def _show(doc: Mapping[str, Any], summary: tuple[str, ...] | None) -> None:
     if summary is None:
         render(doc)
         return
+    doc = visible_doc(doc)  # no value reaches the terminal with a control or bidi character in it
     out = console()
-    for line in summary:
+    for line in (visible(line) for line in summary):
         out.print(line, markup=False, highlight=False)
     for stack in doc["stacks"]:
         counts = Counter(r["type"].rsplit(":", 1)[-1] for r in doc["resources"] if r["stack"] == stack)

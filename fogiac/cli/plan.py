@@ -50,7 +50,8 @@ def _key_inputs(resource: Mapping[str, Any]) -> list[str]:
 
 def _render_diff(doc: dict[str, Any], diff: PlanDiff, *, against: str) -> None:
     out = console()
-    out.print(f"[bold]fogiac plan[/] {doc['stack']}: target {doc['target']}")
+    stack, target = (escape(review.visible(str(doc[k]))) for k in ("stack", "target"))
+    out.print(f"[bold]fogiac plan[/] {stack}: target {target}")
     for line in review.terminal(diff, against=against):
         out.print(escape(line), highlight=False)
 
@@ -76,6 +77,7 @@ def _spot_cell(host: Mapping[str, Any]) -> str:
 
 
 def render(doc: Mapping[str, Any]) -> None:
+    doc = review.visible_doc(doc)  # no value reaches the terminal with a control or bidi character in it
     out = console()
     where = f", region {doc['region']}, mode {doc['mode']}" if doc["resources"] else ""
     out.print(f"[bold]fogiac plan[/] {doc['stack']}: target {doc['target']}{where}")

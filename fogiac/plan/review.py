@@ -9,11 +9,69 @@ hold them.
 from __future__ import annotations
 
 import difflib
+import re
 from collections.abc import Mapping
 from typing import Any
 
 from fogiac.plan.diff import InputChange, PlanDiff, ResourceChange, Section
 from fogiac.plan.drift import VERB, Drift
+
+# What must never reach a terminal or a comment as it is: C0 and C1 controls (ESC starts colour, OSC 8 links and
+# cursor moves; CR and BS overwrite what is shown), DEL, and the bidirectional controls that reorder what a
+# reviewer reads (Trojan Source), with the zero-width and separator characters that hide text.
+_CONTROL = re.compile("[\x00-\x1f\x7f-\x9f\u061c\u200b-\u200f\u2028-\u202e\u2060-\u2069\ufeff]")
+# Markdown's inline punctuation, backslash-escaped in comment text outside code (CommonMark allows it before any
+# ASCII punctuation): no emphasis, link, image, raw HTML, comment, heading or table cell from a value.
+_MARKDOWN = re.compile(r"([\\`*_{}\[\]<>#|~!&])")
+
+
+def _escape(match: re.Match[str]) -> str:
+    char = match.group(0)
+    names = {"\t": "\\t", "\n": "\\n", "\r": "\\r", "\x1b": "\\e"}
+    if char in names:
+        return names[char]
+    return f"\\x{ord(char):02x}" if ord(char) <= 0xFF else f"\\u{ord(char):04x}"
+
+
+def visible(text: str) -> str:
+    """``text`` with every control, bidirectional and invisible character shown as an escape (``\\e``,
+    ``\\x9b``, ``\\u202e``): printed, it moves no cursor, colours nothing and reorders nothing."""
+    return _CONTROL.sub(_escape, text)
+
+
+def md_text(text: str) -> str:
+    """A line for comment text outside code: visible, and every markdown character escaped."""
+    return _MARKDOWN.sub(r"\\\1", visible(text))
+
+
+def md_code(text: str) -> str:
+    """``text`` as an inline code span that no backtick in it can close (CommonMark: a longer fence)."""
+    text = visible(text)
+    ticks = "`" * (max((len(run) for run in re.findall("`+", text)), default=0) + 1)
+    pad = " " if text.startswith("`") or text.endswith("`") else ""
+    return f"{ticks}{pad}{text}{pad}{ticks}"
+
+
+def md_block(lines: list[str], info: str = "diff") -> str:
+    """Lines as a fenced code block that none of them can close: each made visible (so none holds a line
+    break), and a fence longer than any run of backticks in them."""
+    body = [visible(line) for line in lines]
+    longest = max((len(run) for line in body for run in re.findall("`+", line)), default=0)
+    fence = "`" * max(3, longest + 1)
+    return f"{fence}{info}\n" + "\n".join(body) + f"\n{fence}\n"
+
+
+def visible_doc(value: Any) -> Any:
+    """A document (or any JSON value) with every string in it :func:`visible`, keys included: what a
+    terminal is shown of it."""
+    if isinstance(value, str):
+        return visible(value)
+    if isinstance(value, Mapping):
+        return {visible(str(k)): visible_doc(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [visible_doc(v) for v in value]
+    return value
+
 
 SYMBOL = {"create": "+", "update": "~", "replace": "-/+", "delete": "-"}
 NO_CHANGES = "No changes. Your infrastructure matches the configuration."
@@ -122,16 +180,16 @@ def sections(diff: PlanDiff) -> list[tuple[str, list[str]]]:
 def terminal(diff: PlanDiff, *, against: str) -> list[str]:
     """The diff for a terminal or CI log; the Terraform summary line last."""
     if diff.empty:
-        return [f"compared with {against}", NO_CHANGES]
+        return [visible(f"compared with {against}"), NO_CHANGES]
     lines = [f"compared with {against}"]
     for title, body in sections(diff):
         lines += ["", f"{title}:"] + [f"  {line}" for line in body]
-    return lines + ["", diff.summary()]
+    return [visible(line) for line in lines + ["", diff.summary()]]
 
 
 def comment(diff: PlanDiff, *, stack: str, against: str) -> str:
     """The pull-request comment (GitHub markdown)."""
-    head = f"### fogiac plan: `{stack}` against `{against}`\n\n"
+    head = f"### fogiac plan: {md_code(stack)} against {md_code(against)}\n\n"
     if diff.empty:
         return head + f"**{NO_CHANGES}**\n"
     parts = [head + f"**{diff.summary()}**  \n{cost_line(diff)}\n"]
@@ -139,7 +197,8 @@ def comment(diff: PlanDiff, *, stack: str, against: str) -> str:
         if title == "cost":
             continue  # already under the summary
         if title == "exposure widened":
-            parts.append("> [!WARNING]\n> **Exposure widened**\n" + "".join(f"> - {line[2:]}\n" for line in body))
+            warned = "".join(f"> - {md_text(line[2:])}\n" for line in body)
+            parts.append("> [!WARNING]\n> **Exposure widened**\n" + warned)
         else:
-            parts.append(f"#### {title}\n\n```diff\n" + "\n".join(body) + "\n```\n")
+            parts.append(f"#### {md_text(title)}\n\n" + md_block(body))
     return "\n".join(parts)

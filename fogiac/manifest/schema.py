@@ -43,6 +43,9 @@ class Manifest(_Model):
     nodes: tuple[Node, ...] = Field(min_length=1, description="The nodes that run off the robot.")
     relay: Relay = Field(default_factory=Relay, description="How topics cross between edge and cloud.")
     tags: dict[str, str] = Field(default_factory=dict, description="Extra tags on every cloud resource.")
+    allow_paths_outside: bool = Field(
+        default=False, description="Let a workspace, env_script, requirements or build context resolve outside "
+        "the manifest's folder (through ../ or a symbolic link): up pushes it to the hosts.")
     _blocks: dict[str, BaseModel] = PrivateAttr(default_factory=dict)  # middleware name -> its block, validated
 
     @classmethod
@@ -128,14 +131,21 @@ def _moved(err: ValidationError, prefix: tuple[str, ...]) -> list[InitErrorDetai
 def _resolve_paths(data: dict, base: Path) -> list[tuple[tuple, str]]:
     """Make file paths absolute against the manifest's folder; report missing ones."""
     missing: list[tuple[tuple, str]] = []
+    root = base.resolve()
+    outside_ok = data.get("allow_paths_outside") is True
 
-    def fix(container: dict, key: str, loc: tuple, *, folder: bool) -> None:
+    def fix(container: dict, key: str, loc: tuple, *, folder: bool, pushed: bool = True) -> None:
         value = container.get(key)
         if not isinstance(value, str) or any(ord(c) < 32 or ord(c) == 127 for c in value):
             return  # a control character is reported by the field's own check, on one line
         path = (base / value).resolve()
         container[key] = str(path)
-        if not (path.is_dir() if folder else path.is_file()):
+        if pushed and not outside_ok and not path.is_relative_to(root):
+            # up pushes it to the hosts: ../../.. or a symbolic link must not carry ~/.aws or ~/.fogiac there
+            missing.append((loc + (key,), f"{value!r} resolves to {path}, outside the manifest's folder {root}; "
+                            "up would push it to the hosts (move it under the manifest's folder, or set "
+                            "allow_paths_outside: true)"))
+        elif not (path.is_dir() if folder else path.is_file()):
             missing.append((loc + (key,), f"{value!r} does not exist (looked for {path})"))
         elif key == "requirements":  # refused here already, not only when `up` reaches the host
             try:
@@ -164,7 +174,7 @@ def _resolve_paths(data: dict, base: Path) -> list[tuple[tuple, str]]:
         hosts = cloud.get("hosts")
         for i, host in enumerate(hosts if isinstance(hosts, list) else []):
             if isinstance(host, dict):
-                fix(host, "key", ("cloud", "hosts", i), folder=False)
+                fix(host, "key", ("cloud", "hosts", i), folder=False, pushed=False)  # read here, never pushed
     return missing
 
 

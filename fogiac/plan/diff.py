@@ -87,6 +87,7 @@ class PlanDiff:
     spot_before: float | None = None  # the hour with spot hosts at the spot estimate; None: no spot host that side
     spot_after: float | None = None
     spot_as_of: str = ""  # the spot estimates' date (the catalogue's Spot Instance Advisor snapshot)
+    pushed: Section = Section()  # workspaces, env scripts, requirements, build contexts: path and content digest
 
     def count(self, action: Action) -> int:
         return sum(1 for r in self.resources if r.action == action)
@@ -97,7 +98,7 @@ class PlanDiff:
 
     @property
     def empty(self) -> bool:
-        sections = (self.hosts, self.nodes, self.topics, self.security_rules)
+        sections = (self.hosts, self.nodes, self.topics, self.security_rules, self.pushed)
         return (not self.changed_resources and all(s.empty for s in sections) and not self.settings
                 and self.cost_before == self.cost_after and self.spot_before == self.spot_after and not self.drift)
 
@@ -136,7 +137,7 @@ class PlanDiff:
             "add": self.count("create") + self.count("replace"), "change": self.count("update"),
             "destroy": self.count("delete") + self.count("replace"),
             "hosts": section(self.hosts), "nodes": section(self.nodes), "topics": section(self.topics),
-            "security_rules": section(self.security_rules),
+            "security_rules": section(self.security_rules), "pushed": section(self.pushed),
             "settings": [{"name": k, "before": b, "after": a} for k, b, a in self.settings],
             "cost": {"hourly_usd_before": self.cost_before, "hourly_usd_after": self.cost_after,
                      **({"spot_hourly_usd_before": self.spot_before, "spot_hourly_usd_after": self.spot_after,
@@ -271,7 +272,7 @@ def diff_documents(before: Mapping[str, Any] | None, after: Mapping[str, Any], *
     """Everything that differs from ``before`` to ``after``; ``before`` None means nothing exists."""
     if before is None:
         before, against = {"resources": [], "hosts": [], "nodes": [], "topics": [], "security_rules": [],
-                           "cost": {"hourly_usd": 0.0}}, "nothing"
+                           "pushed": [], "cost": {"hourly_usd": 0.0}}, "nothing"
     rules = _section(before.get("security_rules"), after.get("security_rules"),
                      ("group", "direction", "protocol", "ports", "cidr"), compare=True)
     topics = _section(before.get("topics"), after.get("topics"), ("topic", "direction", "host"), compare=False)
@@ -287,6 +288,9 @@ def diff_documents(before: Mapping[str, Any] | None, after: Mapping[str, Any], *
         cost_after=float(after.get("cost", {}).get("hourly_usd", 0.0)),
         exposure=_exposure(rules, topics),
         spot_before=_spot_hourly(before), spot_after=_spot_hourly(after),
+        # an applied document recorded before pushed paths were listed: nothing to compare them with
+        pushed=_section(before.get("pushed"), after.get("pushed"), ("node", "what"), compare=True)
+        if "pushed" in before else Section(),
         spot_as_of=str((after.get("cost", {}).get("spot_prices") or before.get("cost", {}).get("spot_prices")
                         or {}).get("as_of", "")),
     )

@@ -24,7 +24,7 @@ from typing import Any
 
 from fogiac import __version__
 from fogiac.net import middleware
-from fogiac.plan import cost
+from fogiac.plan import cost, pushed
 from fogiac.plan.model import NodeSpec, Plan, Rule
 from fogiac.state import StackState
 
@@ -116,6 +116,7 @@ def document(plan: Plan, resources: Sequence[Mapping[str, Any]], *, manifest_pat
         "nodes": [_node(node) for node in plan.nodes],
         "topics": topics(plan),
         "security_rules": security_rules(plan),
+        "pushed": pushed.pushed(plan),  # every path up pushes, with its content's digest
         "cost": cost.cost(plan),
     }
     canonical = json.dumps({"plan": plan.digest(), **body}, sort_keys=True, separators=(",", ":"))

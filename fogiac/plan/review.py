@@ -132,6 +132,10 @@ def _node(row: Mapping[str, Any]) -> str:
     return f"{row['name']} on {row['host']} ({row['kind']}: {row['runs']})"
 
 
+def _pushed(row: Mapping[str, Any]) -> str:
+    return f"{row['node']} {row['what']} {row['path']} (sha256 {str(row['sha256'])[:12]})"
+
+
 def section_lines(section: Section, show: Any) -> list[str]:
     lines = [f"+ {show(r)}" for r in section.added] + [f"- {show(r)}" for r in section.removed]
     for c in section.changed:
@@ -173,6 +177,7 @@ def sections(diff: PlanDiff) -> list[tuple[str, list[str]]]:
            ("hosts", section_lines(diff.hosts, _host)),
            ("nodes", section_lines(diff.nodes, _node)),
            ("topics crossing the edge", section_lines(diff.topics, _topic)),
+           ("pushed to the hosts", section_lines(diff.pushed, _pushed)),
            ("settings", [f"~ {k}: {_value(b)} -> {_value(a)}" for k, b, a in diff.settings])]
     return [(title, lines) for title, lines in out if lines]
 

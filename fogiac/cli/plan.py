@@ -25,7 +25,7 @@ from fogiac.manifest.revision import load_revision
 from fogiac.plan import drift, review
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.cost import MONTH, menu_line, per_month, saving_pct
-from fogiac.plan.diff import PlanDiff, annotate, diff_documents, with_drift
+from fogiac.plan.diff import PlanDiff, annotate, autostop_words, diff_documents, with_drift
 from fogiac.plan.document import APPLIED_FILE, document, plan_document
 from fogiac.state import StackState, write_json_atomic
 from fogiac.tables import console, table
@@ -122,6 +122,7 @@ def render(doc: Mapping[str, Any]) -> None:
     cost.add_row("[bold]total[/]", "", "", f"[bold]{total:.4f}[/]", *beside)
     out.print(cost)
     out.print(f"cost: ${total:.4f} per hour (about ${per_month(total):.2f} per {MONTH} if left running)")
+    out.print(f"  {escape(autostop_words(doc.get('autostop')))}", highlight=False)  # what bounds that month
     if spot is not None:
         source = doc["cost"]["spot_prices"]
         out.print(f"with spot: about ${spot:.4f} per hour (${per_month(spot):.2f} per {MONTH}), "
@@ -171,7 +172,7 @@ def plan(
     elif as_json:
         typer.echo(json.dumps(doc, indent=2, sort_keys=True))
     elif markdown:
-        typer.echo(review.comment(diff, stack=compiled.stack, against=label), nl=False)
+        typer.echo(review.comment(diff, stack=compiled.stack, against=label, doc=doc), nl=False)
     elif before is None:
         render(doc)
     else:

@@ -27,7 +27,7 @@ from fogiac.plan.drift import Drift
 
 Action = Literal["create", "update", "replace", "delete", "no-op"]
 KNOWN_AFTER_APPLY = "(known after apply)"
-SETTINGS = ("target", "region", "zone", "mode", "edge_master")
+SETTINGS = ("target", "region", "zone", "mode", "edge_master", "autostop", "relay")
 GROUP = "fogiac.replacements"  # package -> forces_replacement(type_, path), the provider's ForceNew rules
 _PLACEHOLDER = re.compile(r"<([^<>]+)\.[A-Za-z]+>")
 
@@ -88,6 +88,9 @@ class PlanDiff:
     spot_after: float | None = None
     spot_as_of: str = ""  # the spot estimates' date (the catalogue's Spot Instance Advisor snapshot)
     pushed: Section = Section()  # workspaces, env scripts, requirements, build contexts: path and content digest
+    cost_risk: tuple[str, ...] = ()  # changes that let the stack cost more while nobody uses it (autostop weakened)
+    autostop: Mapping[str, Any] | None = None  # the after side's autostop (None: off)
+    autostop_known: bool = False  # the after document says its autostop (format 2 from this fogiac on)
 
     def count(self, action: Action) -> int:
         return sum(1 for r in self.resources if r.action == action)
@@ -142,7 +145,7 @@ class PlanDiff:
             "cost": {"hourly_usd_before": self.cost_before, "hourly_usd_after": self.cost_after,
                      **({"spot_hourly_usd_before": self.spot_before, "spot_hourly_usd_after": self.spot_after,
                          "spot_as_of": self.spot_as_of} if self.has_spot else {})},
-            "exposure": list(self.exposure),
+            "exposure": list(self.exposure), "cost_risk": list(self.cost_risk),
             "drift": [d.to_dict() for d in self.drift], "refreshed_at": self.refreshed_at or None,
         }
 
@@ -239,6 +242,18 @@ def _network(cidr: str) -> ipaddress.IPv4Network | ipaddress.IPv6Network | None:
         return None  # the operator placeholder of an offline plan
 
 
+# Topic names that command a robot's motion (geometry_msgs/Twist on /cmd_vel, trajectories, joint and motor
+# commands, grippers, teleoperation): a new one from the cloud is flagged above the other exposure lines.
+_ACTUATION = re.compile(r"(^|/|_)(cmd|cmd_vel|command|commands|twist|trajectory|joint_trajectory|velocity|effort|"
+                        r"motor|motors|servo|actuator|actuators|gripper|teleop|drive|steer|steering|throttle|"
+                        r"brake|goal|move_base|estop|e_stop)(_|/|$)", re.I)
+
+
+def is_actuation(topic: str) -> bool:
+    """A topic whose name says it moves the robot (``/cmd_vel``, ``/arm/joint_trajectory``, ``/gripper/command``)."""
+    return bool(_ACTUATION.search(topic))
+
+
 def _exposure(rules: Section, topics: Section) -> tuple[str, ...]:
     """Ingress rules added or widened, egress opened to the internet, and topics that now reach the robot."""
     lines = []
@@ -258,13 +273,18 @@ def _exposure(rules: Section, topics: Section) -> tuple[str, ...]:
         if (net := _network(str(rule["cidr"]))) is not None and net.prefixlen == 0:
             lines.append(f"egress added to the internet: {rule['group']} {rule['protocol']} {rule['ports']} "
                          f"to {rule['cidr']} ({rule['description']})")
+    actuation = []
     for topic in topics.added:
-        if topic["direction"] == "to_edge":
+        if topic["direction"] in ("to_edge", "either") and is_actuation(str(topic["topic"])):
+            way = "cloud -> robot" if topic["direction"] == "to_edge" else "in either direction"
+            actuation.append(f"actuation topic added {way}: {topic['topic']} (host {topic['host']}): "
+                             "what the cloud side publishes there moves the robot")
+        elif topic["direction"] == "to_edge":
             lines.append(f"topic added cloud -> edge: {topic['topic']} (from host {topic['host']} to the robot)")
         elif topic["direction"] == "either":
             lines.append(f"topic added in either direction: {topic['topic']} (host {topic['host']}; "
                          "reaches the robot when the cloud side publishes it)")
-    return tuple(lines)
+    return tuple(actuation + lines)  # above everything else: a reviewer must not miss one
 
 
 def diff_documents(before: Mapping[str, Any] | None, after: Mapping[str, Any], *,
@@ -291,9 +311,39 @@ def diff_documents(before: Mapping[str, Any] | None, after: Mapping[str, Any], *
         # an applied document recorded before pushed paths were listed: nothing to compare them with
         pushed=_section(before.get("pushed"), after.get("pushed"), ("node", "what"), compare=True)
         if "pushed" in before else Section(),
+        cost_risk=_cost_risk(before.get("autostop"), after.get("autostop")) if "autostop" in before else (),
+        autostop=after.get("autostop"), autostop_known="autostop" in after,
         spot_as_of=str((after.get("cost", {}).get("spot_prices") or before.get("cost", {}).get("spot_prices")
                         or {}).get("as_of", "")),
     )
+
+
+def autostop_words(stop: Mapping[str, Any] | None) -> str:
+    """The autostop in force, in words: "stops the hosts after 30 idle minutes", or that it is off."""
+    if stop is None:
+        return "autostop off: the hosts run (and cost) until `fogiac down`"
+    minutes = f"{float(stop['idle_minutes']):g} idle minute{'s' if float(stop['idle_minutes']) != 1 else ''}"
+    if stop.get("power") == "services":
+        return f"autostop stops fogiac's services after {minutes} (the machines themselves keep running)"
+    verb = "terminates the hosts (their disks deleted)" if stop.get("action") == "terminate" else "stops the hosts"
+    return f"autostop {verb} after {minutes}"
+
+
+def _cost_risk(before: Mapping[str, Any] | None, after: Mapping[str, Any] | None) -> tuple[str, ...]:
+    """An autostop turned off, waiting longer, or stopping only services where it powered the machine off:
+    the stack costs more while nobody uses it (flagged as a widened CIDR is an exposure)."""
+    if before is None or before == after:
+        return ()
+    was, now = autostop_words(before), autostop_words(after)
+    if after is None:
+        return (f"autostop turned off: was {was.removeprefix('autostop ')}; now the hosts run until `fogiac down`",)
+    lines = []
+    if float(after["idle_minutes"]) > float(before["idle_minutes"]):
+        lines.append(f"autostop waits longer: {float(before['idle_minutes']):g} -> {float(after['idle_minutes']):g} "
+                     "idle minutes")
+    if before.get("power") == "machine" and after.get("power") == "services":
+        lines.append(f"autostop no longer powers the machines off: {was} -> {now}")
+    return tuple(lines)
 
 
 def _hidden_env(nodes: Any) -> Any:

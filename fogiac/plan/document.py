@@ -25,7 +25,7 @@ from typing import Any
 from fogiac import __version__
 from fogiac.net import middleware
 from fogiac.plan import cost, pushed
-from fogiac.plan.model import NodeSpec, Plan, Rule
+from fogiac.plan.model import HostSpec, NodeSpec, Plan, Rule
 from fogiac.state import StackState
 
 FORMAT_VERSION = 2
@@ -63,6 +63,28 @@ def shown_env(env: Mapping[str, Any], secrets: Mapping[str, str] | None = None) 
 def _node(node: NodeSpec) -> dict[str, Any]:
     return {**cost.node_row(node), "command": list(node.command), "env": shown_env(dict(node.env), dict(node.secrets)),
             "in": list(node.topics_in), "out": list(node.topics_out)}
+
+
+def _host(host: HostSpec) -> dict[str, Any]:
+    """A host's row: its machine and price, and how fogiac reaches and runs it (user, key, port, runtime)."""
+    return {**cost.host_row(host), "ssh": {"user": host.user, "key": host.key, "port": host.port},
+            "runtime": host.runtime}
+
+
+def autostop(plan: Plan) -> dict[str, Any] | None:
+    """When the hosts stop themselves, and how; None: never (they cost until ``fogiac down``)."""
+    stop = plan.autostop
+    if stop is None:
+        return None
+    return {"idle_minutes": round(stop.idle_s / 60, 4), "action": stop.action, "power": stop.power}
+
+
+def relay_settings(plan: Plan) -> dict[str, Any] | None:
+    """How topics cross (compression per topic, the queue each topic may hold): one setting for the stack."""
+    if not plan.routes:
+        return None
+    route = plan.routes[0]
+    return {"compression": dict(route.compression), "queue_size": route.queue_size}
 
 
 def topics(plan: Plan) -> list[dict[str, str]]:
@@ -112,12 +134,14 @@ def document(plan: Plan, resources: Sequence[Mapping[str, Any]], *, manifest_pat
         "middleware": middleware_doc(plan),
         "stacks": list(dict.fromkeys(str(r["stack"]) for r in resources)),  # in the order the target declares
         "resources": [dict(r) for r in resources],
-        "hosts": cost.hosts(plan),
+        "hosts": [_host(host) for host in plan.hosts],
         "nodes": [_node(node) for node in plan.nodes],
         "topics": topics(plan),
         "security_rules": security_rules(plan),
         "pushed": pushed.pushed(plan),  # every path up pushes, with its content's digest
         "cost": cost.cost(plan),
+        "autostop": autostop(plan),
+        "relay": relay_settings(plan),
     }
     canonical = json.dumps({"plan": plan.digest(), **body}, sort_keys=True, separators=(",", ":"))
     return {

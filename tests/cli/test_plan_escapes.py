@@ -69,7 +69,9 @@ def test_values_cannot_forge_the_pull_request_comment(pair: tuple[str, str]) -> 
     headings = [line for line in outside if line.startswith("#")]
     assert headings[0].startswith("### fogiac plan: ")
     assert all(re.fullmatch(r"#### [a-z ()]+", line) for line in headings[1:]), headings
-    assert not any("<" in line or "Approved" in line or "onerror" in line for line in outside), outside
+    own = ("<details><summary>", "</details>")  # the comment's own folding, around long sections
+    assert not any(("<" in line and not line.startswith(own)) or "Approved" in line or "onerror" in line
+                   for line in outside), outside
     # the values are there, whole and visibly escaped, inside the code blocks
     assert "    tags.owner: null -> x\\n```\\n\\n## Approved by security <!--" in result.output.splitlines()
     assert "\\e]8;;http://evil\\e\\click" in result.output and "\\u202eevil\\u202c" in result.output

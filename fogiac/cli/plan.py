@@ -22,7 +22,7 @@ from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_deployed, compile_
 from fogiac.errors import FogiacError
 from fogiac.manifest.clouds import prices as price_source
 from fogiac.manifest.revision import load_revision
-from fogiac.plan import drift, review
+from fogiac.plan import drift, placeholders, review
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.cost import MONTH, menu_line, per_month, saving_pct
 from fogiac.plan.diff import PlanDiff, annotate, autostop_words, diff_documents, with_drift
@@ -156,6 +156,8 @@ def plan(
     # Compared with what is deployed, the plan is for the target the deployment went to.
     compiled = compile_deployed(manifest, env, target) if detailed_exitcode and against is None \
         else compile_for(manifest, env, target)
+    for line in placeholders.found(compiled):  # on stderr: stdout stays the document or the comment
+        typer.echo(f"warning: {line}; `fogiac up` refuses it without --force", err=True)
     declared = plan_document(compiled, targets.get(compiled.target).declare(compiled), manifest=manifest)
     before, label = _before(compiled, against=against, target=target, env=env)
     diff = diff_documents(before, declared, against="manifest" if against else "applied")
@@ -172,7 +174,8 @@ def plan(
     elif as_json:
         typer.echo(json.dumps(doc, indent=2, sort_keys=True))
     elif markdown:
-        typer.echo(review.comment(diff, stack=compiled.stack, against=label, doc=doc), nl=False)
+        typer.echo(review.comment(diff, stack=compiled.stack, against=label, doc=doc,
+                                  placeholders=tuple(placeholders.found(compiled))), nl=False)
     elif before is None:
         render(doc)
     else:

@@ -238,7 +238,8 @@ _ALERT = {"exposure widened": ("WARNING", "Exposure widened"),
           "what this does": ("CAUTION", "What this does")}
 
 
-def comment(diff: PlanDiff, *, stack: str, against: str, doc: Mapping[str, Any] | None = None) -> str:
+def comment(diff: PlanDiff, *, stack: str, against: str, doc: Mapping[str, Any] | None = None,
+            placeholders: tuple[str, ...] = ()) -> str:
     """The pull-request comment (GitHub markdown): what the plan is for (target, region, fogiac version),
     the summary, the hour and the month with the autostop in force, warnings, then every section, the long
     ones folded. Every value is escaped: none can close a code block or add markdown or HTML."""
@@ -251,6 +252,9 @@ def comment(diff: PlanDiff, *, stack: str, against: str, doc: Mapping[str, Any] 
         where.append(f"fogiac {md_code(str(doc.get('fogiac_version')))}")
         head += " · ".join(where) + "\n"
     head += "\n"
+    if placeholders:  # what `up` would refuse: said first, whatever else changes
+        head += ("> [!WARNING]\n> **Documentation placeholders (`fogiac up` refuses them)**\n"
+                 + "".join(f"> - {md_text(line)}\n" for line in placeholders) + "\n")
     if diff.empty:
         return head + f"**{NO_CHANGES}**\n"
     # fogiac's own words and numbers: nothing in them a manifest chose

@@ -26,7 +26,7 @@ cloud: {provider: aws, region: us-west-2}
 network:
   mode: vpn
   vpc_cidr: 10.10.0.0/16
-  ssh_from: [203.0.113.7/32]
+  ssh_from: [100.64.113.7/32]
 nodes:
   - name: planner
     machine: c5.large
@@ -40,8 +40,8 @@ GRASP = """\
     gpu: true
 """
 
-FLOWS = BASE.replace("  ssh_from: [203.0.113.7/32]\n", "  ssh_from: [203.0.113.7/32]\n  flow_logs: true\n")
-WIDER_EGRESS = BASE.replace("  ssh_from: [203.0.113.7/32]\n", "  ssh_from: [203.0.113.7/32]\n  egress_tcp: [80, 443, 8883]\n")
+FLOWS = BASE.replace("  ssh_from: [100.64.113.7/32]\n", "  ssh_from: [100.64.113.7/32]\n  flow_logs: true\n")
+WIDER_EGRESS = BASE.replace("  ssh_from: [100.64.113.7/32]\n", "  ssh_from: [100.64.113.7/32]\n  egress_tcp: [80, 443, 8883]\n")
 
 SPOT_PLANNER = BASE.replace("    workload: motion_planning\n", "    workload: motion_planning\n    spot: true\n")
 
@@ -76,12 +76,12 @@ PAIRS = (
          BASE.replace("out: [/path]", "out: [/path, /map]"), 2, "Plan: 0 to add, 0 to change, 0 to destroy.",
          ("! topic added cloud -> edge: /map (from host planner to the robot)",
           "+ /map (cloud -> robot, host planner)"), ("actuation",)),
-    Pair("ssh_from widened is flagged", BASE, BASE.replace("203.0.113.7/32", "203.0.113.0/24"), 2,
+    Pair("ssh_from widened is flagged", BASE, BASE.replace("100.64.113.7/32", "100.64.113.0/24"), 2,
          "Plan: 1 to add, 0 to change, 1 to destroy.",
-         ("! CIDR widened: hosts tcp 22 from 203.0.113.7/32 to 203.0.113.0/24 (SSH from the operator)",
-          "+ hosts ingress tcp 22 203.0.113.0/24 (SSH from the operator)",
-          "- hosts ingress tcp 22 203.0.113.7/32 (SSH from the operator)",
-          "+ aws:vpc/securityGroupIngressRule:SecurityGroupIngressRule review-dev-hosts-in-tcp-22-203.0.113.0-24")),
+         ("! CIDR widened: hosts tcp 22 from 100.64.113.7/32 to 100.64.113.0/24 (SSH from the operator)",
+          "+ hosts ingress tcp 22 100.64.113.0/24 (SSH from the operator)",
+          "- hosts ingress tcp 22 100.64.113.7/32 (SSH from the operator)",
+          "+ aws:vpc/securityGroupIngressRule:SecurityGroupIngressRule review-dev-hosts-in-tcp-22-100.64.113.0-24")),
     Pair("VPC CIDR change replaces the network and everything in it", BASE,
          BASE.replace("10.10.0.0/16", "10.20.0.0/16"), 2, "Plan: 25 to add, 2 to change, 25 to destroy.",
          ("-/+ aws:ec2/vpc:Vpc review-dev-vpc", "cidrBlock: 10.10.0.0/16 -> 10.20.0.0/16  # forces replacement",
@@ -163,7 +163,7 @@ def _repo(tmp_path: Path, base: str, head: str) -> Path:
 def test_against_a_git_revision_renders_the_pull_request_comment(tmp_path: Path,
                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
     """The CI example's comment for the ssh_from pair, checked in as tests/cli/data/comment-ssh-widened.md."""
-    repo = _repo(tmp_path, BASE, BASE.replace("203.0.113.7/32", "203.0.113.0/24").replace("c5.large", "c5.xlarge"))
+    repo = _repo(tmp_path, BASE, BASE.replace("100.64.113.7/32", "100.64.113.0/24").replace("c5.large", "c5.xlarge"))
     monkeypatch.chdir(repo)
     result = runner.invoke(app, ["plan", "fogiac.yaml", "--against", "git:main:fogiac.yaml", "--markdown",
                                  "--detailed-exitcode"])

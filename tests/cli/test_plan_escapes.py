@@ -102,3 +102,16 @@ def test_up_shows_the_plan_with_values_escaped(pair: tuple[str, str], capsys: py
 def test_visible_and_code_spans() -> None:
     assert visible("a\tb\x1b[31m\x9b\u202e\u200b") == "a\\tb\\e[31m\\x9b\\u202e\\u200b"
     assert md_code("a`b") == "``a`b``" and md_code("`x") == "`` `x ``"
+
+
+def test_up_report_shows_a_hosts_error_escaped(capsys: pytest.CaptureFixture[str]) -> None:
+    from fogiac.provision.report import report_table
+    from fogiac.provision.runner import HostOutcome, ProvisionReport
+    from fogiac.tables import console
+
+    failed = HostOutcome(host="h0", address="10.0.0.1", steps=(), error="h0: `x` failed (\x1b]8;;http://evil\x1b\\"
+                         "[bold]click[/bold]\u202e)", files_pushed=0, bytes_sent=0, seconds=1.0)
+    console().print(report_table(ProvisionReport(hosts=(failed,), seconds=1.0)))
+    out = capsys.readouterr().out
+    assert not FORBIDDEN.search(out)
+    assert "\\e]8;;http://evil\\e\\[bold]click[/bold]\\u202e" in out

@@ -108,3 +108,20 @@ def test_plan_against_the_applied_document_sees_a_workspace_change(tmp_path: Pat
     result = runner.invoke(app, ["plan", str(manifest), "--detailed-exitcode"])
     assert result.exit_code == 2, result.output
     assert "~ arm env_script" in [line.strip() for line in result.output.splitlines()]
+
+
+def test_an_applied_document_of_an_older_fogiac_compares_without_a_spurious_change(tmp_path: Path,
+                                                                                   outside: Path) -> None:
+    """What this round added to the document (pushed paths, autostop, relay settings, each host's SSH and
+    runtime, env values as digests) is absent from an applied.json written before: no change is made up."""
+    manifest = _write(tmp_path / "repo")
+    manifest.write_text(manifest.read_text().replace("    launch:", "    env: {TOKEN: abc}\n    launch:"))
+    now = plan_document(compile_plan(load_manifest(manifest)), [], manifest=manifest)
+    older = json.loads(json.dumps(now))
+    for key in ("pushed", "autostop", "relay"):
+        del older[key]
+    for host in older["hosts"]:
+        del host["ssh"], host["runtime"]
+    older["nodes"][0]["env"] = {"TOKEN": "abc"}
+    diff = diff_documents(older, now)
+    assert diff.empty, diff

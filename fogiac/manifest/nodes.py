@@ -3,7 +3,6 @@ machine type or on what it needs (``machine: {gpu: T4, vcpus: '>=8'}``)."""
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Literal
 
@@ -23,6 +22,7 @@ from fogiac.manifest.fields import (
     _IMAGE_REF,
     DnsName,
     PlainPath,
+    Secret,
     Topic,
     _Model,
     _sizing,
@@ -40,27 +40,6 @@ class Launch(_Model):
     requirements: PlainPath | None = Field(
         default=None, description="pip requirements file of the package's Python nodes, relative to the manifest: "
         "installed in the host's virtual environment (native) or in the node's image (container).")
-
-
-_SECRET_REF = re.compile(r"^(env:[A-Za-z_][A-Za-z0-9_]*|file:[^\x00-\x1f\x7f]+)$")
-
-
-class Secret(_Model):
-    """An env value fogiac never holds: named here, read at ``up`` and written only on the host (0600).
-
-    ``env:NAME`` is the operator's environment variable NAME; ``file:PATH`` the first line of a file
-    on the operator's machine (relative to the manifest, or ``~/...``). Plans, the recorded state and
-    pull-request comments show the reference, never the value."""
-
-    secret: str = Field(description="Where the value is read at `up`: env:NAME (the operator's environment) "
-                        "or file:PATH (a file on the operator's machine).")
-
-    @field_validator("secret")
-    @classmethod
-    def _ref(cls, value: str) -> str:
-        if not _SECRET_REF.match(value):
-            raise ValueError(f"{value!r} is not a secret reference: env:NAME or file:PATH")
-        return value
 
 
 def _env_kind(value: object) -> str:

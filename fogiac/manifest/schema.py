@@ -22,7 +22,7 @@ from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from fogiac import registry
 from fogiac.errors import ManifestError
-from fogiac.manifest.blocks import Autostop, Cloud, Edge, HostMachine, Network, Relay, Ros
+from fogiac.manifest.blocks import Autostop, Cloud, Edge, HostMachine, Network, Registry, Relay, Ros
 from fogiac.manifest.clouds import known
 from fogiac.manifest.crossfield import cross_field_problems
 from fogiac.manifest.fields import DnsName, _Model, ssh_from_problem
@@ -163,13 +163,16 @@ def _resolve_paths(data: dict, base: Path) -> list[tuple[tuple, str]]:
             fix(node["launch"], "requirements", ("nodes", i, "launch"), folder=False)
         if isinstance(node, dict) and isinstance(node.get("build"), dict):
             fix(node["build"], "context", ("nodes", i, "build"), folder=True)
-        for value in (node.get("env") or {}).values() if isinstance(node, dict) and isinstance(
-                node.get("env"), dict) else ():
+    cloud = data.get("cloud")
+    refs = [node.get("env") for node in (nodes if isinstance(nodes, list) else []) if isinstance(node, dict)]
+    if isinstance(cloud, dict) and isinstance(cloud.get("registries"), list):
+        refs += [{"password": r.get("password")} for r in cloud["registries"] if isinstance(r, dict)]
+    for values in refs:
+        for value in values.values() if isinstance(values, dict) else ():
             ref = value.get("secret") if isinstance(value, dict) else None
             if isinstance(ref, str) and ref.startswith("file:") and not any(ord(c) < 32 for c in ref):
                 # read at `up` on the operator's machine, wherever it is (not pushed): only made absolute
                 value["secret"] = "file:" + str((base / Path(ref[5:]).expanduser()).resolve())
-    cloud = data.get("cloud")
     if isinstance(cloud, dict):
         hosts = cloud.get("hosts")
         for i, host in enumerate(hosts if isinstance(hosts, list) else []):
@@ -220,11 +223,12 @@ def json_schema() -> dict:
 
 def node_types() -> tuple[type[BaseModel], ...]:
     """Every model of the manifest, for the README reference test."""
-    return (Manifest, Ros, Cloud, Autostop, HostMachine, Network, Edge, Node, Machine, Launch, TopicLists, Relay)
+    return (Manifest, Ros, Cloud, Autostop, HostMachine, Registry, Network, Edge, Node, Machine, Launch, TopicLists,
+            Relay)
 
 
 
 # What other modules import from here (the blocks and nodes live in blocks.py and nodes.py).
 __all__ = ["Autostop", "Build", "Cloud", "Edge", "HostMachine", "Launch", "Machine", "Manifest", "Network", "Node",
-           "NodeKind", "Relay", "Ros", "TopicLists", "Workload", "json_schema", "load_manifest", "parse_manifest",
-           "ssh_from_problem"]
+           "NodeKind", "Registry", "Relay", "Ros", "TopicLists", "Workload", "json_schema", "load_manifest",
+           "parse_manifest", "ssh_from_problem"]

@@ -72,6 +72,7 @@ def compile_plan(manifest: Manifest, *, target: str | None = None, environment: 
         cost=placed.cost,
         autostop=placed.autostop,
         middleware_settings=_settings(manifest, carrier.name),
+        registries=tuple((r.server, r.username, r.password.secret) for r in manifest.cloud.registries),
     )
 
 

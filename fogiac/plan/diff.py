@@ -27,7 +27,7 @@ from fogiac.plan.drift import Drift
 
 Action = Literal["create", "update", "replace", "delete", "no-op"]
 KNOWN_AFTER_APPLY = "(known after apply)"
-SETTINGS = ("target", "region", "zone", "mode", "edge_master", "autostop", "relay")
+SETTINGS = ("target", "region", "zone", "mode", "edge_master", "autostop", "relay", "registries")
 GROUP = "fogiac.replacements"  # package -> forces_replacement(type_, path), the provider's ForceNew rules
 _PLACEHOLDER = re.compile(r"<([^<>]+)\.[A-Za-z]+>")
 

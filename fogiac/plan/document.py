@@ -142,6 +142,8 @@ def document(plan: Plan, resources: Sequence[Mapping[str, Any]], *, manifest_pat
         "cost": cost.cost(plan),
         "autostop": autostop(plan),
         "relay": relay_settings(plan),
+        "registries": [{"server": server, "username": user, "password": f"[secret {ref}]"}
+                       for server, user, ref in plan.registries],
     }
     canonical = json.dumps({"plan": plan.digest(), **body}, sort_keys=True, separators=(",", ":"))
     return {

@@ -276,6 +276,8 @@ class Plan:
     autostop: AutostopSpec | None = None
     # The manifest's block the middleware owns (a plug-in's ``beacon:``), JSON-ready, for its deployment.
     middleware_settings: tuple[tuple[str, Any], ...] = ()
+    # Private registries the hosts log in to: (server, username, the password's secret reference)
+    registries: tuple[tuple[str, str, str], ...] = ()
 
     @property
     def hourly_usd(self) -> float:
@@ -310,6 +312,8 @@ class Plan:
         for node in out["nodes"]:
             if not node["secrets"]:  # none: the same bytes (and digest) as before secrets could be named
                 del node["secrets"]
+        if not self.registries:  # none: the same bytes (and digest) as before registries could be named
+            del out["registries"]
         if not self.middleware_settings:  # none: the same bytes (and digest) as before there could be any
             del out["middleware_settings"]
         out["hourly_usd"] = self.hourly_usd

@@ -17,7 +17,7 @@ from fogiac.plan.model import NodeSpec, Plan
 MAX_BYTES = 64 * 1024  # a token or a password, not a file of its own
 
 
-def _read(ref: str) -> str:
+def read(ref: str) -> str:
     """The value ``ref`` names; ProvisionError (one line, no value) when it is not there."""
     kind, _, name = ref.partition(":")
     if kind == "env":
@@ -45,16 +45,21 @@ def _read(ref: str) -> str:
 
 def resolve(node: NodeSpec) -> tuple[tuple[str, str], ...]:
     """``node``'s secrets as (NAME, value) pairs, for the file written on its host only."""
-    return tuple((key, _read(ref)) for key, ref in node.secrets)
+    return tuple((key, read(ref)) for key, ref in node.secrets)
 
 
 def problems(plan: Plan) -> list[str]:
     """Every secret of ``plan`` that cannot be read now, one line each (no values)."""
     out = []
+    for server, _, ref in plan.registries:
+        try:
+            read(ref)
+        except ProvisionError as err:
+            out.append(f"cloud.registries {server}: password: {err}")
     for node in plan.nodes:
         for key, ref in node.secrets:
             try:
-                _read(ref)
+                read(ref)
             except ProvisionError as err:
                 out.append(f"node {node.name}: env {key}: {err}")
     return out

@@ -115,6 +115,17 @@ class ContainerRuntime:
             run.host.sudo(f"bash {q(run.layout.tmp + '/nvidia-toolkit.sh')}", timeout=900)
             changes.append("NVIDIA container toolkit")
         image, engine = ros_image(run.plan), run.engine
+        for server, user, ref in run.plan.registries:
+            # The password reaches the engine through a 0600 file on the host, removed at once: never a
+            # command line, the plan or a log.
+            path = f"{run.layout.tmp}/registry-{server.replace(':', '-')}"
+            run.host.put(secrets.read(ref).encode(), path, mode=0o600)
+            done = run.host.run(f"{engine} login {q(server)} --username {q(user)} --password-stdin < {q(path)}; "
+                                f"status=$?; rm -f {q(path)}; exit $status", check=False, timeout=120)
+            if not done.ok:
+                raise ProvisionError(f"{run.spec.name}: {engine} login to {server} as {user} failed "
+                                     f"({done.last_line()})")
+            changes.append(f"logged in to {server}")
         if not run.host.run(f"{engine} image inspect {q(image)} >/dev/null 2>&1", check=False).ok:
             run.host.run(f"{engine} pull -q {q(image)}", timeout=900)
             changes.append(f"pulled {image}")

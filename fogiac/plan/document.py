@@ -11,6 +11,13 @@ adds each resource's ``action`` against what it was compared with, and a ``chang
 (:mod:`fogiac.plan.diff`). Version 1 had the same top-level keys less those, every resource's
 ``action`` was ``create``, and there was no ``changes``. A version 1 document (an ``applied.json``
 written before) is still read as the "before" side of a diff: its missing sections are skipped.
+
+Within version 2, later fogiacs added (each skipped in a diff when the "before" document lacks it, so
+an applied document of an earlier fogiac compares without a made-up change): ``pushed`` (every path
+``up`` pushes, with its content digest), ``autostop``, ``relay`` (compression and queue size),
+``registries``, each host's ``ssh`` (user, key, port) and ``runtime``. A node's ``env`` shows values
+known harmless as they are, any other as ``sha256:`` and 12 hex digits, and a named secret as
+``[secret env:NAME]``: no value reaches a plan, ``applied.json`` or a pull-request comment.
 """
 
 from __future__ import annotations

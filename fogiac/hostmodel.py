@@ -238,6 +238,11 @@ def node_env_file(layout: Layout, node: str) -> str:
     return f"{layout.env}/node-{node}.env"
 
 
+def secret_file(layout: Layout, node: str) -> str:
+    """A native node's secrets, sourced by its service script (0600; a container node's are in its env file)."""
+    return f"{layout.env}/node-{node}.secret.sh"
+
+
 def make_service(name: str, *, plan: Plan, spec: HostSpec, where: Where, command: str, check: str,
                  env: tuple[tuple[str, str], ...] = (), pre: tuple[str, ...] = (), package_path: str = "",
                  python_path: str = "", cwd: str = "", notes: tuple[str, ...] = (), after: str = "",

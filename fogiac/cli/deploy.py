@@ -26,10 +26,13 @@ from fogiac.lifecycle import sequence
 from fogiac.lifecycle.driver import DownOptions, Feature, Target, UpOptions
 from fogiac.lifecycle.events import Progress, Timers
 from fogiac.lifecycle.report import render_status
+from fogiac.plan import placeholders
 from fogiac.plan.cost import MONTH, per_month
 from fogiac.plan.guard import up_summary
 from fogiac.plan.model import Plan
+from fogiac.plan.review import visible, visible_doc
 from fogiac.plan.saved import check_saved_plan
+from fogiac.provision import secrets
 from fogiac.provision.report import report_table
 from fogiac.tables import console, table
 
@@ -41,8 +44,9 @@ def _show(doc: Mapping[str, Any], summary: tuple[str, ...] | None) -> None:
     if summary is None:
         render(doc)
         return
+    doc = visible_doc(doc)  # no value reaches the terminal with a control or bidi character in it
     out = console()
-    for line in summary:
+    for line in (visible(line) for line in summary):
         out.print(line, markup=False, highlight=False)
     for stack in doc["stacks"]:
         counts = Counter(r["type"].rsplit(":", 1)[-1] for r in doc["resources"] if r["stack"] == stack)
@@ -107,13 +111,20 @@ def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str |
                                               help="local/hosts: run the edge's roscore too if none answers (demos)."),
        edge_master: str | None = typer.Option(None, "--edge-master", help="Override edge.ros_master."),
        infra_only: bool = typer.Option(False, "--infra-only", help="Create the machines only; provision nothing."),
-       force: bool = FORCE) -> None:
+       force: bool = typer.Option(False, "--force", help="Take over a stack another manifest file made (same name "
+                                  "and env), or deploy documentation placeholders (example images, addresses).")
+       ) -> None:
     """Check, show the plan and its cost, ask, then create the machines and start the nodes."""
     plan = compile_deployed(manifest, env, target, force=force, has_force=True, creating=True)
     chosen = targets.get(plan.target)
     need_yes(yes, "apply")
     if plan_file is not None:
         check_saved_plan(plan_file, manifest=manifest, stack=plan.stack, target=plan.target)
+    found = placeholders.found(plan)
+    if found and not force:  # copied from the documentation: nothing of the user's would run, or be reachable
+        raise FogiacError("; ".join(found) + "; up refuses documentation placeholders (pass --force to deploy anyway)")
+    if not infra_only:
+        secrets.check(plan)  # every named secret readable before anything is created
     try:
         with _one_line_each(), _Progress() as progress:
             result = sequence.up(chosen, plan, UpOptions(

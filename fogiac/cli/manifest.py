@@ -12,6 +12,7 @@ from fogiac.errors import FogiacError
 from fogiac.manifest.clouds import prices as price_source
 from fogiac.manifest.schema import json_schema, parse_manifest
 from fogiac.net import middleware
+from fogiac.plan import placeholders
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.cost import MONTH, per_month, saving_pct
 from fogiac.state import write_text_atomic
@@ -29,6 +30,8 @@ def validate(
         f"{manifest}: valid ({len(loaded.nodes)} node{'s' if len(loaded.nodes) != 1 else ''}, "
         f"{len(plan.hosts)} host{'s' if len(plan.hosts) != 1 else ''}, target {plan.target})"
     )
+    for line in placeholders.found(plan):  # valid, but copied from the documentation: `up` refuses it
+        typer.echo(f"warning: {line}", err=True)
 
 
 def schema() -> None:

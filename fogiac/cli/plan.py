@@ -22,10 +22,10 @@ from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_deployed, compile_
 from fogiac.errors import FogiacError, StateError
 from fogiac.manifest.clouds import prices as price_source
 from fogiac.manifest.revision import load_revision
-from fogiac.plan import drift, review
+from fogiac.plan import drift, placeholders, review
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.cost import MONTH, menu_line, per_month, saving_pct
-from fogiac.plan.diff import annotate, diff_documents, with_drift
+from fogiac.plan.diff import annotate, autostop_words, diff_documents, with_drift
 from fogiac.plan.document import document, plan_document
 from fogiac.state import StackState, write_json_atomic
 from fogiac.tables import console, table
@@ -50,7 +50,8 @@ def _key_inputs(resource: Mapping[str, Any]) -> list[str]:
 
 def _render_diff(doc: dict[str, Any], lines: list[str]) -> None:
     out = console()
-    out.print(f"[bold]fogiac plan[/] {doc['stack']}: target {doc['target']}")
+    stack, target = (escape(review.visible(str(doc[k]))) for k in ("stack", "target"))
+    out.print(f"[bold]fogiac plan[/] {stack}: target {target}")
     for line in lines:
         out.print(escape(line), highlight=False)
 
@@ -76,6 +77,7 @@ def _spot_cell(host: Mapping[str, Any]) -> str:
 
 
 def render(doc: Mapping[str, Any]) -> None:
+    doc = review.visible_doc(doc)  # no value reaches the terminal with a control or bidi character in it
     out = console()
     where = f", region {doc['region']}, mode {doc['mode']}" if doc["resources"] else ""
     out.print(f"[bold]fogiac plan[/] {doc['stack']}: target {doc['target']}{where}")
@@ -123,6 +125,7 @@ def render(doc: Mapping[str, Any]) -> None:
     cost.add_row("[bold]total[/]", "", "", f"[bold]{total:.4f}[/]", *beside)
     out.print(cost)
     out.print(f"cost: ${total:.4f} per hour (about ${per_month(total):.2f} per {MONTH} if left running)")
+    out.print(f"  {escape(autostop_words(doc.get('autostop')))}", highlight=False)  # what bounds that month
     if spot is not None:
         source = doc["cost"]["spot_prices"]
         out.print(f"with spot: about ${spot:.4f} per hour (${per_month(spot):.2f} per {MONTH}), "
@@ -156,6 +159,8 @@ def plan(
     # Compared with what is deployed, the plan is for the target the deployment went to.
     compiled = compile_deployed(manifest, env, target) if detailed_exitcode and against is None \
         else compile_for(manifest, env, target)
+    for line in placeholders.found(compiled):  # on stderr: stdout stays the document or the comment
+        typer.echo(f"warning: {line}; `fogiac up` refuses it without --force", err=True)
     declared = plan_document(compiled, targets.get(compiled.target).declare(compiled), manifest=manifest)
     before, label = _before(compiled, against=against, target=target, env=env)
     try:  # everything read from the applied document, before a line is printed
@@ -164,7 +169,8 @@ def plan(
         if refreshed is not None:  # what `fogiac refresh` found changed outside fogiac since the apply
             diff = with_drift(diff, refreshed.drift, refreshed_at=refreshed.at)
         doc = annotate(declared, diff)
-        comment = review.comment(diff, stack=compiled.stack, against=label) if markdown else ""
+        comment = review.comment(diff, stack=compiled.stack, against=label, doc=doc,
+                                 placeholders=tuple(placeholders.found(compiled))) if markdown else ""
         lines = review.terminal(diff, against=label) if before is not None else []
     except (TypeError, KeyError, AttributeError, ValueError) as err:
         if against is not None or before is None:

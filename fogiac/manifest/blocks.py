@@ -23,6 +23,7 @@ from fogiac.manifest.fields import (
     DnsName,
     PlainPath,
     Provider,
+    Secret,
     Topic,
     _address,
     _Model,
@@ -71,6 +72,24 @@ class Autostop(_Model):
         return value
 
 
+class Registry(_Model):
+    """A private container registry the hosts log in to before they pull: its password is a secret."""
+
+    server: str = Field(pattern=r"^[A-Za-z0-9]([A-Za-z0-9.-]*[A-Za-z0-9])?(:[0-9]{1,5})?$",
+                        description="The registry's host name (and port), e.g. ghcr.io.")
+    username: str = Field(pattern=r"^[^\s\x00-\x1f\x7f]{1,256}$", description="The user to log in as.")
+    password: Secret = Field(description="The password or token: {secret: env:NAME} or {secret: file:PATH}, read "
+                             "at `up` and handed to the engine's login on the host, never recorded.")
+
+    @field_validator("password", mode="before")
+    @classmethod
+    def _named(cls, value: object) -> object:
+        if not isinstance(value, dict):  # the value itself: not repeated in the message (CI logs keep it)
+            raise ValueError("a password is never written in the manifest: name where it is read, "
+                             "{secret: env:NAME} or {secret: file:PATH}")
+        return value
+
+
 class Cloud(_Model):
     provider: Provider = Field(default="aws", description="Where cloud nodes run.")
     region: str = Field(default="us-west-2", description="AWS region (one the price table covers).")
@@ -85,6 +104,8 @@ class Cloud(_Model):
     def _yaml_off(cls, value: object) -> object:
         """YAML 1.1 reads a bare ``off`` as false: that is the ``off`` the user wrote."""
         return "off" if value is False else value
+    registries: tuple[Registry, ...] = Field(
+        default=(), description="Private container registries the hosts log in to before pulling images.")
     runtime: Literal["auto", "container", "native"] = Field(
         default="auto",
         description="How nodes run on local and hosts machines: in containers (podman, or a docker that answers), "

@@ -19,6 +19,7 @@ from pydantic import (
     ValidationInfo,
     ValidatorFunctionWrapHandler,
     WrapValidator,
+    field_validator,
 )
 
 from fogiac import registry
@@ -104,6 +105,27 @@ Compression = Literal["none", "zstd", "lz4"]
 
 class _Model(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid", populate_by_name=True)
+
+
+_SECRET_REF = re.compile(r"^(env:[A-Za-z_][A-Za-z0-9_]*|file:[^\x00-\x1f\x7f]+)$")
+
+
+class Secret(_Model):
+    """An env value fogiac never holds: named here, read at ``up`` and written only on the host (0600).
+
+    ``env:NAME`` is the operator's environment variable NAME; ``file:PATH`` the first line of a file
+    on the operator's machine (relative to the manifest, or ``~/...``). Plans, the recorded state and
+    pull-request comments show the reference, never the value."""
+
+    secret: str = Field(description="Where the value is read at `up`: env:NAME (the operator's environment) "
+                        "or file:PATH (a file on the operator's machine).")
+
+    @field_validator("secret")
+    @classmethod
+    def _ref(cls, value: str) -> str:
+        if not _SECRET_REF.match(value):
+            raise ValueError(f"{value!r} is not a secret reference: env:NAME or file:PATH")
+        return value
 
 
 def _topic(value: str) -> str:

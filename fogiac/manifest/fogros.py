@@ -9,6 +9,7 @@ fogiac cannot express gives error lines and no file.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import re
 import xml.parsers.expat
@@ -235,6 +236,12 @@ def import_launch(path: Path, *, out: Path | None = None) -> Converted:
                 if "env_script" in node["launch"]:
                     script = (imported.base / node["launch"]["env_script"]).resolve()
                     node["launch"]["env_script"] = _relative(script, base)
+    outside = [node["launch"]["workspace"] for node in imported.data["nodes"] if "launch" in node
+               and not (base / node["launch"]["workspace"]).resolve().is_relative_to(base.resolve())]
+    if outside:  # the launch file's own workspace, above it: said in the manifest, where a reviewer sees it
+        imported.data["allow_paths_outside"] = True
+        imported = dataclasses.replace(imported, notes=imported.notes + (
+            f"workspace {outside[0]} is outside the manifest's folder: allow_paths_outside: true",))
     text = to_yaml(imported, source=path)
     return Converted(parse_manifest(text, source=str(out or path), base=base), text, imported.notes)
 

@@ -4,10 +4,12 @@ machine type or on what it needs (``machine: {gpu: T4, vcpus: '>=8'}``)."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 from pydantic import (
+    Discriminator,
     Field,
+    Tag,
     ValidationInfo,
     field_validator,
     model_validator,
@@ -20,6 +22,7 @@ from fogiac.manifest.fields import (
     _IMAGE_REF,
     DnsName,
     PlainPath,
+    Secret,
     Topic,
     _Model,
     _sizing,
@@ -46,6 +49,14 @@ class Launch(_Model):
     requirements: PlainPath | None = Field(
         default=None, description="pip requirements file of the package's Python nodes, relative to the manifest: "
         "installed in the host's virtual environment (native) or in the node's image (container).")
+
+
+def _env_kind(value: object) -> str:
+    return "secret" if isinstance(value, (dict, Secret)) else "value"
+
+
+# A plain value, or {secret: ...}: a mapping is read as a secret only, so its problem is named as one.
+EnvValue = Annotated[Annotated[str, Tag("value")] | Annotated[Secret, Tag("secret")], Discriminator(_env_kind)]
 
 
 class Build(_Model):
@@ -151,7 +162,9 @@ class Node(_Model):
     topics: Literal["auto"] | TopicLists = Field(default="auto", description="Topics relayed for this node.")
     disk_gb: int = Field(default=30, ge=8, le=16384, description="Root volume size in GiB (gp3, encrypted).")
     spot: bool = Field(default=False, description="Use a spot instance.")
-    env: dict[str, str] = Field(default_factory=dict, description="Environment variables for the node.")
+    env: dict[str, EnvValue] = Field(
+        default_factory=dict, description="Environment variables for the node; a secret as {secret: env:NAME} "
+        "or {secret: file:PATH}, read at `up` and never shown or recorded.")
     host: str | None = Field(default=None, description="For the hosts target: which cloud.hosts entry runs it.")
     replicas: int = Field(default=1, ge=1, le=MAX_REPLICAS, description="Copies of the node, each on a host of its "
                           "own (aws: in different zones): the robot gets the first reply to each request.")
@@ -180,11 +193,12 @@ class Node(_Model):
 
     @field_validator("env")
     @classmethod
-    def _env(cls, value: dict[str, str]) -> dict[str, str]:
+    def _env(cls, value: dict[str, EnvValue]) -> dict[str, str | Secret]:
         for key, text in value.items():
             if not _ENV_NAME.match(key):
                 raise ValueError(f"{key!r} is not an environment variable name")
-            if not text.replace("\t", "").isprintable():  # an env file holds one variable a line
+            # an env file holds one variable a line
+            if isinstance(text, str) and not text.replace("\t", "").isprintable():
                 raise ValueError(f"{key}: {text!r} holds a line break or control character; env values are one line")
         return value
 

@@ -26,6 +26,7 @@ SECTIONS: tuple[tuple[str, type[BaseModel]], ...] = (
     ("cloud", m.Cloud),
     ("cloud.autostop", m.Autostop),
     ("cloud.hosts[]", m.HostMachine),
+    ("cloud.registries[]", m.Registry),
     ("network", m.Network),
     ("edge", m.Edge),
     ("nodes[]", m.Node),

@@ -22,7 +22,7 @@ from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from fogiac import registry
 from fogiac.errors import ManifestError
-from fogiac.manifest.blocks import Autostop, Cloud, Edge, HostMachine, Network, Relay, Ros
+from fogiac.manifest.blocks import Autostop, Cloud, Edge, HostMachine, Network, Registry, Relay, Ros
 from fogiac.manifest.clouds import known
 from fogiac.manifest.crossfield import cross_field_problems
 from fogiac.manifest.fields import DnsName, _Model, ssh_from_problem
@@ -50,6 +50,9 @@ class Manifest(_Model):
     nodes: tuple[Node, ...] = Field(min_length=1, description="The nodes that run off the robot.")
     relay: Relay = Field(default_factory=Relay, description="How topics cross between edge and cloud.")
     tags: dict[str, str] = Field(default_factory=dict, description="Extra tags on every cloud resource.")
+    allow_paths_outside: bool = Field(
+        default=False, description="Let a workspace, env_script, requirements or build context resolve outside "
+        "the manifest's folder (through ../ or a symbolic link): up pushes it to the hosts.")
     _blocks: dict[str, BaseModel] = PrivateAttr(default_factory=dict)  # middleware name -> its block, validated
 
     @classmethod
@@ -168,14 +171,21 @@ def _moved(err: ValidationError, prefix: tuple[str, ...]) -> list[InitErrorDetai
 def _resolve_paths(data: dict, base: Path) -> list[tuple[tuple, str]]:
     """Make file paths absolute against the manifest's folder; report missing ones."""
     missing: list[tuple[tuple, str]] = []
+    root = base.resolve()
+    outside_ok = data.get("allow_paths_outside") is True
 
-    def fix(container: dict, key: str, loc: tuple, *, folder: bool) -> None:
+    def fix(container: dict, key: str, loc: tuple, *, folder: bool, pushed: bool = True) -> None:
         value = container.get(key)
         if not isinstance(value, str) or any(ord(c) < 32 or ord(c) == 127 for c in value):
             return  # a control character is reported by the field's own check, on one line
         path = (base / value).resolve()
         container[key] = str(path)
-        if not (path.is_dir() if folder else path.is_file()):
+        if pushed and not outside_ok and not path.is_relative_to(root):
+            # up pushes it to the hosts: ../../.. or a symbolic link must not carry ~/.aws or ~/.fogiac there
+            missing.append((loc + (key,), f"{value!r} resolves to {path}, outside the manifest's folder {root}; "
+                            "up would push it to the hosts (move it under the manifest's folder, or set "
+                            "allow_paths_outside: true)"))
+        elif not (path.is_dir() if folder else path.is_file()):
             missing.append((loc + (key,), f"{value!r} does not exist (looked for {path})"))
         elif key == "requirements":  # refused here already, not only when `up` reaches the host
             try:
@@ -194,11 +204,20 @@ def _resolve_paths(data: dict, base: Path) -> list[tuple[tuple, str]]:
         if isinstance(node, dict) and isinstance(node.get("build"), dict):
             fix(node["build"], "context", ("nodes", i, "build"), folder=True)
     cloud = data.get("cloud")
+    refs = [node.get("env") for node in (nodes if isinstance(nodes, list) else []) if isinstance(node, dict)]
+    if isinstance(cloud, dict) and isinstance(cloud.get("registries"), list):
+        refs += [{"password": r.get("password")} for r in cloud["registries"] if isinstance(r, dict)]
+    for values in refs:
+        for value in values.values() if isinstance(values, dict) else ():
+            ref = value.get("secret") if isinstance(value, dict) else None
+            if isinstance(ref, str) and ref.startswith("file:") and not any(ord(c) < 32 for c in ref):
+                # read at `up` on the operator's machine, wherever it is (not pushed): only made absolute
+                value["secret"] = "file:" + str((base / Path(ref[5:]).expanduser()).resolve())
     if isinstance(cloud, dict):
         hosts = cloud.get("hosts")
         for i, host in enumerate(hosts if isinstance(hosts, list) else []):
             if isinstance(host, dict):
-                fix(host, "key", ("cloud", "hosts", i), folder=False)
+                fix(host, "key", ("cloud", "hosts", i), folder=False, pushed=False)  # read here, never pushed
     return missing
 
 
@@ -239,12 +258,12 @@ def json_schema() -> dict:
 
 def node_types() -> tuple[type[BaseModel], ...]:
     """Every model of the manifest, for the README reference test."""
-    return (Manifest, Ros, Cloud, Autostop, HostMachine, Network, Edge, Node, Machine, Launch, TopicLists, Relay,
-            Hedge)
+    return (Manifest, Ros, Cloud, Autostop, HostMachine, Registry, Network, Edge, Node, Machine, Launch, TopicLists,
+            Relay, Hedge)
 
 
 
 # What other modules import from here (the blocks and nodes live in blocks.py and nodes.py).
 __all__ = ["Autostop", "Build", "Cloud", "Edge", "Hedge", "HostMachine", "Launch", "Machine", "Manifest", "Network",
-           "Node", "NodeKind", "Relay", "Ros", "TopicLists", "Workload", "json_schema", "load_manifest",
+           "Node", "NodeKind", "Registry", "Relay", "Ros", "TopicLists", "Workload", "json_schema", "load_manifest",
            "parse_manifest", "ssh_from_problem"]

@@ -90,6 +90,7 @@ def compile_plan(manifest: Manifest, *, target: str | None = None, environment: 
         autostop=placed.autostop,
         middleware_settings=_settings(manifest, carrier.name),
         notes=placed.notes + _unchecked(manifest),
+        registries=tuple((r.server, r.username, r.password.secret) for r in manifest.cloud.registries),
     )
 
 
@@ -144,7 +145,8 @@ def _node(node: Node, host: str) -> NodeSpec:
         workload=node.workload,
         build=BuildSpec(context=str(node.build.context), dockerfile=node.build.dockerfile) if node.build else None,
         gpu=node.needs_gpu,
-        env=tuple(sorted(node.env.items())),
+        env=tuple(sorted((k, v) for k, v in node.env.items() if isinstance(v, str))),
+        secrets=tuple(sorted((k, v.secret) for k, v in node.env.items() if not isinstance(v, str))),
         topics_auto=lists is None,
         topics_in=lists.inputs if lists else (),
         topics_out=lists.outputs if lists else (),

@@ -22,11 +22,12 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from fogiac import registry
+from fogiac.plan.document import shown_env
 from fogiac.plan.drift import Drift
 
 Action = Literal["create", "update", "replace", "delete", "no-op"]
 KNOWN_AFTER_APPLY = "(known after apply)"
-SETTINGS = ("target", "region", "zone", "mode", "edge_master")
+SETTINGS = ("target", "region", "zone", "mode", "edge_master", "autostop", "relay", "registries")
 GROUP = "fogiac.replacements"  # package -> forces_replacement(type_, path), the provider's ForceNew rules
 _PLACEHOLDER = re.compile(r"<([^<>]+)\.[A-Za-z]+>")
 
@@ -86,6 +87,10 @@ class PlanDiff:
     spot_before: float | None = None  # the hour with spot hosts at the spot estimate; None: no spot host that side
     spot_after: float | None = None
     spot_as_of: str = ""  # the spot estimates' date (the catalogue's Spot Instance Advisor snapshot)
+    pushed: Section = Section()  # workspaces, env scripts, requirements, build contexts: path and content digest
+    cost_risk: tuple[str, ...] = ()  # changes that let the stack cost more while nobody uses it (autostop weakened)
+    autostop: Mapping[str, Any] | None = None  # the after side's autostop (None: off)
+    autostop_known: bool = False  # the after document says its autostop (format 2 from this fogiac on)
 
     def count(self, action: Action) -> int:
         return sum(1 for r in self.resources if r.action == action)
@@ -96,7 +101,7 @@ class PlanDiff:
 
     @property
     def empty(self) -> bool:
-        sections = (self.hosts, self.nodes, self.topics, self.security_rules)
+        sections = (self.hosts, self.nodes, self.topics, self.security_rules, self.pushed)
         return (not self.changed_resources and all(s.empty for s in sections) and not self.settings
                 and self.cost_before == self.cost_after and self.spot_before == self.spot_after and not self.drift)
 
@@ -135,12 +140,12 @@ class PlanDiff:
             "add": self.count("create") + self.count("replace"), "change": self.count("update"),
             "destroy": self.count("delete") + self.count("replace"),
             "hosts": section(self.hosts), "nodes": section(self.nodes), "topics": section(self.topics),
-            "security_rules": section(self.security_rules),
+            "security_rules": section(self.security_rules), "pushed": section(self.pushed),
             "settings": [{"name": k, "before": b, "after": a} for k, b, a in self.settings],
             "cost": {"hourly_usd_before": self.cost_before, "hourly_usd_after": self.cost_after,
                      **({"spot_hourly_usd_before": self.spot_before, "spot_hourly_usd_after": self.spot_after,
                          "spot_as_of": self.spot_as_of} if self.has_spot else {})},
-            "exposure": list(self.exposure),
+            "exposure": list(self.exposure), "cost_risk": list(self.cost_risk),
             "drift": [d.to_dict() for d in self.drift], "refreshed_at": self.refreshed_at or None,
         }
 
@@ -221,8 +226,9 @@ def _section(before: Sequence[Mapping[str, Any]] | None, after: Sequence[Mapping
     changed = []
     if compare:
         for name in (n for n in new if n in old):
+            # a field the older document did not have yet is not a change (an applied plan of an older fogiac)
             fields = tuple((f, old[name].get(f), new[name].get(f)) for f in new[name]
-                           if old[name].get(f) != new[name].get(f))
+                           if f in old[name] and old[name].get(f) != new[name].get(f))
             if fields:
                 changed.append(RowChange(name, fields))
     return Section(added=tuple(r for n, r in new.items() if n not in old),
@@ -234,6 +240,18 @@ def _network(cidr: str) -> ipaddress.IPv4Network | ipaddress.IPv6Network | None:
         return ipaddress.ip_network(cidr, strict=False)
     except ValueError:
         return None  # the operator placeholder of an offline plan
+
+
+# Topic names that command a robot's motion (geometry_msgs/Twist on /cmd_vel, trajectories, joint and motor
+# commands, grippers, teleoperation): a new one from the cloud is flagged above the other exposure lines.
+_ACTUATION = re.compile(r"(^|/|_)(cmd|cmd_vel|command|commands|twist|trajectory|joint_trajectory|velocity|effort|"
+                        r"motor|motors|servo|actuator|actuators|gripper|teleop|drive|steer|steering|throttle|"
+                        r"brake|goal|move_base|estop|e_stop)(_|/|$)", re.I)
+
+
+def is_actuation(topic: str) -> bool:
+    """A topic whose name says it moves the robot (``/cmd_vel``, ``/arm/joint_trajectory``, ``/gripper/command``)."""
+    return bool(_ACTUATION.search(topic))
 
 
 def _exposure(rules: Section, topics: Section) -> tuple[str, ...]:
@@ -255,13 +273,18 @@ def _exposure(rules: Section, topics: Section) -> tuple[str, ...]:
         if (net := _network(str(rule["cidr"]))) is not None and net.prefixlen == 0:
             lines.append(f"egress added to the internet: {rule['group']} {rule['protocol']} {rule['ports']} "
                          f"to {rule['cidr']} ({rule['description']})")
+    actuation = []
     for topic in topics.added:
-        if topic["direction"] == "to_edge":
+        if topic["direction"] in ("to_edge", "either") and is_actuation(str(topic["topic"])):
+            way = "cloud -> robot" if topic["direction"] == "to_edge" else "in either direction"
+            actuation.append(f"actuation topic added {way}: {topic['topic']} (host {topic['host']}): "
+                             "what the cloud side publishes there moves the robot")
+        elif topic["direction"] == "to_edge":
             lines.append(f"topic added cloud -> edge: {topic['topic']} (from host {topic['host']} to the robot)")
         elif topic["direction"] == "either":
             lines.append(f"topic added in either direction: {topic['topic']} (host {topic['host']}; "
                          "reaches the robot when the cloud side publishes it)")
-    return tuple(lines)
+    return tuple(actuation + lines)  # above everything else: a reviewer must not miss one
 
 
 def diff_documents(before: Mapping[str, Any] | None, after: Mapping[str, Any], *,
@@ -269,7 +292,7 @@ def diff_documents(before: Mapping[str, Any] | None, after: Mapping[str, Any], *
     """Everything that differs from ``before`` to ``after``; ``before`` None means nothing exists."""
     if before is None:
         before, against = {"resources": [], "hosts": [], "nodes": [], "topics": [], "security_rules": [],
-                           "cost": {"hourly_usd": 0.0}}, "nothing"
+                           "pushed": [], "cost": {"hourly_usd": 0.0}}, "nothing"
     rules = _section(before.get("security_rules"), after.get("security_rules"),
                      ("group", "direction", "protocol", "ports", "cidr"), compare=True)
     topics = _section(before.get("topics"), after.get("topics"), ("topic", "direction", "host"), compare=False)
@@ -279,15 +302,57 @@ def diff_documents(before: Mapping[str, Any] | None, after: Mapping[str, Any], *
         against=against,
         resources=_resources(before.get("resources", []), after.get("resources", [])),
         hosts=_section(before.get("hosts"), after.get("hosts"), ("name",), compare=True),
-        nodes=_section(before.get("nodes"), after.get("nodes"), ("name",), compare=True),
+        nodes=_section(_hidden_env(before.get("nodes")), after.get("nodes"), ("name",), compare=True),
         topics=topics, security_rules=rules, settings=settings,
         cost_before=float(before.get("cost", {}).get("hourly_usd", 0.0)),
         cost_after=float(after.get("cost", {}).get("hourly_usd", 0.0)),
         exposure=_exposure(rules, topics),
         spot_before=_spot_hourly(before), spot_after=_spot_hourly(after),
+        # an applied document recorded before pushed paths were listed: nothing to compare them with
+        pushed=_section(before.get("pushed"), after.get("pushed"), ("node", "what"), compare=True)
+        if "pushed" in before else Section(),
+        cost_risk=_cost_risk(before.get("autostop"), after.get("autostop")) if "autostop" in before else (),
+        autostop=after.get("autostop"), autostop_known="autostop" in after,
         spot_as_of=str((after.get("cost", {}).get("spot_prices") or before.get("cost", {}).get("spot_prices")
                         or {}).get("as_of", "")),
     )
+
+
+def autostop_words(stop: Mapping[str, Any] | None) -> str:
+    """The autostop in force, in words: "stops the hosts after 30 idle minutes", or that it is off."""
+    if stop is None:
+        return "autostop off: the hosts run (and cost) until `fogiac down`"
+    minutes = f"{float(stop['idle_minutes']):g} idle minute{'s' if float(stop['idle_minutes']) != 1 else ''}"
+    if stop.get("power") == "services":
+        return f"autostop stops fogiac's services after {minutes} (the machines themselves keep running)"
+    verb = "terminates the hosts (their disks deleted)" if stop.get("action") == "terminate" else "stops the hosts"
+    return f"autostop {verb} after {minutes}"
+
+
+def _cost_risk(before: Mapping[str, Any] | None, after: Mapping[str, Any] | None) -> tuple[str, ...]:
+    """An autostop turned off, waiting longer, or stopping only services where it powered the machine off:
+    the stack costs more while nobody uses it (flagged as a widened CIDR is an exposure)."""
+    if before is None or before == after:
+        return ()
+    was, now = autostop_words(before), autostop_words(after)
+    if after is None:
+        return (f"autostop turned off: was {was.removeprefix('autostop ')}; now the hosts run until `fogiac down`",)
+    lines = []
+    if float(after["idle_minutes"]) > float(before["idle_minutes"]):
+        lines.append(f"autostop waits longer: {float(before['idle_minutes']):g} -> {float(after['idle_minutes']):g} "
+                     "idle minutes")
+    if before.get("power") == "machine" and after.get("power") == "services":
+        lines.append(f"autostop no longer powers the machines off: {was} -> {now}")
+    return tuple(lines)
+
+
+def _hidden_env(nodes: Any) -> Any:
+    """Node rows with their env as plans show it now: an applied document recorded before values were
+    hidden held them whole; compared as digests they show no spurious change (and no value)."""
+    if not isinstance(nodes, list):
+        return nodes
+    return [{**row, "env": shown_env(row["env"])} if isinstance(row, Mapping) and isinstance(row.get("env"), Mapping)
+            else row for row in nodes]
 
 
 def _spot_hourly(doc: Mapping[str, Any]) -> float | None:

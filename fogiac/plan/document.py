@@ -11,29 +11,87 @@ adds each resource's ``action`` against what it was compared with, and a ``chang
 (:mod:`fogiac.plan.diff`). Version 1 had the same top-level keys less those, every resource's
 ``action`` was ``create``, and there was no ``changes``. A version 1 document (an ``applied.json``
 written before) is still read as the "before" side of a diff: its missing sections are skipped.
+
+Within version 2, later fogiacs added (each skipped in a diff when the "before" document lacks it, so
+an applied document of an earlier fogiac compares without a made-up change): ``pushed`` (every path
+``up`` pushes, with its content digest), ``autostop``, ``relay`` (compression and queue size),
+``registries``, each host's ``ssh`` (user, key, port) and ``runtime``. A node's ``env`` shows values
+known harmless as they are, any other as ``sha256:`` and 12 hex digits, and a named secret as
+``[secret env:NAME]``: no value reaches a plan, ``applied.json`` or a pull-request comment.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from fogiac import __version__
 from fogiac.net import middleware
-from fogiac.plan import cost
-from fogiac.plan.model import NodeSpec, Plan, Rule
+from fogiac.plan import cost, pushed
+from fogiac.plan.model import HostSpec, NodeSpec, Plan, Rule
 from fogiac.state import StackState
 
 FORMAT_VERSION = 2
 APPLIED_FILE = StackState.APPLIED  # the document of the last successful up, in the stack's folder
 
 
+# Env values a plan shows as they are: settings, not secrets. Anything else is shown as a digest, so a
+# change still shows in a diff but the value never reaches a plan, the recorded state or a PR comment.
+HARMLESS_ENV = frozenset({
+    "ROS_DOMAIN_ID", "ROS_LOCALHOST_ONLY", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_STATIC_PEERS", "RMW_IMPLEMENTATION",
+    "ROS_PYTHON_VERSION", "ROSCONSOLE_FORMAT", "RCUTILS_CONSOLE_OUTPUT_FORMAT", "RCUTILS_COLORIZED_OUTPUT",
+    "PYTHONUNBUFFERED", "PYTHONDONTWRITEBYTECODE", "LOG_LEVEL", "LOGLEVEL", "CUDA_VISIBLE_DEVICES",
+    "NVIDIA_VISIBLE_DEVICES", "OMP_NUM_THREADS", "TZ", "LANG", "LC_ALL",
+})
+_SECRETISH = re.compile(r"TOKEN|SECRET|PASS|KEY|CREDENTIAL|AUTH|COOKIE|SESSION|PRIVATE|CERT", re.I)
+_HARMLESS_VALUE = re.compile(
+    r"^(-?[0-9]{1,6}(\.[0-9]+)?|true|false|yes|no|on|off|debug|info|warn|warning|error|fatal)$", re.I)
+_SHOWN = re.compile(r"^(sha256:[0-9a-f]{12}|\[secret [^\]]*\])$")  # already as a plan shows it
+
+
+def env_value(key: str, value: str) -> str:
+    """How a plan shows one env value: as it is when known harmless, else ``sha256:`` and 12 hex digits."""
+    if _SHOWN.match(value) or key in HARMLESS_ENV or (_HARMLESS_VALUE.match(value) and not _SECRETISH.search(key)):
+        return value
+    return "sha256:" + hashlib.sha256(value.encode()).hexdigest()[:12]
+
+
+def shown_env(env: Mapping[str, Any], secrets: Mapping[str, str] | None = None) -> dict[str, str]:
+    """A node's env as plans show it: harmless values whole, others as digests, secrets by reference.
+    Idempotent, so a document recorded before values were hidden compares with one made now."""
+    out = {str(k): env_value(str(k), str(v)) for k, v in env.items()}
+    return dict(sorted({**out, **{k: f"[secret {ref}]" for k, ref in (secrets or {}).items()}}.items()))
+
+
 def _node(node: NodeSpec) -> dict[str, Any]:
-    return {**cost.node_row(node), "command": list(node.command), "env": dict(node.env),
+    return {**cost.node_row(node), "command": list(node.command), "env": shown_env(dict(node.env), dict(node.secrets)),
             "in": list(node.topics_in), "out": list(node.topics_out)}
+
+
+def _host(host: HostSpec) -> dict[str, Any]:
+    """A host's row: its machine and price, and how fogiac reaches and runs it (user, key, port, runtime)."""
+    return {**cost.host_row(host), "ssh": {"user": host.user, "key": host.key, "port": host.port},
+            "runtime": host.runtime}
+
+
+def autostop(plan: Plan) -> dict[str, Any] | None:
+    """When the hosts stop themselves, and how; None: never (they cost until ``fogiac down``)."""
+    stop = plan.autostop
+    if stop is None:
+        return None
+    return {"idle_minutes": round(stop.idle_s / 60, 4), "action": stop.action, "power": stop.power}
+
+
+def relay_settings(plan: Plan) -> dict[str, Any] | None:
+    """How topics cross (compression per topic, the queue each topic may hold): one setting for the stack."""
+    if not plan.routes:
+        return None
+    route = plan.routes[0]
+    return {"compression": dict(route.compression), "queue_size": route.queue_size}
 
 
 def topics(plan: Plan) -> list[dict[str, str]]:
@@ -83,12 +141,17 @@ def document(plan: Plan, resources: Sequence[Mapping[str, Any]], *, manifest_pat
         "middleware": middleware_doc(plan),
         "stacks": list(dict.fromkeys(str(r["stack"]) for r in resources)),  # in the order the target declares
         "resources": [dict(r) for r in resources],
-        "hosts": cost.hosts(plan),
+        "hosts": [{**_host(host), **row} for host, row in zip(plan.hosts, cost.hosts(plan), strict=True)],
         "nodes": [{**_node(node), **row} for node, row in zip(plan.nodes, cost.nodes(plan), strict=True)],
         "topics": topics(plan),
         "security_rules": security_rules(plan),
+        "pushed": pushed.pushed(plan),  # every path up pushes, with its content's digest
         "cost": cost.cost(plan),
         **({"notes": list(plan.notes)} if plan.notes else {}),  # absent when none: documents as before
+        "autostop": autostop(plan),
+        "relay": relay_settings(plan),
+        "registries": [{"server": server, "username": user, "password": f"[secret {ref}]"}
+                       for server, user, ref in plan.registries],
     }
     canonical = json.dumps({"plan": plan.digest(), **body}, sort_keys=True, separators=(",", ":"))
     return {

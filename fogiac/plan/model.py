@@ -136,6 +136,8 @@ class NodeSpec:
     topics_in: tuple[str, ...]
     topics_out: tuple[str, ...]
     build: BuildSpec | None = None
+    # (NAME, reference): env values read at `up` (env:NAME, file:PATH), never held in the plan
+    secrets: tuple[tuple[str, str], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -277,6 +279,8 @@ class Plan:
     # The manifest's block the middleware owns (a plug-in's ``beacon:``), JSON-ready, for its deployment.
     middleware_settings: tuple[tuple[str, Any], ...] = ()
     notes: tuple[str, ...] = ()  # what placement decided that a reader should know (replicas' zones, ...)
+    # Private registries the hosts log in to: (server, username, the password's secret reference)
+    registries: tuple[tuple[str, str, str], ...] = ()
 
     @property
     def hourly_usd(self) -> float:
@@ -316,6 +320,11 @@ class Plan:
                 del subnet["zone"]
         if not self.notes:
             del out["notes"]
+        for node in out["nodes"]:
+            if not node["secrets"]:  # none: the same bytes (and digest) as before secrets could be named
+                del node["secrets"]
+        if not self.registries:  # none: the same bytes (and digest) as before registries could be named
+            del out["registries"]
         if not self.middleware_settings:  # none: the same bytes (and digest) as before there could be any
             del out["middleware_settings"]
         out["hourly_usd"] = self.hourly_usd

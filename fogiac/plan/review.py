@@ -9,11 +9,71 @@ hold them.
 from __future__ import annotations
 
 import difflib
+import html
+import re
 from collections.abc import Mapping
 from typing import Any
 
-from fogiac.plan.diff import InputChange, PlanDiff, ResourceChange, Section
+from fogiac.plan.cost import HOURS_PER_MONTH, per_month
+from fogiac.plan.diff import InputChange, PlanDiff, ResourceChange, Section, autostop_words
 from fogiac.plan.drift import VERB, Drift
+
+# What must never reach a terminal or a comment as it is: C0 and C1 controls (ESC starts colour, OSC 8 links and
+# cursor moves; CR and BS overwrite what is shown), DEL, and the bidirectional controls that reorder what a
+# reviewer reads (Trojan Source), with the zero-width and separator characters that hide text.
+_CONTROL = re.compile("[\x00-\x1f\x7f-\x9f\u061c\u200b-\u200f\u2028-\u202e\u2060-\u2069\ufeff]")
+# Markdown's inline punctuation, backslash-escaped in comment text outside code (CommonMark allows it before any
+# ASCII punctuation): no emphasis, link, image, raw HTML, comment, heading or table cell from a value.
+_MARKDOWN = re.compile(r"([\\`*_{}\[\]<#|~&])")
+
+
+def _escape(match: re.Match[str]) -> str:
+    char = match.group(0)
+    names = {"\t": "\\t", "\n": "\\n", "\r": "\\r", "\x1b": "\\e"}
+    if char in names:
+        return names[char]
+    return f"\\x{ord(char):02x}" if ord(char) <= 0xFF else f"\\u{ord(char):04x}"
+
+
+def visible(text: str) -> str:
+    """``text`` with every control, bidirectional and invisible character shown as an escape (``\\e``,
+    ``\\x9b``, ``\\u202e``): printed, it moves no cursor, colours nothing and reorders nothing."""
+    return _CONTROL.sub(_escape, text)
+
+
+def md_text(text: str) -> str:
+    """A line for comment text outside code: visible, and every markdown character escaped."""
+    return _MARKDOWN.sub(r"\\\1", visible(text))
+
+
+def md_code(text: str) -> str:
+    """``text`` as an inline code span that no backtick in it can close (CommonMark: a longer fence)."""
+    text = visible(text)
+    ticks = "`" * (max((len(run) for run in re.findall("`+", text)), default=0) + 1)
+    pad = " " if text.startswith("`") or text.endswith("`") else ""
+    return f"{ticks}{pad}{text}{pad}{ticks}"
+
+
+def md_block(lines: list[str], info: str = "diff") -> str:
+    """Lines as a fenced code block that none of them can close: each made visible (so none holds a line
+    break), and a fence longer than any run of backticks in them."""
+    body = [visible(line) for line in lines]
+    longest = max((len(run) for line in body for run in re.findall("`+", line)), default=0)
+    fence = "`" * max(3, longest + 1)
+    return f"{fence}{info}\n" + "\n".join(body) + f"\n{fence}\n"
+
+
+def visible_doc(value: Any) -> Any:
+    """A document (or any JSON value) with every string in it :func:`visible`, keys included: what a
+    terminal is shown of it."""
+    if isinstance(value, str):
+        return visible(value)
+    if isinstance(value, Mapping):
+        return {visible(str(k)): visible_doc(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [visible_doc(v) for v in value]
+    return value
+
 
 SYMBOL = {"create": "+", "update": "~", "replace": "-/+", "delete": "-"}
 NO_CHANGES = "No changes. Your infrastructure matches the configuration."
@@ -77,6 +137,10 @@ def _node(row: Mapping[str, Any]) -> str:
     return f"{row['name']} on {hosts} ({row['kind']}: {row['runs']})"
 
 
+def _pushed(row: Mapping[str, Any]) -> str:
+    return f"{row['node']} {row['what']} {row['path']} (sha256 {str(row['sha256'])[:12]})"
+
+
 def section_lines(section: Section, show: Any) -> list[str]:
     lines = [f"+ {show(r)}" for r in section.added] + [f"- {show(r)}" for r in section.removed]
     for c in section.changed:
@@ -106,18 +170,57 @@ def cost_line(diff: PlanDiff) -> str:
             f"at on-demand prices ${diff.cost_before:.4f} -> ${diff.cost_after:.4f}")
 
 
+def month_line(diff: PlanDiff) -> str:
+    """The month (730 h) before and after, at the hour :func:`cost_line` shows, and the autostop in force."""
+    before, after = per_month(diff.expected_before), per_month(diff.expected_after)
+    delta = after - before
+    sign = "+" if delta >= 0 else "-"
+    line = (f"monthly cost if left running ({HOURS_PER_MONTH} h): ${before:.2f} -> ${after:.2f} "
+            f"({sign}${abs(delta):.2f})")
+    if diff.has_spot:
+        line += f", at on-demand prices ${per_month(diff.cost_before):.2f} -> ${per_month(diff.cost_after):.2f}"
+    return line + (f"; {autostop_words(diff.autostop)}" if diff.autostop_known else "")
+
+
+def _short_type(type_: str) -> str:
+    return type_.rsplit(":", 1)[-1]
+
+
+def consequences(diff: PlanDiff) -> list[str]:
+    """What the riskiest changes mean, in words: each replacement, and a shutdown that now deletes."""
+    lines = []
+    for r in diff.resources:
+        if r.action == "replace":
+            why = "; ".join(r.because) or "its inputs changed"
+            lines.append(f"{r.name} ({_short_type(r.type)}) is replaced, not updated ({why}): it is deleted and a new "
+                         "one created with new ids; for a machine that is downtime while the new one starts, and "
+                         "its disk and what is on it are lost")
+        for c in r.changes:
+            if c.path.lower().endswith("shutdownbehavior") and c.after == "terminate":
+                lines.append(f"{r.name}: shutdown behaviour {_value(c.before)} -> terminate: a shutdown (autostop's "
+                             "included) now deletes the machine and its disk instead of stopping it")
+    for name, before, after in diff.settings:
+        if name == "autostop" and isinstance(after, Mapping) and after.get("action") == "terminate" and (
+                not isinstance(before, Mapping) or before.get("action") != "terminate"):
+            lines.append("autostop now terminates the hosts: an idle stack is deleted with its disks, not stopped")
+    return lines
+
+
 def sections(diff: PlanDiff) -> list[tuple[str, list[str]]]:
     """(title, lines) for each part of the diff that is not empty, in the order a reviewer reads."""
+    costs = (diff.cost_before, diff.spot_before) != (diff.cost_after, diff.spot_after)
     out = [("exposure widened", [f"! {line}" for line in diff.exposure]),
+           ("cost while idle raised", [f"! {line}" for line in diff.cost_risk]),
+           ("what this does", [f"! {line}" for line in consequences(diff)]),
            (f"drift (the cloud as refreshed at {diff.refreshed_at})",
             [line for d in diff.drift for line in drift_lines(d)]),
            ("security rules", section_lines(diff.security_rules, _rule)),
-           ("cost", [cost_line(diff)] if (diff.cost_before, diff.spot_before) != (diff.cost_after, diff.spot_after)
-            else []),
+           ("cost", [cost_line(diff), month_line(diff)] if costs else []),
            ("resources", [line for r in diff.changed_resources for line in resource_lines(r)]),
            ("hosts", section_lines(diff.hosts, _host)),
            ("nodes", section_lines(diff.nodes, _node)),
            ("topics crossing the edge", section_lines(diff.topics, _topic)),
+           ("pushed to the hosts", section_lines(diff.pushed, _pushed)),
            ("settings", [f"~ {k}: {_value(b)} -> {_value(a)}" for k, b, a in diff.settings])]
     return [(title, lines) for title, lines in out if lines]
 
@@ -125,24 +228,50 @@ def sections(diff: PlanDiff) -> list[tuple[str, list[str]]]:
 def terminal(diff: PlanDiff, *, against: str) -> list[str]:
     """The diff for a terminal or CI log; the Terraform summary line last."""
     if diff.empty:
-        return [f"compared with {against}", NO_CHANGES]
+        return [visible(f"compared with {against}"), NO_CHANGES]
     lines = [f"compared with {against}"]
     for title, body in sections(diff):
         lines += ["", f"{title}:"] + [f"  {line}" for line in body]
-    return lines + ["", diff.summary()]
+    return [visible(line) for line in lines + ["", diff.summary()]]
 
 
-def comment(diff: PlanDiff, *, stack: str, against: str) -> str:
-    """The pull-request comment (GitHub markdown)."""
-    head = f"### fogiac plan: `{stack}` against `{against}`\n\n"
+FOLD_LINES = 20  # a section longer than this is folded in <details> in the comment
+_ALERT = {"exposure widened": ("WARNING", "Exposure widened"),
+          "cost while idle raised": ("WARNING", "Cost while idle raised"),
+          "what this does": ("CAUTION", "What this does")}
+
+
+def comment(diff: PlanDiff, *, stack: str, against: str, doc: Mapping[str, Any] | None = None,
+            placeholders: tuple[str, ...] = ()) -> str:
+    """The pull-request comment (GitHub markdown): what the plan is for (target, region, fogiac version),
+    the summary, the hour and the month with the autostop in force, warnings, then every section, the long
+    ones folded. Every value is escaped: none can close a code block or add markdown or HTML."""
+    versus = "(new stack)" if diff.against == "nothing" else f"against {md_code(against)}"
+    head = f"### fogiac plan: {md_code(stack)} {versus}\n"
+    if doc is not None:
+        where = [f"target {md_code(str(doc.get('target')))}"]
+        if doc.get("resources"):
+            where.append(f"region {md_code(str(doc.get('region')))}")
+        where.append(f"fogiac {md_code(str(doc.get('fogiac_version')))}")
+        head += " · ".join(where) + "\n"
+    head += "\n"
+    if placeholders:  # what `up` would refuse: said first, whatever else changes
+        head += ("> [!WARNING]\n> **Documentation placeholders (`fogiac up` refuses them)**\n"
+                 + "".join(f"> - {md_text(line)}\n" for line in placeholders) + "\n")
     if diff.empty:
         return head + f"**{NO_CHANGES}**\n"
-    parts = [head + f"**{diff.summary()}**  \n{cost_line(diff)}\n"]
+    # fogiac's own words and numbers: nothing in them a manifest chose
+    parts = [head + f"**{diff.summary()}**  \n{visible(cost_line(diff))}  \n{visible(month_line(diff))}\n"]
     for title, body in sections(diff):
         if title == "cost":
             continue  # already under the summary
-        if title == "exposure widened":
-            parts.append("> [!WARNING]\n> **Exposure widened**\n" + "".join(f"> - {line[2:]}\n" for line in body))
+        if title in _ALERT:
+            kind, label = _ALERT[title]
+            parts.append(f"> [!{kind}]\n> **{label}**\n" + "".join(f"> - {md_text(line[2:])}\n" for line in body))
+        elif len(body) > FOLD_LINES:
+            parts.append(f"<details><summary>{html.escape(visible(title))} ({len(body)} lines)</summary>\n\n"
+                         + md_block(body)
+                         + "\n</details>\n")
         else:
-            parts.append(f"#### {title}\n\n```diff\n" + "\n".join(body) + "\n```\n")
+            parts.append(f"#### {md_text(title)}\n\n" + md_block(body))
     return "\n".join(parts)

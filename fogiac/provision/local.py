@@ -8,6 +8,7 @@ steps run unchanged and ``teardown`` leaves nothing outside the state directory.
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -59,6 +60,16 @@ class LocalAccess:
                 "relay_port": self.relay_port, "python": self.python}
 
 
+# The operator's credentials stay out of the sandbox: its services (and what they log: roslaunch writes its
+# whole environment to its log) never see a variable whose name says it holds a secret, a named secret's
+# source (`{secret: env:NAME}`) included. A node gets its own secrets from its 0600 file.
+_CREDENTIAL = re.compile(r"TOKEN|SECRET|PASSW|PASSPHRASE|CREDENTIAL|ACCESS_KEY|PRIVATE_KEY|API_KEY|AUTH", re.I)
+
+
+def sandbox_env() -> dict[str, str]:
+    return {k: v for k, v in os.environ.items() if not _CREDENTIAL.search(k)}
+
+
 class LocalHost:
     """Runs commands with bash in the sandbox folder; ``put`` writes files directly."""
 
@@ -77,7 +88,7 @@ class LocalHost:
         try:
             done = subprocess.run(
                 ["bash", "-c", command], cwd=self.base, capture_output=True, text=True,
-                timeout=timeout, stdin=subprocess.DEVNULL,
+                timeout=timeout, stdin=subprocess.DEVNULL, env=sandbox_env(),
             )
         except subprocess.TimeoutExpired:
             raise ProvisionError(f"{self.name}: `{command[:60]}` timed out after {timeout}s") from None

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from rich.markup import escape
 from rich.table import Table
 
+from fogiac.plan.review import visible
 from fogiac.provision.runner import ProvisionReport
 
 _STYLE = {"ok": "green", "changed": "yellow", "failed": "bold red"}
@@ -15,8 +17,10 @@ def report_table(report: ProvisionReport, *, title: str = "provisioning") -> Tab
         table.add_column(column, overflow="fold")
     for host in report.hosts:
         status = "failed" if not host.ok else "changed" if host.changed else "ok"
+        # a host's error quotes what the host said: shown with its controls escaped, never as markup
         table.add_row(
-            host.host, host.address, ", ".join(host.changed) or "-", f"[{_STYLE[status]}]{status}[/]",
-            f"{host.files_pushed} files, {host.bytes_sent} B", host.error or "",
+            escape(visible(host.host)), escape(visible(host.address)), escape(visible(", ".join(host.changed) or "-")),
+            f"[{_STYLE[status]}]{status}[/]", f"{host.files_pushed} files, {host.bytes_sent} B",
+            escape(visible(host.error or "")),
         )
     return table

@@ -13,8 +13,6 @@ and links to a parent folder cannot make the walk exponential.
 
 from __future__ import annotations
 
-import fnmatch
-import hashlib
 import io
 import os
 import tarfile
@@ -22,11 +20,12 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from fogiac.plan.pushed import DEFAULT_IGNORE as DEFAULT_IGNORE
+from fogiac.plan.pushed import digest_of as digest_of
+from fogiac.plan.pushed import ignore_patterns as ignore_patterns
+from fogiac.plan.pushed import scan as scan
+from fogiac.plan.pushed import sums_text as sums_text
 from fogiac.provision.host import Host, q
-
-DEFAULT_IGNORE = (".git/", ".hg/", ".svn/", "build/", "devel/", "install/", "log/", "logs/",
-                  "__pycache__/", "*.pyc", ".pytest_cache/", ".mypy_cache/", "*.swp", ".DS_Store",
-                  ".fogiacignore", ".catkin_tools/", ".venv/")
 
 
 @dataclass(frozen=True)
@@ -43,55 +42,6 @@ class Pushed:
         return bool(self.files or self.removed)
 
 
-def ignore_patterns(root: Path, extra: tuple[str, ...] = ()) -> tuple[str, ...]:
-    """The defaults, then ``.fogiacignore`` lines (gitignore-like: ``dir/``, globs, ``#`` comments)."""
-    patterns = list(DEFAULT_IGNORE) + list(extra)
-    ignore_file = root / ".fogiacignore"
-    if ignore_file.is_file():
-        for line in ignore_file.read_text().splitlines():
-            line = line.strip()
-            if line and not line.startswith("#"):
-                patterns.append(line.lstrip("/"))
-    return tuple(patterns)
-
-
-def _ignored(rel: str, is_dir: bool, patterns: tuple[str, ...]) -> bool:
-    name = rel.rsplit("/", 1)[-1]
-    for pattern in patterns:
-        if pattern.endswith("/"):
-            if not is_dir:
-                continue
-            pattern = pattern[:-1]
-        target = rel if "/" in pattern else name
-        if fnmatch.fnmatchcase(target, pattern):
-            return True
-    return False
-
-
-def scan(root: Path, patterns: tuple[str, ...]) -> dict[str, str]:
-    """``{relative path: sha256}`` of every file and link under ``root`` not ignored; a link's hash is
-    of its target text, and nothing behind a link is read."""
-    out: dict[str, str] = {}
-    todo = [root]
-    while todo:
-        folder = todo.pop()
-        for entry in sorted(folder.iterdir()):
-            rel = entry.relative_to(root).as_posix()
-            if entry.is_symlink():
-                if not _ignored(rel, False, patterns):
-                    out[rel] = hashlib.sha256(b"symlink\0" + os.fsencode(os.readlink(entry))).hexdigest()
-            elif entry.is_dir():
-                if not _ignored(rel, True, patterns):
-                    todo.append(entry)
-            elif entry.is_file() and not _ignored(rel, False, patterns):
-                out[rel] = hashlib.sha256(entry.read_bytes()).hexdigest()
-    return out
-
-
-def sums_text(hashes: dict[str, str]) -> str:
-    return "".join(f"{digest}  {path}\n" for path, digest in sorted(hashes.items()))
-
-
 def parse_sums(text: str) -> dict[str, str]:
     out = {}
     for line in text.splitlines():
@@ -99,10 +49,6 @@ def parse_sums(text: str) -> dict[str, str]:
         if sep and len(digest) == 64:
             out[path] = digest
     return out
-
-
-def digest_of(hashes: dict[str, str]) -> str:
-    return hashlib.sha256(sums_text(hashes).encode()).hexdigest()
 
 
 def diff(local: dict[str, str], remote: dict[str, str]) -> tuple[list[str], list[str]]:

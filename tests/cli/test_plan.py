@@ -29,7 +29,7 @@ cloud:
   region: us-east-1
 network:
   mode: proxy
-  ssh_from: [203.0.113.7/32]
+  ssh_from: [100.64.113.7/32]
 nodes:
   - name: planner
     machine: c5.4xlarge
@@ -134,7 +134,7 @@ def test_proxy_mode_plan(tmp_path: Path) -> None:
     doc = json.loads(out)
     assert not [r for r in doc["resources"] if r["type"].startswith("aws:ec2clientvpn")]
     relay = [r["inputs"]["cidrIpv4"] for r in doc["resources"] if r["inputs"].get("fromPort") == 11411]
-    assert sorted(relay) == ["10.10.0.0/16", "203.0.113.7/32"]
+    assert sorted(relay) == ["10.10.0.0/16", "100.64.113.7/32"]
     assert [line["item"] for line in doc["cost"]["lines"]] == [
         "instance planner (c5.4xlarge, spot)"]
 

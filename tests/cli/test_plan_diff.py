@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
+from fogiac import __version__
 from fogiac.cli import app
 
 runner = CliRunner()
@@ -25,7 +26,7 @@ cloud: {provider: aws, region: us-west-2}
 network:
   mode: vpn
   vpc_cidr: 10.10.0.0/16
-  ssh_from: [203.0.113.7/32]
+  ssh_from: [100.64.113.7/32]
 nodes:
   - name: planner
     machine: c5.large
@@ -39,8 +40,8 @@ GRASP = """\
     gpu: true
 """
 
-FLOWS = BASE.replace("  ssh_from: [203.0.113.7/32]\n", "  ssh_from: [203.0.113.7/32]\n  flow_logs: true\n")
-WIDER_EGRESS = BASE.replace("  ssh_from: [203.0.113.7/32]\n", "  ssh_from: [203.0.113.7/32]\n  egress_tcp: [80, 443, 8883]\n")
+FLOWS = BASE.replace("  ssh_from: [100.64.113.7/32]\n", "  ssh_from: [100.64.113.7/32]\n  flow_logs: true\n")
+WIDER_EGRESS = BASE.replace("  ssh_from: [100.64.113.7/32]\n", "  ssh_from: [100.64.113.7/32]\n  egress_tcp: [80, 443, 8883]\n")
 
 SPOT_PLANNER = BASE.replace("    workload: motion_planning\n", "    workload: motion_planning\n    spot: true\n")
 
@@ -69,14 +70,18 @@ PAIRS = (
          ("- aws:ec2/instance:Instance review-dev-host-grasp", "- grasp (g4dn.xlarge, $0.5260/h)")),
     Pair("topic added cloud -> edge is flagged", BASE, BASE.replace("out: [/path]", "out: [/path, /cmd_vel]"), 2,
          "Plan: 0 to add, 0 to change, 0 to destroy.",
-         ("! topic added cloud -> edge: /cmd_vel (from host planner to the robot)",
-          "+ /cmd_vel (cloud -> robot, host planner)")),
-    Pair("ssh_from widened is flagged", BASE, BASE.replace("203.0.113.7/32", "203.0.113.0/24"), 2,
+         ("! actuation topic added cloud -> robot: /cmd_vel (host planner): what the cloud side publishes there "
+          "moves the robot", "+ /cmd_vel (cloud -> robot, host planner)")),
+    Pair("an ordinary topic added cloud -> edge is flagged below", BASE,
+         BASE.replace("out: [/path]", "out: [/path, /map]"), 2, "Plan: 0 to add, 0 to change, 0 to destroy.",
+         ("! topic added cloud -> edge: /map (from host planner to the robot)",
+          "+ /map (cloud -> robot, host planner)"), ("actuation",)),
+    Pair("ssh_from widened is flagged", BASE, BASE.replace("100.64.113.7/32", "100.64.113.0/24"), 2,
          "Plan: 1 to add, 0 to change, 1 to destroy.",
-         ("! CIDR widened: hosts tcp 22 from 203.0.113.7/32 to 203.0.113.0/24 (SSH from the operator)",
-          "+ hosts ingress tcp 22 203.0.113.0/24 (SSH from the operator)",
-          "- hosts ingress tcp 22 203.0.113.7/32 (SSH from the operator)",
-          "+ aws:vpc/securityGroupIngressRule:SecurityGroupIngressRule review-dev-hosts-in-tcp-22-203.0.113.0-24")),
+         ("! CIDR widened: hosts tcp 22 from 100.64.113.7/32 to 100.64.113.0/24 (SSH from the operator)",
+          "+ hosts ingress tcp 22 100.64.113.0/24 (SSH from the operator)",
+          "- hosts ingress tcp 22 100.64.113.7/32 (SSH from the operator)",
+          "+ aws:vpc/securityGroupIngressRule:SecurityGroupIngressRule review-dev-hosts-in-tcp-22-100.64.113.0-24")),
     Pair("VPC CIDR change replaces the network and everything in it", BASE,
          BASE.replace("10.10.0.0/16", "10.20.0.0/16"), 2, "Plan: 25 to add, 2 to change, 25 to destroy.",
          ("-/+ aws:ec2/vpc:Vpc review-dev-vpc", "cidrBlock: 10.10.0.0/16 -> 10.20.0.0/16  # forces replacement",
@@ -158,12 +163,12 @@ def _repo(tmp_path: Path, base: str, head: str) -> Path:
 def test_against_a_git_revision_renders_the_pull_request_comment(tmp_path: Path,
                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
     """The CI example's comment for the ssh_from pair, checked in as tests/cli/data/comment-ssh-widened.md."""
-    repo = _repo(tmp_path, BASE, BASE.replace("203.0.113.7/32", "203.0.113.0/24").replace("c5.large", "c5.xlarge"))
+    repo = _repo(tmp_path, BASE, BASE.replace("100.64.113.7/32", "100.64.113.0/24").replace("c5.large", "c5.xlarge"))
     monkeypatch.chdir(repo)
     result = runner.invoke(app, ["plan", "fogiac.yaml", "--against", "git:main:fogiac.yaml", "--markdown",
                                  "--detailed-exitcode"])
     assert result.exit_code == 2, result.output
-    assert result.output == (DATA / "comment-ssh-widened.md").read_text()
+    assert result.output == (DATA / "comment-ssh-widened.md").read_text().replace("{fogiac_version}", __version__)
     same = runner.invoke(app, ["plan", "fogiac.yaml", "--against", "git:HEAD:fogiac.yaml", "--detailed-exitcode"])
     assert same.exit_code == 2  # the working tree differs from the commit
 
@@ -189,8 +194,10 @@ def test_markdown_comment_prices_spot_at_the_estimate(tmp_path: Path) -> None:
     result = runner.invoke(app, ["plan", head, "--against", base, "--markdown"])
     assert result.exit_code == 0, result.output
     lines = result.output.splitlines()
-    assert lines[3] == ("hourly cost: $0.2350 -> $0.3683 (+$0.1333), spot hosts at the catalogue's spot estimate of "
-                        "2025-06-28; at on-demand prices $0.2350 -> $0.7610")
+    assert lines[4] == ("hourly cost: $0.2350 -> $0.3683 (+$0.1333), spot hosts at the catalogue's spot estimate of "
+                        "2025-06-28; at on-demand prices $0.2350 -> $0.7610  ")
+    assert lines[5] == ("monthly cost if left running (730 h): $171.55 -> $268.86 (+$97.31), at on-demand prices "
+                        "$171.55 -> $555.53; autostop stops the hosts after 30 idle minutes")
     assert "+ grasp (g4dn.xlarge, spot, about $0.1894/h est., $0.5260/h on-demand)" in lines
     cost = json.loads(runner.invoke(app, ["plan", head, "--against", base, "--json"]).output)["changes"]["cost"]
     assert cost == {"hourly_usd_before": 0.235, "hourly_usd_after": 0.761, "spot_hourly_usd_before": None,

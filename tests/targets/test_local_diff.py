@@ -46,7 +46,8 @@ def test_plan_diffs_against_the_deployed_stack(tmp_path: Path, _state_dir: Path,
         assert changed.exit_code == 2, changed.output
         lines = [line.strip() for line in changed.output.splitlines()]
         assert "compared with what was applied to motion-planning-dev" in lines
-        assert "! topic added cloud -> edge: /cmd_vel (from host planner to the robot)" in lines
+        assert ("! actuation topic added cloud -> robot: /cmd_vel (host planner): what the cloud side publishes "
+                "there moves the robot") in lines
         assert "+ /cmd_vel (cloud -> robot, host planner)" in lines
         assert lines[-1] == "Plan: 0 to add, 0 to change, 0 to destroy."  # the local target creates no resources
     finally:

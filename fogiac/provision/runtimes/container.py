@@ -15,7 +15,7 @@ from fogiac.errors import ProvisionError
 from fogiac.hostmodel import NativeRos, NodeRun, Where, container_name, node_env_file, node_image, ros_image
 from fogiac.net import middleware
 from fogiac.plan.model import HostSpec, NodeSpec, Plan
-from fogiac.provision import images, workload
+from fogiac.provision import images, secrets, workload
 from fogiac.provision.host import q
 from fogiac.provision.probe import Facts
 from fogiac.provision.runtimes.base import CHANGED, OK, Run, StepResult, source_overlay
@@ -70,7 +70,7 @@ def docker_run(node: NodeSpec, *, plan: Plan, spec: HostSpec, where: Where) -> s
         image, command = _built(node, where), ("python", "-m", workload.package(node.workload or ""), "node")
     return render("provision/docker_run.j2", engine=where.engine, stack=plan.stack, host=spec.name,
                   gpus=spec.has_gpu, container=container_name(plan.stack, node.name), env=env,
-                  env_file=node_env_file(where.layout, node.name) if node.env else "", volumes=volumes,
+                  env_file=node_env_file(where.layout, node.name) if node.env or node.secrets else "", volumes=volumes,
                   workdir=workdir, image=image, command=command).strip()
 
 
@@ -101,7 +101,9 @@ class ContainerRuntime:
         return command, _remove_first(where, container)
 
     def node(self, node: NodeSpec, plan: Plan, spec: HostSpec, where: Where) -> NodeRun:
-        files = ((node_env_file(where.layout, node.name), env_file_text(node.env), 0o600),) if node.env else ()
+        # The node's env and its secrets (read now, on the operator's machine) in one 0600 file on the host.
+        env = node.env + secrets.resolve(node)
+        files = ((node_env_file(where.layout, node.name), env_file_text(env), 0o600),) if env else ()
         return NodeRun(command=docker_run(node, plan=plan, spec=spec, where=where), check="any", files=files,
                        pre=_remove_first(where, container_name(plan.stack, node.name)))
 
@@ -113,6 +115,17 @@ class ContainerRuntime:
             run.host.sudo(f"bash {q(run.layout.tmp + '/nvidia-toolkit.sh')}", timeout=900)
             changes.append("NVIDIA container toolkit")
         image, engine = ros_image(run.plan), run.engine
+        for server, user, ref in run.plan.registries:
+            # The password reaches the engine through a 0600 file on the host, removed at once: never a
+            # command line, the plan or a log.
+            path = f"{run.layout.tmp}/registry-{server.replace(':', '-')}"
+            run.host.put(secrets.read(ref).encode(), path, mode=0o600)
+            done = run.host.run(f"{engine} login {q(server)} --username {q(user)} --password-stdin < {q(path)}; "
+                                f"status=$?; rm -f {q(path)}; exit $status", check=False, timeout=120)
+            if not done.ok:
+                raise ProvisionError(f"{run.spec.name}: {engine} login to {server} as {user} failed "
+                                     f"({done.last_line()})")
+            changes.append(f"logged in to {server}")
         if not run.host.run(f"{engine} image inspect {q(image)} >/dev/null 2>&1", check=False).ok:
             run.host.run(f"{engine} pull -q {q(image)}", timeout=900)
             changes.append(f"pulled {image}")

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 from fogiac.errors import ProvisionError
-from fogiac.hostmodel import NativeRos, NodeRun, Where
+from fogiac.hostmodel import NativeRos, NodeRun, Where, secret_file
 from fogiac.net import middleware
 from fogiac.plan.model import HostSpec, NodeSpec, Plan
-from fogiac.provision import workload
+from fogiac.provision import secrets, workload
 from fogiac.provision.host import q
 from fogiac.provision.probe import Facts
 from fogiac.provision.runtimes.base import SKIPPED, Run, StepResult, source_overlay
@@ -24,6 +25,16 @@ class NativeRuntime:
         return " ".join(argv), ()
 
     def node(self, node: NodeSpec, plan: Plan, spec: HostSpec, where: Where) -> NodeRun:
+        run = self._node(node, plan, spec, where)
+        if not node.secrets:
+            return run
+        # Secrets (read now, on the operator's machine) in a 0600 file the service script sources: never in
+        # the script itself, nor in the plan.
+        path = secret_file(where.layout, node.name)
+        text = "".join(f"export {key}={q(value)}\n" for key, value in secrets.resolve(node))
+        return dataclasses.replace(run, files=run.files + ((path, text, 0o600),), pre=(f". {q(path)}",) + run.pre)
+
+    def _node(self, node: NodeSpec, plan: Plan, spec: HostSpec, where: Where) -> NodeRun:
         if node.kind == "image":
             raise ProvisionError(
                 f"{spec.name}: node {node.name} runs image {node.image} but the host has no working "

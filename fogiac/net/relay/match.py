@@ -15,10 +15,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from fogiac.errors import RelayError
+from fogiac.net.relay.framing import Payload
 
 DEFAULT_MATCH = "header.stamp"
 Key = bytes
-KeyOf = Callable[[bytes], "Key | None"]
+KeyOf = Callable[[Payload], "Key | None"]
 
 _SIZES = {"bool": 1, "int8": 1, "uint8": 1, "byte": 1, "char": 1, "int16": 2, "uint16": 2,
           "int32": 4, "uint32": 4, "float32": 4, "int64": 8, "uint64": 8, "float64": 8,
@@ -79,7 +80,7 @@ class _Walker:
     def __init__(self, types: dict[str, tuple[Field, ...]]) -> None:
         self.types = types
 
-    def skip(self, base: str, data: bytes, off: int) -> int:
+    def skip(self, base: str, data: Payload, off: int) -> int:
         if base in _SIZES:
             return off + _SIZES[base]
         if base == "string":
@@ -88,7 +89,7 @@ class _Walker:
             off = self.skip_field(f, data, off)
         return off
 
-    def skip_field(self, f: Field, data: bytes, off: int) -> int:
+    def skip_field(self, f: Field, data: Payload, off: int) -> int:
         if f.array is None:
             return self.skip(f.base, data, off)
         count = f.array
@@ -122,7 +123,7 @@ class _Walker:
             base = found.base
         return chain
 
-    def key(self, base: str, chain: list[Field], data: bytes) -> Key | None:
+    def key(self, base: str, chain: list[Field], data: Payload) -> Key | None:
         off = 0
         try:
             for depth, target in enumerate(chain):

@@ -48,7 +48,8 @@ class Feed(Protocol):
 
 
 class Outlet(Feed, Protocol):
-    drops: int
+    @property
+    def drops(self) -> int: ...
 
     def publish(self, data: Payload) -> None: ...
 

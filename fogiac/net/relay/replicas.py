@@ -82,6 +82,8 @@ class GroupConfig:
             raise RelayError(f"hedge {self.hedge!r}: expected one of {', '.join(HEDGES)}")
         if not self.replicas:
             raise RelayError(f"replica group {self.group!r} has no replica to link")
+        if len({r.index for r in self.replicas}) != len(self.replicas):
+            raise RelayError(f"replica group {self.group!r}: two replicas with one index")
         if self.hedge_delay_s < 0 or self.remember < 1:
             raise RelayError("hedge_delay_s must be >= 0 and remember >= 1")
 
@@ -490,14 +492,14 @@ def write_json(path: Path, doc: dict[str, Any]) -> None:
 
 
 # --- the process: ``python -m fogiac.net.relay.replicas`` (started by the relay's edge_up) -------
-def parse_replica(index: int, text: str) -> ReplicaTarget:
-    """``HOST=ADDRESS[:PORT][,SERVER_NAME[,STATS_FILE]]``."""
-    host, _, rest = text.partition("=")
-    parts = rest.split(",")
-    if not host or not parts[0]:
-        raise RelayError(f"--replica {text!r}: expected HOST=ADDRESS[:PORT][,SERVER_NAME[,STATS_FILE]]")
-    return ReplicaTarget(index, host, parse_hostport(parts[0]), parts[1] if len(parts) > 1 and parts[1] else None,
-                         Path(parts[2]) if len(parts) > 2 and parts[2] else None)
+def parse_replica(text: str) -> ReplicaTarget:
+    """``INDEX,HOST,ADDRESS[:PORT][,SERVER_NAME[,STATS_FILE]]``."""
+    parts = text.split(",")
+    if len(parts) < 3 or not parts[0].isdigit() or not parts[1] or not parts[2]:
+        raise RelayError(f"--replica {text!r}: expected INDEX,HOST,ADDRESS[:PORT][,SERVER_NAME[,STATS_FILE]]")
+    return ReplicaTarget(int(parts[0]), parts[1], parse_hostport(parts[2]),
+                         parts[3] if len(parts) > 3 and parts[3] else None,
+                         Path(parts[4]) if len(parts) > 4 and parts[4] else None)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -507,7 +509,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                                      description="The edge of a replicated node: fan out, first reply wins.")
     parser.add_argument("--group", required=True)
     parser.add_argument("--replica", action="append", required=True,
-                        help="HOST=ADDRESS[:PORT][,SERVER_NAME[,STATS_FILE]], in replica order")
+                        help="INDEX,HOST,ADDRESS[:PORT][,SERVER_NAME[,STATS_FILE]], one per replica")
     parser.add_argument("--master", default="http://127.0.0.1:11311/")
     parser.add_argument("--certs", type=Path, required=True)
     parser.add_argument("--ros-host", default=None)
@@ -533,7 +535,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                           compression=default, topic_compression=tuple(sorted(per_topic.items())),
                           caller_id=args.name)
         group = ReplicaGroup(GroupConfig(
-            edge=edge, group=args.group, replicas=tuple(parse_replica(i, r) for i, r in enumerate(args.replica)),
+            edge=edge, group=args.group, replicas=tuple(parse_replica(r) for r in args.replica),
             match=args.match, hedge=args.hedge, hedge_delay_s=args.hedge_delay, stats_file=args.stats_file))
     except RelayError as err:
         print(f"error: {err}", flush=True)

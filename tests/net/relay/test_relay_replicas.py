@@ -6,6 +6,7 @@ Asserts on counts and on which replica won, never on wall-clock thresholds."""
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import os
 import signal
@@ -16,12 +17,20 @@ from pathlib import Path
 
 import pytest
 
+from fogiac.certs import issue, new_bundle, relay_name, save_bundle, save_pair
+from fogiac.lifecycle.report import replicas_lines
+from fogiac.manifest.schema import load_manifest
 from fogiac.net.relay import EdgeConfig, TopicPolicy
+from fogiac.net.relay.deploy import edge_links, edge_up
 from fogiac.net.relay.replicas import GroupConfig, ReplicaGroup, ReplicaTarget
+from fogiac.plan.compile import compile_plan
+from fogiac.plan.model import Replica, Route
+from fogiac.provision import supervise
 from tests.net.relay.relay_support import Master, Proc, Procs, free_port, wait_for
 
 pytestmark = pytest.mark.ros
 NODES = Path(__file__).with_name("replica_nodes.py")
+EXAMPLES = Path(__file__).parents[3] / "examples"
 
 
 @pytest.fixture(scope="module")
@@ -166,3 +175,54 @@ def test_a_field_other_than_the_stamp_matches_replies(three_masters: tuple[Maste
     # the rest are dropped as duplicates: the key really is the field asked for.
     assert sorted(r["from"] for r in got) == ["r0", "r1"]
     assert stats["delivered"] == 2 and stats["duplicates_dropped"] == 18 and stats["unmatched"] == 0
+
+
+def replica_route(host: str, index: int, req: str, rep: str) -> Route:
+    return Route(host=host, connect_via="loopback", port=0, auto=False, to_cloud=(req,), to_edge=(rep,), listed=(),
+                 compression=(), queue_size=100, replica=Replica(group="echo", index=index, count=2,
+                                                                 match="header.stamp"))
+
+
+def test_edge_up_starts_one_merge_per_group_and_status_names_a_dead_replica(
+        three_masters: tuple[Master, Master, Master], procs: Procs, tmp_path: Path,
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The deployed path: a plan whose two routes are copies of one node gets one supervised
+    ``fogiac.net.relay.replicas`` process; its figures reach ``fogiac status``'s rows."""
+    edge, m0, m1 = three_masters
+    req, rep = "/deployed/request", "/deployed/reply"
+    stack = "reptest"
+    bundle = new_bundle(stack)
+    save_bundle(bundle, tmp_path / "edge-certs")
+    ends, connect = [], {}
+    for i, master in enumerate((m0, m1)):
+        host_certs = tmp_path / f"r{i}-certs"
+        save_pair(host_certs, "ca", bundle.ca)
+        name = relay_name(stack, f"r{i}")
+        save_pair(host_certs, "server", issue(bundle.ca, name, server=True, dns_names=(name,)))
+        proc, (address, port) = cloud_end(procs, master, host_certs, req, rep)
+        ends.append(proc)
+        connect[f"r{i}"] = f"{address}:{port}"
+        node(procs, master, "echo", req, rep, "--name", f"r{i}")
+    plan = dataclasses.replace(compile_plan(load_manifest(EXAMPLES / "minimal.yaml")), stack=stack,
+                               routes=(replica_route("r0", 0, req, rep), replica_route("r1", 1, req, rep)))
+    folder = tmp_path / "edge"
+    monkeypatch.setenv("PYTHONPATH", os.getcwd())
+    monkeypatch.setenv("ROS_HOSTNAME", "127.0.0.1")
+    assert edge_up(plan, entry=edge.uri, connect=connect, certs=tmp_path / "edge-certs", folder=folder) == []
+    try:
+        def figures() -> dict[str, dict]:
+            return {link["host"]: link["replica"] for link in edge_links(folder, connect, plan)}
+
+        wait_for(lambda: all(f.get("connected") for f in figures().values()), 30, "both replicas linked")
+        got = run_robot(procs, edge, req, rep, 40)
+        assert sorted(r["i"] for r in got) == list(range(40))
+        wait_for(lambda: sum(f.get("won", 0) for f in figures().values()) == 40, 10, "the figures written")
+        procs.kill(ends[0], signal.SIGKILL)
+        wait_for(lambda: figures()["r0"]["health"] == "down", 30, "replica 0 reported down")
+        lines = replicas_lines(edge_links(folder, connect, plan))
+        assert [line for line in lines if isinstance(line, str)] == [
+            "replica 0 of echo on r0 is not linked (host or its relay down)"]
+        table = lines[0]
+        assert table.row_count == 2 and list(table.columns[2].cells) == ["r0", "r1"]
+    finally:
+        supervise.stop(folder, "relay-replicas-echo")

@@ -51,8 +51,15 @@ def topic_key(topic: str) -> str:
     return f"*/{topic.strip('/')}/*/*"
 
 
-def _keys(topics: Iterable[str]) -> list[str]:
-    return [topic_key(t) for t in sorted(set(topics))]
+def _keys(topics: Iterable[str], prefix: str = "") -> list[str]:
+    return [prefix + topic_key(t) for t in sorted(set(topics))]
+
+
+def replica_keys_prefix(route: Route) -> str:
+    """Where a replica's data crosses: under ``fogiac/replica/<group>/<index>/`` (the host's replica process
+    renames to and from its nodes' plain keys; :mod:`fogiac.net.zenoh.replicas`), or plain ("")."""
+    replica = route.replica
+    return "" if replica is None else f"fogiac/replica/{replica.group}/{replica.index}/"
 
 
 def _rule(rule_id: str, flow: str, messages: list[str], keys: list[str]) -> dict[str, Any]:
@@ -60,9 +67,11 @@ def _rule(rule_id: str, flow: str, messages: list[str], keys: list[str]) -> dict
 
 
 def access_control(route: Route, *, edge_name: str) -> dict[str, Any]:
-    """Deny by default; the host's own nodes (TCP on loopback) may do anything among themselves."""
-    to_cloud = _keys(route.to_cloud + route.listed)
-    to_edge = _keys(route.to_edge + route.listed)
+    """Deny by default; the host's own nodes (TCP on loopback) may do anything among themselves. A replica's
+    host lets only its prefixed keys cross, so the edge's merge sees every copy of a reply, the robot none."""
+    prefix = replica_keys_prefix(route)
+    to_cloud = _keys(route.to_cloud + route.listed, prefix)
+    to_edge = _keys(route.to_edge + route.listed, prefix)
     rules = [_rule("local", flow, _DATA + ["declare_subscriber", "query", "reply", "declare_queryable"] + _GRAPH,
                    ["**"]) for flow in ("ingress", "egress")]
     rules[0]["id"], rules[1]["id"] = "local-in", "local-out"

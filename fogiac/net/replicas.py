@@ -16,7 +16,7 @@ import heapq
 import statistics
 import threading
 from collections import OrderedDict, deque
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -163,3 +163,25 @@ class Merge:
             return {"hedge": self.hedge, "hedge_delay_s": self.hedge_delay_s, "requests": self.requests,
                     "delivered": self.delivered, "duplicates_dropped": self.duplicates,
                     "unmatched": self.unmatched, "replicas": replicas}
+
+
+def groups_of(routes: Sequence[Any]) -> dict[str, list[Any]]:
+    """A plan's replicated nodes: group -> its routes (``Route.replica`` set), in replica order."""
+    groups: dict[str, list[Any]] = {}
+    for route in routes:
+        if route.replica is not None:
+            groups.setdefault(route.replica.group, []).append(route)
+    return {g: sorted(rs, key=lambda r: r.replica.index) for g, rs in sorted(groups.items())}
+
+
+def host_figures(routes: Sequence[Any],
+                 written: Callable[[str], Mapping[str, Any] | None]) -> dict[str, dict[str, Any]]:
+    """host -> its replica's figures for ``fogiac status``, from each group's stats (``written(group)``)."""
+    out: dict[str, dict[str, Any]] = {}
+    for group, members in groups_of(routes).items():
+        doc = written(group) or {}
+        by_host = {r.get("host"): r for r in doc.get("replicas", [])}
+        for route in members:
+            out[route.host] = {"group": group, "index": route.replica.index, "count": route.replica.count,
+                               "hedge": route.replica.hedge, "health": "unknown", **by_host.get(route.host, {})}
+    return out

@@ -20,6 +20,7 @@ from fogiac.certs import load_bundle, relay_name
 from fogiac.errors import FogiacError
 from fogiac.hostmodel import NativeRos, Service, Where, autostop_service
 from fogiac.net.relay.services import CLOUD_END, master_service, node_env, relay_service, relay_stats
+from fogiac.net.replicas import groups_of, host_figures
 from fogiac.plan.model import HostSpec, Plan, Route
 from fogiac.procs import poll
 from fogiac.provision import relaycert, supervise
@@ -101,11 +102,7 @@ def _group_stats(folder: Path, group: str) -> Path:
 
 def replica_groups(plan: Plan) -> dict[str, list[Route]]:
     """The replicated nodes' routes, by group, in replica order."""
-    groups: dict[str, list[Route]] = {}
-    for route in plan.routes:
-        if route.replica is not None:
-            groups.setdefault(route.replica.group, []).append(route)
-    return {g: sorted(rs, key=lambda r: r.replica.index if r.replica else 0) for g, rs in sorted(groups.items())}
+    return groups_of(plan.routes)
 
 
 def replicas_argv(group: str, routes: list[Route], *, stack: str, connect: Mapping[str, str], master: str,
@@ -153,16 +150,7 @@ def edge_up(plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path, 
 
 def replica_figures(folder: Path, plan: Plan | None) -> dict[str, dict[str, Any]]:
     """host -> its replica's figures (answers won, latency, health) from its group's stats file."""
-    out: dict[str, dict[str, Any]] = {}
-    for group, routes in (replica_groups(plan) if plan is not None else {}).items():
-        doc = read_json(_group_stats(folder, group)) or {}
-        written = {r.get("host"): r for r in doc.get("replicas", [])}
-        for route in routes:
-            assert route.replica is not None
-            out[route.host] = {"group": group, "index": route.replica.index, "count": route.replica.count,
-                               "hedge": route.replica.hedge, "health": "unknown",
-                               **written.get(route.host, {})}
-    return out
+    return host_figures(plan.routes if plan is not None else (), lambda g: read_json(_group_stats(folder, g)))
 
 
 def edge_links(folder: Path, connect: Mapping[str, str], plan: Plan | None = None) -> list[dict[str, Any]]:

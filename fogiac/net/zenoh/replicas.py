@@ -174,9 +174,16 @@ class EdgeMerge:
 
 
 def linked_from(path: Path, ids: dict[int, str]) -> Callable[[], set[int]]:
-    """The replicas whose router the edge router is linked to now, from its stats file (``routers``)."""
+    """The replicas whose router the edge router is linked to now, from its stats file (``routers``); every
+    one while the file is not there (the edge router not yet up, or run without one): unknown is not down."""
     def linked() -> set[int]:
-        routers = set((read_json(path) or {}).get("routers", []))
+        try:
+            doc = read_json(path)
+        except (OSError, ValueError):
+            doc = None
+        if not isinstance(doc, dict):
+            return set(ids)
+        routers = set(doc.get("routers", []))
         return {i for i, zid in ids.items() if zid in routers}
 
     return linked

@@ -5,8 +5,10 @@ std_msgs/Header, with rmw_zenoh's key layout. Asserts on counts and on who won, 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import struct
+import sys
 import threading
 import time
 from collections import Counter
@@ -15,16 +17,23 @@ from typing import Any
 
 import pytest
 
+from fogiac.hostmodel import Layout, Where
+from fogiac.manifest.schema import load_manifest
 from fogiac.net.zenoh.config import access_control
+from fogiac.net.zenoh.deploy import edge_links, replica_merges, replica_service
 from fogiac.net.zenoh.replicas import CloudPrefix, EdgeMerge, replica_prefix
+from fogiac.plan.compile import compile_plan
 from fogiac.plan.model import Replica, Route
 from fogiac.procs import poll
+from fogiac.provision import supervise
+from fogiac.provision.runtimes.native import NATIVE
 from tests.net.zenoh.lab import ZenohLab, free_ports
 
 zenoh = pytest.importorskip("zenoh", reason="needs eclipse-zenoh (pip install 'fogiac[ros2]')")
 pytestmark = pytest.mark.zenoh
 
 REQ, REP = "/plan_req", "/plan_rep"
+EXAMPLES = Path(__file__).parents[3] / "examples"
 TYPE = "std_msgs::msg::dds_::Header_/RIHS01_abc"  # rmw_zenoh's key: <domain>/<topic>/<type>/<hash>
 REQ_KEY, REP_KEY = f"0/plan_req/{TYPE}", f"0/plan_rep/{TYPE}"
 
@@ -112,3 +121,67 @@ def test_every_request_answered_once_while_a_replica_dies(tmp_path: Path) -> Non
     r0, r1 = stats["replicas"]
     assert r0["health"] == "silent" and r1["health"] == "ok"
     assert stats["duplicates_dropped"] > 0  # both answered before the kill: the copies never reached the robot
+
+
+def test_the_deployed_merge_answers_once_and_its_figures_reach_status(tmp_path: Path,
+                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """``edge_up``'s part for replicas (:func:`replica_merges`) starts the merge as a supervised process;
+    ``edge_links`` hands each host its replica's figures; the cloud side runs the command
+    :func:`replica_service` renders for a replica's host."""
+    with ZenohLab(tmp_path) as lab:
+        edge_local, *ports = free_ports(5)
+        tls_ports, locals_ = ports[:2], ports[2:]
+        routes = tuple(replica_route(f"r{i}", i, tls_ports[i]) for i in range(2))
+        for i, rt in enumerate(routes):
+            lab.router(f"cloud-{i}", lab.cloud_config(rt, local_port=locals_[i]))
+        lab.router("edge-router", lab.edge_config([("127.0.0.1", p) for p in tls_ports], local_port=edge_local))
+        plan = dataclasses.replace(compile_plan(load_manifest(EXAMPLES / "ros2-zenoh.yaml")), routes=routes)
+        opened: list[Any] = []
+        ends: list[Any] = []
+        folder = tmp_path / "edge"
+        monkeypatch.setenv("PYTHONPATH", str(Path.cwd()))
+        connect = {"r0": f"127.0.0.1:{tls_ports[0]}", "r1": f"127.0.0.1:{tls_ports[1]}"}
+        try:
+            for i in range(2):
+                node = session(locals_[i])
+                opened.append(node)
+                node.declare_subscriber(REQ_KEY, lambda s, node=node, name=f"r{i}": node.put(
+                    REP_KEY, header(struct.unpack_from("<i", s.payload.to_bytes(), 4)[0], name)))
+                where = Where(layout=Layout(str(tmp_path / f"host-r{i}")), runtime=NATIVE, master_port=locals_[i],
+                              relay_port=tls_ports[i], ros_address="127.0.0.1", python=sys.executable,
+                              code_root=str(Path.cwd()))
+                command = replica_service(plan, plan.hosts[0], where, routes[i])
+                assert command is not None
+                assert f"fogiac.net.zenoh.replicas cloud tcp/127.0.0.1:{locals_[i]} --prefix" in command.script
+                prefix = command.script.split(" --prefix ")[1].split()[0]
+                assert prefix == replica_prefix("planner", i)
+                ends.append(CloudPrefix(f"tcp/127.0.0.1:{locals_[i]}", prefix, to_cloud=(REQ,), to_edge=(REP,)))
+                ends[-1].start()
+            assert replica_merges(plan, entry=f"tcp/127.0.0.1:{edge_local}", connect=connect, folder=folder) == []
+            robot = session(edge_local)
+            opened.append(robot)
+            got: list[int] = []
+            robot.declare_subscriber("*/plan_rep/*/*", lambda s: got.append(
+                struct.unpack_from("<i", s.payload.to_bytes(), 4)[0]))
+            assert poll(lambda: robot.put(REQ_KEY, header(0, "robot")) or (got or None), timeout=30, interval=0.5)
+            time.sleep(1.0)
+            got.clear()
+            for sec in range(1, 31):
+                robot.put(REQ_KEY, header(sec, "robot"))
+                time.sleep(0.03)
+
+            def figures() -> dict[str, Any] | None:
+                found = {link["host"]: link["replica"] for link in edge_links(plan, folder=folder, connect=connect)}
+                return found if sum(f.get("won", 0) for f in found.values()) >= 31 else None
+
+            found = poll(figures, timeout=20)
+        finally:
+            supervise.stop(folder, "zenoh-replicas-planner")
+            for end in ends:
+                end.stop()
+            for s in opened:
+                s.close()
+    assert sorted(got) == list(range(1, 31))
+    assert found is not None and found["r0"]["won"] + found["r1"]["won"] == 31
+    assert {f["health"] for f in found.values()} == {"ok"}
+    assert min(f["answers"] for f in found.values()) >= 31  # both answered every request (the probe maybe twice)

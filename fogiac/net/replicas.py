@@ -54,7 +54,7 @@ class Merge:
                  remember: int = 4096, silent_after: float = 3.0) -> None:
         self.hedge, self.hedge_delay_s, self.remember, self.silent_after = hedge, hedge_delay_s, remember, silent_after
         self.figures = {i: _Figures(i, host) for i, host in replicas}
-        self.lock = threading.Lock()
+        self.lock = threading.RLock()  # re-entrant: a hedge loop reads next_due() holding ``changed``
         self.changed = threading.Condition(self.lock)  # a hedge timer was set
         self._requests: OrderedDict[bytes, _Request] = OrderedDict()
         self._delivered: dict[str, OrderedDict[bytes, None]] = {}

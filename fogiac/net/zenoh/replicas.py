@@ -150,12 +150,11 @@ class EdgeMerge:
 
     def _hedge_loop(self) -> None:
         while not self._stopping.is_set():
-            due = self.merge.next_due()
-            now = time.monotonic()
-            if due is None or due > now:
-                with self.merge.changed:
+            with self.merge.changed:
+                due, now = self.merge.next_due(), time.monotonic()
+                if due is None or due > now:
                     self.merge.changed.wait(1.0 if due is None else due - now)
-                continue
+                    continue
             for _, (key, sample), targets in self.merge.due(now, self.live()):
                 for i in targets:
                     _forward(self.session, f"{replica_prefix(self.group, i)}/{key}", sample)

@@ -13,6 +13,7 @@ What is remembered is bounded: the last ``remember`` keys delivered per topic, a
 ``remember`` requests (for hedging and latency). A reply whose key was forgotten is delivered again
 only if it comes ``remember`` requests late.
 
+The decisions and the figures are :class:`fogiac.net.replicas.Merge`'s (the Zenoh edge uses it too).
 Per replica, the group counts requests sent, answers, answers won, duplicates dropped, the latency
 of each answer (from the request's arrival here), and the age of its last answer; a replica with a
 request unanswered for ``silent_after`` seconds while it is linked is "silent", one without a link
@@ -24,18 +25,15 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import heapq
 import json
 import logging
 import os
 import signal
 import ssl
-import statistics
 import threading
 import time
-from collections import OrderedDict, deque
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -48,10 +46,9 @@ from fogiac.net.relay.monitor import Monitor
 from fogiac.net.relay.node import RelayNode
 from fogiac.net.relay.pubsub import LocalPublisher, LocalSubscription, TopicMeta
 from fogiac.net.relay.session import Session, _Source
+from fogiac.net.replicas import HEDGES, Merge
 
 log = logging.getLogger(__name__)
-HEDGES = ("all", "delayed")
-_WINDOW = 200  # latencies kept per replica for its median and p95
 
 
 @dataclass(frozen=True)
@@ -86,31 +83,6 @@ class GroupConfig:
             raise RelayError(f"replica group {self.group!r}: two replicas with one index")
         if self.hedge_delay_s < 0 or self.remember < 1:
             raise RelayError("hedge_delay_s must be >= 0 and remember >= 1")
-
-
-@dataclass
-class _ReplicaFigures:
-    index: int
-    host: str
-    sent: int = 0
-    answers: int = 0
-    won: int = 0
-    late: int = 0  # answers that came after another replica's (dropped)
-    last_answer: float | None = None  # monotonic
-    waiting_since: float | None = None  # the first request sent since its last answer
-    latencies: deque[float] = field(default_factory=lambda: deque(maxlen=_WINDOW))  # seconds
-
-    def median(self) -> float | None:
-        return statistics.median(self.latencies) if self.latencies else None
-
-
-@dataclass
-class _Request:
-    arrived: float
-    topic: str
-    data: Payload
-    sent: set[int]
-    answered: bool = False
 
 
 class _Fan:
@@ -166,7 +138,6 @@ class _Merge:
         self.pub: LocalPublisher | None = None
         self.linked: set[int] = set()
         self.key: KeyOf | None = None
-        self.delivered: OrderedDict[bytes, None] = OrderedDict()
 
     def attach(self, index: int, meta: TopicMeta) -> None:
         with self.group.lock:
@@ -280,12 +251,9 @@ class ReplicaGroup:
         self._fans: dict[str, _Fan] = {}
         self._merges: dict[str, _Merge] = {}
         self.links = [_Link(self, t) for t in config.replicas]
-        self.figures = {t.index: _ReplicaFigures(t.index, t.host) for t in config.replicas}
-        self._requests: OrderedDict[bytes, _Request] = OrderedDict()
-        self.requests = self.delivered = self.duplicates = self.unmatched = 0
-        self._timers: list[tuple[float, int, bytes]] = []
-        self._timer_seq = 0
-        self._wake = threading.Condition(self.lock)
+        self.core = Merge([(t.index, t.host) for t in config.replicas], hedge=config.hedge,
+                          hedge_delay_s=config.hedge_delay_s, remember=config.remember,
+                          silent_after=config.silent_after)
         self._stopping = threading.Event()
         self._threads: list[threading.Thread] = []
         self._monitor: Monitor | None = None
@@ -311,8 +279,8 @@ class ReplicaGroup:
 
     def stop(self) -> None:
         self._stopping.set()
-        with self._wake:
-            self._wake.notify_all()
+        with self.core.changed:
+            self.core.changed.notify_all()
         for link in self.links:
             link.stop()
         if self._monitor is not None:
@@ -348,124 +316,42 @@ class ReplicaGroup:
     def _live(self) -> list[int]:
         return [link.index for link in self.links if link.linked]
 
-    def _first(self, candidates: list[int], now: float) -> int:
-        """Who a delayed hedge asks first: the fastest by recent answers once all have answered,
-        else the lowest index; a silent replica only when every one is."""
-        def rank(i: int) -> tuple[bool, float, int]:
-            figures = self.figures[i]
-            silent = figures.waiting_since is not None and now - figures.waiting_since > self.config.silent_after
-            median = figures.median()
-            known = all(self.figures[j].latencies for j in candidates)
-            return silent, median if known and median is not None else 0.0, i
-
-        return min(candidates, key=rank)
-
     def request(self, fan: _Fan, data: Payload) -> None:
-        now = time.monotonic()
         key = fan.key(data) if fan.key is not None else None
         with self.lock:
-            self.requests += 1
             live = [i for i in self._live() if i in fan.sources]
-            if key is None or self.config.hedge == "all" or len(live) < 2:
-                targets = live
-            else:
-                targets = [self._first(live, now)]
-                self._timer_seq += 1
-                heapq.heappush(self._timers, (now + self.config.hedge_delay_s, self._timer_seq, key))
-                self._wake.notify()
-            if key is not None:
-                self._requests[key] = _Request(now, fan.topic, data, set(targets))
-                self._requests.move_to_end(key)
-                while len(self._requests) > self.config.remember:
-                    self._requests.popitem(last=False)
-            sources = [(i, fan.sources[i]) for i in targets]
-            for i, _ in sources:
-                self._sent(i, now)
-        for _, source in sources:
-            source._message(data)
+        targets = self.core.request(fan.topic, key, data, live, time.monotonic())
+        self._send(fan, data, targets)
 
-    def _sent(self, index: int, now: float) -> None:
-        figures = self.figures[index]
-        figures.sent += 1
-        if figures.waiting_since is None:
-            figures.waiting_since = now
+    def _send(self, fan: _Fan, data: Payload, targets: list[int]) -> None:
+        with self.lock:
+            sources = [fan.sources[i] for i in targets if i in fan.sources]
+        for source in sources:
+            source._message(data)
 
     def _hedge_loop(self) -> None:
         while not self._stopping.is_set():
-            with self._wake:
-                now = time.monotonic()
-                due: list[bytes] = []
-                while self._timers and self._timers[0][0] <= now:
-                    due.append(heapq.heappop(self._timers)[2])
-                if not due:
-                    timeout = self._timers[0][0] - now if self._timers else 1.0
-                    self._wake.wait(timeout)
+            with self.core.changed:
+                due, now = self.core.next_due(), time.monotonic()
+                if due is None or due > now:
+                    self.core.changed.wait(1.0 if due is None else due - now)
                     continue
-                sends = []
-                for key in due:
-                    req = self._requests.get(key)
-                    if req is None or req.answered:
-                        continue
-                    fan = self._fans[req.topic]
-                    for i in self._live():
-                        if i in fan.sources and i not in req.sent:
-                            req.sent.add(i)
-                            self._sent(i, now)
-                            sends.append((fan.sources[i], req.data))
-            for source, data in sends:
-                source._message(data)
+            for topic, data, targets in self.core.due(now, self._live()):
+                self._send(self.fan(topic), data, targets)
 
     def reply(self, merge: _Merge, index: int, data: Payload) -> None:
         """A replica's reply: published if it is the first with its key on this topic."""
-        now = time.monotonic()
         key = merge.key(data) if merge.key is not None else None
-        with self.lock:
-            figures = self.figures[index]
-            figures.answers += 1
-            figures.last_answer, figures.waiting_since = now, None
+        if self.core.reply(merge.topic, index, key, time.monotonic()):
             pub = merge.pub
-            if key is None:
-                self.unmatched += 1
-                figures.won += 1
-            else:
-                req = self._requests.get(key)
-                if req is not None:
-                    figures.latencies.append(now - req.arrived)
-                    req.answered = True
-                if key in merge.delivered:
-                    figures.late += 1
-                    self.duplicates += 1
-                    return
-                merge.delivered[key] = None
-                while len(merge.delivered) > self.config.remember:
-                    merge.delivered.popitem(last=False)
-                figures.won += 1
-            self.delivered += 1
-        if pub is not None:
-            pub.publish(data)
+            if pub is not None:
+                pub.publish(data)
 
     # --- figures ---------------------------------------------------------------------------
     def stats(self) -> dict[str, Any]:
-        now = time.monotonic()
-        linked = set(self._live())
-        with self.lock:
-            replicas = []
-            for link in self.links:
-                f = self.figures[link.index]
-                lat = sorted(f.latencies)
-                silent = f.waiting_since is not None and now - f.waiting_since > self.config.silent_after
-                health = "down" if link.index not in linked else "silent" if silent else "ok"
-                replicas.append({
-                    "index": f.index, "host": f.host, "connected": link.index in linked, "health": health,
-                    "sent": f.sent, "answers": f.answers, "won": f.won, "late": f.late,
-                    "latency_ms": round(statistics.median(lat) * 1e3, 3) if lat else None,
-                    "latency_p95_ms": round(lat[min(len(lat) - 1, int(len(lat) * 0.95))] * 1e3, 3) if lat else None,
-                    "last_answer_s": None if f.last_answer is None else round(now - f.last_answer, 1),
-                })
-            return {"group": self.config.group, "match": self.config.match, "hedge": self.config.hedge,
-                    "hedge_delay_s": self.config.hedge_delay_s, "requests": self.requests,
-                    "delivered": self.delivered, "duplicates_dropped": self.duplicates,
-                    "unmatched": self.unmatched, "replicas": replicas}
+        """What the group's stats file holds: :meth:`fogiac.net.replicas.Merge.stats` with the group's name."""
+        return {"group": self.config.group, "match": self.config.match,
+                **self.core.stats(set(self._live()), time.monotonic())}
 
     def _stats_loop(self) -> None:
         said: set[int] = set()

@@ -142,8 +142,9 @@ def replica_service(plan: Plan, spec: HostSpec, where: Where, route: Route) -> S
         return None
     command = (f"{q(where.python)} -m fogiac.net.zenoh.replicas cloud {q(local_endpoint(where))} --prefix "
                f"{q(replica_prefix(route.replica.group, route.replica.index))}")
-    command += "".join(f" --to-cloud {q(t)}" for t in route.to_cloud + route.listed)
-    command += "".join(f" --to-edge {q(t)}" for t in route.to_edge + route.listed)
+    # relay.topics (direction unknown) are not renamed: a topic renamed both ways would loop on the host
+    command += "".join(f" --to-cloud {q(t)}" for t in route.to_cloud)
+    command += "".join(f" --to-edge {q(t)}" for t in route.to_edge)
     return make_service(REPLICA, plan=plan, spec=spec, where=where, command=command, check="alive",
                         python_path=where.code_root, after=ROUTER)
 
@@ -170,8 +171,8 @@ def replica_merges(plan: Plan, *, entry: str, connect: Mapping[str, str], folder
         for r in up:
             assert r.replica is not None
             argv += ["--replica", f"{r.replica.index},{r.host},{router_id(plan.stack, r.host)}"]
-        argv += [a for t in sorted(set(up[0].to_cloud + up[0].listed)) for a in ("--to-cloud", t)]
-        argv += [a for t in sorted(set(up[0].to_edge + up[0].listed)) for a in ("--to-edge", t)]
+        argv += [a for t in sorted(set(up[0].to_cloud)) for a in ("--to-cloud", t)]
+        argv += [a for t in sorted(set(up[0].to_edge)) for a in ("--to-edge", t)]
         supervise.start(folder, f"zenoh-replicas-{group}", argv)
     return notes
 

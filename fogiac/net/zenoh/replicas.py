@@ -69,6 +69,9 @@ class CloudPrefix:
     """On a replica's host: the node's plain keys <-> the replica's prefixed keys, on the host's router."""
 
     def __init__(self, router: str, prefix: str, *, to_cloud: Sequence[str], to_edge: Sequence[str]) -> None:
+        both = sorted(set(to_cloud) & set(to_edge))
+        if both:  # renamed both ways, a message would come back to this process's own subscriber forever
+            raise ZenohError(f"{', '.join(both)}: a replica's topic goes one way, to the cloud or to the edge")
         self.router, self.prefix, self.to_cloud, self.to_edge = router, prefix.rstrip("/"), to_cloud, to_edge
         self.session: Any = None
         self.moved = 0

@@ -17,6 +17,7 @@ from typing import Any
 
 import pytest
 
+from fogiac.errors import ZenohError
 from fogiac.hostmodel import Layout, Where
 from fogiac.manifest.schema import load_manifest
 from fogiac.net.zenoh.config import access_control
@@ -59,6 +60,11 @@ def test_a_replica_only_lets_its_prefixed_keys_cross() -> None:
     rules = {r["id"]: r["key_exprs"] for r in access_control(replica_route("r1", 1, 7448), edge_name="edge")["rules"]}
     assert rules["to-cloud-data"] == ["fogiac/replica/planner/1/*/plan_req/*/*"]
     assert rules["to-edge-data"] == ["fogiac/replica/planner/1/*/plan_rep/*/*"]
+
+
+def test_a_topic_renamed_both_ways_is_refused_before_it_loops() -> None:
+    with pytest.raises(ZenohError, match="/a: a replica's topic goes one way"):
+        CloudPrefix("tcp/127.0.0.1:1", "fogiac/replica/g/0", to_cloud=("/a",), to_edge=("/a", "/b"))
 
 
 def test_every_request_answered_once_while_a_replica_dies(tmp_path: Path) -> None:

@@ -12,10 +12,12 @@ stack name cannot take the stack over by accident.
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
+from typing import Any
 
-from fogiac.errors import FogiacError
+from fogiac.errors import FogiacError, StateError
 from fogiac.plan.model import Plan
 from fogiac.state import StackState, read_json, write_json_atomic
 
@@ -49,15 +51,72 @@ def _path(stack: str) -> Path:
     return StackState(stack).record
 
 
+def shown(text: str) -> str:
+    """A path or name read from a state file, for a message: one line, control characters escaped
+    (a record's manifest path with a newline or a terminal escape is printed as written, not obeyed)."""
+    return text if text.isprintable() else repr(text)[1:-1]
+
+
+def _kind(value: Any, want: type | tuple[type, ...]) -> bool:
+    return isinstance(value, want) and not isinstance(value, bool)
+
+
 def read(stack: str) -> Deployment | None:
-    """The stack's record, or None if nothing was ever deployed (or all of it was removed)."""
-    data = read_json(_path(stack))
-    if not isinstance(data, dict):
+    """The stack's record, or None if nothing was ever deployed (no file).
+
+    A file that is not a record (null, a list, a field of the wrong type, an unknown state) is an
+    error in one line: taking it as "no record" would send status and down to the manifest's target.
+    """
+    path = _path(stack)
+    data = read_json(path)
+    if data is None and not path.exists():
         return None
-    try:
-        return Deployment(**data)
-    except TypeError:
-        raise FogiacError(f"{_path(stack)}: not a fogiac deployment record; remove it if the stack is gone") from None
+    bad = f"{path}: not a fogiac deployment record"
+    hint = "; remove it if the stack is gone"
+    if not isinstance(data, dict):
+        raise StateError(f"{bad} (a JSON {type(data).__name__ if data is not None else 'null'}){hint}")
+    want: dict[str, type | tuple[type, ...]] = {f.name: str for f in fields(Deployment)}
+    want["since_epoch"] = (int, float)
+    required = {f.name for f in fields(Deployment) if f.name != "plan_digest"}
+    for name in sorted(required - set(data)):
+        raise StateError(f"{bad} ({name} is missing){hint}")
+    for name in sorted(data):
+        if name not in want:
+            raise StateError(f"{bad} (unknown field {shown(str(name))!r}){hint}")
+        if not _kind(data[name], want[name]):
+            raise StateError(f"{bad} ({name} should be {'a number' if name == 'since_epoch' else 'a string'}){hint}")
+    if data["state"] not in (PARTIAL, COMPLETE, REMOVED):
+        raise StateError(f"{bad} (state {shown(data['state'])!r}){hint}")
+    if data["stack"] != stack:
+        raise StateError(f"{bad} of stack {stack!r} (it names {shown(data['stack'])!r}){hint}")
+    return Deployment(**data)
+
+
+_APPLIED_SECTIONS = ("resources", "hosts", "nodes", "topics", "security_rules")
+
+
+def read_applied(stack: str) -> dict[str, Any] | None:
+    """The plan document the last complete ``up`` applied, or None when there is none (no file).
+
+    A file that is not such a document (null, a list, a section that is not a list of mappings,
+    a cost that is not a mapping) is an error in one line, not a traceback in the diff."""
+    path = StackState(stack).applied
+    data = read_json(path)
+    if data is None and not path.exists():
+        return None
+    hint = "; the next `fogiac up` writes it again, or remove it"
+    if not isinstance(data, dict):
+        kind = type(data).__name__ if data is not None else "null"
+        raise StateError(f"{path}: not a plan document fogiac applied (a JSON {kind}){hint}")
+    for name in _APPLIED_SECTIONS:
+        value = data.get(name, [])
+        if not isinstance(value, list) or not all(isinstance(row, Mapping) for row in value):
+            raise StateError(f"{path}: not a plan document fogiac applied ({name} is not a list of mappings){hint}")
+    cost = data.get("cost", {})
+    if not isinstance(cost, Mapping) or not all(_kind(cost.get(k, 0.0), (int, float)) or cost.get(k) is None
+                                                for k in ("hourly_usd", "spot_hourly_usd")):
+        raise StateError(f"{path}: not a plan document fogiac applied (cost is not a mapping of figures){hint}")
+    return data
 
 
 def manifest_id(path: Path) -> str:
@@ -123,7 +182,7 @@ def choose_target(stack: str, manifest: Path, requested: str | None, *, force_hi
     mine = manifest_id(manifest)
     if record.manifest != mine and not force:
         hint = " (or pass --force to take it over)" if force_hint else ""
-        raise FogiacError(f"stack {stack!r} was made by {record.manifest}, not {mine}; use that file, "
+        raise FogiacError(f"stack {stack!r} was made by {shown(record.manifest)}, not {shown(mine)}; use that file, "
                           f"or give this one another name: or --env{hint}")
     if requested is not None and requested != record.target:
         raise FogiacError(f"stack {stack!r} is deployed to target {record.target}, not {requested}; "

@@ -56,6 +56,22 @@ def pid_alive(pid: int) -> bool:
         return True
 
 
+def start_time(pid: int) -> str | None:
+    """When ``pid`` started (clock ticks since boot, field 22 of /proc/PID/stat): with the pid it names
+    one process for good (a pid reused after a crash or a reboot has another), as the supervisor's pid
+    files use it."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[19]
+    except (OSError, IndexError):
+        return None
+
+
+def same_process(pid: int, started: str | None) -> bool:
+    """``pid`` is alive and is the process that was recorded with ``started`` (None: recorded without a start
+    time, by an older fogiac: liveness alone)."""
+    return pid_alive(pid) and (started is None or start_time(pid) in (started, None))
+
+
 def _ppid(pid: int) -> int | None:
     try:
         return int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])

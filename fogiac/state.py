@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from fogiac.errors import LockHeld, StateError
-from fogiac.procs import pid_alive
+from fogiac.procs import same_process, start_time
 
 
 def state_root() -> Path:
@@ -164,29 +164,42 @@ class StackState:
         return stack_lock(self.stack, operation=operation)
 
 
+def _said(value: object) -> str:
+    """A value read from a state file, for a message: one line, escapes shown, not obeyed."""
+    text = str(value)
+    return text if text.isprintable() else repr(text)[1:-1]
+
+
 @contextmanager
 def stack_lock(stack: str, *, operation: str) -> Iterator[None]:
     """Hold the stack's lock for ``operation``; a second holder fails at once, naming the first.
 
-    The lock is a file created with O_EXCL holding who took it; a lock whose process is gone
-    (same host) is stale and taken over.
+    The lock is a file created with O_EXCL holding who took it: pid and start time, as the supervisor's
+    pid files. A lock whose process is gone (same host), or whose pid now names another process (its start
+    time differs: the pid was reused after a crash or a reboot), is stale and taken over.
     """
     path = stack_dir(stack) / StackState.LOCK
-    me = {"pid": os.getpid(), "host": socket.gethostname(), "operation": operation,
-          "since": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+    me = {"pid": os.getpid(), "started": start_time(os.getpid()), "host": socket.gethostname(),
+          "operation": operation, "since": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
     for _ in range(2):
         try:
             fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
         except FileExistsError:
-            holder = read_json(path) or {}
+            try:
+                holder = read_json(path)
+            except StateError:
+                holder = None  # being written this instant, or garbage: named below, never taken over
+            holder = holder if isinstance(holder, dict) else {}
             same_host = holder.get("host") == me["host"]
-            if same_host and isinstance(holder.get("pid"), int) and not pid_alive(holder["pid"]):
+            pid, started = holder.get("pid"), holder.get("started")
+            if same_host and isinstance(pid, int) and not isinstance(pid, bool) and pid > 0 \
+                    and not same_process(pid, started if isinstance(started, str) else None):
                 path.unlink(missing_ok=True)
                 continue
+            said = {k: _said(holder.get(k, "?")) for k in ("operation", "pid", "host", "since")}
             raise LockHeld(
-                f"stack {stack!r} is locked by {holder.get('operation', '?')} "
-                f"(pid {holder.get('pid', '?')} on {holder.get('host', '?')} since "
-                f"{holder.get('since', '?')}); wait for it or remove {path} if it is gone"
+                f"stack {stack!r} is locked by {said['operation']} (pid {said['pid']} on {said['host']} since "
+                f"{said['since']}); wait for it or remove {path} if it is gone"
             ) from None
         with os.fdopen(fd, "w") as fh:
             json.dump(me, fh)

@@ -8,6 +8,7 @@ on the console between HOST_KEYS_BEGIN and HOST_KEYS_END, so provisioning can pi
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -32,6 +33,7 @@ class ComputeArgs:
     public_key_openssh: str
     tags: Mapping[str, str]
     shutdown_behavior: str | None = None  # what the autostop watchdog's poweroff does: stop or terminate
+    zone_subnet_ids: Mapping[str, pulumi.Input[str]] = dataclasses.field(default_factory=dict)  # a replica's zone's
 
 
 def shutdown_behavior(host: HostSpec, asked: str | None) -> str | None:
@@ -108,7 +110,7 @@ class Compute(pulumi.ComponentResource):
                 f"{name}-host-{host.name}",
                 ami=images[image],
                 instance_type=host.machine,
-                subnet_id=args.subnet_id,
+                subnet_id=args.zone_subnet_ids[host.zone] if host.zone is not None else args.subnet_id,
                 vpc_security_group_ids=list(args.security_group_ids),
                 key_name=self.key_pair.key_name,
                 associate_public_ip_address=True,

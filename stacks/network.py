@@ -62,7 +62,8 @@ class NetworkArgs:
 
 
 class Network(pulumi.ComponentResource):
-    """A VPC with one public and one private subnet in ``zone``."""
+    """A VPC with one public and one private subnet in ``zone`` (and a public one in each zone a replicated
+    node's hosts use)."""
 
     vpc: aws.ec2.Vpc
     subnets: dict[str, aws.ec2.Subnet]
@@ -89,7 +90,7 @@ class Network(pulumi.ComponentResource):
                 f"{name}-subnet-{subnet.name}",
                 vpc_id=self.vpc.id,
                 cidr_block=subnet.cidr,
-                availability_zone=args.zone,
+                availability_zone=subnet.zone or args.zone,  # a replica's subnet is in its own zone
                 map_public_ip_on_launch=False,  # each instance asks for its own public address
                 tags=tagged(args.tags, f"{name}-{subnet.name}"),
                 opts=child,

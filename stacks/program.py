@@ -16,7 +16,7 @@ import pulumi
 from fogiac.certs import Bundle
 from fogiac.errors import PlanError
 from fogiac.plan.model import Plan
-from fogiac.targets.aws.model import vpn_of
+from fogiac.targets.aws.model import vpn_of, zone_subnet
 from stacks.compute import Compute, ComputeArgs
 from stacks.firewall import Firewall, FirewallArgs
 from stacks.network import Network, NetworkArgs
@@ -81,19 +81,21 @@ def network_program(plan: Plan, *, certs: Bundle, operator_cidrs: tuple[str, ...
 def compute_program(plan: Plan, *, network: Mapping[str, Any], public_key_openssh: str) -> None:
     """Declare Compute in the network stack's subnet and security group; export the hosts."""
     _require_aws(plan)
+    wanted = [HOSTS_SUBNET] + sorted({zone_subnet(h.zone) for h in plan.hosts if h.zone is not None})
     try:
-        subnet_id = network["subnet_ids"][HOSTS_SUBNET]
+        subnet_ids = {name: network["subnet_ids"][name] for name in wanted}
         group_id = network["security_group_ids"][HOSTS_GROUP]
     except (KeyError, TypeError):
         raise PlanError(
-            f"the network stack of {plan.stack!r} has no outputs subnet_ids.{HOSTS_SUBNET} and "
+            f"the network stack of {plan.stack!r} has no outputs subnet_ids.{' / '.join(wanted)} and "
             f"security_group_ids.{HOSTS_GROUP}; apply the network stack first"
         ) from None
     compute = Compute(
         plan.stack,
         ComputeArgs(
             hosts=plan.hosts,
-            subnet_id=subnet_id,
+            subnet_id=subnet_ids[HOSTS_SUBNET],
+            zone_subnet_ids={h.zone: subnet_ids[zone_subnet(h.zone)] for h in plan.hosts if h.zone is not None},
             security_group_ids=(group_id,),
             public_key_openssh=public_key_openssh,
             tags=dict(plan.tags),

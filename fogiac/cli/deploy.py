@@ -204,7 +204,7 @@ def status(manifest: Path = MANIFEST, env: str = ENV, target: str | None = TARGE
 def sweep(manifest: Path = MANIFEST, env: str = ENV, target: str | None = TARGET, yes: bool = YES,
           dry_run: bool = typer.Option(False, "--dry-run", help="Only list what would be deleted.")) -> None:
     """Delete every resource tagged with the stack, even ones outside fogiac's state."""
-    plan = compile_for(manifest, env, target)
+    plan = compile_deployed(manifest, env, target)  # the record's target; another manifest's stack is refused
     chosen = targets.get(plan.target)
     if not dry_run and Feature.CREATES_MACHINES in chosen.features:
         need_yes(yes, "sweep")

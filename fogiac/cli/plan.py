@@ -17,16 +17,16 @@ from typing import Any
 import typer
 from rich.markup import escape
 
-from fogiac import registry, targets
+from fogiac import deployment, registry, targets
 from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_deployed, compile_for
-from fogiac.errors import FogiacError
+from fogiac.errors import FogiacError, StateError
 from fogiac.manifest.clouds import prices as price_source
 from fogiac.manifest.revision import load_revision
 from fogiac.plan import drift, review
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.cost import MONTH, menu_line, per_month, saving_pct
-from fogiac.plan.diff import PlanDiff, annotate, diff_documents, with_drift
-from fogiac.plan.document import APPLIED_FILE, document, plan_document
+from fogiac.plan.diff import annotate, diff_documents, with_drift
+from fogiac.plan.document import document, plan_document
 from fogiac.state import StackState, write_json_atomic
 from fogiac.tables import console, table
 
@@ -48,10 +48,10 @@ def _key_inputs(resource: Mapping[str, Any]) -> list[str]:
     return [f"{k}: {_short(inputs[k])}" for k in listed.get(resource["type"], ()) if k in inputs]
 
 
-def _render_diff(doc: dict[str, Any], diff: PlanDiff, *, against: str) -> None:
+def _render_diff(doc: dict[str, Any], lines: list[str]) -> None:
     out = console()
     out.print(f"[bold]fogiac plan[/] {doc['stack']}: target {doc['target']}")
-    for line in review.terminal(diff, against=against):
+    for line in lines:
         out.print(escape(line), highlight=False)
 
 
@@ -62,8 +62,8 @@ def _before(compiled: Any, *, against: str | None, target: str | None, env: str)
         plan = compile_plan(base.manifest, target=target, environment=env)
         return document(plan, targets.get(plan.target).declare(plan), manifest_path=against,
                         manifest_sha256=base.sha256), against
-    applied = StackState(compiled.stack).read(APPLIED_FILE)
-    return (applied, f"what was applied to {compiled.stack}") if isinstance(applied, dict) else (None, "nothing")
+    applied = deployment.read_applied(compiled.stack)
+    return (applied, f"what was applied to {compiled.stack}") if applied is not None else (None, "nothing")
 
 
 def _spot_cell(host: Mapping[str, Any]) -> str:
@@ -97,15 +97,18 @@ def render(doc: Mapping[str, Any]) -> None:
     for h in doc["hosts"]:
         hosts.add_row(h["name"], h["machine"], escape(str(h["address"] or "-")), str(h["vcpus"]), str(h["gpus"]),
                       f"{h['memory_gib']:g}", str(h["disk_gb"]), f"{h['usd_per_hour']:.4f}", _spot_cell(h),
-                      ", ".join(h["nodes"]))
+                      ", ".join(h["nodes"]) + "".join(f" ({h[k]})" for k in ("replica", "zone") if h.get(k)))
     out.print(hosts)
     for h in doc["hosts"]:
         if h["chosen_for"]:
             out.print(escape(menu_line(h, spot_as_of=price_source(doc["target"]).spot_as_of)), highlight=False)
     nodes = table("nodes", "node", "host", "kind", "runs", "GPU")
     for n in doc["nodes"]:
-        nodes.add_row(n["name"], n["host"], n["kind"], escape(n["runs"]), "yes" if n["gpu"] else "no")
+        nodes.add_row(n["name"], ", ".join(n.get("replica_hosts") or [n["host"]]), n["kind"], escape(n["runs"]),
+                      "yes" if n["gpu"] else "no")
     out.print(nodes)
+    for note in doc.get("notes", ()):  # where placement put replicas, and what it skipped
+        out.print(f"note: {escape(note)}", highlight=False)
     spot = doc["cost"].get("spot_hourly_usd")
     columns = ("item", "quantity", "$/h each", "$/h") + (("spot $/h",) if spot is not None else ())
     cost = table("hourly cost (on-demand prices" + ("; spot estimate beside)" if spot is not None else ")"), *columns)
@@ -155,11 +158,20 @@ def plan(
         else compile_for(manifest, env, target)
     declared = plan_document(compiled, targets.get(compiled.target).declare(compiled), manifest=manifest)
     before, label = _before(compiled, against=against, target=target, env=env)
-    diff = diff_documents(before, declared, against="manifest" if against else "applied")
-    refreshed = drift.load(compiled.stack) if against is None and before is not None else None
-    if refreshed is not None:  # what `fogiac refresh` found changed outside fogiac since the apply
-        diff = with_drift(diff, refreshed.drift, refreshed_at=refreshed.at)
-    doc = annotate(declared, diff)
+    try:  # everything read from the applied document, before a line is printed
+        diff = diff_documents(before, declared, against="manifest" if against else "applied")
+        refreshed = drift.load(compiled.stack) if against is None and before is not None else None
+        if refreshed is not None:  # what `fogiac refresh` found changed outside fogiac since the apply
+            diff = with_drift(diff, refreshed.drift, refreshed_at=refreshed.at)
+        doc = annotate(declared, diff)
+        comment = review.comment(diff, stack=compiled.stack, against=label) if markdown else ""
+        lines = review.terminal(diff, against=label) if before is not None else []
+    except (TypeError, KeyError, AttributeError, ValueError) as err:
+        if against is not None or before is None:
+            raise
+        # a value fogiac never writes (a number where a name goes, a host row without its name): one line
+        raise StateError(f"{StackState(compiled.stack).applied}: not a plan document fogiac applied "
+                         f"({type(err).__name__}: {err}); the next `fogiac up` writes it again, or remove it") from None
     if out is not None and str(out) == "-":  # the document on stdout, instead of the table
         as_json = True
     elif out is not None:
@@ -169,11 +181,11 @@ def plan(
     elif as_json:
         typer.echo(json.dumps(doc, indent=2, sort_keys=True))
     elif markdown:
-        typer.echo(review.comment(diff, stack=compiled.stack, against=label), nl=False)
+        typer.echo(comment, nl=False)
     elif before is None:
         render(doc)
     else:
-        _render_diff(doc, diff, against=label)
+        _render_diff(doc, lines)
     if detailed_exitcode:
         raise typer.Exit(0 if diff.empty else 2)
 

@@ -15,6 +15,12 @@ from fogiac.tables import table
 def render_status(target: Target, doc: Mapping[str, Any]) -> list[Any]:
     """Rich renderables (or plain strings), one per line or table."""
     if not doc.get("deployed", True):
+        if doc.get("unchecked"):  # no record here, and the cloud could not be asked
+            return [f"{doc['stack']}: not deployed from this machine (no record); the cloud was not checked for "
+                    f"what another machine may have left: {doc['unchecked']}"]
+        if doc.get("checked"):
+            return [f"{doc['stack']}: not deployed ({doc['checked']}; `fogiac sweep --dry-run` lists anything "
+                    "else tagged with the stack)"]
         return [f"{doc['stack']}: not deployed"]
     out = list(target.render_status(doc))
     running = [e for e in doc.get("edge", []) if e["running"]]

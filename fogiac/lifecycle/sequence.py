@@ -9,12 +9,14 @@ A target (:class:`~fogiac.lifecycle.driver.Target`) answers only the questions t
 
 from __future__ import annotations
 
+import dataclasses
 import shutil
 import time
+from collections.abc import Mapping
 from typing import Any
 
 from fogiac import deployment
-from fogiac.errors import FogiacError
+from fogiac.errors import CredentialsError, FogiacError
 from fogiac.lifecycle.driver import (
     Created,
     DownOptions,
@@ -95,6 +97,18 @@ def _edge_or_undo(plan: Plan, master: str, *, start: bool, before: deployment.De
         raise
 
 
+def _recorded_hosts_too(plan: Plan, access: Mapping[str, Any]) -> tuple[Plan, dict[str, Any]]:
+    """The plan's hosts and every other host the stack's provisioning record names, with their access: a
+    ``down --force`` with another manifest of the same stack stops the first manifest's hosts too."""
+    recorded = recorded_access(StackState(plan.stack).folder)
+    extra = {name: entry for name, entry in recorded.items() if name not in access}
+    if not extra or not plan.hosts:
+        return plan, dict(access)
+    specs = tuple(dataclasses.replace(plan.hosts[0], name=name, nodes=entry[2]) for name, entry in extra.items())
+    return (dataclasses.replace(plan, hosts=plan.hosts + specs),
+            {**access, **{name: entry[0] for name, entry in extra.items()}})
+
+
 def down(target: Target, plan: Plan, opts: DownOptions) -> DownResult:
     """Stop the edge, stop what runs on machines that stay, destroy what was made, prove nothing is left."""
     target.ready(plan, verb="down")  # missing credentials: one line, before anything is destroyed
@@ -110,8 +124,9 @@ def down(target: Target, plan: Plan, opts: DownOptions) -> DownResult:
         stop_edge(plan, keep_master=True)  # the edge relays first: their peers are about to go
         if Feature.CREATES_MACHINES not in target.features:  # the machines stay: stop what fogiac runs there
             try:
-                report = teardown(plan, hosts=target.reach(plan, Created(plan=plan), announce=lambda _: None).access,
-                                  state_dir=folder)
+                access = target.reach(plan, Created(plan=plan), announce=lambda _: None).access
+                every, hosts = _recorded_hosts_too(plan, access)
+                report = teardown(every, hosts=hosts, state_dir=folder)
                 errors += [o.error or f"{o.host}: failed" for o in report.failed]
                 deleted += [f"{o.host} process {name}" for o in report.hosts for name in o.stopped]
             except FogiacError as err:
@@ -122,6 +137,7 @@ def down(target: Target, plan: Plan, opts: DownOptions) -> DownResult:
         left = [f"process {e['name']} (pid {e['pid']})" for e in running_edge(plan)] + list(destroyed.left)
         if not left and not errors:
             state.remove(DEPLOYMENT_FILE, APPLIED_FILE)
+            shutil.rmtree(state.edge, ignore_errors=True)  # nothing runs there now: its logs (the edge master's too)
             target.forget(plan, keep_network=opts.keep_network)
             if destroyed.kept:
                 deployment.cut_back(plan.stack)
@@ -140,9 +156,19 @@ def status(target: Target, plan: Plan, *, now: float | None = None) -> dict[str,
     record = deployment.read(plan.stack)
     known = record is not None and record.exists
     provisioned = bool(recorded_access(folder))  # provisioning's own record of the hosts it reached
+    nothing = {**head, "deployed": False, "hosts": [], "relays": [], "edge": []}
     if not known and not provisioned and not target.recorded(plan):
-        return {**head, "deployed": False, "hosts": [], "relays": [], "edge": []}
-    described = target.describe(plan, now=now)  # first: a target that cannot answer (no credentials) stops here
+        return nothing
+    try:
+        described = target.describe(plan, now=now)  # a target that cannot answer (no credentials) stops here...
+    except CredentialsError as err:
+        if known or provisioned:
+            raise
+        # ...unless nothing here says the stack exists: never deployed from this machine, and the cloud was
+        # not asked for what another machine may have left (aws: status asks the cloud, not only the record)
+        return {**nothing, "unchecked": str(err)}
+    if not known and not provisioned and not described.get("hosts"):
+        return {**nothing, "checked": "the cloud reports no instances"}  # asked, and nothing runs there
     saved = state.read(DEPLOYMENT_FILE) or {}
     relays = middleware.deployment(plan.middleware).edge_links(plan, folder=edge_dir(plan, create=False),
                                                                connect=saved.get("relays", {}))

@@ -31,7 +31,7 @@ from fogiac.manifest.fields import (
     _user,
     ssh_from_problem,
 )
-from fogiac.manifest.problems import FieldProblem
+from fogiac.manifest.problems import FieldProblem, raise_all
 
 
 class Ros(_Model):
@@ -107,9 +107,8 @@ class Cloud(_Model):
         if self.zone is not None:
             variant(self.chosen()).check_zone(self.zone, self.region)
         names = [h.name for h in self.hosts]
-        for i, name in enumerate(names):
-            if name in names[:i]:
-                raise FieldProblem(f"duplicate host name {name!r}", field=f"hosts[{i}].name")
+        raise_all([FieldProblem(f"duplicate host name {name!r}", field=f"hosts[{i}].name")
+                   for i, name in enumerate(names) if name in names[:i]])
         return self
 
 

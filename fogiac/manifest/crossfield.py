@@ -17,23 +17,24 @@ from typing import Annotated, Any
 from pydantic import BaseModel, TypeAdapter, ValidationError, WrapValidator
 from pydantic.fields import FieldInfo
 
-from fogiac.manifest.problems import FieldProblem, Loc, _parse_path, path_str, suggest
+from fogiac.manifest.problems import FieldProblem, Loc, _parse_path, each_problem, path_str, problem_text
 
 
 class _Skipped(Exception):
-    def __init__(self, field: str, *, quiet: bool) -> None:
+    def __init__(self, field: Loc, *, quiet: bool) -> None:
         super().__init__(field)
         self.field = field
         self.quiet = quiet
 
 
 class _Broken:
-    """A field that failed validation: any use of it stops the rule that uses it.
+    """A field that failed validation, by its full path: any use of it stops the rule that uses it,
+    printing it included (a rule's message never shows the stand-in itself).
 
     ``quiet``: the field is missing, which its own line already says; the skip says nothing more.
     """
 
-    def __init__(self, field: str, *, quiet: bool = False) -> None:
+    def __init__(self, field: Loc, *, quiet: bool = False) -> None:
         self._field = field
         self._quiet = quiet
 
@@ -41,6 +42,7 @@ class _Broken:
         raise _Skipped(self._field, quiet=self._quiet)
 
     __getattr__ = __bool__ = __iter__ = __eq__ = __ne__ = __lt__ = __len__ = __contains__ = __hash__ = _stop
+    __str__ = __repr__ = __format__ = __int__ = __float__ = __index__ = __add__ = __radd__ = _stop
 
 
 def _model_of(annotation: Any) -> tuple[type[BaseModel] | None, bool]:
@@ -54,17 +56,17 @@ def _model_of(annotation: Any) -> tuple[type[BaseModel] | None, bool]:
     return None, False
 
 
-def _value(annotation: Any, raw: Any, name: str, path: Loc, found: list[tuple[Loc, BaseModel]]) -> Any:
+def _value(annotation: Any, raw: Any, path: Loc, found: list[tuple[Loc, BaseModel]]) -> Any:
     model, many = _model_of(annotation)
     if model is not None and not many and isinstance(raw, dict):
         return _partial(model, raw, path, found)
     if model is not None and many and isinstance(raw, list):
-        return tuple(_partial(model, item, path + (i,), found) if isinstance(item, dict) else _Broken(f"{name}[{i}]")
+        return tuple(_partial(model, item, path + (i,), found) if isinstance(item, dict) else _Broken(path + (i,))
                      for i, item in enumerate(raw))
     try:
         return TypeAdapter(annotation).validate_python(raw)
     except ValidationError:
-        return _Broken(name)
+        return _Broken(path)
 
 
 def _widened(info: FieldInfo) -> Any:
@@ -80,13 +82,13 @@ def _partial(model: type[BaseModel], raw: dict[str, Any], path: Loc, found: list
     for key, name in keys.items():
         info = model.model_fields[name]
         if key in raw:
-            values[name] = _value(_widened(info), raw[key], key, path + (key,), found)
+            values[name] = _value(_widened(info), raw[key], path + (key,), found)
         elif info.is_required():
-            values[name] = _Broken(key, quiet=True)
+            values[name] = _Broken(path + (key,), quiet=True)
     for key in raw:  # a misspelt key ('imag') stands for the field it was meant to be: broken, not absent
         meant = difflib.get_close_matches(str(key), [k for k in keys if k not in raw], n=1, cutoff=0.6)
         if key not in keys and meant:
-            values[keys[meant[0]]] = _Broken(str(key))
+            values[keys[meant[0]]] = _Broken(path + (str(key),))
     built = model.model_construct(**values)
     found.append((path, built))
     return built
@@ -108,13 +110,13 @@ def cross_field_problems(model: type[BaseModel], data: dict[str, Any]) -> list[t
             try:
                 rule(built)
             except FieldProblem as err:
-                where = path + (_parse_path(err.field) if err.field else ())
-                out.append((where, err.message + (suggest(err.value, err.choices) if err.choices else "")))
+                for each in each_problem(err):
+                    out.append((path + (_parse_path(each.field) if each.field else ()), problem_text(each)))
             except _Skipped as skipped:
                 if skipped.quiet:
                     continue
-                field = path_str(path + _parse_path(skipped.field))
-                out.append((path, f"checks across fields skipped: they need {field}, which has a problem"))
+                out.append((path, f"checks across fields skipped: they need {path_str(skipped.field)}, "
+                                  "which has a problem"))
             except (TypeError, AttributeError, KeyError, ValueError):
                 continue  # a stand-in the rule could not use; the field's own problem is reported
     return out

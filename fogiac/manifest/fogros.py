@@ -22,6 +22,7 @@ from fogiac.manifest import importers
 from fogiac.manifest.clouds import variant
 from fogiac.manifest.importers import Converted
 from fogiac.manifest.schema import Manifest, parse_manifest
+from fogiac.manifest.source import read_source
 
 _FIND = re.compile(r"\$\(find ([A-Za-z0-9_]+)\)")
 
@@ -81,12 +82,20 @@ def _params(node: _Element, source: str) -> dict[str, object]:
     return params
 
 
+def _package_text(package_xml: Path) -> str:
+    """A package.xml's text, capped like a launch file; an unreadable one names no package."""
+    try:
+        return read_source(package_xml)
+    except ManifestError:
+        return ""
+
+
 def _package_of(path: Path) -> tuple[str, Path] | None:
     """The ROS package (name, folder) that holds ``path``: the nearest folder with package.xml."""
     for folder in path.parents:
         package_xml = folder / "package.xml"
         if package_xml.is_file():
-            match = re.search(r"<name>\s*([^<\s]+)\s*</name>", package_xml.read_text())
+            match = re.search(r"<name>\s*([^<\s]+)\s*</name>", _package_text(package_xml))
             return (match.group(1) if match else folder.name), folder
     return None
 
@@ -99,7 +108,7 @@ def _find_package(name: str, start: Path) -> Path | None:
             roots.append(folder)
         for root in roots:
             for package_xml in sorted(root.glob("**/package.xml")):
-                if re.search(rf"<name>\s*{re.escape(name)}\s*</name>", package_xml.read_text()):
+                if re.search(rf"<name>\s*{re.escape(name)}\s*</name>", _package_text(package_xml)):
                     return package_xml.parent
     return None
 
@@ -132,10 +141,7 @@ def _infer_gpu(nodes: list[dict]) -> list[str]:
 def convert(path: Path) -> Imported:
     """Read ``path`` and build the manifest's data; paths stay relative to the launch file."""
     source = str(path)
-    try:
-        text = path.read_text()
-    except OSError as err:
-        raise ManifestError([f"{source}: cannot read: {err.strerror}"]) from None
+    text = read_source(path)
     root = _parse_xml(text, source)
     base = path.resolve().parent
     nodes: list[dict] = []

@@ -35,6 +35,7 @@ from fogiac.manifest.fogros2_docker import docker_node
 from fogiac.manifest.importers import Converted
 from fogiac.manifest.problems import FieldProblem
 from fogiac.manifest.schema import parse_manifest
+from fogiac.manifest.source import read_source, screen_python
 
 SUFFIXES = (".py",)
 DISTRO = "humble"  # the ROS 2 distribution FogROS2 supports
@@ -299,14 +300,19 @@ def _is_docstring(stmt: ast.stmt) -> bool:
 def convert(path: Path) -> tuple[dict, list[str], list[str]]:
     """The manifest's data, the nodes kept on the robot, and notes for the header; or ManifestError."""
     source = str(path)
+    text = read_source(path)
+    screen_python(text, source=source)
     try:
-        tree = ast.parse(path.read_text(), filename=source)
-    except OSError as err:
-        raise ManifestError([f"{source}: cannot read: {err.strerror}"]) from None
+        tree = ast.parse(text, filename=source)
     except SyntaxError as err:
         raise ManifestError([f"{source}:{err.lineno or 1}: not valid Python: {err.msg}"]) from None
+    except (RecursionError, MemoryError):
+        raise ManifestError([f"{source}:1: nested too deeply to read"]) from None
     reader = _Reader(source)
-    reader.module(tree)
+    try:
+        reader.module(tree)
+    except RecursionError:
+        raise ManifestError([f"{source}:1: nested too deeply to read"]) from None
     if not reader.found_entry:
         reader.problems.append(f"{source}:1: no {_ENTRY}() here: not a ROS 2 launch file")
     regions = sorted({m.region for m in reader.machines})

@@ -27,6 +27,15 @@ from fogiac.manifest.fields import (
 )
 from fogiac.manifest.machines import Choice, Requirement, parse_bound
 from fogiac.manifest.problems import FieldProblem
+from fogiac.manifest.replicas import (
+    DEFAULT_MATCH,
+    MAX_REPLICAS,
+    Hedge,
+    check_match,
+    check_type,
+    match_problems,
+    unchecked,
+)
 
 
 class Launch(_Model):
@@ -144,6 +153,16 @@ class Node(_Model):
     spot: bool = Field(default=False, description="Use a spot instance.")
     env: dict[str, str] = Field(default_factory=dict, description="Environment variables for the node.")
     host: str | None = Field(default=None, description="For the hosts target: which cloud.hosts entry runs it.")
+    replicas: int = Field(default=1, ge=1, le=MAX_REPLICAS, description="Copies of the node, each on a host of its "
+                          "own (aws: in different zones): the robot gets the first reply to each request.")
+    reply_match: str = Field(default=DEFAULT_MATCH, description="With replicas: the reply field that names its "
+                             "request (a reply copies it from the request); header.stamp needs a std_msgs/Header.")
+    hedge: Literal["all"] | Hedge = Field(default="all", description="With replicas: send each request to all at "
+                                          "once, or {delay_ms: D} to the first and to the others after D ms.")
+    message_types: dict[Topic, str] = Field(default_factory=dict, description="ROS message type of topics, e.g. "
+                                            "{/plan: geometry_msgs/PoseArray}: validate checks reply_match with it.")
+    replica_hosts: tuple[str, ...] = Field(default=(), description="For the hosts target: the cloud.hosts entries "
+                                           "that carry the node's replicas, one each (default: the next ones).")
 
     @field_validator("machine")
     @classmethod
@@ -169,6 +188,36 @@ class Node(_Model):
                 raise ValueError(f"{key}: {text!r} holds a line break or control character; env values are one line")
         return value
 
+    @field_validator("reply_match")
+    @classmethod
+    def _reply_match(cls, value: str) -> str:
+        return check_match(value)
+
+    @field_validator("message_types")
+    @classmethod
+    def _message_types(cls, value: dict[str, str]) -> dict[str, str]:
+        for topic, name in value.items():
+            _topic(topic)
+            check_type(name)
+        return value
+
+    @model_validator(mode="after")
+    def _replicated(self) -> Node:
+        """A replicated node's replies are merged on its out topics: they must be listed, and matchable."""
+        if self.replica_hosts and len(self.replica_hosts) != self.replicas:
+            raise FieldProblem(f"names {len(self.replica_hosts)} hosts for replicas: {self.replicas}",
+                               field="replica_hosts")
+        if len(set(self.replica_hosts)) != len(self.replica_hosts):
+            raise FieldProblem("names a host twice; each replica needs a host of its own", field="replica_hosts")
+        if self.replicas == 1:
+            return self
+        if self.topics == "auto" or not self.topics.outputs:
+            raise FieldProblem(f"replicas: {self.replicas} needs its out topics listed (topics: {{in: [...], out: "
+                               "[...]}}): the edge merges the replicas' replies on them", field="topics")
+        for message, field in match_problems(self.topics.outputs, self.message_types, self.reply_match):
+            raise FieldProblem(message, field=field)
+        return self
+
     @model_validator(mode="after")
     def _one_kind(self, info: ValidationInfo | None = None) -> Node:
         given = [k for k in ("image", "build", "launch", "workload") if getattr(self, k) is not None]
@@ -191,6 +240,12 @@ class Node(_Model):
         named = self.machine if isinstance(self.machine, str) else self.machine.type
         need = self.machine.requirement(gpu=self.gpu) if isinstance(self.machine, Machine) and named is None else None
         return variant(provider).choose(named, need, region, spot=spot)
+
+    def unchecked_match(self) -> str | None:
+        """For a replicated node, the line naming out topics whose reply match validate could not check."""
+        if self.replicas == 1 or self.topics == "auto":
+            return None
+        return unchecked(f"node {self.name}", self.topics.outputs, self.message_types, self.reply_match)
 
     @property
     def needs_gpu(self) -> bool:

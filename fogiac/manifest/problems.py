@@ -60,6 +60,32 @@ class FieldProblem(ValueError):
         self.value = value if value is not None else _quoted(message)
 
 
+class FieldProblems(FieldProblem):
+    """Several problems one rule found (every duplicate name, every node without topics): each is
+    reported by its own path in the one run, not only the first."""
+
+    def __init__(self, problems: Sequence[FieldProblem]) -> None:
+        super().__init__(problems[0].message, field=problems[0].field, choices=problems[0].choices,
+                         value=problems[0].value)
+        self.problems = tuple(problems)
+
+
+def raise_all(problems: Sequence[FieldProblem]) -> None:
+    """Raise what a rule found: nothing, the one problem, or all of them together."""
+    if len(problems) == 1:
+        raise problems[0]
+    if problems:
+        raise FieldProblems(problems)
+
+
+def each_problem(err: FieldProblem) -> tuple[FieldProblem, ...]:
+    return err.problems if isinstance(err, FieldProblems) else (err,)
+
+
+def problem_text(err: FieldProblem) -> str:
+    return err.message + suggest(err.value, err.choices) if err.choices else err.message
+
+
 def _quoted(message: str) -> str | None:
     match = re.match(r"^'([^']*)'", message)
     return match.group(1) if match else None
@@ -234,9 +260,9 @@ def _describe(error: ErrorDetails, data_path: Loc, model: type[BaseModel]) -> tu
     kind = error["type"]
     ctx = error.get("ctx") or {}
     exc = ctx.get("error")
-    if isinstance(exc, FieldProblem):
+    if isinstance(exc, FieldProblem):  # a group's others come through format_errors
         path = data_path + (_parse_path(exc.field) if exc.field else ())
-        return path, exc.message + suggest(exc.value, exc.choices) if exc.choices else exc.message
+        return path, problem_text(exc)
     value = error.get("input")
     if kind == "extra_forbidden":
         parent = _model_at(model, data_path[:-1])
@@ -280,6 +306,10 @@ def format_errors(
         data_path, _absent = _clean_loc(tuple(raw["loc"]), data)
         path, message = _describe(raw, data_path, model)
         found.setdefault(path, []).append((raw["type"], message))
+        exc = (raw.get("ctx") or {}).get("error")
+        for more in each_problem(exc)[1:] if isinstance(exc, FieldProblem) else ():
+            found.setdefault(data_path + (_parse_path(more.field) if more.field else ()), []).append(
+                ("value_error", problem_text(more)))
     for path, message in extra:
         found.setdefault(tuple(path), []).append(("value_error", message))
     deeper = {p[:i] for p in found for i in range(len(p))}

@@ -32,6 +32,7 @@ SECTIONS: tuple[tuple[str, type[BaseModel]], ...] = (
     ("nodes[].machine (a mapping)", m.Machine),
     ("nodes[].launch", m.Launch),
     ("nodes[].topics", m.TopicLists),
+    ("nodes[].hedge (a mapping)", m.Hedge),
     ("relay", m.Relay),
 )
 

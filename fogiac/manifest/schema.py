@@ -28,8 +28,15 @@ from fogiac.manifest.crossfield import cross_field_problems
 from fogiac.manifest.fields import DnsName, _Model, ssh_from_problem
 from fogiac.manifest.machines import NoMachine
 from fogiac.manifest.nodes import Build, Launch, Machine, Node, NodeKind, TopicLists, Workload
-from fogiac.manifest.problems import FieldProblem, format_errors, line_index, parse_yaml
+from fogiac.manifest.problems import FieldProblem, format_errors, line_index, parse_yaml, raise_all
+from fogiac.manifest.replicas import Hedge
 from fogiac.manifest.requirements import RequirementsProblem, specifiers
+from fogiac.manifest.source import read_source
+
+MAX_TAGS, FOGIAC_TAGS, MAX_TAG_KEY, MAX_TAG_VALUE = 50, 4, 128, 256  # AWS's limits per resource
+# Nodes in one stack: the aws hosts subnet (a /24 at most) holds 251 machines, and a plan of 250 aws
+# nodes takes seconds (Pulumi declares each instance); 1600 took 25 s and 530 MB before this cap.
+MAX_NODES = 250
 
 
 class Manifest(_Model):
@@ -88,34 +95,67 @@ class Manifest(_Model):
         manifest._blocks.update(blocks)
         return manifest
 
+    @field_validator("nodes", mode="before")
+    @classmethod
+    def _not_too_many(cls, value: object) -> object:
+        if isinstance(value, (list, tuple)) and len(value) > MAX_NODES:  # before any node is validated
+            raise ValueError(f"{len(value)} nodes; a stack holds at most {MAX_NODES}: split them into several "
+                             "manifests (or environments)")
+        return value
+
+    @field_validator("name")
+    @classmethod
+    def _single_dashes(cls, value: str) -> str:
+        if "--" in value:  # '--' joins a name and an environment that holds a '-' into the stack's name
+            raise ValueError(f"{value!r} holds '--', which fogiac keeps for joining the name and the environment")
+        return value
+
     @field_validator("tags")
     @classmethod
     def _tags(cls, value: dict[str, str]) -> dict[str, str]:
         for key in value:
             if key.startswith(("fogiac:", "aws:")):
                 raise ValueError(f"tag {key!r} uses a reserved prefix (fogiac:, aws:)")
+        # the cloud's limits, found at validate rather than at up (AWS: 50 tags a resource, keys of 128
+        # characters, values of 256); fogiac's own take FOGIAC_TAGS of the 50
+        if len(value) > MAX_TAGS - FOGIAC_TAGS:
+            raise ValueError(f"{len(value)} tags; a cloud resource holds {MAX_TAGS} and fogiac sets {FOGIAC_TAGS} "
+                             f"(fogiac:stack, fogiac:manifest, fogiac:node, Name): at most {MAX_TAGS - FOGIAC_TAGS}")
+        for key, text in value.items():
+            if len(key) > MAX_TAG_KEY:
+                raise ValueError(f"tag key {key[:20]!r}... is {len(key)} characters; the limit is {MAX_TAG_KEY}")
+            if len(text) > MAX_TAG_VALUE:
+                raise ValueError(f"tag {key!r}: its value is {len(text)} characters; the limit is {MAX_TAG_VALUE}")
         return value
 
     @model_validator(mode="after")
     def _across(self) -> Manifest:
+        problems: list[FieldProblem] = []  # every one, each by its path: validate reports in one run
         names = [n.name for n in self.nodes]
         for i, name in enumerate(names):
             if name in names[:i]:
-                raise FieldProblem(f"duplicate node name {name!r}", field=f"nodes[{i}].name")
+                problems.append(FieldProblem(f"duplicate node name {name!r}", field=f"nodes[{i}].name"))
         for i, node in enumerate(self.nodes):
             try:
                 node.machine_choice(self.cloud.region, spot=node.spot, provider=self.cloud.chosen())
             except NoMachine as err:
-                raise FieldProblem(str(err), field=f"nodes[{i}].machine") from None
+                problems.append(FieldProblem(str(err), field=f"nodes[{i}].machine"))
         host_names = [h.name for h in self.cloud.hosts]
         for i, node in enumerate(self.nodes):
             if node.host is not None and node.host not in host_names:
-                raise FieldProblem(
+                problems.append(FieldProblem(
                     f"{node.host!r} is not in cloud.hosts", field=f"nodes[{i}].host", choices=tuple(host_names)
-                )
+                ))
+            for name in node.replica_hosts:
+                if name not in host_names:
+                    problems.append(FieldProblem(f"{name!r} is not in cloud.hosts", field=f"nodes[{i}].replica_hosts",
+                                                 choices=tuple(host_names)))
+            if node.host is not None and node.replica_hosts:
+                problems.append(FieldProblem("give host or replica_hosts, not both", field=f"nodes[{i}].replica_hosts"))
         chosen = registry.load("fogiac.middleware", "for_distro")(self.ros.distro)
         for message, field in chosen.manifest_problems(self):  # the middleware's own rules, in its words
-            raise FieldProblem(message, field=field)
+            problems.append(FieldProblem(message, field=field))
+        raise_all(problems)
         return self
 
 
@@ -186,12 +226,7 @@ def parse_manifest(text: str, *, source: str = "<manifest>", base: Path | None =
 
 def load_manifest(path: str | Path) -> Manifest:
     path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise ManifestError([f"{path}: no such file"]) from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise ManifestError([f"{path}: cannot read: {err}"]) from None
+    text = read_source(path)
     return parse_manifest(text, source=str(path), base=path.resolve().parent)
 
 
@@ -204,11 +239,12 @@ def json_schema() -> dict:
 
 def node_types() -> tuple[type[BaseModel], ...]:
     """Every model of the manifest, for the README reference test."""
-    return (Manifest, Ros, Cloud, Autostop, HostMachine, Network, Edge, Node, Machine, Launch, TopicLists, Relay)
+    return (Manifest, Ros, Cloud, Autostop, HostMachine, Network, Edge, Node, Machine, Launch, TopicLists, Relay,
+            Hedge)
 
 
 
 # What other modules import from here (the blocks and nodes live in blocks.py and nodes.py).
-__all__ = ["Autostop", "Build", "Cloud", "Edge", "HostMachine", "Launch", "Machine", "Manifest", "Network", "Node",
-           "NodeKind", "Relay", "Ros", "TopicLists", "Workload", "json_schema", "load_manifest", "parse_manifest",
-           "ssh_from_problem"]
+__all__ = ["Autostop", "Build", "Cloud", "Edge", "Hedge", "HostMachine", "Launch", "Machine", "Manifest", "Network",
+           "Node", "NodeKind", "Relay", "Ros", "TopicLists", "Workload", "json_schema", "load_manifest",
+           "parse_manifest", "ssh_from_problem"]

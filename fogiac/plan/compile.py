@@ -13,6 +13,7 @@ import re
 
 from fogiac import targets
 from fogiac.errors import FogiacError
+from fogiac.manifest.replicas import warn_unchecked
 from fogiac.manifest.schema import Manifest, Node
 from fogiac.net import middleware
 from fogiac.plan.model import (
@@ -23,27 +24,42 @@ from fogiac.plan.model import (
     NodeSpec,
     Plan,
     RelayRoute,
+    Replica,
     check_ingress,
 )
-from fogiac.plan.placement import ssh_sources
+from fogiac.plan.placement import Placement, ssh_sources
 
 _ENVIRONMENT = re.compile(r"^[a-z]([a-z0-9-]{0,38}[a-z0-9])?$")
 
 
 def stack_name(manifest: Manifest, environment: str = "dev") -> str:
-    """``<name>-<environment>``: a folder name, a tag and a word in rendered units and scripts, so
-    the environment obeys the same DNS-safe rule as the manifest's name."""
+    """``<name>-<environment>``, or ``<name>--<environment>`` when the environment holds a '-': a folder
+    name, a tag and a word in rendered units and scripts, so the environment obeys the same DNS-safe
+    rule as the manifest's name. Neither holds '--', so no two (name, environment) pairs share a stack
+    (``robot-prod`` + ``dev`` and ``robot`` + ``prod-dev`` were both ``robot-prod-dev``); an environment
+    without a '-' (``dev``, ``prod``) keeps the name it always had."""
     if not _ENVIRONMENT.match(environment):
         raise FogiacError(f"--env {environment!r} is not DNS-safe (lowercase letters, digits, '-', up to 40)")
-    return f"{manifest.name}-{environment}"
+    if "--" in environment:
+        raise FogiacError(f"--env {environment!r} holds '--', which fogiac keeps for joining the name and the "
+                          "environment")
+    return f"{manifest.name}{'--' if '-' in environment else '-'}{environment}"
 
 
-def compile_plan(manifest: Manifest, *, target: str | None = None, environment: str = "dev") -> Plan:
-    """Compile ``manifest`` for ``target`` (default: the manifest's own provider)."""
+def legacy_stack_name(manifest: Manifest, environment: str) -> str | None:
+    """The name fogiac gave this stack before ``--`` (``<name>-<environment>``), where it differs."""
+    old = f"{manifest.name}-{environment}"
+    return old if old != stack_name(manifest, environment) else None
+
+
+def compile_plan(manifest: Manifest, *, target: str | None = None, environment: str = "dev",
+                 stack: str | None = None) -> Plan:
+    """Compile ``manifest`` for ``target`` (default: the manifest's own provider); ``stack``: the name a
+    deployment made under an older naming still has (:func:`legacy_stack_name`), else :func:`stack_name`."""
     name = target or manifest.cloud.provider
     place = targets.placer(name)  # loads only what the target decides at compile time
     carrier = middleware.for_distro(manifest.ros.distro)
-    stack = stack_name(manifest, environment)
+    stack = stack or stack_name(manifest, environment)
     tags = (("fogiac:stack", stack), ("fogiac:manifest", manifest.name)) + tuple(sorted(manifest.tags.items()))
     placed = place(manifest, stack=stack, tags=tags)
     for group in placed.security_groups:
@@ -67,12 +83,37 @@ def compile_plan(manifest: Manifest, *, target: str | None = None, environment: 
         vpn=placed.vpn,
         hosts=placed.hosts,
         nodes=nodes,
-        routes=tuple(_route(manifest, host, nodes, placed.connect_via, carrier.port) for host in placed.hosts),
+        routes=tuple(_route(manifest, host, nodes, placed.connect_via, carrier.port, _replicas(manifest, placed))
+                     for host in placed.hosts),
         tags=tags,
         cost=placed.cost,
         autostop=placed.autostop,
         middleware_settings=_settings(manifest, carrier.name),
+        notes=placed.notes + _unchecked(manifest),
     )
+
+
+def _unchecked(manifest: Manifest) -> tuple[str, ...]:
+    """Replicated nodes' out topics without a stated type: said in the plan, and warned in one line."""
+    lines = tuple(line for node in manifest.nodes if (line := node.unchecked_match()) is not None)
+    for line in lines:
+        warn_unchecked(line)
+    return lines
+
+
+def _replicas(manifest: Manifest, placed: Placement) -> dict[str, Replica]:
+    """host -> the replica it carries, for every replicated node's hosts."""
+    found: dict[str, Replica] = {}
+    for node in manifest.nodes:
+        hosts = placed.replica_hosts.get(node.name, ())
+        if node.replicas > 1 and len(hosts) != node.replicas:
+            raise FogiacError(f"nodes.{node.name}: the target placed {len(hosts)} of its {node.replicas} replicas")
+        hedge = node.hedge
+        for index, host in enumerate(hosts):
+            found[host] = Replica(group=node.name, index=index, count=node.replicas, match=node.reply_match,
+                                  hedge="all" if hedge == "all" else "delayed",
+                                  hedge_delay_s=0.0 if hedge == "all" else hedge.delay_ms / 1000)
+    return found
 
 
 def _settings(manifest: Manifest, carrier: str) -> tuple[tuple[str, object], ...]:
@@ -111,8 +152,8 @@ def _node(node: Node, host: str) -> NodeSpec:
 
 
 def _route(manifest: Manifest, host: HostSpec, nodes: tuple[NodeSpec, ...], via: ConnectVia,
-           port: int) -> RelayRoute:
-    mine = [n for n in nodes if n.host == host.name]
+           port: int, replicas: dict[str, Replica]) -> RelayRoute:
+    mine = [n for n in nodes if n.name in host.nodes]
     relay = manifest.relay
     listed = relay.topics if relay.topics != "auto" else ()
     to_cloud = tuple(sorted({t for n in mine for t in n.topics_in}))
@@ -130,4 +171,5 @@ def _route(manifest: Manifest, host: HostSpec, nodes: tuple[NodeSpec, ...], via:
         listed=tuple(sorted(listed)),
         compression=compression,
         queue_size=relay.queue_size,
+        replica=replicas.get(host.name),
     )

@@ -12,7 +12,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from fogiac.manifest.clouds import prices as price_source
-from fogiac.plan.model import CostLine, HostSpec, NodeSpec, Plan
+from fogiac.plan.model import CostLine, HostSpec, NodeSpec, Plan, Replica
 
 # A month, wherever fogiac prints one: AWS's pricing pages use 730 hours (365 days * 24 / 12).
 HOURS_PER_MONTH = 730
@@ -97,9 +97,32 @@ def node_row(node: NodeSpec) -> dict[str, Any]:
     return {"name": node.name, "host": node.host, "kind": node.kind, "runs": runs, "gpu": node.gpu}
 
 
+def replica_words(replica: Replica) -> str:
+    """``replica 1 of 2`` (and, for a hedged replica, when it is asked)."""
+    hedge = f", asked after {replica.hedge_delay_s * 1000:g} ms" if replica.hedge == "delayed" and replica.index else ""
+    return f"replica {replica.index + 1} of {replica.count}{hedge}"
+
+
+def replica_rows(plan: Plan, host: str) -> dict[str, Any]:
+    """What a host row says about replicas: nothing for an unreplicated host (its row as before)."""
+    route = next((r for r in plan.routes if r.host == host), None)
+    spec = plan.host(host)
+    out: dict[str, Any] = {"zone": spec.zone} if spec.zone is not None else {}
+    if route is not None and route.replica is not None:
+        out["replica"] = replica_words(route.replica)
+    return out
+
+
+def replica_hosts(plan: Plan, node: str) -> list[str]:
+    """The hosts of ``node``'s replicas in index order; [] when it runs once."""
+    found = sorted((r.replica.index, r.host) for r in plan.routes if r.replica is not None and r.replica.group == node)
+    return [host for _, host in found]
+
+
 def hosts(plan: Plan) -> list[dict[str, Any]]:
-    return [host_row(host) for host in plan.hosts]
+    return [{**host_row(host), **replica_rows(plan, host.name)} for host in plan.hosts]
 
 
 def nodes(plan: Plan) -> list[dict[str, Any]]:
-    return [node_row(node) for node in plan.nodes]
+    return [{**node_row(node), **({"replica_hosts": reps} if (reps := replica_hosts(plan, node.name)) else {})}
+            for node in plan.nodes]

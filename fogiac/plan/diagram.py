@@ -65,13 +65,16 @@ def layout(plan: Plan) -> Drawing:
     arrows: list[Arrow] = []
     for i, host in enumerate(plan.hosts):
         top = height - 1.3 - i * (row_h + gap)
-        boxes.append(Box(9.9, top - row_h, 7.6, row_h, host.name, (_hardware(host),), "machine"))
+        route = next((r for r in plan.routes if r.host == host.name), None)
+        replica = (f"replica {route.replica.index + 1}/{route.replica.count}" + (f", {host.zone}" if host.zone else "")
+                   if route is not None and route.replica is not None else "")
+        boxes.append(Box(9.9, top - row_h, 7.6, row_h, host.name, (_hardware(host),) + ((replica,) if replica else ()),
+                         "machine"))
         for j, name in enumerate(host.nodes):
             node = plan.node(name)
             what = node.workload or node.image or (f"{node.launch.package}/{node.launch.file}" if node.launch else "")
             lines = (what[:38], "GPU" if node.gpu else "CPU")
             boxes.append(Box(10.1 + j * 3.7, top - row_h + 0.15, 3.5, 1.25, node.name, lines, "node"))
-        route = next((r for r in plan.routes if r.host == host.name), None)
         if route is None:
             continue
         y = top - row_h / 2

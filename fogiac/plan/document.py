@@ -84,10 +84,11 @@ def document(plan: Plan, resources: Sequence[Mapping[str, Any]], *, manifest_pat
         "stacks": list(dict.fromkeys(str(r["stack"]) for r in resources)),  # in the order the target declares
         "resources": [dict(r) for r in resources],
         "hosts": cost.hosts(plan),
-        "nodes": [_node(node) for node in plan.nodes],
+        "nodes": [{**_node(node), **row} for node, row in zip(plan.nodes, cost.nodes(plan), strict=True)],
         "topics": topics(plan),
         "security_rules": security_rules(plan),
         "cost": cost.cost(plan),
+        **({"notes": list(plan.notes)} if plan.notes else {}),  # absent when none: documents as before
     }
     canonical = json.dumps({"plan": plan.digest(), **body}, sort_keys=True, separators=(",", ":"))
     return {

@@ -81,6 +81,7 @@ class Subnet:
     cidr: str
     role: SubnetRole  # "instances" (public, the hosts) or "vpn" (Client VPN target)
     public: bool
+    zone: str | None = None  # None: the plan's zone; a replicated node's hosts have subnets in zones of their own
 
 
 @dataclass(frozen=True)
@@ -166,6 +167,7 @@ class HostSpec:
     # stack's own on shared machines (hosts), so two stacks on one lab machine never meet.
     master_port: int = ROS_MASTER_PORT
     relay_port: int | None = None  # None: the middleware's port
+    zone: str | None = None  # None: the plan's zone; set for a replica's host (aws: one zone per replica)
 
     @property
     def has_gpu(self) -> bool:
@@ -274,6 +276,7 @@ class Plan:
     autostop: AutostopSpec | None = None
     # The manifest's block the middleware owns (a plug-in's ``beacon:``), JSON-ready, for its deployment.
     middleware_settings: tuple[tuple[str, Any], ...] = ()
+    notes: tuple[str, ...] = ()  # what placement decided that a reader should know (replicas' zones, ...)
 
     @property
     def hourly_usd(self) -> float:
@@ -305,6 +308,14 @@ class Plan:
         for route in out["relay"]:
             if route["replica"] is None:  # unreplicated: the same bytes (and digest) as before replicas existed
                 del route["replica"]
+        for host in out["hosts"]:
+            if host["zone"] is None:  # absent unless set: existing plans keep their bytes (and digests)
+                del host["zone"]
+        for subnet in (out["network"] or {}).get("subnets", ()):
+            if subnet["zone"] is None:
+                del subnet["zone"]
+        if not self.notes:
+            del out["notes"]
         if not self.middleware_settings:  # none: the same bytes (and digest) as before there could be any
             del out["middleware_settings"]
         out["hourly_usd"] = self.hourly_usd

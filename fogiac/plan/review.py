@@ -65,13 +65,16 @@ def _topic(row: Mapping[str, Any]) -> str:
 
 def _host(row: Mapping[str, Any]) -> str:
     spot = row.get("spot_usd_per_hour") if row.get("spot") else None
+    where = "".join(f", {row[k]}" for k in ("replica", "zone") if row.get(k))  # a replica's host: which, where
     if spot is None:
-        return f"{row['name']} ({row['machine']}, ${row['usd_per_hour']:.4f}/h)"
-    return f"{row['name']} ({row['machine']}, spot, about ${spot:.4f}/h est., ${row['usd_per_hour']:.4f}/h on-demand)"
+        return f"{row['name']} ({row['machine']}, ${row['usd_per_hour']:.4f}/h{where})"
+    return (f"{row['name']} ({row['machine']}, spot, about ${spot:.4f}/h est., ${row['usd_per_hour']:.4f}/h "
+            f"on-demand{where})")
 
 
 def _node(row: Mapping[str, Any]) -> str:
-    return f"{row['name']} on {row['host']} ({row['kind']}: {row['runs']})"
+    hosts = ", ".join(row["replica_hosts"]) if row.get("replica_hosts") else row["host"]
+    return f"{row['name']} on {hosts} ({row['kind']}: {row['runs']})"
 
 
 def section_lines(section: Section, show: Any) -> list[str]:

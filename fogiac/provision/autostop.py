@@ -5,7 +5,9 @@ as one more supervised service beside the middleware's cloud side and judges "id
 what fogiac already knows, the stats file that side writes every second (the relay's cloud end,
 the Zenoh router): no edge connected (``connected``) and no message crossing (the ``msgs`` of its
 ``topics`` did not move, where it counts them). A host with no stats file yet counts as idle
-from the watchdog's start, so a host whose edge never came stops too.
+from the watchdog's start, so a host whose edge never came stops too. A stats file not rewritten
+for ``STATS_STALE_S`` (its writer stopped, hung or was SIGSTOPped) says nothing either: its last
+``connected: true`` must not keep the host up (the operator's side judges it the same way).
 
 How it stops is the target's choice (``--power``): ``machine`` powers the host off (on EC2 the
 instance's shutdown behaviour, stop or terminate, is set by the compute stack); ``services``
@@ -30,6 +32,7 @@ from fogiac.provision import supervise
 STATE_FILE = "autostop.json"
 SERVICE = "autostop"
 _POLL_S = 1.0
+STATS_STALE_S = 30.0  # stats are written every second; older than this, their writer no longer runs
 
 
 @dataclass(frozen=True)
@@ -75,9 +78,13 @@ class IdleClock:
         return now - self.last_active >= self.idle_s
 
 
-def read_activity(path: Path) -> Activity | None:
-    """``{"connected": bool, "topics": [{"msgs": int, ...}, ...]}`` (topics optional); None if unreadable."""
+def read_activity(path: Path, *, stale_s: float = STATS_STALE_S,
+                  clock: Callable[[], float] = time.time) -> Activity | None:
+    """``{"connected": bool, "topics": [{"msgs": int, ...}, ...]}`` (topics optional); None if unreadable
+    or stale (not rewritten for ``stale_s``: what it said is no longer so)."""
     try:
+        if clock() - path.stat().st_mtime > stale_s:
+            return None
         doc = json.loads(path.read_text())
         topics = doc.get("topics")
         msgs = sum(int(t["msgs"]) for t in topics) if isinstance(topics, list) else None
@@ -125,13 +132,14 @@ POWER: dict[str, Callable[[Path, IdleState], None]] = {"services": _stop_service
 
 
 def watch(*, stats_file: Path, run_dir: Path, idle_s: float, action: str, power: str,
-          clock: Callable[[], float] = time.time, sleep: Callable[[float], None] = time.sleep) -> IdleState:
+          clock: Callable[[], float] = time.time, sleep: Callable[[float], None] = time.sleep,
+          stale_s: float = STATS_STALE_S) -> IdleState:
     """Poll until idle for ``idle_s``, record it, then stop the way ``power`` says."""
     stop = POWER[power]
     idle = IdleClock(idle_s, clock())
     while True:
         now = clock()
-        idle.observe(read_activity(stats_file), now)
+        idle.observe(read_activity(stats_file, stale_s=stale_s, clock=clock), now)
         since = idle.idle_since(now)
         if idle.due(now):
             state = IdleState(idle_since=since, stops_at=now, stopped_at=now, action=action)

@@ -6,6 +6,9 @@ and runs it with the host's ``python3``. Per service NAME in a run folder it kee
 ``NAME.pid`` (the supervisor), ``NAME.child`` (the running process), ``NAME.log`` (its output)
 and ``NAME.state`` (restart count). The child runs in its own session; on failure it is
 restarted with exponential backoff (1 s doubling to 30 s, reset after 10 s of good running).
+``NAME.log`` is rotated when it passes ``LOG_MAX_BYTES``: copied to ``NAME.log.1`` (the one
+older file kept) and truncated in place, checked every second, so a chatty or attacked
+service holds at most about twice that on disk (the child keeps its append-only descriptor).
 
     supervise.py start NAME --dir RUN -- ARGV...   idempotent: a running service is left alone
     supervise.py stop NAME --dir RUN               TERM the tree, KILL after a grace period
@@ -38,6 +41,8 @@ from typing import Any, BinaryIO
 _GRACE = 5.0
 _BACKOFF_MAX = 30.0
 _GOOD_RUN = 10.0
+LOG_MAX_BYTES = 10 * 1024 * 1024
+_LOG_CHECK_S = 1.0
 
 
 def pid_alive(pid: int) -> bool:
@@ -141,6 +146,22 @@ def _note(log: BinaryIO, text: str) -> None:
     log.flush()
 
 
+def _rotate(path: Path, *, limit: int = LOG_MAX_BYTES) -> bool:
+    """Copy ``path`` to ``path.1`` and empty it in place once it is over ``limit`` bytes (copytruncate:
+    the child writes with O_APPEND, so its next line lands at the new end)."""
+    try:
+        if path.stat().st_size <= limit:
+            return False
+        older = path.with_name(path.name + ".1")
+        with open(path, "rb") as src, open(older, "wb") as dst:
+            while chunk := src.read(1 << 20):
+                dst.write(chunk)
+        os.truncate(path, 0)
+    except OSError:
+        return False
+    return True
+
+
 def _supervise(files: _Files, argv: list[str]) -> None:
     """The supervisor's main loop (runs daemonized)."""
     stopping = False
@@ -162,7 +183,14 @@ def _supervise(files: _Files, argv: list[str]) -> None:
                                      start_new_session=True)
             _write_pid(files.child, child.pid)
             files.state.write_text(json.dumps({"restarts": restarts, "child": child.pid}) + "\n")
-            code = child.wait()
+            while True:
+                try:
+                    code = child.wait(timeout=_LOG_CHECK_S)
+                    break
+                except subprocess.TimeoutExpired:
+                    if _rotate(files.log):
+                        _note(log, f"log rotated: the earlier {LOG_MAX_BYTES // (1024 * 1024)} MiB+ are in "
+                                   f"{files.log.name}.1")
             if stopping:
                 break
             _kill_tree(child.pid, grace=1.0)

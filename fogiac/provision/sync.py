@@ -154,6 +154,8 @@ def push_tree(host: Host, root: Path, dest: str, *, tmp_dir: str, extra_ignore: 
     remote = parse_sums(remote_sums)
     send, delete = diff(local, remote)
     if not send and not delete:
+        if not local:  # no file to carry (only an empty src/): the folder is still made, for the env scripts
+            host.run(f"mkdir -p {q(dest)}" + (f" {q(dest + '/src')}" if (root / "src").is_dir() else ""))
         return Pushed(files=0, removed=0, bytes_sent=0, digest=digest)
     parent, dest_name = dest.rsplit("/", 1)
     blob = _tarball(root, send, sorted(send + delete), local, dest_name=dest_name)

@@ -52,6 +52,7 @@ def test_validate_names_the_problem_in_one_line(case: Path, tmp_path: Path) -> N
     output = (result.stdout + result.stderr).strip()
     assert result.returncode == 1, output[-2000:]
     assert "Traceback" not in output and "MemoryError" not in output
+    assert not re.search(r" object at 0x[0-9a-f]+", output), output  # never an internal object's repr
     lines = output.splitlines()
     assert lines and all(line.startswith("fogiac.yaml:") for line in lines), output[-2000:]
     assert any(re.search(expect, line) for line in lines), f"no line matches {expect!r}:\n{output[-2000:]}"

@@ -49,7 +49,7 @@ def _where(runtime: str, base: str = "/home/ubuntu/.fogiac/fleet-dev/x") -> svc.
 
 
 RUN = "docker run --rm --network host --label fogiac.stack=fleet-dev --label fogiac.host={host}"
-ROS = "--env ROS_MASTER_URI=http://127.0.0.1:11311 --env ROS_IP=10.10.0.5"
+ROS = "--env ROS_MASTER_URI=http://127.0.0.1:11311 --env ROS_IP=127.0.0.1"  # loopback: only the relay faces out
 
 
 def _line(plan: Plan, node: str) -> str:
@@ -155,7 +155,8 @@ def test_relay_cloud_end_command(plan: Plan) -> None:
     relay = relay_svc.relay_service(plan, plan.host("talker"), where)
     assert relay.script.splitlines()[-1] == (
         "exec python3 -m fogiac relay cloud --listen 0.0.0.0:11411 --master http://127.0.0.1:11311 "
-        f"--certs {where.layout.certs} --stats-file {where.layout.run}/relay-cloud.stats.json --topics auto"  # the edge's policy
+        f"--certs {where.layout.certs} --ros-host 127.0.0.1 --stats-file {where.layout.run}/relay-cloud.stats.json "
+        "--topics auto"  # the edge's policy; its ROS side on loopback beside the host's master
     )
 
 

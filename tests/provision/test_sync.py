@@ -65,3 +65,16 @@ def test_links_are_pushed_as_links_and_never_followed(tmp_path: Path) -> None:
     assert Path(dest, "src/up1").readlink() == Path("..")
     assert Path(dest, "src/fogtest/talker_link.py").read_text() == (ws / "src/fogtest/scripts/talker.py").read_text()
     assert push_tree(host, ws, dest, tmp_dir=f"{host.base}/tmp").changed is False
+
+
+def test_a_workspace_with_only_an_empty_src_is_made_on_the_host(tmp_path: Path) -> None:
+    """Issue 26 item 20: nothing to push left no folder, and the env script's `cd` failed at up."""
+    ws = tmp_path / "ws"
+    (ws / "src").mkdir(parents=True)
+    host = LocalHost(name="box", base=str(tmp_path / "box"))
+    host.connect()
+    dest = f"{host.base}/ws/demo"
+    pushed = push_tree(host, ws, dest, tmp_dir=f"{host.base}/tmp", remote_sums="")
+    assert (pushed.files, pushed.removed) == (0, 0)
+    # what the native runtime runs for an env script: cd into the workspace, then the script
+    assert host.run(f"cd {dest} && test -d src && echo set up").stdout == "set up\n"

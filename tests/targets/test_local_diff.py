@@ -19,7 +19,13 @@ pytestmark = [
 runner = CliRunner()
 
 
-def test_plan_diffs_against_the_deployed_stack(tmp_path: Path, _state_dir: Path) -> None:
+def test_plan_diffs_against_the_deployed_stack(tmp_path: Path, _state_dir: Path,
+                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    home = tmp_path / "home"  # the operator's: the edge master's logs stay out of its ~/.ros (issue 26 item 23)
+    home.mkdir()
+    monkeypatch.setenv("HOME", str(home))
+    monkeypatch.delenv("ROS_HOME", raising=False)
+    monkeypatch.delenv("ROS_LOG_DIR", raising=False)
     manifest = tmp_path / "fogiac.yaml"
     text = (EXAMPLES / "motion-planning.yaml").read_text().replace(
         "ros_master: http://localhost:11311", f"ros_master: http://127.0.0.1:{free_port()}")
@@ -29,6 +35,8 @@ def test_plan_diffs_against_the_deployed_stack(tmp_path: Path, _state_dir: Path)
     try:
         up = runner.invoke(app, ["up", str(manifest), "--target", "local", "--yes", "--start-edge-master"])
         assert up.exit_code == 0, up.output
+        assert list((_state_dir / "motion-planning-dev" / "edge" / "ros" / "log").iterdir())
+        assert not (home / ".ros").exists()
         same = runner.invoke(app, plan)
         assert same.exit_code == 0, same.output
         assert same.output.splitlines()[-1] == "No changes. Your infrastructure matches the configuration."
@@ -45,4 +53,5 @@ def test_plan_diffs_against_the_deployed_stack(tmp_path: Path, _state_dir: Path)
         down = runner.invoke(app, ["down", str(manifest), "--target", "local", "--yes"])
     assert down.exit_code == 0, down.output
     assert not (_state_dir / "motion-planning-dev" / "applied.json").exists()
+    assert not (_state_dir / "motion-planning-dev" / "edge").exists()  # its logs went with it
     assert runner.invoke(app, plan).exit_code == 2

@@ -4,9 +4,13 @@ Only a connection that completes mutual TLS and opens with a HELLO becomes the s
 newer one replaces an older (the edge reconnected after a half-open link), and garbage on any
 connection closes only that connection. The edge may ask for (SUBSCRIBE) and send (OPEN) only
 the topics this end's policy lets cross in that direction; anything else is refused and counted.
-At most ``max_handshakes`` connections are in TLS/HELLO at once (each has a thread and a
-deadline); a connection beyond that is closed as soon as it is accepted, so idle or slow
-connections cannot pile up threads.
+At most ``max_handshakes`` connections are in TLS/HELLO at once, ``max_per_source`` of them from
+one address (each has a thread and a deadline: ``tls_timeout`` to send a first byte and finish
+TLS, then ``HANDSHAKE_TIMEOUT`` for the HELLO). When a new connection finds no slot, the oldest
+connection that has not sent a byte yet (of its own source first) is closed for it; if every slot
+is talking TLS, the new one is closed. So idle connections cannot pile up threads, and they never
+keep the edge out, even from the edge's own address: the edge speaks at once and is not evicted.
+Refusals are logged at most once per kind per 10 s (:mod:`.ratelog`).
 """
 
 from __future__ import annotations
@@ -15,6 +19,7 @@ import logging
 import socket
 import ssl
 import threading
+from dataclasses import dataclass, field
 
 from fogiac.errors import RelayError
 from fogiac.net.relay import framing
@@ -22,12 +27,22 @@ from fogiac.net.relay.config import CloudConfig
 from fogiac.net.relay.end import RelayEnd
 from fogiac.net.relay.framing import Frame, FrameError, Kind
 from fogiac.net.relay.graph import Direction, GraphState, may_cross
+from fogiac.net.relay.ratelog import RateLimitedLog
 from fogiac.net.relay.session import Session, read_frame, send_now
 from fogiac.net.relay.tls import server_context
 
 log = logging.getLogger(__name__)
 PROTOCOL_VERSION = 1
 HANDSHAKE_TIMEOUT = 10.0
+
+
+@dataclass(eq=False)
+class _Pending:
+    """A connection in its handshake: evictable while it has not sent a byte (``silent``)."""
+
+    raw: socket.socket
+    source: str
+    silent: bool = field(default=True)
 
 
 class CloudRelay(RelayEnd):
@@ -40,8 +55,10 @@ class CloudRelay(RelayEnd):
         self._listener: socket.socket | None = None
         self._swap = threading.Lock()
         self._graph = GraphState()  # this master's graph as last reported to the edge
-        self._handshakes = threading.BoundedSemaphore(config.max_handshakes)
-        self.turned_away = 0  # connections closed because too many were handshaking
+        self._pending: list[_Pending] = []  # oldest first
+        self._slots = threading.Lock()
+        self._quiet = RateLimitedLog(log)
+        self.turned_away = 0  # connections closed because too many were handshaking (new ones or idle ones)
 
     @property
     def address(self) -> tuple[str, int]:
@@ -70,31 +87,72 @@ class CloudRelay(RelayEnd):
                 raw, addr = self._listener.accept()
             except OSError:
                 return
-            if not self._handshakes.acquire(blocking=False):
+            pending = self._admit(raw, str(addr[0]))
+            if pending is None:
                 self.turned_away += 1
-                log.warning("turned away %s:%d: %d connections already handshaking", *addr[:2],
-                            self.cloud_config.max_handshakes)
+                self._quiet.warning("full", "turned away %s:%d: %d connections already in TLS", *addr[:2],
+                                    self.cloud_config.max_handshakes)
                 raw.close()
                 continue
-            threading.Thread(target=self._serve, args=(raw, addr), name="relay-conn", daemon=True).start()
+            threading.Thread(target=self._serve, args=(pending, addr), name="relay-conn", daemon=True).start()
 
-    def _serve(self, raw: socket.socket, addr: tuple[str, int]) -> None:
+    def _admit(self, raw: socket.socket, source: str) -> _Pending | None:
+        """A slot for ``raw``, made by evicting the oldest silent connection if need be; None if none."""
+        config = self.cloud_config
+        with self._slots:
+            mine = [p for p in self._pending if p.source == source]
+            victim: _Pending | None = None
+            if len(mine) >= config.max_per_source:
+                victim = next((p for p in mine if p.silent), None)
+                if victim is None:
+                    return None
+            elif len(self._pending) >= config.max_handshakes:
+                victim = next((p for p in mine if p.silent), None) or next(
+                    (p for p in self._pending if p.silent), None)
+                if victim is None:
+                    return None
+            if victim is not None:
+                self._pending.remove(victim)
+            pending = _Pending(raw, source)
+            self._pending.append(pending)
+        if victim is not None:
+            self.turned_away += 1
+            self._quiet.warning("evicted", "closed an idle connection from %s for a new one", victim.source)
+            try:
+                victim.raw.shutdown(socket.SHUT_RDWR)  # its thread's read ends now; the thread closes it
+            except OSError:
+                pass
+        return pending
+
+    def _release(self, pending: _Pending) -> None:
+        with self._slots:
+            if pending in self._pending:
+                self._pending.remove(pending)
+
+    def _serve(self, pending: _Pending, addr: tuple[str, int]) -> None:
         try:
-            sock = self._handshake(raw, f"{addr[0]}:{addr[1]}")
+            sock = self._handshake(pending, f"{addr[0]}:{addr[1]}")
         finally:
-            self._handshakes.release()
+            self._release(pending)
         if sock is not None:
             self._run_session(sock, f"{addr[0]}:{addr[1]}")
 
-    def _handshake(self, raw: socket.socket, peer: str) -> ssl.SSLSocket | None:
-        """TLS and HELLO, each read bounded by HANDSHAKE_TIMEOUT; None when the peer fails them."""
+    def _handshake(self, pending: _Pending, peer: str) -> ssl.SSLSocket | None:
+        """A first byte and TLS within ``tls_timeout``, then HELLO within HANDSHAKE_TIMEOUT; None when the
+        peer fails them (or was evicted while silent)."""
+        raw = pending.raw
         try:
-            raw.settimeout(HANDSHAKE_TIMEOUT)
+            raw.settimeout(self.cloud_config.tls_timeout)
+            if not raw.recv(1, socket.MSG_PEEK):
+                raise OSError("closed before TLS")
+            with self._slots:
+                pending.silent = False  # talking TLS now: no longer evicted for a newer connection
             sock = self._ctx.wrap_socket(raw, server_side=True)
         except (ssl.SSLError, OSError) as err:
-            log.warning("refused TLS connection from %s: %s", peer, err)
+            self._quiet.warning("tls", "refused TLS connection from %s: %s", peer, err)
             raw.close()
             return None
+        sock.settimeout(HANDSHAKE_TIMEOUT)
         try:
             hello = read_frame(sock)
             if hello.kind is not Kind.HELLO or framing.parse_json(hello).get("role") != "edge":
@@ -106,7 +164,7 @@ class CloudRelay(RelayEnd):
             sock.settimeout(None)
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         except (FrameError, OSError) as err:
-            log.warning("dropping connection from %s: %s", peer, err)
+            self._quiet.warning("hello", "dropping connection from %s: %s", peer, err)
             sock.close()
             return None
         return sock
@@ -137,7 +195,7 @@ class CloudRelay(RelayEnd):
         """Tell the edge about this master's graph whenever it changes (it decides routes)."""
         last: GraphState | None = None
         while session.alive and not self._stopping.is_set():
-            graph = self.local_graph()
+            graph = self.local_graph(types=True)  # the edge tells its master the types (rostopic echo)
             if graph is not None and graph != last:
                 self._graph = graph
                 session.send(framing.json_frame(Kind.STATE, graph.to_json()))

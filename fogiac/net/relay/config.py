@@ -45,7 +45,9 @@ class EndConfig:
 class CloudConfig(EndConfig):
     listen: tuple[str, int] = ("0.0.0.0", RELAY_PORT)
     policy: TopicPolicy = TopicPolicy(auto=True)  # what the edge may ask for or send, as the edge's
-    max_handshakes: int = 8  # connections still in TLS/HELLO; more are closed at once
+    max_handshakes: int = 8  # connections still in TLS/HELLO; an idle one is evicted for a newer, or the newer closed
+    max_per_source: int = 4  # of those, from one address
+    tls_timeout: float = 3.0  # seconds a connection may take to start and finish TLS (before any certificate)
     caller_id: str = "/fogiac_relay_cloud"
 
 

@@ -55,6 +55,9 @@ def _master_up(uri: str, *, timeout: float) -> bool:
     return poll(answers, timeout=timeout, interval=0.2, backoff=1.0) is not None
 
 
+EDGE_ROS_HOME = "ros"  # the edge master's ROS_HOME, in the edge folder
+
+
 def prepare_edge(uri: str, *, folder: Path, start: bool) -> None:
     """The edge's ROS master must answer; for demos fogiac can run it (supervised, stopped by down)."""
     if _master_up(uri, timeout=0.5):
@@ -63,10 +66,23 @@ def prepare_edge(uri: str, *, folder: Path, start: bool) -> None:
         raise FogiacError(f"no ROS master answers at {uri} (edge.ros_master); start roscore, "
                           "or pass --start-edge-master to let fogiac run one")
     url = urlparse(uri)
-    supervise.start(folder, EDGE_MASTER, ["roscore", "-p", str(url.port)])
+    # its logs in the stack's edge folder (down removes it), not the operator's ~/.ros/log
+    home = folder / EDGE_ROS_HOME
+    logs = [f"ROS_HOME={home}", f"ROS_LOG_DIR={home / 'log'}"]
+    argv = ["env", *logs, "roscore", "-p", str(url.port)]
+    if _loopback(url.hostname):
+        # rosmaster binds where ROS_IP says: loopback, not 0.0.0.0. The master alone, without roscore's
+        # rosout: roscpp's XML-RPC server binds every interface whatever ROS_IP says, and through it
+        # anyone on the network could point rosout at a publisher of their own.
+        argv = ["env", "-u", "ROS_HOSTNAME", *logs, "ROS_IP=127.0.0.1", "rosmaster", "--core", "-p", str(url.port)]
+    supervise.start(folder, EDGE_MASTER, argv)
     if not _master_up(uri, timeout=30):
         supervise.stop(folder, EDGE_MASTER)
         raise FogiacError(f"the edge roscore did not come up at {uri}; see {folder / (EDGE_MASTER + '.log')}")
+
+
+def _loopback(host: str | None) -> bool:
+    return host == "localhost" or (host or "").startswith("127.")
 
 
 def _stats(folder: Path, host: str) -> Path:
@@ -88,6 +104,8 @@ def edge_argv(route: Route, *, stack: str, connect: str, master: str, certs: Pat
             "--certs", str(certs), "--stats-file", str(stats), "--queue-depth", str(route.queue_size),
             "--name", name, "--server-name", relay_name(stack, route.host)]
     argv += route.policy_argv()
+    if _loopback(urlparse(master).hostname):  # its XML-RPC and TCPROS sockets on loopback beside the master
+        argv += ["--ros-host", "127.0.0.1"]
     compression = dict(route.compression)
     if "*" in compression:
         argv += ["--compression", compression["*"]]
@@ -122,6 +140,8 @@ def replicas_argv(group: str, routes: list[Route], *, stack: str, connect: Mappi
         argv += ["--replica", ",".join([str(route.replica.index), route.host, connect[route.host],
                                         relay_name(stack, route.host), str(_stats(folder, route.host))])]
     argv += first.policy_argv()
+    if _loopback(urlparse(master).hostname):  # as edge_argv: its sockets on loopback beside the master
+        argv += ["--ros-host", "127.0.0.1"]
     compression = dict(first.compression)
     if "*" in compression:
         argv += ["--compression", compression["*"]]

@@ -19,7 +19,7 @@ from fogiac.net.relay.cloud import HANDSHAKE_TIMEOUT, PROTOCOL_VERSION
 from fogiac.net.relay.config import EdgeConfig
 from fogiac.net.relay.end import RelayEnd
 from fogiac.net.relay.framing import Frame, FrameError, Kind
-from fogiac.net.relay.graph import GraphState, Route, select_routes
+from fogiac.net.relay.graph import GraphState, Route, select_routes, type_hints
 from fogiac.net.relay.session import Session, read_frame, send_now
 from fogiac.net.relay.tls import client_context, expected_server_name
 
@@ -113,8 +113,12 @@ class EdgeRelay(RelayEnd):
                 wanted = select_routes(local, self._cloud_graph, self.edge_config.policy)
                 self._apply(session, current, wanted)
                 current = wanted
+                self.node.hint_types(type_hints(self._cloud_graph, self.edge_config.policy,  # type: ignore[union-attr]
+                                                routed=[r.topic for r in wanted if r.direction == "in"]))
             self._wake.wait(self.config.poll_interval)
             self._wake.clear()
+        if self.node is not None:
+            self.node.hint_types({})
 
     def _apply(self, session: Session, current: frozenset[Route], wanted: frozenset[Route]) -> None:
         for route in sorted(wanted - current):

@@ -93,7 +93,8 @@ class RelayEnd:
         self._threads.append(thread)
         return thread
 
-    def local_graph(self) -> GraphState | None:
+    def local_graph(self, *, types: bool = False) -> GraphState | None:
+        """This master's graph without the relay; with ``types``, the published topics' types too."""
         assert self.node is not None
         try:
             state = self.node.master.system_state()
@@ -102,7 +103,8 @@ class RelayEnd:
                 log.warning("the ROS master at %s lost the relay's registrations; registering again",
                             self.config.master_uri)
                 self.node.register_all()
-            return from_system_state(state, exclude={self.caller_id})
+            known = self.node.master.topic_types() if types else None
+            return from_system_state(state, exclude={self.caller_id}, types=known)
         except RelayError as err:
             log.warning("cannot read the local ROS graph: %s", err)
             return None

@@ -18,16 +18,21 @@ DEFAULT_IGNORE = ("/rosout", "/rosout_agg", "/fogros/")
 
 @dataclass(frozen=True)
 class GraphState:
-    """Topic -> registered nodes, for publishers and subscribers of one master."""
+    """Topic -> registered nodes, for publishers and subscribers of one master; ``types``: the
+    published topics' message types, where the master knows them (the cloud reports them)."""
 
     publishers: Mapping[str, frozenset[str]] = field(default_factory=dict)
     subscribers: Mapping[str, frozenset[str]] = field(default_factory=dict)
+    types: Mapping[str, str] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
-        return {
+        body: dict[str, Any] = {
             "publishers": {t: sorted(n) for t, n in sorted(self.publishers.items())},
             "subscribers": {t: sorted(n) for t, n in sorted(self.subscribers.items())},
         }
+        if self.types:
+            body["types"] = dict(sorted(self.types.items()))
+        return body
 
     @classmethod
     def from_json(cls, body: Mapping[str, Any]) -> GraphState:
@@ -37,11 +42,15 @@ class GraphState:
                 raise ValueError(f"{key} must be an object")
             return {str(t): frozenset(map(str, nodes)) for t, nodes in raw.items()}
 
-        return cls(side("publishers"), side("subscribers"))
+        types = body.get("types", {})
+        if not isinstance(types, dict):
+            raise ValueError("types must be an object")
+        return cls(side("publishers"), side("subscribers"), {str(t): str(ty) for t, ty in types.items()})
 
 
-def from_system_state(state: Any, *, exclude: Iterable[str]) -> GraphState:
-    """A GraphState from the master's ``[publishers, subscribers, services]`` answer."""
+def from_system_state(state: Any, *, exclude: Iterable[str], types: Mapping[str, str] | None = None) -> GraphState:
+    """A GraphState from the master's ``[publishers, subscribers, services]`` answer (and, with
+    ``types``, its ``getTopicTypes``: kept for the published topics only)."""
     skip = set(exclude)
 
     def side(entries: Any) -> dict[str, frozenset[str]]:
@@ -52,7 +61,9 @@ def from_system_state(state: Any, *, exclude: Iterable[str]) -> GraphState:
                 out[topic] = kept
         return out
 
-    return GraphState(side(state[0]), side(state[1]))
+    publishers = side(state[0])
+    known = {t: ty for t, ty in (types or {}).items() if t in publishers and ty != "*"}
+    return GraphState(publishers, side(state[1]), known)
 
 
 @dataclass(frozen=True)
@@ -108,3 +119,14 @@ def select_routes(edge: GraphState, cloud: GraphState, policy: TopicPolicy) -> f
             if not _ignored(topic, policy.ignore):
                 routes.add(Route(topic, "in"))
     return frozenset(routes)
+
+
+def type_hints(cloud: GraphState, policy: TopicPolicy, *, routed: Iterable[str] = ()) -> dict[str, str]:
+    """In ``auto`` mode, the type of each topic the cloud publishes that could cross to the edge but does
+    not yet (no edge subscriber): the edge master must know it, since ``rostopic echo`` asks the master
+    for a topic's type and subscribes only once it has one (a subscriber with ``*`` never comes)."""
+    if not policy.auto:
+        return {}
+    skip = set(routed)
+    return {t: ty for t, ty in cloud.types.items()
+            if cloud.publishers.get(t) and t not in skip and not _ignored(t, policy.ignore)}

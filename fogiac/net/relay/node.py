@@ -11,6 +11,7 @@ import ipaddress
 import logging
 import socket
 import threading
+from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
 from fogiac.errors import RelayError
@@ -38,6 +39,7 @@ class RelayNode:
         self._publishers: dict[str, LocalPublisher] = {}
         self._subscriptions: dict[str, LocalSubscription] = {}
         self._types: dict[str, str] = {}
+        self._hints: dict[str, str] = {}  # topic -> type told to the master for rostopic (see hint_types)
         self._lock = threading.Lock()
         bind = _bind_address(host)
         self._slave = SlaveServer(bind=bind, host=host, caller_id=caller_id, master_uri=master_uri,
@@ -95,8 +97,28 @@ class RelayNode:
             del self._subscriptions[sub.topic]
         self._quietly(self.master.unregister_subscriber, sub.topic)
 
+    def hint_types(self, hints: Mapping[str, str]) -> None:
+        """Tell the master these topics' types (the far side publishes them), by registering as a typed
+        subscriber: ``rostopic echo`` asks the master for the type before it subscribes. A topic whose
+        route starts gets its real publisher (with the md5 and definition) from the far side's OPEN."""
+        wanted = {t: ty for t, ty in hints.items() if t not in self._subscriptions}
+        for topic in sorted(set(self._hints) - set(wanted)):
+            if topic not in self._subscriptions:
+                self._quietly(self.master.unregister_subscriber, topic)
+            del self._hints[topic]
+        for topic, type_name in sorted(wanted.items()):
+            if self._hints.get(topic) != type_name:
+                try:
+                    self.master.register_subscriber(topic, type_name, self.uri)
+                except RelayError as err:
+                    log.info("%s: cannot tell the master its type: %s", topic, err)
+                    continue
+                self._hints[topic] = type_name
+
     def register_all(self) -> None:
         """Register every publication and subscription again (the master restarted empty)."""
+        for topic, type_name in sorted(self._hints.items()):
+            self.master.register_subscriber(topic, type_name, self.uri)
         for pub in list(self._publishers.values()):
             self.master.register_publisher(pub.topic, pub.meta.type, self.uri)
         for sub in list(self._subscriptions.values()):

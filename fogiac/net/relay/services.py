@@ -18,9 +18,15 @@ from fogiac.plan.model import HostSpec, Plan
 CLOUD_END = "relay-cloud"  # the cloud end's service, whose stats the autostop watchdog reads
 
 
+LOOPBACK = "127.0.0.1"
+
+
 def node_env(where: Where) -> Mapping[str, str]:
-    """ROS_MASTER_URI (the host's own master) and ROS_IP (the address peers dial back)."""
-    return side_env(side="cloud", master_uri=master_uri(where), address=where.ros_address).env
+    """ROS_MASTER_URI (the host's own master) and ROS_IP, loopback on every target: a host's nodes talk
+    to its own master and to the relay's cloud end on the same machine only, so the master (and every
+    rospy node) binds loopback and nobody on the host's network registers publishers or dials a node;
+    only the relay's TLS port faces the network."""
+    return side_env(side="cloud", master_uri=master_uri(where), address=LOOPBACK).env
 
 
 def master_service(plan: Plan, spec: HostSpec, where: Where) -> Service:
@@ -35,7 +41,7 @@ def relay_service(plan: Plan, spec: HostSpec, where: Where) -> Service:
     route = next((r for r in plan.routes if r.host == spec.name), None)
     policy = " ".join(shlex.quote(arg) for arg in route.policy_argv()) if route is not None else ""
     command = (f"{shlex.quote(where.python)} -m fogiac relay cloud --listen {where.listen}:{where.relay_port} "
-               f"--master {master_uri(where)} --certs {shlex.quote(where.layout.certs)} "
+               f"--master {master_uri(where)} --certs {shlex.quote(where.layout.certs)} --ros-host {LOOPBACK} "
                f"--stats-file {shlex.quote(relay_stats(where))} {policy}").rstrip()
     return make_service(CLOUD_END, plan=plan, spec=spec, where=where, command=command, check="alive",
                         python_path=where.code_root, after=MASTER)

@@ -9,8 +9,17 @@ certificate's common name, and lets the edge see only the manifest's topics:
 - cloud -> edge (a node's ``out``): the cloud may put them, the edge may declare subscribers;
 - ``relay.topics`` (direction unknown) both ways; everything else denied, in both flows.
 
-Liveliness tokens under ``@ros2_lv`` (rmw_zenoh's graph: node and endpoint names, no data) pass
-both ways, so ``ros2 node list`` on the robot shows the cloud nodes.
+The edge router holds the mirror image towards each cloud router it dials (recognised by the
+certificate's common name): from the cloud only the ``out`` keys' data and subscriptions to the
+``in`` keys; to the cloud only the ``in`` keys' data and subscriptions to the ``out`` keys. So a
+cloud host whose router lost its access control (root there can remove it) still reaches no
+unlisted robot topic and puts nothing unlisted on the robot.
+
+Liveliness (rmw_zenoh's graph, ``@ros2_lv``) crosses only as the listed topics need it, one
+token per endpoint: a publisher's (``MP``) token of a topic towards its subscribers' side, a
+subscriber's (``MS``) towards its publishers' side. Node tokens, service and client tokens, the
+tokens of any other topic, liveliness subscriptions and queries, and every query or reply stay on
+their side: neither side learns the other's node names or unlisted topics, nor forges them.
 """
 
 from __future__ import annotations
@@ -24,9 +33,10 @@ from fogiac.plan.model import Route
 ROUTER_PORT = 7448  # the cloud router's mutual-TLS port for the edge (7447, rmw_zenoh's default, stays local)
 LOCAL_PORT = 7447  # rmw_zenoh's default router port: where nodes on the same machine connect
 
-GRAPH_KEYS = ("@ros2_lv/**",)  # rmw_zenoh's liveliness tokens: the ROS graph, no payloads
+GRAPH_SPACE = "@ros2_lv"  # rmw_zenoh's liveliness tokens: the ROS graph, no payloads
 _DATA = ["put", "delete"]
 _GRAPH = ["liveliness_token", "declare_liveliness_subscriber", "liveliness_query"]
+PUBLISHER, SUBSCRIBER = "MP", "MS"  # rmw_zenoh's entity kinds in a liveliness token
 # rmw_zenoh's nodes are peers that find each other through their router's gossip (one hop, never
 # passed on); a router itself never dials what it hears, so nothing reaches across to the other side.
 _GOSSIP = {"enabled": True, "multihop": False, "target": {"router": ["peer"], "peer": ["router", "peer"]},
@@ -62,6 +72,39 @@ def replica_keys_prefix(route: Route) -> str:
     return "" if replica is None else f"fogiac/replica/{replica.group}/{replica.index}/"
 
 
+def graph_key(topic: str, kind: str) -> str:
+    """rmw_zenoh's liveliness token of one publisher (``MP``) or subscriber (``MS``) of ``topic``:
+    ``@ros2_lv/<domain>/<zid>/<node>/<entity>/<kind>/<enclave>/<namespace>/<node name>/<topic>/<type>/<hash>/<qos>``,
+    the topic's slashes mangled to ``%``; exactly one chunk per field, so nothing else matches."""
+    mangled = "%" + topic.strip("/").replace("/", "%")
+    return f"{GRAPH_SPACE}/*/*/*/*/{kind}/*/*/*/{mangled}/*/*/*"
+
+
+def graph_keys(*, publishers: Iterable[str], subscribers: Iterable[str]) -> list[str]:
+    """The tokens that may cross one way: the publishers of what crosses, the subscribers of what comes back."""
+    return ([graph_key(t, PUBLISHER) for t in sorted(set(publishers))]
+            + [graph_key(t, SUBSCRIBER) for t in sorted(set(subscribers))])
+
+
+def _link_rules(prefix: str, *, receive: list[str], send: list[str], keys: str = "") -> list[dict[str, Any]]:
+    """One side's rules for a link, in its own flows: data it receives (``ingress``) and sends (``egress``),
+    subscriptions declared the other way, and the publisher/subscriber tokens that go with them. A replica's
+    link carries its data keys under ``keys`` (its prefix: :func:`replica_keys_prefix`), its tokens as they are."""
+    rules = []
+    if receive:
+        rules.append(_rule(f"{prefix}-data-in", "ingress", _DATA, _keys(receive, keys)))
+        rules.append(_rule(f"{prefix}-interest-out", "egress", ["declare_subscriber"], _keys(receive, keys)))
+    if send:
+        rules.append(_rule(f"{prefix}-data-out", "egress", _DATA, _keys(send, keys)))
+        rules.append(_rule(f"{prefix}-interest-in", "ingress", ["declare_subscriber"], _keys(send, keys)))
+    tokens_in = graph_keys(publishers=receive, subscribers=send)
+    tokens_out = graph_keys(publishers=send, subscribers=receive)
+    if tokens_in:
+        rules.append(_rule(f"{prefix}-graph-in", "ingress", ["liveliness_token"], tokens_in))
+        rules.append(_rule(f"{prefix}-graph-out", "egress", ["liveliness_token"], tokens_out))
+    return rules
+
+
 def _rule(rule_id: str, flow: str, messages: list[str], keys: list[str]) -> dict[str, Any]:
     return {"id": rule_id, "permission": "allow", "flows": [flow], "messages": messages, "key_exprs": keys}
 
@@ -69,20 +112,9 @@ def _rule(rule_id: str, flow: str, messages: list[str], keys: list[str]) -> dict
 def access_control(route: Route, *, edge_name: str) -> dict[str, Any]:
     """Deny by default; the host's own nodes (TCP on loopback) may do anything among themselves. A replica's
     host lets only its prefixed keys cross, so the edge's merge sees every copy of a reply, the robot none."""
-    prefix = replica_keys_prefix(route)
-    to_cloud = _keys(route.to_cloud + route.listed, prefix)
-    to_edge = _keys(route.to_edge + route.listed, prefix)
-    rules = [_rule("local", flow, _DATA + ["declare_subscriber", "query", "reply", "declare_queryable"] + _GRAPH,
-                   ["**"]) for flow in ("ingress", "egress")]
-    rules[0]["id"], rules[1]["id"] = "local-in", "local-out"
-    rules.append(_rule("graph-in", "ingress", _GRAPH, list(GRAPH_KEYS)))
-    rules.append(_rule("graph-out", "egress", _GRAPH, list(GRAPH_KEYS)))
-    if to_cloud:
-        rules.append(_rule("to-cloud-data", "ingress", _DATA, to_cloud))
-        rules.append(_rule("to-cloud-interest", "egress", ["declare_subscriber"], to_cloud))
-    if to_edge:
-        rules.append(_rule("to-edge-data", "egress", _DATA, to_edge))
-        rules.append(_rule("to-edge-interest", "ingress", ["declare_subscriber"], to_edge))
+    rules = _local_rules()
+    rules += _link_rules("edge", receive=list(route.to_cloud + route.listed), send=list(route.to_edge + route.listed),
+                         keys=replica_keys_prefix(route))
     edge_rules = [r["id"] for r in rules if not r["id"].startswith("local")]
     return {
         "enabled": True,
@@ -97,6 +129,29 @@ def access_control(route: Route, *, edge_name: str) -> dict[str, Any]:
             {"id": "edge", "rules": edge_rules, "subjects": ["edge"]},
         ],
     }
+
+
+def _local_rules() -> list[dict[str, Any]]:
+    every = _DATA + ["declare_subscriber", "query", "reply", "declare_queryable"] + _GRAPH
+    keys = ["**", f"{GRAPH_SPACE}/**"]  # ``**`` never matches a chunk starting with ``@``
+    return [_rule("local-in", "ingress", every, keys), _rule("local-out", "egress", every, keys)]
+
+
+def edge_access_control(clouds: Sequence[tuple[str, Route]]) -> dict[str, Any]:
+    """The edge router's side: deny by default; the robot's nodes (TCP on loopback) may do anything among
+    themselves; each cloud router, known by its certificate's common name, only its route's topics."""
+    rules = _local_rules()
+    subjects: list[dict[str, Any]] = [{"id": "robot-nodes", "link_protocols": ["tcp"], "interfaces": ["lo"]}]
+    policies: list[dict[str, Any]] = [{"id": "robot-nodes", "rules": ["local-in", "local-out"],
+                                       "subjects": ["robot-nodes"]}]
+    for n, (name, route) in enumerate(clouds):
+        mine = _link_rules(f"cloud{n}", receive=list(route.to_edge + route.listed),
+                           send=list(route.to_cloud + route.listed), keys=replica_keys_prefix(route))
+        rules += mine
+        subjects.append({"id": f"cloud{n}", "link_protocols": ["tls"], "cert_common_names": [name]})
+        policies.append({"id": f"cloud{n}", "rules": [r["id"] for r in mine], "subjects": [f"cloud{n}"]})
+    return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects,
+            "policies": [p for p in policies if p["rules"]]}
 
 
 def _tls(files: TlsFiles, *, listen: bool) -> dict[str, Any]:
@@ -130,8 +185,12 @@ def cloud_router(route: Route, *, listen_host: str, tls: TlsFiles, edge_name: st
     return config
 
 
-def edge_router(cloud: Sequence[tuple[str, int]], *, tls: TlsFiles, local_port: int = LOCAL_PORT) -> dict[str, Any]:
-    """The robot's router: dials every cloud router, listens on loopback only (for the robot's nodes)."""
-    return _base(listen=(f"tcp/127.0.0.1:{local_port}",), connect=[f"tls/{host}:{port}" for host, port in cloud],
-                 tls=_tls(tls, listen=False))
+def edge_router(cloud: Sequence[tuple[str, int]], *, tls: TlsFiles, policy: Sequence[tuple[str, Route]],
+                local_port: int = LOCAL_PORT) -> dict[str, Any]:
+    """The robot's router: dials every cloud router, listens on loopback only (for the robot's nodes), and lets
+    each cloud router (``policy``: its certificate's common name and its route) reach only its route's topics."""
+    config = _base(listen=(f"tcp/127.0.0.1:{local_port}",), connect=[f"tls/{host}:{port}" for host, port in cloud],
+                   tls=_tls(tls, listen=False))
+    config["access_control"] = edge_access_control(policy)
+    return config
 

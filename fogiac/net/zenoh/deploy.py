@@ -47,9 +47,19 @@ BRIDGE_NOTE = ("zenoh-bridge-ros2dds is not installed by fogiac: for a DDS robot
                "run `zenoh-bridge-ros2dds -c {path}`")
 
 
+def _zid(seed: str) -> str:
+    digest = hashlib.sha256(seed.encode()).hexdigest()[:32]
+    return "f" + digest[1:] if digest.startswith("0") else digest  # Zenoh refuses an id with a leading 0
+
+
 def router_id(stack: str, host: str) -> str:
     """A fixed Zenoh id per cloud router, so the edge can tell which host it is linked to."""
-    return hashlib.sha256(f"{stack}/{host}".encode()).hexdigest()[:32]
+    return _zid(f"{stack}/{host}")
+
+
+def edge_router_id(stack: str) -> str:
+    """The edge router's fixed Zenoh id: a cloud router's stats count only it as "the edge connected"."""
+    return _zid(f"{stack}/edge-router")
 
 
 def local_endpoint(where: Where) -> str:
@@ -125,7 +135,8 @@ def host_services(plan: Plan, spec: HostSpec, where: Where, *, certs: Path) -> t
     config["id"] = router_id(plan.stack, spec.name)
     config["listen"]["endpoints"][0] = f"tls/{listen}:{where.relay_port}"
     path, stats = f"{where.layout.env}/zenoh-router.json", router_stats(where)
-    command = f"{q(where.python)} -m fogiac.net.zenoh.router {q(path)} --stats-file {q(stats)}"
+    command = (f"{q(where.python)} -m fogiac.net.zenoh.router {q(path)} --stats-file {q(stats)} "
+               f"--edge-id {edge_router_id(plan.stack)}")
     router = make_service(ROUTER, plan=plan, spec=spec, where=where, command=command, check="alive",
                               python_path=where.code_root, files=(
                                   (path, json.dumps(config, indent=1, sort_keys=True), 0o600),
@@ -195,7 +206,9 @@ def edge_up(plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path, 
     pair = _issued(certs, "edge", lambda: tls.edge_pair(ca, stack=plan.stack))
     files = tls.write_files(folder / "zenoh", "edge", pair, ca)
     cloud = [(e.host, e.port) for e in (Endpoint.parse(address) for _, address in sorted(connect.items()))]
-    config = edge_router(cloud, tls=files, local_port=_port(entry))
+    policy = [(tls.host_name(plan.stack, r.host), r) for r in plan.routes if r.host in connect]
+    config = edge_router(cloud, tls=files, local_port=_port(entry), policy=policy)
+    config["id"] = edge_router_id(plan.stack)
     router_file, stats = folder / "zenoh-edge.json", folder / "zenoh-edge.stats.json"
     router_file.write_text(json.dumps(config, indent=1, sort_keys=True))
     supervise.start(folder, EDGE_ROUTER, [sys.executable, "-m", "fogiac.net.zenoh.router", str(router_file),

@@ -31,9 +31,11 @@ def open_router(config: dict[str, Any]) -> Any:
         raise ZenohError(f"zenoh router: {err}") from None
 
 
-def serve(config_path: Path, *, stats: Path | None = None) -> None:
+def serve(config_path: Path, *, stats: Path | None = None, edge_id: str | None = None) -> None:
     """Route until told to stop; with ``stats``, write the ids of the routers linked to it every second
-    and whether there is one (``connected``: on a cloud host, the edge's router; autostop reads it)."""
+    and whether the edge's is one of them (``connected``, which autostop reads). With ``edge_id`` only
+    that router counts: a zenohd or a bridge on the host linked to the loopback port is no edge.
+    Without it (the edge's own router), any linked router counts."""
     config = json.loads(config_path.read_text())
     stop = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
@@ -44,7 +46,8 @@ def serve(config_path: Path, *, stats: Path | None = None) -> None:
         while not stop.wait(STATS_PERIOD_S if stats is not None else None):
             if stats is not None:
                 routers = sorted(str(z) for z in session.info.routers_zid())
-                write_json_atomic(stats, {"routers": routers, "connected": bool(routers)})
+                linked = edge_id in routers if edge_id is not None else bool(routers)
+                write_json_atomic(stats, {"routers": routers, "connected": linked})
     finally:
         session.close()
 
@@ -53,9 +56,10 @@ if __name__ == "__main__":
     parser = argparse.ArgumentParser(prog="python -m fogiac.net.zenoh.router")
     parser.add_argument("config", type=Path)
     parser.add_argument("--stats-file", type=Path, help="write the linked routers' ids here every second")
+    parser.add_argument("--edge-id", help="the edge router's Zenoh id: only it counts as connected")
     args = parser.parse_args()
     try:
-        serve(args.config, stats=args.stats_file)
+        serve(args.config, stats=args.stats_file, edge_id=args.edge_id)
     except (ZenohError, OSError, ValueError, IndexError) as err:
         print(f"error: {err}", file=sys.stderr)
         sys.exit(1)

@@ -27,7 +27,8 @@ class NativeRuntime:
         if node.kind == "image":
             raise ProvisionError(
                 f"{spec.name}: node {node.name} runs image {node.image} but the host has no working "
-                "container engine (`docker info` failed); install Docker there or use a launch/workload node"
+                "container engine (`docker info` failed); set cloud.runtime: container to use podman there, "
+                "install Docker, or use a launch/workload node"
             )
         if node.kind == "command":
             return NodeRun(command=" ".join(q(arg) for arg in node.command), check="alive", env=node.env)

@@ -14,7 +14,7 @@ import os
 import re
 import time
 import urllib.request
-from collections.abc import Collection, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -28,6 +28,12 @@ from stacks import HOST_KEYS_BEGIN, HOST_KEYS_END
 
 STACK_TAG = "fogiac:stack"
 NODE_TAG = "fogiac:node"
+HOST_TAG = "fogiac:host"  # on a replica's instance (its host is <node>-rN); every other host is its node's name
+
+
+def host_of(tags: Mapping[str, str], default: str = "") -> str:
+    """The plan's host an instance is: its fogiac:host tag (a replica), else its fogiac:node tag."""
+    return tags.get(HOST_TAG) or tags.get(NODE_TAG) or default
 OPERATOR_ENV = "FOGIAC_OPERATOR_CIDR"
 CHECKIP_URL = "https://checkip.amazonaws.com"
 _NO_CREDENTIALS = (
@@ -166,8 +172,17 @@ def _zones(ec2: Any, types: Sequence[str]) -> dict[str, set[str]]:
 
 
 def choose_zone(plan: Plan, offered: dict[str, set[str]], problems: list[str]) -> str:
-    """The manifest's zone if it offers every type, else the first zone (sorted) that does."""
-    wanted = sorted({h.machine for h in plan.hosts})
+    """The manifest's zone if it offers every type, else the first zone (sorted) that does. A replica's
+    host has a zone of its own (checked here too); the plan's zone is chosen for the others."""
+    for host in plan.hosts:
+        if host.zone is not None and host.machine not in offered.get(host.zone, set()):
+            where = "is not an available zone of " + plan.region if host.zone not in offered else \
+                f"does not offer {host.machine}"
+            problems.append(f"{host.name}: zone {host.zone} {where} (replicas go to zones of their own; "
+                            "`fogiac catalog update` refreshes which zones offer what)")
+    wanted = sorted({h.machine for h in plan.hosts if h.zone is None})
+    if not wanted:
+        return plan.zone  # every host a replica in its own zone: the plan's zone holds only the VPN's subnet
     if plan.zone_chosen:
         missing = [t for t in wanted if t not in offered.get(plan.zone, set())]
         if plan.zone not in offered:
@@ -338,7 +353,7 @@ def status(stack: str, *, region: str, ec2: Any = None,
             tags = tags_of(inst)
             stopped_at, stopped_by = stop_time(inst)
             rows.append(InstanceStatus(
-                name=tags.get(NODE_TAG, tags.get("Name", inst["InstanceId"])), instance_id=inst["InstanceId"],
+                name=host_of(tags, tags.get("Name", inst["InstanceId"])), instance_id=inst["InstanceId"],
                 state=state, machine=inst["InstanceType"], public_ip=inst.get("PublicIpAddress"),
                 private_ip=inst.get("PrivateIpAddress"), launched=launched, uptime_s=uptime,
                 cost_usd=round(uptime / 3600 * price, 4), usd_per_hour=price if running else 0.0,

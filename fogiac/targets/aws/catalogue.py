@@ -103,6 +103,9 @@ class Catalogue:
         self._types: dict[str, InstanceType] = {}
         self._index = {r: i for i, r in enumerate(self.regions)}
         self._prices: dict[str, Mapping[int, tuple[float | None, int, float | None, int]]] = {}
+        # type -> "region index:zone letters;..." (which zones of a region offer it); absent in older files
+        self._zone_rows: Mapping[str, str] = raw.get("zones", {})
+        self._zone_cache: dict[str, dict[str, tuple[str, ...]]] = {}
 
     @property
     def types(self) -> tuple[str, ...]:
@@ -134,6 +137,27 @@ class Catalogue:
     def offered(self, name: str, region: str) -> bool:
         row, i = self._rows.get(name), self._index.get(region)
         return row is not None and i is not None and bool(int(row[8]) >> i & 1)
+
+    def _zones_of(self, name: str) -> dict[str, tuple[str, ...]]:
+        found = self._zone_cache.get(name)
+        if found is None:
+            found = {}
+            for cell in filter(None, self._zone_rows.get(name, "").split(";")):
+                ri, letters = cell.split(":")
+                region = self.regions[int(ri)]
+                found[region] = tuple(f"{region}{letter}" for letter in letters)
+            self._zone_cache[name] = found
+        return found
+
+    def region_zones(self, region: str) -> tuple[str, ...]:
+        """The zones of ``region`` the catalogue knows (any type offered there); () when it lists none."""
+        return tuple(sorted({z for name in self._zone_rows for z in self._zones_of(name).get(region, ())}))
+
+    def zones_offering(self, name: str, region: str) -> tuple[str, ...] | None:
+        """The zones of ``region`` that offer ``name``, sorted; None when the catalogue lists no zones there."""
+        if not self.region_zones(region):
+            return None
+        return self._zones_of(name).get(region, ())
 
     def _points(self, name: str) -> Mapping[int, tuple[float | None, int, float | None, int]]:
         """region index -> (on-demand, its source, spot, its source); parsed on first use."""

@@ -47,3 +47,8 @@ def image_of(host: HostSpec) -> ImageQuery | None:
     """The host's AMI query, as the aws placement made it."""
     assert host.image is None or isinstance(host.image, ImageQuery), host.image
     return host.image
+
+
+def zone_subnet(zone: str) -> str:
+    """The subnet of a replica's host in ``zone`` (every other host's is ``hosts``, in the plan's zone)."""
+    return f"hosts-{zone}"

@@ -5,12 +5,12 @@ groups, found by the ``fogiac:stack`` tag, with every ingress rule of those grou
 a rule someone added in the console carries no tag. :func:`compare` is pure: the applied
 document and the observation in, :class:`~fogiac.plan.drift.Drift` rows out.
 
-Matching: an instance by its ``fogiac:node`` tag (the host), a security group by its name, an
-ingress rule by protocol, ports and source. The applied document is the offline plan, so the
-operator's address is a placeholder there (``<operator>/32``) and the AMI a query: a rule with a
-placeholder source matches the addresses ``ssh_from`` resolved to at the apply (recorded in
-outputs.json), and the AMI is compared only where the document names one. A stopped instance
-is not drift (autostop stops them).
+Matching: an instance by its ``fogiac:host`` tag (a replica) or ``fogiac:node`` tag (the host), a
+security group by its name, an ingress rule by protocol, ports and source. The applied document is
+the offline plan, so the operator's address is a placeholder there (``<operator>/32``) and the AMI
+a query: a rule with a placeholder source matches the addresses ``ssh_from`` resolved to at the
+apply (recorded in outputs.json), and the AMI is compared only where the document names one. A
+stopped instance is not drift (autostop stops them).
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ def observe(stack: str, *, region: str, ec2: Any = None) -> dict[str, Any]:
     """The stack's instances (type, state, AMI) and security groups (every ingress rule), as JSON."""
     ec2 = ec2 or api.client("ec2", region=region)
     instances = [
-        {"instance_id": i["InstanceId"], "host": api.tags_of(i).get(api.NODE_TAG, ""), "type": i["InstanceType"],
+        {"instance_id": i["InstanceId"], "host": api.host_of(api.tags_of(i)), "type": i["InstanceType"],
          "state": i["State"]["Name"], "ami": i.get("ImageId", "")}
         for r in api.paginate(ec2, "describe_instances", "Reservations", Filters=api.tag_filter(stack))
         for i in r["Instances"]]
@@ -69,7 +69,7 @@ def _instances(rows: list[Mapping[str, Any]], seen: list[Mapping[str, Any]]) -> 
     out = []
     for row in (r for r in rows if r["type"] == INSTANCE):
         inputs = row["inputs"]
-        host = (inputs.get("tags") or {}).get(api.NODE_TAG, "")
+        host = api.host_of(inputs.get("tags") or {})
         live = [i for i in seen if i["host"] == host and i["state"] not in GONE]
         if not live:
             out.append(Drift(row["stack"], INSTANCE, row["name"], "deleted"))

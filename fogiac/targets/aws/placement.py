@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import dataclasses
+import ipaddress
+from collections.abc import Mapping
+
+from fogiac.errors import FogiacError, PlanError
 from fogiac.manifest.machines import MachineSpec
 from fogiac.manifest.schema import Manifest
 from fogiac.net import middleware
@@ -18,9 +23,10 @@ from fogiac.plan.model import (
     Subnet,
     server_name,
 )
-from fogiac.plan.placement import Placement, Tags, autostop_for, host_per_node, ssh_sources
+from fogiac.plan.placement import Placement, Tags, autostop_for, host_per_node, replica_groups, ssh_sources
 from fogiac.targets.aws.catalog import catalog, on_demand, spot_price
-from fogiac.targets.aws.model import ImageQuery, VpnSpec
+from fogiac.targets.aws.manifest import CLOUD as AWS
+from fogiac.targets.aws.model import ImageQuery, VpnSpec, zone_subnet
 
 _WORLD = "0.0.0.0/0"
 AUTOSTOP_MINUTES = 30  # unless the manifest says otherwise, an EC2 host idle this long powers itself off
@@ -57,18 +63,80 @@ def image_for(spec: MachineSpec) -> MachineImage:
     return IMAGES[(spec.arch if spec.arch == "arm64" else "x86_64", spec.has_gpu)]
 
 
-def _network(manifest: Manifest) -> NetworkSpec:
+def _network(manifest: Manifest, zones: tuple[str, ...] = ()) -> NetworkSpec:
+    """The hosts' and the VPN's subnets in the plan's zone, and one hosts subnet per zone a replica uses."""
     vpc = manifest.network.vpc_cidr
     prefix = max(vpc.prefixlen + 1, 24) if vpc.prefixlen < 24 else vpc.prefixlen + 1
-    first, second = list(vpc.subnets(new_prefix=prefix))[:2]
+    blocks = list(vpc.subnets(new_prefix=prefix))
+    if len(blocks) < 2 + len(zones):
+        raise PlanError(f"network.vpc_cidr: {vpc} has room for {len(blocks)} subnets; the replicas' {len(zones)} "
+                        f"zones need {2 + len(zones)} (a larger range, e.g. a /16)")
+    first, second = blocks[:2]
     return NetworkSpec(
         vpc_cidr=str(vpc),
         subnets=(
             Subnet(name="hosts", cidr=str(first), role="instances", public=True),
             Subnet(name="vpn", cidr=str(second), role="vpn", public=False),
-        ),
+        ) + tuple(Subnet(name=zone_subnet(zone), cidr=str(block), role="instances", public=True, zone=zone)
+                  for zone, block in zip(zones, blocks[2:], strict=False)),
         flow_logs=manifest.network.flow_logs,
     )
+
+
+def replica_zones(manifest: Manifest, hosts: tuple[HostSpec, ...],
+                  groups: Mapping[str, tuple[str, ...]]) -> tuple[tuple[HostSpec, ...], tuple[str, ...]]:
+    """Each replica's host in a zone of its own where the region has enough zones offering its machine:
+    the plan's zone first, then the others in order; a zone that does not offer the type is skipped and
+    said. Returns the hosts (replicas' with ``zone`` set) and the plan's notes."""
+    region = manifest.cloud.region
+    first = manifest.cloud.zone or f"{region}a"
+    cat = AWS.catalogue
+    notes: list[str] = []
+    zoned: dict[str, str] = {}
+    by_name = {h.name: h for h in hosts}
+    for node, names in groups.items():
+        machine = by_name[names[0]].machine
+        known = cat.region_zones(region)
+        ordered = [first] + sorted(z for z in known if z != first)
+        offering = cat.zones_offering(machine, region)
+        if offering is None:  # the catalogue (an older or refreshed one) lists no zones here
+            usable = [first] + [f"{region}{letter}" for letter in "abcdef" if f"{region}{letter}" != first]
+            usable = usable[:len(names)]
+            notes.append(f"{node}: the catalogue lists no zones of {region}; replicas assumed in "
+                         f"{', '.join(usable)} (`fogiac up` checks them)")
+        else:
+            usable = [z for z in ordered if z in offering]
+            notes += [f"{node}: zone {z} does not offer {machine}, skipped" for z in ordered if z not in offering]
+        if not usable:
+            raise PlanError(f"nodes.{node}: no zone of {region} offers {machine}")
+        for index, name in enumerate(names):
+            zoned[name] = usable[index % len(usable)]
+        spread = ", ".join(f"{name} in {zoned[name]}" for name in names)
+        shared = " (fewer zones offer it than replicas: some share a zone)" if len(usable) < len(names) else ""
+        notes.append(f"{node}: {len(names)} replicas, {spread}{shared}")
+        host = by_name[names[0]]
+        each = f"${host.usd_per_hour:.4f}/h each" if host.usd_per_hour else "cost unknown"
+        notes.append(f"{node}: {len(names)} machines priced ({machine}, {each}); the cost guard counts every one")
+        if host.spot:
+            notes.append(f"{node}: spot is safe with replicas: a reclaimed replica's requests are answered by "
+                         "the others while `fogiac up` replaces it")
+    placed = tuple(dataclasses.replace(h, zone=zoned[h.name]) if h.name in zoned else h for h in hosts)
+    return placed, tuple(notes)
+
+
+AWS_RESERVED_PER_SUBNET = 5  # the network, the router, DNS, one for the future, the broadcast
+
+
+def _room_for(manifest: Manifest, network: NetworkSpec, machines: int) -> None:
+    """The hosts subnet holds an address for every machine: found at validate, not when EC2 runs out at up."""
+    subnet = next(s for s in network.subnets if s.role == "instances")
+    usable = ipaddress.IPv4Network(subnet.cidr).num_addresses - AWS_RESERVED_PER_SUBNET
+    if machines > usable:
+        wider = ("give vpc_cidr a shorter prefix (a /24 or wider)" if ipaddress.IPv4Network(subnet.cidr).prefixlen > 24
+                 else "fogiac's hosts subnet is a /24 at most: split the nodes into several stacks")
+        raise FogiacError(
+            f"network.vpc_cidr: {manifest.network.vpc_cidr} gives the hosts subnet {subnet.cidr}, {usable} usable "
+            f"addresses (AWS keeps 5), for {machines} machines; {wider}")
 
 
 def _egress(manifest: Manifest, inside: list[str]) -> tuple[Rule, ...]:
@@ -131,7 +199,8 @@ def _vpn(manifest: Manifest, stack: str, network: NetworkSpec) -> VpnSpec:
 def cost_lines(hosts: tuple[HostSpec, ...], vpn: VpnSpec | None) -> tuple[CostLine, ...]:
     """Each instance at its on-demand price, a spot one with its spot estimate beside; the Client VPN."""
     lines = [
-        CostLine(f"instance {h.name} ({h.machine}{', spot' if h.spot else ''})", 1, h.usd_per_hour,
+        CostLine(f"instance {h.name} ({h.machine}{', spot' if h.spot else ''}{', ' + h.zone if h.zone else ''})", 1,
+                 h.usd_per_hour,
                  spot_usd_per_hour=h.spot_usd_per_hour if h.spot else None)
         for h in hosts
     ]
@@ -146,10 +215,13 @@ def place(manifest: Manifest, *, stack: str, tags: Tags) -> Placement:
     """One EC2 instance per node, in a VPC of its own; the Client VPN in vpn mode."""
     region = manifest.cloud.region
     vpn_mode = manifest.network.mode == "vpn"
-    network = _network(manifest)
     hosts, node_hosts = host_per_node(
         manifest, stack=stack, tags=tags, usd_per_hour=lambda spec: on_demand(spec.name, region), spot=True,
         spot_usd_per_hour=lambda spec: spot_price(spec.name, region), image=image_for)
+    _room_for(manifest, _network(manifest), len(hosts))  # a machine a node (and a replica): before any zone is chosen
+    groups = replica_groups(manifest)
+    hosts, notes = replica_zones(manifest, hosts, groups)
+    network = _network(manifest, tuple(sorted({h.zone for h in hosts if h.zone is not None})))
     vpn = _vpn(manifest, stack, network) if vpn_mode else None
     return Placement(
         hosts=hosts, node_hosts=node_hosts, mode=manifest.network.mode,
@@ -157,4 +229,5 @@ def place(manifest: Manifest, *, stack: str, tags: Tags) -> Placement:
         security_groups=_firewall(manifest, ssh_sources(manifest), vpn_mode=vpn_mode), vpn=vpn,
         cost=cost_lines(hosts, vpn),
         autostop=autostop_for(manifest, power="machine", default_minutes=AUTOSTOP_MINUTES),
+        replica_hosts=groups, notes=notes,
     )

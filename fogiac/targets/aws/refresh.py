@@ -86,6 +86,7 @@ class Builder:
     offered: dict[str, set[str]] = field(default_factory=dict)  # type -> regions
     on_demand: dict[tuple[str, str], tuple[float, int]] = field(default_factory=dict)
     spot: dict[tuple[str, str], tuple[float, int]] = field(default_factory=dict)
+    zones: dict[str, dict[str, set[str]]] = field(default_factory=dict)  # type -> region -> zones offering it
 
     def source(self, source: Source) -> int:
         if source not in self.sources:
@@ -98,6 +99,10 @@ class Builder:
 
     def offer(self, itype: str, region: str) -> None:
         self.offered.setdefault(itype, set()).add(region)
+
+    def zone(self, itype: str, zone: str) -> None:
+        """One availability-zone offering (a DescribeInstanceTypeOfferings answer by zone)."""
+        self.zones.setdefault(itype, {}).setdefault(zone[:-1], set()).add(zone)
 
     def document(self) -> dict[str, Any]:
         regions = sorted({r for rs in self.offered.values() for r in rs}
@@ -115,7 +120,7 @@ class Builder:
         return {"format": FORMAT, "provenance": self.provenance, "sources": [asdict(s) for s in self.sources],
                 "regions": regions, "client_vpn_usd_per_hour": {**CLIENT_VPN_USD_PER_HOUR,
                                                                 "source": _CLIENT_VPN_SOURCE},
-                "types": types}
+                "types": types, **({"zones": encode_zones(self.zones, index)} if self.zones else {})}
 
     def write(self, path: str | Path) -> Path:
         out = Path(path)
@@ -123,6 +128,23 @@ class Builder:
         text = json.dumps(self.document(), separators=(",", ":"), sort_keys=False)
         out.write_bytes(gzip.compress(text.encode(), compresslevel=9, mtime=0))
         return out
+
+
+def encode_zones(zones: Mapping[str, Mapping[str, set[str]]], index: Mapping[str, int]) -> dict[str, str]:
+    """type -> ``"region index:zone letters;..."``: which zones of each region offer the type."""
+    return {name: ";".join(f"{index[region]}:{''.join(sorted(z[-1] for z in found))}"
+                           for region, found in sorted(by_region.items(), key=lambda kv: index[kv[0]])
+                           if region in index)
+            for name, by_region in sorted(zones.items())}
+
+
+def moto_zones(moto: str | Path) -> dict[str, dict[str, set[str]]]:
+    """type -> region -> zones, from moto's ``instance_type_offerings/availability-zone/*.json.gz``."""
+    b = Builder()
+    for f in sorted((Path(moto) / "instance_type_offerings" / "availability-zone").glob("*.json.gz")):
+        for item in json.loads(gzip.decompress(f.read_bytes())):
+            b.zone(item["InstanceType"], item["Location"])
+    return b.zones
 
 
 def _cell(value: Any) -> str:
@@ -355,7 +377,8 @@ def from_snapshots(*, moto: str | Path, karpenter_prices_go: str | Path, spot_ad
         "inputs": [
             {"what": "hardware, availability", "package": "moto-ext 5.1.54 (PyPI)", "license": "Apache-2.0",
              "files": ["moto/ec2/resources/instance_types.json.gz",
-                       "moto/ec2/resources/instance_type_offerings/region/*.json.gz"]},
+                       "moto/ec2/resources/instance_type_offerings/region/*.json.gz",
+                       "moto/ec2/resources/instance_type_offerings/availability-zone/*.json.gz"]},
             {"what": "previous generations' hardware, availability", "package": "moto 5.0.28 (PyPI, 2025-02-02)",
              "license": "Apache-2.0", "files": ["moto/ec2/resources/instance_types.json.gz",
                                               "moto/ec2/resources/instance_type_offerings/region/*.json.gz"]},
@@ -399,6 +422,9 @@ def from_snapshots(*, moto: str | Path, karpenter_prices_go: str | Path, spot_ad
             for item in json.loads(gzip.decompress(f.read_bytes())):
                 if item["InstanceType"] in added:
                     b.offer(item["InstanceType"], item["Location"])
+    for name, by_region in moto_zones(moto).items():
+        if name in b.hardware:
+            b.zones[name] = by_region
     base = karpenter_prices(Path(karpenter_prices_go).read_text())
     ratios = region_ratios()
     for name, regions in b.offered.items():

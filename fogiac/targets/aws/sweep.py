@@ -16,7 +16,10 @@ from collections.abc import Callable, Collection
 from dataclasses import dataclass
 from typing import Any
 
+from fogiac.errors import CloudError
 from fogiac.targets.aws.api import STACK_TAG, error_code, paginate, tag_filter, tags_of
+
+MANIFEST_TAG = "fogiac:manifest"  # the manifest name, on every resource compile tags
 
 # Kinds in the order they can be deleted: users before what they use.
 ORDER = (
@@ -242,11 +245,27 @@ def _revoke_group_rules(groups: list[Found], *, ec2: Any) -> None:
             ec2.revoke_security_group_egress(GroupId=g["GroupId"], IpPermissions=g["IpPermissionsEgress"])
 
 
+def owners(stack: str, *, ec2: Any) -> set[str]:
+    """The manifest names (tag ``fogiac:manifest``) on the stack's VPCs, instances and security groups."""
+    found: set[str] = set()
+    for op, key in (("describe_vpcs", "Vpcs"), ("describe_security_groups", "SecurityGroups")):
+        found.update(tags_of(item).get(MANIFEST_TAG, "") for item in paginate(ec2, op, key, Filters=tag_filter(stack)))
+    for reservation in paginate(ec2, "describe_instances", "Reservations", Filters=tag_filter(stack)):
+        found.update(tags_of(inst).get(MANIFEST_TAG, "") for inst in reservation["Instances"])
+    return found - {""}  # made by hand, or by a fogiac that did not tag the manifest: nobody's in particular
+
+
 def sweep(stack: str, *, ec2: Any, acm: Any, dry_run: bool, kinds: Collection[str] | None = None,
-          logs: Any = None, iam: Any = None,
+          logs: Any = None, iam: Any = None, owner: str | None = None,
           rounds: int = 8, first_delay_s: float = 1.0, sleep: Callable[[float], None] | None = None) -> SweepResult:
     """Delete all of ``stack`` (or only ``kinds`` of it) in dependency order, retrying "in use"
-    with bounded backoff."""
+    with bounded backoff. ``owner``: the manifest name the stack must belong to; resources another
+    manifest tagged with the same stack name are never deleted (the sweep is refused in one line)."""
+    others = sorted(owners(stack, ec2=ec2) - {owner}) if owner is not None else []
+    if others:
+        raise CloudError(f"stack {stack!r} in the cloud was made by manifest {', '.join(map(repr, others))}, not "
+                         f"{owner!r}: not deleting another manifest's resources; give this one another name: "
+                         "or --env")
 
     def listing() -> tuple[list[Found], list[str]]:
         found, skipped = inventory(stack, ec2=ec2, acm=acm, logs=logs, iam=iam)

@@ -11,6 +11,7 @@ from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from fogiac import deployment
 from fogiac.certs import load_or_create_bundle
 from fogiac.errors import CloudError, EngineError, ProvisionError
 from fogiac.lifecycle.edge import edge_idle_since
@@ -18,7 +19,6 @@ from fogiac.lifecycle.events import OnEvent
 from fogiac.lifecycle.report import autostop_line
 from fogiac.manifest.schema import Manifest
 from fogiac.plan import drift, guard
-from fogiac.plan.document import APPLIED_FILE
 from fogiac.plan.model import Plan
 from fogiac.plan.placement import Placement, Tags
 from fogiac.provision import SshAccess, idle, recorded_access
@@ -236,8 +236,8 @@ class AwsTarget:
         with stack_lock(plan.stack, operation="refresh"):
             layers = engine.Engine(plan).refresh()
             lines = [Refreshed(r.layer, r.ok, r.summary) for r in layers]
-            applied = StackState(plan.stack).read(APPLIED_FILE)
-            if not isinstance(applied, dict):
+            applied = deployment.read_applied(plan.stack)
+            if applied is None:
                 return lines  # nothing applied: nothing the cloud could have drifted from
             seen = observe.observe(plan.stack, region=plan.region)
             recorded = StackState(plan.stack).read(engine.OUTPUTS_FILE) or {}
@@ -262,7 +262,8 @@ class AwsTarget:
     def _sweep(self, plan: Plan, *, dry_run: bool, kinds: tuple[str, ...] | None = None) -> sweeping.SweepResult:
         return sweeping.sweep(plan.stack, ec2=api.client("ec2", region=plan.region),
                               acm=api.client("acm", region=plan.region), logs=api.client("logs", region=plan.region),
-                              iam=api.client("iam", region=plan.region), dry_run=dry_run, kinds=kinds)
+                              iam=api.client("iam", region=plan.region), dry_run=dry_run, kinds=kinds,
+                              owner=plan.manifest_name)
 
 
 def watchdogs(plan: Plan, rows: list[api.InstanceStatus]) -> dict[str, dict[str, Any] | None]:

@@ -95,19 +95,24 @@ class ZenohLab:
         return cloud_router(rt, listen_host="127.0.0.1", tls=self.host_files(rt.host),
                             edge_name=tls.edge_name(STACK), local_port=local_port)
 
-    def edge_config(self, cloud: list[tuple[str, int]], *, local_port: int,
-                    ca: KeyPair | None = None) -> dict[str, Any]:
+    def edge_config(self, cloud: list[tuple[str, int]], *, local_port: int, ca: KeyPair | None = None,
+                    routes: tuple[RelayRoute, ...] | None = None) -> dict[str, Any]:
+        """The edge router's config; its access control lets each cloud router reach its route's topics
+        (by default the lab's one ``gpu`` host with :func:`route`'s topics)."""
         signer = ca or self.ca
         pair = tls.edge_pair(signer, stack=STACK)
         files = self.files("edge", pair, signer)
         if ca is not None:  # an edge from another CA still trusts fogiac's CA for the cloud's certificate
             files = TlsFiles(ca=self.files("trust", pair).ca, cert=files.cert, key=files.key)
-        return edge_router(cloud, tls=files, local_port=local_port)
+        routes = routes if routes is not None else tuple(route(port) for _, port in cloud)
+        policy = [(tls.host_name(STACK, r.host), r) for r in routes]
+        return edge_router(cloud, tls=files, local_port=local_port, policy=policy)
 
-    def router(self, name: str, config: dict[str, Any]) -> subprocess.Popen:
+    def router(self, name: str, config: dict[str, Any], *args: str) -> subprocess.Popen:
+        """``python -m fogiac.net.zenoh.router`` on ``config``, with its other ``args`` (``--stats-file``...)."""
         path = self.root / f"{name}.json"
         path.write_text(json.dumps(config, indent=1))
-        return self._start(["-m", "fogiac.net.zenoh.router", str(path)], name)
+        return self._start(["-m", "fogiac.net.zenoh.router", str(path), *args], name)
 
     def node(self, name: str, port: int, *, pub: tuple[str, ...] = (), sub: tuple[str, ...] = (),
              size: int = 64) -> Path:

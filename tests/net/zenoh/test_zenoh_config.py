@@ -36,13 +36,21 @@ def test_access_control_denies_by_default_and_allows_each_topic_in_its_direction
     acl = access_control(route(7448, to_cloud=("/scan",), to_edge=("/plan",)), edge_name="edge.x")
     assert acl["enabled"] and acl["default_permission"] == "deny"
     rules = {r["id"]: r for r in acl["rules"]}
-    assert rules["to-cloud-data"] == {"id": "to-cloud-data", "permission": "allow", "flows": ["ingress"],
-                                      "messages": ["put", "delete"], "key_exprs": ["*/scan/*/*"]}
-    assert rules["to-edge-data"]["flows"] == ["egress"] and rules["to-edge-data"]["key_exprs"] == ["*/plan/*/*"]
-    assert rules["to-cloud-interest"]["messages"] == ["declare_subscriber"]
+    assert rules["edge-data-in"] == {"id": "edge-data-in", "permission": "allow", "flows": ["ingress"],
+                                     "messages": ["put", "delete"], "key_exprs": ["*/scan/*/*"]}
+    assert rules["edge-data-out"]["flows"] == ["egress"] and rules["edge-data-out"]["key_exprs"] == ["*/plan/*/*"]
+    assert rules["edge-interest-out"]["messages"] == ["declare_subscriber"]
+    # the graph: the robot's publisher of /scan and subscriber of /plan in, the cloud's mirror image out
+    assert rules["edge-graph-in"]["messages"] == ["liveliness_token"]
+    assert rules["edge-graph-in"]["key_exprs"] == ["@ros2_lv/*/*/*/*/MP/*/*/*/%scan/*/*/*",
+                                                   "@ros2_lv/*/*/*/*/MS/*/*/*/%plan/*/*/*"]
+    assert rules["edge-graph-out"]["key_exprs"] == ["@ros2_lv/*/*/*/*/MP/*/*/*/%plan/*/*/*",
+                                                    "@ros2_lv/*/*/*/*/MS/*/*/*/%scan/*/*/*"]
     edge = next(p for p in acl["policies"] if p["subjects"] == ["edge"])
-    data_keys = {k for r in acl["rules"] if r["id"] in edge["rules"] for k in r["key_exprs"]}
-    assert data_keys == {"*/scan/*/*", "*/plan/*/*", "@ros2_lv/**"}  # nothing else, no wildcard for data
+    keys = {k for r in acl["rules"] if r["id"] in edge["rules"] for k in r["key_exprs"]}
+    assert {k for k in keys if not k.startswith("@ros2_lv/")} == {"*/scan/*/*", "*/plan/*/*"}  # no wildcard
+    assert {m for r in acl["rules"] if r["id"] in edge["rules"] for m in r["messages"]} == {
+        "put", "delete", "declare_subscriber", "liveliness_token"}  # no query, reply, liveliness query
     subjects = {s["id"]: s for s in acl["subjects"]}
     assert subjects["edge"] == {"id": "edge", "link_protocols": ["tls"], "cert_common_names": ["edge.x"]}
 
@@ -55,11 +63,21 @@ def test_the_cloud_router_listens_with_mutual_tls_and_the_edge_router_only_dials
         "root_ca_certificate": FILES.ca, "listen_private_key": FILES.key, "listen_certificate": FILES.cert,
         "enable_mtls": True, "verify_name_on_connect": True,
     }
-    edge = edge_router([("10.10.0.5", 7448), ("10.10.0.6", 7448)], tls=FILES, local_port=7447)
+    policy = [("a.router.s.fogiac", route(7448, to_cloud=("/scan",), to_edge=("/plan",))),
+              ("b.router.s.fogiac", route(7448, to_cloud=("/imu",), to_edge=()))]
+    edge = edge_router([("10.10.0.5", 7448), ("10.10.0.6", 7448)], tls=FILES, local_port=7447, policy=policy)
     assert edge["connect"]["endpoints"] == ["tls/10.10.0.5:7448", "tls/10.10.0.6:7448"]
     assert edge["listen"]["endpoints"] == ["tcp/127.0.0.1:7447"]  # for the robot's nodes, nothing else
     assert edge["transport"]["link"]["tls"]["connect_certificate"] == FILES.cert
-    assert "access_control" not in edge
+    acl = edge["access_control"]  # the mirror image of each cloud router's, that router known by its name
+    assert acl["default_permission"] == "deny"
+    assert [s for s in acl["subjects"] if s["link_protocols"] == ["tls"]] == [
+        {"id": "cloud0", "link_protocols": ["tls"], "cert_common_names": ["a.router.s.fogiac"]},
+        {"id": "cloud1", "link_protocols": ["tls"], "cert_common_names": ["b.router.s.fogiac"]}]
+    rules = {r["id"]: r for r in acl["rules"]}
+    assert rules["cloud0-data-in"]["key_exprs"] == ["*/plan/*/*"] and rules["cloud0-data-out"]["key_exprs"] == [
+        "*/scan/*/*"]
+    assert rules["cloud1-data-out"]["key_exprs"] == ["*/imu/*/*"] and "cloud1-data-in" not in rules
     for config in (cloud, edge):
         assert config["scouting"]["multicast"]["enabled"] is False
         assert config["scouting"]["gossip"]["autoconnect"]["router"] == []  # routers dial only what they are told

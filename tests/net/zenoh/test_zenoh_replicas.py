@@ -20,7 +20,7 @@ import pytest
 from fogiac.errors import ZenohError
 from fogiac.hostmodel import Layout, Where
 from fogiac.manifest.schema import load_manifest
-from fogiac.net.zenoh.config import access_control
+from fogiac.net.zenoh.config import access_control, edge_access_control
 from fogiac.net.zenoh.deploy import edge_links, replica_merges, replica_service
 from fogiac.net.zenoh.replicas import CloudPrefix, EdgeMerge, replica_prefix
 from fogiac.plan.compile import compile_plan
@@ -57,9 +57,14 @@ def replica_route(host: str, index: int, port: int) -> Route:
 
 
 def test_a_replica_only_lets_its_prefixed_keys_cross() -> None:
-    rules = {r["id"]: r["key_exprs"] for r in access_control(replica_route("r1", 1, 7448), edge_name="edge")["rules"]}
-    assert rules["to-cloud-data"] == ["fogiac/replica/planner/1/*/plan_req/*/*"]
-    assert rules["to-edge-data"] == ["fogiac/replica/planner/1/*/plan_rep/*/*"]
+    rt = replica_route("r1", 1, 7448)
+    rules = {r["id"]: r["key_exprs"] for r in access_control(rt, edge_name="edge")["rules"]}
+    assert rules["edge-data-in"] == rules["edge-interest-out"] == ["fogiac/replica/planner/1/*/plan_req/*/*"]
+    assert rules["edge-data-out"] == rules["edge-interest-in"] == ["fogiac/replica/planner/1/*/plan_rep/*/*"]
+    # the edge router's mirror image: from that host only its prefixed replies, to it only its prefixed requests
+    edge = {r["id"]: r["key_exprs"] for r in edge_access_control([("r1-cert", rt)])["rules"]}
+    assert edge["cloud0-data-in"] == ["fogiac/replica/planner/1/*/plan_rep/*/*"]
+    assert edge["cloud0-data-out"] == ["fogiac/replica/planner/1/*/plan_req/*/*"]
 
 
 def test_a_topic_renamed_both_ways_is_refused_before_it_loops() -> None:
@@ -71,9 +76,10 @@ def test_every_request_answered_once_while_a_replica_dies(tmp_path: Path) -> Non
     with ZenohLab(tmp_path) as lab:
         edge_local, *ports = free_ports(5)
         tls_ports, locals_ = ports[:2], ports[2:]
-        routers = [lab.router(f"cloud-{i}", lab.cloud_config(replica_route(f"r{i}", i, tls_ports[i]),
-                                                              local_port=locals_[i])) for i in range(2)]
-        lab.router("edge-router", lab.edge_config([("127.0.0.1", p) for p in tls_ports], local_port=edge_local))
+        routes = tuple(replica_route(f"r{i}", i, tls_ports[i]) for i in range(2))
+        routers = [lab.router(f"cloud-{i}", lab.cloud_config(routes[i], local_port=locals_[i])) for i in range(2)]
+        lab.router("edge-router", lab.edge_config([("127.0.0.1", p) for p in tls_ports], local_port=edge_local,
+                                                  routes=routes))
         opened: list[Any] = []
         ends: list[Any] = []
         try:
@@ -140,7 +146,8 @@ def test_the_deployed_merge_answers_once_and_its_figures_reach_status(tmp_path: 
         routes = tuple(replica_route(f"r{i}", i, tls_ports[i]) for i in range(2))
         for i, rt in enumerate(routes):
             lab.router(f"cloud-{i}", lab.cloud_config(rt, local_port=locals_[i]))
-        lab.router("edge-router", lab.edge_config([("127.0.0.1", p) for p in tls_ports], local_port=edge_local))
+        lab.router("edge-router", lab.edge_config([("127.0.0.1", p) for p in tls_ports], local_port=edge_local,
+                                                  routes=routes))
         plan = dataclasses.replace(compile_plan(load_manifest(EXAMPLES / "ros2-zenoh.yaml")), routes=routes)
         opened: list[Any] = []
         ends: list[Any] = []

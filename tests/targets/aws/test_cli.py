@@ -71,13 +71,20 @@ def test_missing_credentials(state: Path, tmp_path: Path, with_cli: None, monkey
     doctor = fogiac("doctor", str(write_manifest(tmp_path, "nocreds")))
     assert doctor.exit_code == 1
     assert "FAIL preflight: no AWS credentials found: set AWS_PROFILE" in doctor.stdout
-    for verb in ("up", "down", "status", "sweep"):
-        extra = ("--dry-run",) if verb == "sweep" else () if verb == "status" else ("--yes",)
+    for verb in ("up", "down", "sweep"):
+        extra = ("--dry-run",) if verb == "sweep" else ("--yes",)
         result = fogiac(verb, str(write_manifest(tmp_path, "nocreds")), *extra)
         assert result.exit_code == 1, verb
         assert result.stderr.splitlines() == [
             "error: no AWS credentials found: set AWS_PROFILE, or AWS_ACCESS_KEY_ID and AWS_SECRET_ACCESS_KEY, "
             "or run `aws configure`"], verb
+    # status of a stack never deployed from here (issue 26 item 34): "not deployed", and why the cloud was not asked
+    result = fogiac("status", str(write_manifest(tmp_path, "nocreds")))
+    assert result.exit_code == 0, result.output
+    assert result.stdout.splitlines() == [
+        "nocreds-dev: not deployed from this machine (no record); the cloud was not checked for what another machine "
+        "may have left: no AWS credentials found: set AWS_PROFILE, or AWS_ACCESS_KEY_ID and AWS_SECRET_ACCESS_KEY, "
+        "or run `aws configure`"]
     assert _files(state) == []
 
 
@@ -176,4 +183,6 @@ def test_sweep_and_status_verbs(state: Path, tmp_path: Path, ec2: Any, acm: Any,
     assert f"deleted: instance {made['instance']}" in done.stdout.splitlines()
     assert "not checked: client-vpn-endpoint (not supported by this endpoint: InternalFailure)" in done.stderr
     assert fogiac("sweep", str(path), "--dry-run").stdout == ""
-    assert "no instances" in fogiac("status", str(path)).stdout
+    assert fogiac("status", str(path)).stdout.splitlines() == [  # asked, AWS confirms nothing (issue 26 item 34)
+        "leaky-dev: not deployed (the cloud reports no instances; `fogiac sweep --dry-run` lists anything else "
+        "tagged with the stack)"]

@@ -8,6 +8,7 @@ import pytest
 
 from fogiac.targets.aws.sweep import sweep
 from fogiac.certs import new_bundle
+from fogiac.errors import CloudError
 
 from .conftest import NEWEST_UBUNTU, REGION
 
@@ -125,3 +126,15 @@ def test_sweep_waits_for_no_one_and_deletes_nothing_while_up_holds_the_lock(
     assert ec2.describe_vpcs(VpcIds=[made["vpc"]])["Vpcs"]
     assert targets.get("aws").sweep(plan, dry_run=True).deleted == ()  # listing needs no lock
     assert sweep(plan.stack, dry_run=False, ec2=ec2, acm=acm, first_delay_s=0.1).clean
+
+
+def test_sweep_never_deletes_another_manifests_stack_of_the_same_name(ec2: Any, acm: Any) -> None:
+    """Issue 26 item 11: two manifests' stacks named alike (as robot-prod + dev and robot + prod-dev once were)."""
+    made = leak(ec2, acm, "robot-prod-dev")
+    ec2.create_tags(Resources=[made["vpc"], made["instance"]],
+                    Tags=[{"Key": "fogiac:manifest", "Value": "robot-prod"}])
+    with pytest.raises(CloudError, match=r"^stack 'robot-prod-dev' in the cloud was made by manifest 'robot-prod', "
+                                         r"not 'robot': not deleting"):
+        sweep("robot-prod-dev", dry_run=False, ec2=ec2, acm=acm, owner="robot", first_delay_s=0.1)
+    assert ec2.describe_vpcs(VpcIds=[made["vpc"]])["Vpcs"]
+    assert sweep("robot-prod-dev", dry_run=False, ec2=ec2, acm=acm, owner="robot-prod", first_delay_s=0.1).clean

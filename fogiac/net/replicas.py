@@ -60,6 +60,7 @@ class Merge:
         self._delivered: dict[str, OrderedDict[bytes, None]] = {}
         self._timers: list[tuple[float, int, bytes]] = []
         self._seq = 0
+        self._unmatched_from: int | None = None  # the one replica whose keyless replies pass (see reply)
         self.requests = self.delivered = self.duplicates = self.unmatched = 0
 
     def _first(self, live: list[int], now: float) -> int:
@@ -126,7 +127,16 @@ class Merge:
             f.answers += 1
             f.last_answer, f.waiting_since = now, None
             if key is None:
+                # No key, no telling copies apart: one replica's keyless replies pass, the others' are dropped,
+                # until that one falls silent. Never a duplicate, at the cost of no hedging for such replies.
                 self.unmatched += 1
+                sole = self._unmatched_from
+                if sole is None or (sole != index and self.figures[sole].silent(now, self.silent_after)):
+                    self._unmatched_from = sole = index
+                if sole != index:
+                    f.late += 1
+                    self.duplicates += 1
+                    return False
             else:
                 req = self._requests.get(key)
                 if req is not None:

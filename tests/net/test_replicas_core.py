@@ -51,3 +51,13 @@ def test_memory_is_bounded_and_a_key_without_bytes_is_passed_unmatched() -> None
     assert m.reply("/r", 0, b"4", now=0.2) is False  # remembered
     assert m.reply("/r", 0, b"1", now=0.2) is True  # forgotten: the window is the last 3 keys
     assert m.reply("/r", 0, None, now=0.2) is True and m.unmatched == 1
+
+
+def test_keyless_replies_pass_from_one_replica_only_until_it_falls_silent() -> None:
+    m = Merge([(0, "a"), (1, "b")], silent_after=1.0)
+    m.request("/q", None, None, [0, 1], now=0.0)
+    assert m.reply("/r", 1, None, now=0.1) is True  # b answered first: its keyless replies pass
+    assert m.reply("/r", 0, None, now=0.2) is False  # a's can't be told from b's copies
+    m.request("/q", None, None, [0, 1], now=0.3)
+    assert m.reply("/r", 0, None, now=2.0) is True  # b has not answered for 1.7 s: a takes over
+    assert m.reply("/r", 1, None, now=2.1) is False

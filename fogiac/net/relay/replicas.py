@@ -309,7 +309,7 @@ class ReplicaGroup:
         try:
             return key_reader(self.config.match, meta.type, meta.definition)
         except RelayError as err:
-            log.error("%s: %s; its messages pass unmatched (duplicates cannot be told apart)", topic, err)
+            log.error("%s: %s; without a key only one replica's replies pass (no hedging)", topic, err)
             return None
 
     # --- requests and replies --------------------------------------------------------------

@@ -66,6 +66,8 @@ nodes:
         assert set(figures) == {"echo-r1", "echo-r2"}
         assert all(r["group"] == "echo" and r["count"] == 2 for r in figures.values())
         assert sum(r["answers"] for r in figures.values()) > 60  # both answered: copies were dropped
+        shown = runner.invoke(app, ["status", str(manifest), "--target", "local"], terminal_width=200)
+        assert "replicas (first reply wins)" in shown.output and "echo-r1" in shown.output, shown.output
     finally:
         down = runner.invoke(app, ["down", str(manifest), "--target", "local", "--yes"])
     assert down.exit_code == 0, down.output

@@ -28,6 +28,7 @@ def render_status(target: Target, doc: Mapping[str, Any]) -> list[Any]:
         out.append("edge processes: " + ", ".join(f"{e['name']} (pid {e['pid']})" for e in running))
     if doc.get("relays"):
         out.append(relays_table(doc["relays"]))
+        out += replicas_lines(doc["relays"])
     return out
 
 
@@ -44,6 +45,35 @@ def relays_table(links: list[Mapping[str, Any]]) -> Any:
                            str(t.get("msgs", "-")), str(t.get("msgs_per_s", "-")),
                            "-" if rate is None else f"{rate / 1024:.1f}", latency, str(t.get("drops", "-")))
     return relays
+
+
+def replicas_lines(links: list[Mapping[str, Any]]) -> list[Any]:
+    """The replicated nodes' copies (a link's ``replica``): answers won, latency, health; then one line
+    naming each replica that stopped answering or lost its link."""
+    rows = [(link["host"], link["replica"]) for link in links if link.get("replica")]
+    if not rows:
+        return []
+    shown = table("replicas (first reply wins)", "node", "replica", "host", "health", "won", "answers",
+                  "latency ms (median / p95)", "last answer")
+
+    def ms(value: Any) -> str:
+        return "-" if value is None else f"{value:.1f}"
+
+    for host, r in sorted(rows, key=lambda row: (row[1].get("group", ""), row[1].get("index", 0))):
+        age = r.get("last_answer_s")
+        shown.add_row(r.get("group", "-"), f"{r.get('index', '-')}/{r.get('count', '-')}", host,
+                      r.get("health", "unknown"), str(r.get("won", 0)), str(r.get("answers", 0)),
+                      f"{ms(r.get('latency_ms'))} / {ms(r.get('latency_p95_ms'))}",
+                      "-" if age is None else f"{age:g} s ago")
+    out: list[Any] = [shown]
+    for host, r in rows:
+        if r.get("health") == "silent":
+            age = r.get("last_answer_s")
+            out.append(f"replica {r.get('index')} of {r.get('group')} on {host} stopped answering "
+                       f"(last answer {'never' if age is None else f'{age:g} s ago'})")
+        elif r.get("health") == "down":
+            out.append(f"replica {r.get('index')} of {r.get('group')} on {host} is not linked (host or its relay down)")
+    return out
 
 
 def duration(seconds: float) -> str:

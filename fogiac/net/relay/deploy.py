@@ -20,6 +20,7 @@ from fogiac.certs import load_bundle, relay_name
 from fogiac.errors import FogiacError
 from fogiac.hostmodel import NativeRos, Service, Where, autostop_service
 from fogiac.net.relay.services import CLOUD_END, master_service, node_env, relay_service, relay_stats
+from fogiac.net.replicas import groups_of, host_figures
 from fogiac.plan.model import HostSpec, Plan, Route
 from fogiac.procs import poll
 from fogiac.provision import relaycert, supervise
@@ -113,22 +114,74 @@ def edge_argv(route: Route, *, stack: str, connect: str, master: str, certs: Pat
     return argv
 
 
+def _group_stats(folder: Path, group: str) -> Path:
+    return folder / f"relay-replicas-{group}.stats.json"
+
+
+def replica_groups(plan: Plan) -> dict[str, list[Route]]:
+    """The replicated nodes' routes, by group, in replica order."""
+    return groups_of(plan.routes)
+
+
+def replicas_argv(group: str, routes: list[Route], *, stack: str, connect: Mapping[str, str], master: str,
+                  certs: Path, folder: Path) -> list[str]:
+    """One ``python -m fogiac.net.relay.replicas`` for a replicated node's copies that came up: one link
+    each, requests fanned out, first reply wins (``fogiac.net.relay.replicas``)."""
+    first = routes[0]
+    replica = first.replica
+    assert replica is not None
+    name = "/fogiac_relay_replicas_" + re.sub(r"[^A-Za-z0-9_]", "_", f"{stack}_{group}")
+    argv = [sys.executable, "-m", "fogiac.net.relay.replicas", "--group", group, "--master", master,
+            "--certs", str(certs), "--stats-file", str(_group_stats(folder, group)),
+            "--queue-depth", str(first.queue_size), "--name", name, "--match", replica.match,
+            "--hedge", replica.hedge, "--hedge-delay", str(replica.hedge_delay_s)]
+    for route in routes:
+        assert route.replica is not None
+        argv += ["--replica", ",".join([str(route.replica.index), route.host, connect[route.host],
+                                        relay_name(stack, route.host), str(_stats(folder, route.host))])]
+    argv += first.policy_argv()
+    if _loopback(urlparse(master).hostname):  # as edge_argv: its sockets on loopback beside the master
+        argv += ["--ros-host", "127.0.0.1"]
+    compression = dict(first.compression)
+    if "*" in compression:
+        argv += ["--compression", compression["*"]]
+    elif compression:
+        argv += ["--compression", ",".join(f"{t}={alg}" for t, alg in sorted(compression.items()))]
+    return argv
+
+
 def edge_up(plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path, folder: Path) -> list[str]:
+    notes = []
     for route in plan.routes:
-        if route.host in connect:
+        if route.host in connect and route.replica is None:
             supervise.start(folder, f"relay-edge-{route.host}", edge_argv(
                 route, stack=plan.stack, connect=connect[route.host], master=entry, certs=certs,
                 stats=_stats(folder, route.host)))
-    return []
+    for group, routes in replica_groups(plan).items():
+        up = [r for r in routes if r.host in connect]
+        if len(up) < len(routes):
+            notes.append(f"node {group}: {len(up)} of {len(routes)} replicas up "
+                         f"(missing: {', '.join(r.host for r in routes if r.host not in connect)})")
+        if up:
+            supervise.start(folder, f"relay-replicas-{group}", replicas_argv(
+                group, up, stack=plan.stack, connect=connect, master=entry, certs=certs, folder=folder))
+    return notes
 
 
-def edge_links(folder: Path, connect: Mapping[str, str]) -> list[dict[str, Any]]:
+def replica_figures(folder: Path, plan: Plan | None) -> dict[str, dict[str, Any]]:
+    """host -> its replica's figures (answers won, latency, health) from its group's stats file."""
+    return host_figures(plan.routes if plan is not None else (), lambda g: read_json(_group_stats(folder, g)))
+
+
+def edge_links(folder: Path, connect: Mapping[str, str], plan: Plan | None = None) -> list[dict[str, Any]]:
     links = []
+    replicas = replica_figures(folder, plan)
     for host, address in sorted(connect.items()):
         stats = read_json(_stats(folder, host)) or {}
         topics = [{**t, "direction": MANIFEST_DIRECTION.get(t.get("direction", "-"), "-")}
                   for t in stats.get("topics", [])]
-        links.append({"host": host, "connect": address, **stats, "topics": topics})
+        links.append({"host": host, "connect": address, **stats, "topics": topics,
+                      **({"replica": replicas[host]} if host in replicas else {})})
     return links
 
 
@@ -178,7 +231,7 @@ class RelayDeployment:
         return edge_up(plan, entry=entry, connect=connect, certs=certs, folder=folder)
 
     def edge_links(self, plan: Plan, *, folder: Path, connect: Mapping[str, str]) -> list[dict[str, Any]]:
-        return edge_links(folder, connect)
+        return edge_links(folder, connect, plan)
 
 
 DEPLOYMENT = RelayDeployment()

@@ -60,8 +60,7 @@ class EdgeRelay(RelayEnd):
                 continue
             delay = self.edge_config.backoff_initial
             self._asked = set()
-            session = Session(sock=sock, node=self.node, config=self.config, peer="cloud",  # type: ignore[arg-type]
-                              accepts=self._asked.__contains__)
+            session = self._session(sock)
             session.handlers[Kind.STATE] = self._on_state
             self._cloud_graph = GraphState()
             self.session = session
@@ -75,6 +74,11 @@ class EdgeRelay(RelayEnd):
             if not self._stopping.is_set():
                 self.reconnects += 1
                 self._stopping.wait(delay)
+
+    def _session(self, sock: ssl.SSLSocket) -> Session:
+        """The link's session (a replica group's links feed and publish through the group)."""
+        return Session(sock=sock, node=self.node, config=self.config, peer="cloud",  # type: ignore[arg-type]
+                       accepts=self._asked.__contains__)
 
     def _dial(self) -> ssl.SSLSocket:
         host, port = self.edge_config.connect

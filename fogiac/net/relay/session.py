@@ -20,6 +20,7 @@ import ssl
 import threading
 import time
 from collections.abc import Callable
+from typing import Any, Protocol
 
 from fogiac.errors import RelayError
 from fogiac.net.relay import framing
@@ -35,6 +36,26 @@ from fogiac.net.relay.tcpros import Stream
 log = logging.getLogger(__name__)
 Handler = Callable[[Frame], None]
 Gate = Callable[[str], bool]  # may the peer start sending this topic to us?
+
+
+class Feed(Protocol):
+    """Where a source's messages come from, or a sink's go: the topic's own subscription or publisher,
+    or a replica group's shared one (:mod:`fogiac.net.relay.replicas`)."""
+
+    def start(self) -> Any: ...
+
+    def stop(self) -> None: ...
+
+
+class Outlet(Feed, Protocol):
+    @property
+    def drops(self) -> int: ...
+
+    def publish(self, data: Payload) -> None: ...
+
+
+SourceFeed = Callable[["_Source"], Feed]  # given the source, what feeds it (instead of a LocalSubscription)
+SinkOutlet = Callable[["_Sink", TopicMeta], Outlet]  # given the sink, where it publishes (instead of a LocalPublisher)
 _COALESCE = 256 * 1024  # join smaller writes: one TLS record beats several
 
 
@@ -56,13 +77,14 @@ def send_now(sock: socket.socket, frame: Frame) -> None:
 class _Source:
     """A local topic sent over the link: subscribe, stamp, compress, queue latest-wins."""
 
-    def __init__(self, session: Session, topic: str, compression: str) -> None:
+    def __init__(self, session: Session, topic: str, compression: str, feed: SourceFeed | None = None) -> None:
         self.session, self.topic, self.id = session, topic, next(session._ids)
         self._codec = codec(compression)
         self.counters = TopicCounters(topic, "out", compression)
         self._lock = threading.Lock()
         self._opened = False
-        self.sub = LocalSubscription(session.node, topic, on_meta=self._meta, on_message=self._message)
+        self.sub: Feed = feed(self) if feed is not None else \
+            LocalSubscription(session.node, topic, on_meta=self._meta, on_message=self._message)
 
     def _meta(self, meta: TopicMeta) -> None:
         with self._lock:
@@ -90,10 +112,12 @@ class _Source:
 class _Sink:
     """A peer's topic published locally with the peer publisher's type, md5sum and latching."""
 
-    def __init__(self, session: Session, topic: str, meta: TopicMeta, compression: str) -> None:
+    def __init__(self, session: Session, topic: str, meta: TopicMeta, compression: str,
+                 outlet: SinkOutlet | None = None) -> None:
         self.session, self.topic = session, topic
         self._codec = codec(compression)
-        self.pub = LocalPublisher(session.node, topic, meta, depth=session.config.queue_depth)
+        self.pub: Outlet = outlet(self, meta) if outlet is not None else \
+            LocalPublisher(session.node, topic, meta, depth=session.config.queue_depth)
         self.counters = TopicCounters(topic, "in", compression, more_drops=lambda: self.pub.drops)
 
     def deliver(self, stamp: int, body: memoryview) -> None:
@@ -105,9 +129,12 @@ class _Sink:
 
 class Session:
     def __init__(self, *, sock: ssl.SSLSocket, node: RelayNode, config: EndConfig, peer: str,
-                 accepts: Gate) -> None:
+                 accepts: Gate, feed: SourceFeed | None = None, outlet: SinkOutlet | None = None) -> None:
         self.sock, self.node, self.config, self.peer = sock, node, config, peer
         self.accepts = accepts
+        # Set by a replica group's links: their topics are fed from, and published through, the group's
+        # one subscription and one publisher per topic (one ROS node carries several links).
+        self._feed, self._outlet = feed, outlet
         self.refused = 0  # OPENs and requests for topics outside this end's policy
         self.outbox = Outbox()
         self.clock = ClockSync()
@@ -138,7 +165,7 @@ class Session:
             if topic in self._sources or self._closing.is_set():
                 return
             try:
-                source = self._sources[topic] = _Source(self, topic, compression)
+                source = self._sources[topic] = _Source(self, topic, compression, self._feed)
             except RelayError as err:
                 log.error("cannot relay %s: %s", topic, err)
                 return
@@ -306,7 +333,7 @@ class Session:
         try:
             meta = TopicMeta.from_json(body)
             compression = str(body.get("compression", "none"))
-            sink = _Sink(self, topic, meta, compression)
+            sink = _Sink(self, topic, meta, compression, self._outlet)
         except (KeyError, ValueError, RelayError) as err:
             raise FrameError(f"bad OPEN frame: {err}") from None
         with self._lock:

@@ -61,8 +61,15 @@ def topic_key(topic: str) -> str:
     return f"*/{topic.strip('/')}/*/*"
 
 
-def _keys(topics: Iterable[str]) -> list[str]:
-    return [topic_key(t) for t in sorted(set(topics))]
+def _keys(topics: Iterable[str], prefix: str = "") -> list[str]:
+    return [prefix + topic_key(t) for t in sorted(set(topics))]
+
+
+def replica_keys_prefix(route: Route) -> str:
+    """Where a replica's data crosses: under ``fogiac/replica/<group>/<index>/`` (the host's replica process
+    renames to and from its nodes' plain keys; :mod:`fogiac.net.zenoh.replicas`), or plain ("")."""
+    replica = route.replica
+    return "" if replica is None else f"fogiac/replica/{replica.group}/{replica.index}/"
 
 
 def graph_key(topic: str, kind: str) -> str:
@@ -79,16 +86,17 @@ def graph_keys(*, publishers: Iterable[str], subscribers: Iterable[str]) -> list
             + [graph_key(t, SUBSCRIBER) for t in sorted(set(subscribers))])
 
 
-def _link_rules(prefix: str, *, receive: list[str], send: list[str]) -> list[dict[str, Any]]:
+def _link_rules(prefix: str, *, receive: list[str], send: list[str], keys: str = "") -> list[dict[str, Any]]:
     """One side's rules for a link, in its own flows: data it receives (``ingress``) and sends (``egress``),
-    subscriptions declared the other way, and the publisher/subscriber tokens that go with them."""
+    subscriptions declared the other way, and the publisher/subscriber tokens that go with them. A replica's
+    link carries its data keys under ``keys`` (its prefix: :func:`replica_keys_prefix`), its tokens as they are."""
     rules = []
     if receive:
-        rules.append(_rule(f"{prefix}-data-in", "ingress", _DATA, _keys(receive)))
-        rules.append(_rule(f"{prefix}-interest-out", "egress", ["declare_subscriber"], _keys(receive)))
+        rules.append(_rule(f"{prefix}-data-in", "ingress", _DATA, _keys(receive, keys)))
+        rules.append(_rule(f"{prefix}-interest-out", "egress", ["declare_subscriber"], _keys(receive, keys)))
     if send:
-        rules.append(_rule(f"{prefix}-data-out", "egress", _DATA, _keys(send)))
-        rules.append(_rule(f"{prefix}-interest-in", "ingress", ["declare_subscriber"], _keys(send)))
+        rules.append(_rule(f"{prefix}-data-out", "egress", _DATA, _keys(send, keys)))
+        rules.append(_rule(f"{prefix}-interest-in", "ingress", ["declare_subscriber"], _keys(send, keys)))
     tokens_in = graph_keys(publishers=receive, subscribers=send)
     tokens_out = graph_keys(publishers=send, subscribers=receive)
     if tokens_in:
@@ -102,9 +110,11 @@ def _rule(rule_id: str, flow: str, messages: list[str], keys: list[str]) -> dict
 
 
 def access_control(route: Route, *, edge_name: str) -> dict[str, Any]:
-    """Deny by default; the host's own nodes (TCP on loopback) may do anything among themselves."""
+    """Deny by default; the host's own nodes (TCP on loopback) may do anything among themselves. A replica's
+    host lets only its prefixed keys cross, so the edge's merge sees every copy of a reply, the robot none."""
     rules = _local_rules()
-    rules += _link_rules("edge", receive=list(route.to_cloud + route.listed), send=list(route.to_edge + route.listed))
+    rules += _link_rules("edge", receive=list(route.to_cloud + route.listed), send=list(route.to_edge + route.listed),
+                         keys=replica_keys_prefix(route))
     edge_rules = [r["id"] for r in rules if not r["id"].startswith("local")]
     return {
         "enabled": True,
@@ -136,7 +146,7 @@ def edge_access_control(clouds: Sequence[tuple[str, Route]]) -> dict[str, Any]:
                                        "subjects": ["robot-nodes"]}]
     for n, (name, route) in enumerate(clouds):
         mine = _link_rules(f"cloud{n}", receive=list(route.to_edge + route.listed),
-                           send=list(route.to_cloud + route.listed))
+                           send=list(route.to_cloud + route.listed), keys=replica_keys_prefix(route))
         rules += mine
         subjects.append({"id": f"cloud{n}", "link_protocols": ["tls"], "cert_common_names": [name]})
         policies.append({"id": f"cloud{n}", "rules": [r["id"] for r in mine], "subjects": [f"cloud{n}"]})

@@ -29,10 +29,12 @@ from fogiac.certs import KeyPair, load_bundle, load_or_create_bundle, write_priv
 from fogiac.endpoint import Endpoint
 from fogiac.errors import ProvisionError
 from fogiac.hostmodel import NativeRos, Service, Where, autostop_service, make_service
+from fogiac.net.replicas import groups_of, host_figures
 from fogiac.net.zenoh import tls
 from fogiac.net.zenoh.config import TlsFiles, cloud_router, edge_router
 from fogiac.net.zenoh.middleware import ROUTER
-from fogiac.plan.model import HostSpec, Plan
+from fogiac.net.zenoh.replicas import SUPPORTED_MATCH, replica_prefix
+from fogiac.plan.model import HostSpec, Plan, Route
 from fogiac.provision import relaycert, supervise
 from fogiac.provision.host import Host, q
 from fogiac.render import render
@@ -40,6 +42,7 @@ from fogiac.state import read_json
 
 EDGE_ROUTER = "zenoh-edge-router"
 EDGE_MONITOR = "zenoh-edge-monitor"
+REPLICA = "zenoh-replica"  # on a replica's host: its keys renamed under the replica's prefix
 BRIDGE_NOTE = ("zenoh-bridge-ros2dds is not installed by fogiac: for a DDS robot install it on the robot and "
                "run `zenoh-bridge-ros2dds -c {path}`")
 
@@ -139,7 +142,54 @@ def host_services(plan: Plan, spec: HostSpec, where: Where, *, certs: Path) -> t
                                   (path, json.dumps(config, indent=1, sort_keys=True), 0o600),
                                   (files.ca, ca.cert_pem.decode(), 0o644)))
     watchdog = autostop_service(plan, spec, where, stats=stats, after=ROUTER)
-    return (router,) + ((watchdog,) if watchdog is not None else ())
+    renamer = replica_service(plan, spec, where, route)
+    return (router,) + ((renamer,) if renamer is not None else ()) + ((watchdog,) if watchdog is not None else ())
+
+
+def replica_service(plan: Plan, spec: HostSpec, where: Where, route: Route) -> Service | None:
+    """On a replica's host: its nodes' keys renamed to and from the replica's prefix, the only keys its
+    router lets cross (:mod:`fogiac.net.zenoh.replicas`)."""
+    if route.replica is None:
+        return None
+    command = (f"{q(where.python)} -m fogiac.net.zenoh.replicas cloud {q(local_endpoint(where))} --prefix "
+               f"{q(replica_prefix(route.replica.group, route.replica.index))}")
+    # relay.topics (direction unknown) are not renamed: a topic renamed both ways would loop on the host
+    command += "".join(f" --to-cloud {q(t)}" for t in route.to_cloud)
+    command += "".join(f" --to-edge {q(t)}" for t in route.to_edge)
+    return make_service(REPLICA, plan=plan, spec=spec, where=where, command=command, check="alive",
+                        python_path=where.code_root, after=ROUTER)
+
+
+def replica_merges(plan: Plan, *, entry: str, connect: Mapping[str, str], folder: Path) -> list[str]:
+    """One edge merge per replicated node whose replicas came up; notes for what is missing."""
+    notes = []
+    for group, routes in groups_of(plan.routes).items():
+        up = [r for r in routes if r.host in connect]
+        if len(up) < len(routes):
+            notes.append(f"node {group}: {len(up)} of {len(routes)} replicas up "
+                         f"(missing: {', '.join(r.host for r in routes if r.host not in connect)})")
+        if not up:
+            continue
+        first = up[0].replica
+        assert first is not None
+        if first.match != SUPPORTED_MATCH:
+            notes.append(f"node {group}: over Zenoh replies are matched by {SUPPORTED_MATCH} only, "
+                         f"not {first.match!r}")
+        argv = [sys.executable, "-m", "fogiac.net.zenoh.replicas", "edge", entry, "--group", group,
+                "--hedge", first.hedge, "--hedge-delay", str(first.hedge_delay_s),
+                "--linked-file", str(folder / "zenoh-edge.stats.json"),
+                "--stats-file", str(_group_stats(folder, group))]
+        for r in up:
+            assert r.replica is not None
+            argv += ["--replica", f"{r.replica.index},{r.host},{router_id(plan.stack, r.host)}"]
+        argv += [a for t in sorted(set(up[0].to_cloud)) for a in ("--to-cloud", t)]
+        argv += [a for t in sorted(set(up[0].to_edge)) for a in ("--to-edge", t)]
+        supervise.start(folder, f"zenoh-replicas-{group}", argv)
+    return notes
+
+
+def _group_stats(folder: Path, group: str) -> Path:
+    return folder / f"zenoh-replicas-{group}.stats.json"
 
 
 def router_stats(where: Where) -> str:
@@ -176,7 +226,8 @@ def edge_up(plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path, 
     bridge.write_text(json.dumps({"mode": "client", "connect": {"endpoints": [entry]}, "plugins": {"ros2dds": {
         "allow": {"publishers": [f"{t}$" for t in to_cloud], "subscribers": [f"{t}$" for t in to_edge]}}}},
         indent=1) + "\n")
-    return [f"edge Zenoh router on {entry} (rmw_zenoh nodes on the robot connect there), dialing "
+    merges = replica_merges(plan, entry=entry, connect=connect, folder=folder)
+    return merges + [f"edge Zenoh router on {entry} (rmw_zenoh nodes on the robot connect there), dialing "
             + ", ".join(f"tls/{a}" for a in sorted(connect.values())),
             f"robot router config (rmw_zenohd connecting to it): {robot}", BRIDGE_NOTE.format(path=bridge)]
 
@@ -184,6 +235,7 @@ def edge_up(plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path, 
 def edge_links(plan: Plan, *, folder: Path, connect: Mapping[str, str]) -> list[dict[str, Any]]:
     linked = set((read_json(folder / "zenoh-edge.stats.json") or {}).get("routers", []))
     figures = {t["topic"]: t for t in (read_json(folder / "zenoh-monitor.stats.json") or {}).get("topics", [])}
+    replicas = host_figures(plan.routes, lambda g: read_json(_group_stats(folder, g)))
     links = []
     for route in plan.routes:
         if route.host not in connect:
@@ -191,7 +243,8 @@ def edge_links(plan: Plan, *, folder: Path, connect: Mapping[str, str]) -> list[
         mine = [{**figures[t], "direction": "in" if t in route.to_cloud else "out"}
                 for t in sorted(set(route.to_cloud + route.to_edge + route.listed)) if t in figures]
         links.append({"host": route.host, "connect": connect[route.host],
-                      "connected": router_id(plan.stack, route.host) in linked, "topics": mine})
+                      "connected": router_id(plan.stack, route.host) in linked, "topics": mine,
+                      **({"replica": replicas[route.host]} if route.host in replicas else {})})
     return links
 
 

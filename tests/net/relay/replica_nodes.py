@@ -1,0 +1,80 @@
+"""rospy nodes for the replica tests and benchmark: a robot asking, and a node answering (one per process).
+
+    python replica_nodes.py echo REQ REPLY --name NAME [--work-ms W]
+    python replica_nodes.py robot REQ REPLY --count N [--rate HZ] [--base B] [--wait S]
+
+Both topics carry ``std_msgs/Header``. ``echo`` answers each request with a Header of the same seq
+and stamp and ``frame_id`` NAME, after W ms of CPU work (a busy loop, so a CPU quota or a stop
+slows it). ``robot`` waits until someone subscribes to REQ and publishes to REPLY, sends N requests
+(seq i, stamp base+i s), and prints one JSON line per reply it gets: {"i", "from", "ms"} (ms: from
+its send to the reply's arrival), then ``done``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import threading
+import time
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("role", choices=["echo", "robot"])
+    parser.add_argument("request")
+    parser.add_argument("reply")
+    parser.add_argument("--name", default="echo")
+    parser.add_argument("--work-ms", type=float, default=0.0)
+    parser.add_argument("--count", type=int, default=100)
+    parser.add_argument("--rate", type=float, default=20.0)
+    parser.add_argument("--base", type=int, default=1000, help="robot: request i is stamped base + i seconds")
+    parser.add_argument("--wait", type=float, default=10.0, help="robot: how long to wait for the last replies")
+    args = parser.parse_args()
+
+    import rospy
+    from std_msgs.msg import Header
+
+    rospy.init_node(f"replica_{args.role}", anonymous=True, disable_signals=True)
+    if args.role == "echo":
+        pub = rospy.Publisher(args.reply, Header, queue_size=100)
+
+        def answer(req: Header) -> None:
+            end = time.perf_counter() + args.work_ms / 1e3
+            while time.perf_counter() < end:
+                pass
+            pub.publish(Header(seq=req.seq, stamp=req.stamp, frame_id=args.name))
+
+        rospy.Subscriber(args.request, Header, answer, queue_size=100, tcp_nodelay=True)
+        print("ready", flush=True)
+        while not rospy.is_shutdown():
+            time.sleep(0.2)
+        return
+
+    sent: dict[int, float] = {}
+    lock = threading.Lock()
+
+    def got(reply: Header) -> None:
+        now = time.perf_counter()
+        i = reply.stamp.secs - args.base
+        with lock:
+            t0 = sent.get(i)
+        ms = None if t0 is None else round((now - t0) * 1e3, 3)
+        print(json.dumps({"i": i, "from": reply.frame_id, "ms": ms}), flush=True)
+
+    pub = rospy.Publisher(args.request, Header, queue_size=100, tcp_nodelay=True)
+    sub = rospy.Subscriber(args.reply, Header, got, queue_size=1000, tcp_nodelay=True)
+    print("ready", flush=True)
+    while (pub.get_num_connections() == 0 or sub.get_num_connections() == 0) and not rospy.is_shutdown():
+        time.sleep(0.05)
+    time.sleep(0.5)
+    for i in range(args.count):
+        with lock:
+            sent[i] = time.perf_counter()
+        pub.publish(Header(seq=i, stamp=rospy.Time(args.base + i, 0), frame_id="robot"))
+        time.sleep(1.0 / args.rate)
+    time.sleep(args.wait)
+    print("done", flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,228 @@
+"""A replicated node through the relay: real roscores (the robot's, and one per replica), cloud ends as
+``fogiac relay cloud`` processes, rospy nodes asking and answering, the replica group in-process.
+
+Asserts on counts and on which replica won, never on wall-clock thresholds."""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import json
+import os
+import signal
+import sys
+from collections import Counter
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from fogiac.certs import issue, new_bundle, relay_name, save_bundle, save_pair
+from fogiac.lifecycle.report import replicas_lines
+from fogiac.manifest.schema import load_manifest
+from fogiac.net.relay import EdgeConfig, TopicPolicy
+from fogiac.net.relay.deploy import edge_links, edge_up
+from fogiac.net.relay.replicas import GroupConfig, ReplicaGroup, ReplicaTarget
+from fogiac.plan.compile import compile_plan
+from fogiac.plan.model import Replica, Route
+from fogiac.provision import supervise
+from tests.net.relay.relay_support import Master, Proc, Procs, free_port, wait_for
+
+pytestmark = pytest.mark.ros
+NODES = Path(__file__).with_name("replica_nodes.py")
+EXAMPLES = Path(__file__).parents[3] / "examples"
+
+
+@pytest.fixture(scope="module")
+def three_masters(ros_ready: None, tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Master, Master, Master]]:
+    """The robot's master and one per replica (each replica on a host of its own)."""
+    procs = Procs(tmp_path_factory.mktemp("roshome"))
+    try:
+        yield procs.roscore(), procs.roscore(), procs.roscore()
+    finally:
+        procs.close()
+
+
+def cloud_end(procs: Procs, master: Master, certs: Path, req: str, rep: str) -> tuple[Proc, tuple[str, int]]:
+    port = free_port()
+    proc = procs.spawn([sys.executable, "-m", "fogiac", "relay", "cloud", "--listen", f"127.0.0.1:{port}",
+                        "--master", master.uri, "--certs", str(certs), "--ros-host", "127.0.0.1",
+                        "--out", req, "--in", rep, "--topics", ""],
+                       dict(master.env, PYTHONPATH=os.getcwd()))
+    return proc, ("127.0.0.1", port)
+
+
+def node(procs: Procs, master: Master, *args: str) -> Proc:
+    proc = procs.spawn([sys.executable, str(NODES), *args], master.env)
+    wait_for(lambda: "ready" in proc.lines or proc.popen.poll() is not None, 30, f"replica node {args}")
+    assert proc.popen.poll() is None, f"replica node {args} exited"
+    return proc
+
+
+@contextlib.contextmanager
+def group(edge: Master, certs: Path, addresses: list[tuple[str, int]], req: str, rep: str, tmp_path: Path,
+          **kw: object) -> Iterator[ReplicaGroup]:
+    config = EdgeConfig(master_uri=edge.uri, certs=certs, ros_host="127.0.0.1", connect=("", 0), poll_interval=0.1,
+                        backoff_max=0.5, dead_after=3.0, queue_depth=100,
+                        policy=TopicPolicy(out_topics=(req,), in_topics=(rep,)),
+                        caller_id="/fogiac_relay_replicas_test")
+    targets = tuple(ReplicaTarget(i, f"r{i}", a, stats_file=tmp_path / f"relay-edge-r{i}.stats.json")
+                    for i, a in enumerate(addresses))
+    with ReplicaGroup(GroupConfig(edge=config, group="echo", replicas=targets,
+                                  stats_file=tmp_path / "replicas.json", **kw)) as g:  # type: ignore[arg-type]
+        wait_for(lambda: all(link.linked for link in g.links), 20, "every replica linked")
+        yield g
+
+
+def replies(robot: Proc) -> list[dict]:
+    return [json.loads(line) for line in robot.lines if line.startswith("{")]
+
+
+def run_robot(procs: Procs, edge: Master, req: str, rep: str, count: int, *, rate: float = 20.0, base: int = 1000,
+              during: object = None) -> list[dict]:
+    robot = node(procs, edge, "robot", req, rep, "--count", str(count), "--rate", str(rate), "--wait", "3",
+                 "--base", str(base))
+    if during is not None:
+        wait_for(lambda: len(replies(robot)) >= count // 3, 60, "a third of the replies")
+        during()  # type: ignore[operator]
+    wait_for(lambda: "done" in robot.lines, 120, "the robot's run")
+    return replies(robot)
+
+
+def test_every_request_answered_once_while_a_replica_is_killed(three_masters: tuple[Master, Master, Master],
+                                                               certs: Path, procs: Procs, tmp_path: Path) -> None:
+    edge, m0, m1 = three_masters
+    req, rep = "/kill/request", "/kill/reply"
+    c0, a0 = cloud_end(procs, m0, certs, req, rep)
+    c1, a1 = cloud_end(procs, m1, certs, req, rep)
+    node(procs, m0, "echo", req, rep, "--name", "r0")
+    node(procs, m1, "echo", req, rep, "--name", "r1")
+    with group(edge, certs, [a0, a1], req, rep, tmp_path) as g:
+        got = run_robot(procs, edge, req, rep, 90, during=lambda: procs.kill(c0, signal.SIGKILL))
+        stats = g.stats()
+    assert sorted(r["i"] for r in got) == list(range(90))  # every request answered, exactly once
+    winners = Counter(r["from"] for r in got)
+    assert winners["r1"] >= 60  # after the kill only r1 answers
+    r0, r1 = stats["replicas"]
+    assert r0["health"] == "down" and r1["health"] == "ok"
+    assert r0["won"] + r1["won"] == stats["delivered"] == 90
+    assert stats["duplicates_dropped"] == r0["late"] + r1["late"] > 0  # both answered before the kill
+    written = json.loads((tmp_path / "replicas.json").read_text())
+    assert written["group"] == "echo" and [r["host"] for r in written["replicas"]] == ["r0", "r1"]
+
+
+def test_a_stopped_replica_leaves_the_healthy_one_winning(three_masters: tuple[Master, Master, Master],
+                                                          certs: Path, procs: Procs, tmp_path: Path) -> None:
+    edge, m0, m1 = three_masters
+    req, rep = "/stall/request", "/stall/reply"
+    c0, a0 = cloud_end(procs, m0, certs, req, rep)
+    c1, a1 = cloud_end(procs, m1, certs, req, rep)
+    node(procs, m0, "echo", req, rep, "--name", "r0")
+    node(procs, m1, "echo", req, rep, "--name", "r1")
+    with group(edge, certs, [a0, a1], req, rep, tmp_path, silent_after=1.0) as g:
+        os.killpg(c0.popen.pid, signal.SIGSTOP)  # replica 0's link stalls: bytes go in, nothing comes out
+        try:
+            got = run_robot(procs, edge, req, rep, 60)
+            stats = g.stats()
+        finally:
+            os.killpg(c0.popen.pid, signal.SIGCONT)
+    assert sorted(r["i"] for r in got) == list(range(60))
+    assert Counter(r["from"] for r in got) == {"r1": 60}  # the stalled replica never wins
+    r0, r1 = stats["replicas"]
+    assert r0["won"] == 0 and r0["health"] in ("silent", "down") and r1["won"] == 60 and r1["health"] == "ok"
+
+
+def test_delayed_hedge_asks_the_second_replica_only_when_the_first_is_late(
+        three_masters: tuple[Master, Master, Master], certs: Path, procs: Procs, tmp_path: Path) -> None:
+    edge, m0, m1 = three_masters
+    req, rep = "/hedge/request", "/hedge/reply"
+    c0, a0 = cloud_end(procs, m0, certs, req, rep)
+    c1, a1 = cloud_end(procs, m1, certs, req, rep)
+    node(procs, m0, "echo", req, rep, "--name", "r0")
+    node(procs, m1, "echo", req, rep, "--name", "r1")
+    with group(edge, certs, [a0, a1], req, rep, tmp_path, hedge="delayed", hedge_delay_s=2.0) as g:
+        healthy = run_robot(procs, edge, req, rep, 20)
+        before = g.stats()
+        os.killpg(c0.popen.pid, signal.SIGSTOP)  # the first replica stops answering
+        try:
+            stalled = run_robot(procs, edge, req, rep, 10, rate=5.0, base=2000)
+            after = g.stats()
+        finally:
+            os.killpg(c0.popen.pid, signal.SIGCONT)
+    # While both answer within the delay, the second replica is never asked: half the traffic.
+    assert sorted(r["i"] for r in healthy) == list(range(20))
+    assert before["replicas"][1]["sent"] == 0 and before["duplicates_dropped"] == 0
+    # Once the first is silent, every request still gets exactly one answer, from the second.
+    assert sorted(r["i"] for r in stalled) == list(range(10))
+    assert Counter(r["from"] for r in stalled) == {"r1": 10}
+    assert after["replicas"][1]["won"] == 10
+
+
+def test_a_field_other_than_the_stamp_matches_replies(three_masters: tuple[Master, Master, Master],
+                                                      certs: Path, procs: Procs, tmp_path: Path) -> None:
+    """``match: seq`` (std_msgs/Header's first field) keys replies by the field's raw bytes, found
+    with the message definition the publisher sends."""
+    edge, m0, m1 = three_masters
+    req, rep = "/seq/request", "/seq/reply"
+    _, a0 = cloud_end(procs, m0, certs, req, rep)
+    _, a1 = cloud_end(procs, m1, certs, req, rep)
+    node(procs, m0, "echo", req, rep, "--name", "r0")
+    node(procs, m1, "echo", req, rep, "--name", "r1")
+    with group(edge, certs, [a0, a1], req, rep, tmp_path, match="frame_id") as g:
+        got = run_robot(procs, edge, req, rep, 10)
+        stats = g.stats()
+    # Every reply's frame_id names its replica, so keyed by frame_id each replica's first reply wins and
+    # the rest are dropped as duplicates: the key really is the field asked for.
+    assert sorted(r["from"] for r in got) == ["r0", "r1"]
+    assert stats["delivered"] == 2 and stats["duplicates_dropped"] == 18 and stats["unmatched"] == 0
+
+
+def replica_route(host: str, index: int, req: str, rep: str) -> Route:
+    return Route(host=host, connect_via="loopback", port=0, auto=False, to_cloud=(req,), to_edge=(rep,), listed=(),
+                 compression=(), queue_size=100, replica=Replica(group="echo", index=index, count=2,
+                                                                 match="header.stamp"))
+
+
+def test_edge_up_starts_one_merge_per_group_and_status_names_a_dead_replica(
+        three_masters: tuple[Master, Master, Master], procs: Procs, tmp_path: Path,
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The deployed path: a plan whose two routes are copies of one node gets one supervised
+    ``fogiac.net.relay.replicas`` process; its figures reach ``fogiac status``'s rows."""
+    edge, m0, m1 = three_masters
+    req, rep = "/deployed/request", "/deployed/reply"
+    stack = "reptest"
+    bundle = new_bundle(stack)
+    save_bundle(bundle, tmp_path / "edge-certs")
+    ends, connect = [], {}
+    for i, master in enumerate((m0, m1)):
+        host_certs = tmp_path / f"r{i}-certs"
+        save_pair(host_certs, "ca", bundle.ca)
+        name = relay_name(stack, f"r{i}")
+        save_pair(host_certs, "server", issue(bundle.ca, name, server=True, dns_names=(name,)))
+        proc, (address, port) = cloud_end(procs, master, host_certs, req, rep)
+        ends.append(proc)
+        connect[f"r{i}"] = f"{address}:{port}"
+        node(procs, master, "echo", req, rep, "--name", f"r{i}")
+    plan = dataclasses.replace(compile_plan(load_manifest(EXAMPLES / "minimal.yaml")), stack=stack,
+                               routes=(replica_route("r0", 0, req, rep), replica_route("r1", 1, req, rep)))
+    folder = tmp_path / "edge"
+    monkeypatch.setenv("PYTHONPATH", os.getcwd())
+    monkeypatch.setenv("ROS_HOSTNAME", "127.0.0.1")
+    assert edge_up(plan, entry=edge.uri, connect=connect, certs=tmp_path / "edge-certs", folder=folder) == []
+    try:
+        def figures() -> dict[str, dict]:
+            return {link["host"]: link["replica"] for link in edge_links(folder, connect, plan)}
+
+        wait_for(lambda: all(f.get("connected") for f in figures().values()), 30, "both replicas linked")
+        got = run_robot(procs, edge, req, rep, 40)
+        assert sorted(r["i"] for r in got) == list(range(40))
+        wait_for(lambda: sum(f.get("won", 0) for f in figures().values()) == 40, 10, "the figures written")
+        procs.kill(ends[0], signal.SIGKILL)
+        wait_for(lambda: figures()["r0"]["health"] == "down", 30, "replica 0 reported down")
+        lines = replicas_lines(edge_links(folder, connect, plan))
+        assert [line for line in lines if isinstance(line, str)] == [
+            "replica 0 of echo on r0 is not linked (host or its relay down)"]
+        table = lines[0]
+        assert table.row_count == 2 and list(table.columns[2].cells) == ["r0", "r1"]
+    finally:
+        supervise.stop(folder, "relay-replicas-echo")

@@ -1,0 +1,73 @@
+"""Replicas end to end on ``local`` (issue 24): ``fogiac up`` of a node with ``replicas: 2`` runs it in two
+sandboxes, each with its roscore and relay cloud end, and one replica group at the edge; a robot's requests
+are all answered exactly once while one replica's cloud end is killed mid-run, and ``fogiac status`` shows
+both replicas' figures. Real parts throughout: fogiac's CLI, the supervisor, roscores, rospy nodes."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import signal
+import sys
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from fogiac.cli import app
+from fogiac.procs import free_port
+from tests.net.relay.relay_support import Master, Procs, wait_for
+
+pytestmark = pytest.mark.ros
+NODES = Path(__file__).with_name("replica_nodes.py")
+
+
+def test_up_with_two_replicas_answers_every_request_once_while_one_dies(
+        ros_ready: None, tmp_path: Path, _state_dir: Path, procs: Procs) -> None:
+    edge_port = free_port()
+    manifest = tmp_path / "fogiac.yaml"
+    manifest.write_text(f"""name: echoes
+cloud: {{provider: local}}
+edge: {{ros_master: "http://127.0.0.1:{edge_port}"}}
+nodes:
+  - name: echo
+    machine: t3.micro
+    command: [{sys.executable}, {NODES}, echo, /echo/request, /echo/reply, --name, echo]
+    replicas: 2
+    topics: {{in: [/echo/request], out: [/echo/reply]}}
+""")
+    runner = CliRunner()
+    sandboxes = _state_dir / "echoes-dev" / "local"
+    try:
+        up = runner.invoke(app, ["up", str(manifest), "--target", "local", "--yes", "--start-edge-master"])
+        assert up.exit_code == 0, up.output
+
+        def replicas() -> dict[str, dict]:
+            status = runner.invoke(app, ["status", str(manifest), "--target", "local", "--json"])
+            assert status.exit_code == 0, status.output
+            return {link["host"]: link["replica"] for link in json.loads(status.output)["relays"]}
+
+        wait_for(lambda: all(r.get("connected") for r in replicas().values()), 60, "both replicas linked")
+        uri = f"http://127.0.0.1:{edge_port}/"
+        edge = Master(uri, dict(os.environ, ROS_MASTER_URI=uri, ROS_HOSTNAME="127.0.0.1",
+                                ROS_HOME=str(tmp_path / "ros"), ROS_LOG_DIR=str(tmp_path / "ros" / "log")))
+        robot = procs.spawn([sys.executable, str(NODES), "robot", "/echo/request", "/echo/reply", "--count", "60",
+                             "--rate", "10", "--wait", "3"], edge.env)
+        wait_for(lambda: sum(line.startswith("{") for line in robot.lines) >= 20, 90, "a third of the replies")
+        relay = sandboxes / "echo-r1" / "run" / "relay-cloud.child"
+        with contextlib.suppress(ProcessLookupError):  # replica 1's cloud end dies; its supervisor restarts it
+            os.kill(int(relay.read_text().split()[0]), signal.SIGKILL)
+        wait_for(lambda: "done" in robot.lines, 120, "the robot's run")
+        answered = [json.loads(line)["i"] for line in robot.lines if line.startswith("{")]
+        assert sorted(answered) == list(range(60))  # every request answered, none twice
+        wait_for(lambda: sum(r.get("won", 0) for r in replicas().values()) >= 60, 15, "the figures written")
+        figures = replicas()
+        assert set(figures) == {"echo-r1", "echo-r2"}
+        assert all(r["group"] == "echo" and r["count"] == 2 for r in figures.values())
+        assert sum(r["answers"] for r in figures.values()) > 60  # both answered: copies were dropped
+        shown = runner.invoke(app, ["status", str(manifest), "--target", "local"], terminal_width=200)
+        assert "replicas (first reply wins)" in shown.output and "echo-r1" in shown.output, shown.output
+    finally:
+        down = runner.invoke(app, ["down", str(manifest), "--target", "local", "--yes"])
+    assert down.exit_code == 0, down.output

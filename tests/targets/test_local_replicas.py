@@ -17,7 +17,7 @@ import pytest
 from typer.testing import CliRunner
 
 from fogiac.cli import app
-from fogiac.procs import free_port
+from fogiac.procs import descendants, free_port
 from tests.support.procs import alive, alive_pids, started_pids
 
 pytestmark = [
@@ -60,9 +60,11 @@ nodes:
         assert set(hosts) == {"planner-r1", "planner-r2"}
         assert all(h["nodes"][0]["running"] is True for h in hosts.values())
 
-        # replica 2's host dies: every process it ran is killed and its disk is gone
-        doomed = [pid for pid in started_pids(r2) if alive(pid)]
-        assert doomed
+        # replica 2's host dies: every process it ran (roscore's rosmaster and rosout too) is killed and its
+        # disk is gone
+        recorded = [pid for pid in started_pids(r2) if alive(pid)]
+        assert recorded
+        doomed = recorded + [child for pid in recorded for child in descendants(pid)]
         for pid in doomed:
             with contextlib.suppress(ProcessLookupError):  # a child may go with its supervisor
                 os.kill(pid, signal.SIGKILL)
@@ -80,4 +82,17 @@ nodes:
         down = runner.invoke(app, ["down", str(manifest), "--target", "local", "--yes"])
     assert down.exit_code == 0, down.output
     assert alive_pids(_state_dir) == []
+    assert _naming(_state_dir) == []  # nothing left that runs from the stack's folders (a master's children too)
     assert not sandboxes.exists()
+
+
+def _naming(folder: Path) -> list[str]:
+    """The command lines of live processes that name ``folder``."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            with contextlib.suppress(OSError):
+                line = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+                if str(folder) in line:
+                    found.append(line)
+    return found

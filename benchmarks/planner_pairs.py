@@ -77,6 +77,10 @@ def describe(name: str, runs: list[tuple[Solution, Solution, Solution]], cores: 
     if not split:
         return lines
     checks = [c * cores / sum(a.checks) for a, b in split for c in b.checks]
+    # the same split in CPU seconds: tasks are claimed as workers free up, so time divides evenly even where one
+    # worker's samples happened to need more collision checks than the other's (near walls checks cost less)
+    seconds = [c * cores / a.cpu_s[0] for a, b in split if a.cpu_s[0] > 0 for c in b.cpu_s]
+    spread = [max(abs(c * cores / sum(a.checks) - 1) for c in b.checks) for a, b in split]
     samples = [s * cores / sum(a.samples) for a, b in split if sum(a.samples) for s in b.samples]
     same = sum(sum(a.checks) == sum(b.checks) - sum(b.stolen_checks) for a, b in split)
     stolen = [sum(b.stolen_checks) / sum(a.checks) for a, b in split]
@@ -84,7 +88,9 @@ def describe(name: str, runs: list[tuple[Solution, Solution, Solution]], cores: 
     got = [sum(b.cpu_s) / b.wall_s for _, b in split]
     many_div = [b for _, b in split]
     lines.append(f"  {name}: work per worker / (one-worker total / {cores}): checks "
-                 f"{min(checks):.2f}-{max(checks):.2f}, samples {min(samples):.2f}-{max(samples):.2f}; "
+                 f"{min(checks):.2f}-{max(checks):.2f} (a run's widest: median {_median(spread):.0%}), samples "
+                 f"{min(samples):.2f}-{max(samples):.2f}, CPU seconds {min(seconds, default=float('nan')):.2f}-"
+                 f"{max(seconds, default=float('nan')):.2f}; "
                  f"same total checks as one worker (less those run twice, median {_median(stolen):.1%}) in {same} "
                  f"of {len(split)}; search CPU seconds, one worker / busiest of {cores}: median {_median(cpu):.2f}x "
                  f"(cores the {cores} workers got while searching: median {_median(got):.2f}); serial share median "

@@ -44,6 +44,16 @@ def _with_subcommands(command: click.Command | None) -> list[click.Command]:
     return [command, *(c for sub in getattr(command, "commands", {}).values() for c in _with_subcommands(sub))]
 
 
+# ``fogiac --help`` lists the everyday workflow first, in the order it runs, as Terraform's does;
+# every other verb (and any a plug-in adds) follows in the second panel, alphabetically.
+MAIN_PANEL = "Main commands"
+OTHER_PANEL = "Other commands"
+MAIN_COMMANDS = ("init", "validate", "plan", "up", "status", "down")
+
+# Other tools' verbs for what fogiac calls otherwise: answered with the one to use, exit 2 (a usage error).
+SYNONYMS = {"apply": "up", "destroy": "down", "preview": "plan"}
+
+
 class _FogiacGroup(TyperGroup):
     """Turns a FogiacError from any command into clean output and exit status 1."""
 
@@ -62,7 +72,8 @@ class _FogiacGroup(TyperGroup):
             raise typer.Exit(1) from None
 
     def list_commands(self, ctx: click.Context) -> list[str]:
-        return list(COMMANDS.names())
+        names = COMMANDS.names()
+        return [*(n for n in MAIN_COMMANDS if n in names), *(n for n in names if n not in MAIN_COMMANDS)]
 
     def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
         if cmd_name not in COMMANDS.names():
@@ -70,7 +81,18 @@ class _FogiacGroup(TyperGroup):
         command = verbs_of(COMMANDS.value(cmd_name)).get(cmd_name)
         for each in _with_subcommands(command):
             _flags_without_type(each.get_params(ctx))
+        if command is not None:
+            command.rich_help_panel = MAIN_PANEL if cmd_name in MAIN_COMMANDS else OTHER_PANEL  # type: ignore[attr-defined]
         return command
+
+    def resolve_command(self, ctx: click.Context, args: list[str]) -> tuple[str | None, click.Command | None,
+                                                                            list[str]]:
+        """``fogiac apply`` and its kind: one line naming fogiac's verb, exit 2, as click's usage errors."""
+        verb = args[0] if args else ""
+        if verb in SYNONYMS and verb not in COMMANDS.names():
+            typer.echo(f"error: fogiac has no `{verb}`; did you mean `fogiac {SYNONYMS[verb]}`?", err=True)
+            ctx.exit(2)
+        return super().resolve_command(ctx, args)
 
 
 COMMANDS: Registry[object] = Registry("fogiac.commands", what="command")  # verb -> the module registering it

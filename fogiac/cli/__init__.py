@@ -85,8 +85,7 @@ class _FogiacGroup(TyperGroup):
             command.rich_help_panel = MAIN_PANEL if cmd_name in MAIN_COMMANDS else OTHER_PANEL  # type: ignore[attr-defined]
         return command
 
-    def resolve_command(self, ctx: click.Context, args: list[str]) -> tuple[str | None, click.Command | None,
-                                                                            list[str]]:
+    def resolve_command(self, ctx: Any, args: list[str]) -> Any:
         """``fogiac apply`` and its kind: one line naming fogiac's verb, exit 2, as click's usage errors."""
         verb = args[0] if args else ""
         if verb in SYNONYMS and verb not in COMMANDS.names():

@@ -4,6 +4,7 @@ the README stays short, keeps the two commands CI depends on, and links only to 
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import pytest
 
@@ -73,3 +74,24 @@ def test_every_docs_page_is_in_the_sites_navigation() -> None:
     nav = (REPO / "mkdocs.yml").read_text()
     pages = sorted(str(p.relative_to(DOCS)) for p in DOCS.rglob("*.md"))
     assert pages and all(f": {page}" in nav for page in pages), [p for p in pages if f": {p}" not in nav]
+
+
+def _manifests() -> list[tuple[str, str]]:
+    """Every YAML block of the README and the site that is a whole manifest (has ``name:`` and ``nodes:``)."""
+    found = []
+    for page in [REPO / "README.md", *sorted(DOCS.rglob("*.md"))]:
+        for block in re.findall(r"^```yaml\n(.*?)^```", page.read_text(), flags=re.M | re.S):
+            if re.search(r"^name:", block, flags=re.M) and re.search(r"^nodes:", block, flags=re.M):
+                found.append((str(page.relative_to(REPO)), block))
+    return found
+
+
+@pytest.mark.parametrize(("page", "text"), _manifests(), ids=[p for p, _ in _manifests()])
+def test_every_manifest_the_docs_show_is_valid(page: str, text: str, tmp_path: Path) -> None:
+    from fogiac.manifest.schema import load_manifest
+
+    for key in re.findall(r"^\s*key: (\S+)", text, flags=re.M):  # a hosts manifest's key files must exist
+        (tmp_path / key).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / key).write_text("not a real key\n")
+    (tmp_path / "fogiac.yaml").write_text(text)
+    assert load_manifest(tmp_path / "fogiac.yaml").nodes, page

@@ -47,6 +47,15 @@ def stack_dir(stack: str, *, create: bool = True) -> Path:
     return path
 
 
+def stack_names() -> list[str]:
+    """The stacks that have a folder under the state root, sorted (reads the folder, creates nothing)."""
+    root = state_root()
+    try:
+        return sorted(entry.name for entry in root.iterdir() if entry.is_dir() and not entry.name.startswith("."))
+    except FileNotFoundError:
+        return []
+
+
 def write_atomic(path: Path, data: bytes, *, mode: int) -> None:
     """Write ``data`` whole or not at all, with ``mode`` from the first byte.
 

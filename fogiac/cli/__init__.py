@@ -13,7 +13,7 @@ from __future__ import annotations
 import importlib
 import sys
 import warnings
-from typing import TYPE_CHECKING, Any, TextIO
+from typing import Any, TextIO
 
 import typer
 from typer.core import TyperGroup
@@ -22,11 +22,15 @@ from fogiac import __version__
 from fogiac.errors import FogiacError, ManifestError
 from fogiac.registry import Registry
 
-if TYPE_CHECKING:
-    import click
+# typer builds on click, and newer typers carry their own copy of it (``typer._click``), whose classes
+# are not the ``click`` package's: a click installed beside it (mkdocs brings one) must not be the type
+# checked against. Contexts, commands and parameters are typed loosely here for that reason.
+Context = Any
+Command = Any
+Parameter = Any
 
 
-def _flags_without_type(params: list[click.Parameter]) -> list[click.Parameter]:
+def _flags_without_type(params: list[Parameter]) -> list[Parameter]:
     """Rich help in typer >= 0.2x prints a type (``<bool>``) beside every option, flags included.
 
     A flag takes no value, so it has no type to show: typer prints an option's metavar instead
@@ -38,19 +42,29 @@ def _flags_without_type(params: list[click.Parameter]) -> list[click.Parameter]:
     return params
 
 
-def _with_subcommands(command: click.Command | None) -> list[click.Command]:
+def _with_subcommands(command: Command | None) -> list[Command]:
     if command is None:
         return []
     return [command, *(c for sub in getattr(command, "commands", {}).values() for c in _with_subcommands(sub))]
 
 
+# ``fogiac --help`` lists the everyday workflow first, in the order it runs, as Terraform's does;
+# every other verb (and any a plug-in adds) follows in the second panel, alphabetically.
+MAIN_PANEL = "Main commands"
+OTHER_PANEL = "Other commands"
+MAIN_COMMANDS = ("init", "validate", "plan", "up", "status", "down")
+
+# Other tools' verbs for what fogiac calls otherwise: answered with the one to use, exit 2 (a usage error).
+SYNONYMS = {"apply": "up", "destroy": "down", "preview": "plan"}
+
+
 class _FogiacGroup(TyperGroup):
     """Turns a FogiacError from any command into clean output and exit status 1."""
 
-    def get_params(self, ctx: click.Context) -> list[click.Parameter]:
+    def get_params(self, ctx: Context) -> list[Parameter]:
         return _flags_without_type(super().get_params(ctx))
 
-    def invoke(self, ctx: click.Context) -> Any:
+    def invoke(self, ctx: Context) -> Any:
         try:
             return super().invoke(ctx)
         except ManifestError as err:
@@ -61,22 +75,33 @@ class _FogiacGroup(TyperGroup):
             typer.echo(f"error: {err}", err=True)
             raise typer.Exit(1) from None
 
-    def list_commands(self, ctx: click.Context) -> list[str]:
-        return list(COMMANDS.names())
+    def list_commands(self, ctx: Context) -> list[str]:
+        names = COMMANDS.names()
+        return [*(n for n in MAIN_COMMANDS if n in names), *(n for n in names if n not in MAIN_COMMANDS)]
 
-    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+    def get_command(self, ctx: Context, cmd_name: str) -> Command | None:
         if cmd_name not in COMMANDS.names():
             return None
         command = verbs_of(COMMANDS.value(cmd_name)).get(cmd_name)
         for each in _with_subcommands(command):
             _flags_without_type(each.get_params(ctx))
+        if command is not None:
+            command.rich_help_panel = MAIN_PANEL if cmd_name in MAIN_COMMANDS else OTHER_PANEL
         return command
+
+    def resolve_command(self, ctx: Any, args: list[str]) -> Any:
+        """``fogiac apply`` and its kind: one line naming fogiac's verb, exit 2, as click's usage errors."""
+        verb = args[0] if args else ""
+        if verb in SYNONYMS and verb not in COMMANDS.names():
+            typer.echo(f"error: fogiac has no `{verb}`; did you mean `fogiac {SYNONYMS[verb]}`?", err=True)
+            ctx.exit(2)
+        return super().resolve_command(ctx, args)
 
 
 COMMANDS: Registry[object] = Registry("fogiac.commands", what="command")  # verb -> the module registering it
 
 
-def verbs_of(module: str) -> dict[str, click.Command]:
+def verbs_of(module: str) -> dict[str, Command]:
     """The click commands the module ``module`` registers, by name (imports the module)."""
     group = typer.Typer(context_settings={"help_option_names": ["-h", "--help"]})
     importlib.import_module(module).register(group)

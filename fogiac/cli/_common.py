@@ -9,7 +9,7 @@ from pathlib import Path
 import typer
 
 from fogiac import deployment
-from fogiac.errors import FogiacError
+from fogiac.errors import FogiacError, ManifestError
 from fogiac.manifest.fogros import load_any
 from fogiac.manifest.schema import Manifest
 from fogiac.plan.compile import compile_plan, legacy_stack_name, stack_name
@@ -24,7 +24,13 @@ FORCE = typer.Option(False, "--force", help="Take over a stack another manifest 
 
 
 def load(manifest: Path) -> Manifest:
-    """The manifest at ``manifest``, or the one a FogROS launch file implies (read, not executed)."""
+    """The manifest at ``manifest``, or the one a FogROS launch file implies (read, not executed).
+
+    A manifest that is not there is one line that says how to make one.
+    """
+    if not manifest.exists():
+        init = "fogiac init" if manifest == Path("fogiac.yaml") else f"fogiac init {manifest}"
+        raise ManifestError([f"{manifest}: no such file; `{init}` writes a starter manifest"])
     return load_any(manifest)
 
 

@@ -62,7 +62,8 @@ def cost(manifest: Path = MANIFEST, target: str | None = TARGET) -> None:
     plan = compile_plan(load(manifest), target=target)
     spot = plan.spot_hourly_usd
     extra = ("spot $/hour", f"spot $/{MONTH}") if spot is not None else ()
-    out = table(f"{plan.stack} ({plan.target}, {plan.region})", "item", "$/hour", "$/day", f"$/{MONTH}", *extra)
+    out = table(f"{plan.stack} (--env {plan.environment}; {plan.target}, {plan.region})",
+                "item", "$/hour", "$/day", f"$/{MONTH}", *extra)
     for column in out.columns[1:]:
         column.justify = "right"
     for line in plan.cost:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import shlex
+import subprocess
 from pathlib import Path
 from typing import Any
 
@@ -41,6 +42,26 @@ def _host_of(node: str, manifest: Path, env: str) -> tuple[str, Any, str, Path, 
             return name, access, base, state, plan
     raise ProvisionError(f"node {node!r} is not deployed: stack {plan.stack} is not up; "
                          f"run `fogiac up {manifest}` first")
+
+
+def _ssh_argv(access: Any, state: Path, *remote: str, tty: bool) -> list[str]:
+    """ssh to a recorded host with the key and the pinned host keys provisioning used."""
+    return ["ssh", *(["-t"] if tty else []), "-i", str(access.key), "-p", str(access.port), "-o", "IdentitiesOnly=yes",
+            "-o", f"UserKnownHostsFile={state / 'known_hosts'}", "-o", "StrictHostKeyChecking=yes",
+            f"{access.user}@{access.address}", *remote]
+
+
+def _follow(argv: list[str]) -> None:
+    """Run the follow command until it ends or Ctrl-C (which ends it quietly, exit 0)."""
+    child = subprocess.Popen(argv)
+    try:
+        code = child.wait()
+    except KeyboardInterrupt:
+        child.terminate()
+        child.wait()
+        return
+    if code != 0:
+        raise typer.Exit(code)
 
 
 def register(app: typer.Typer) -> None:
@@ -78,13 +99,21 @@ def register(app: typer.Typer) -> None:
 
     @app.command("logs")
     def logs(node: str, manifest: Path = MANIFEST, env: str = ENV,
-             lines: int = typer.Option(100, "--lines", "-n", help="How many lines.")) -> None:
-        """Print the last lines a node wrote on its host."""
+             lines: int = typer.Option(100, "--lines", "-n", help="How many lines."),
+             follow: bool = typer.Option(False, "--follow", "-f",
+                                         help="Keep printing what the node writes until Ctrl-C.")) -> None:
+        """Print the last lines a node wrote on its host (--follow: and what it writes next)."""
         name, access, base, state, plan = _host_of(node, manifest, env)
         host = access.open(name=name, known_hosts=state / "known_hosts", stack=plan.stack)
         try:
             host.connect()
-            command = manager_for(host).logs_command(Layout(base or host.base, plan.stack), f"node-{node}", lines=lines)
+            command = manager_for(host).logs_command(Layout(base or host.base, plan.stack), f"node-{node}", lines=lines,
+                                                     follow=follow)
+            if follow:  # streamed by a process of its own: the host's run() returns only when a command ends
+                host.close()
+                _follow(["bash", "-c", command] if isinstance(access, LocalAccess)
+                        else _ssh_argv(access, state, command, tty=False))
+                return
             text = host.run(command, check=False).stdout
             typer.echo(text, nl=False)
             if not text.strip():  # a node still loading has nothing to show yet; say so rather than print nothing
@@ -101,9 +130,7 @@ def register(app: typer.Typer) -> None:
             argv = ["bash", "--rcfile", f"{base}/env/ros.sh", "-i"]
             cwd = base
         else:
-            argv = ["ssh", "-t", "-i", str(access.key), "-p", str(access.port), "-o", "IdentitiesOnly=yes",
-                    "-o", f"UserKnownHostsFile={state / 'known_hosts'}", "-o", "StrictHostKeyChecking=yes",
-                    f"{access.user}@{access.address}", f"cd {shlex.quote(base)} && exec $SHELL -l"]
+            argv = _ssh_argv(access, state, f"cd {shlex.quote(base)} && exec $SHELL -l", tty=True)
             cwd = os.getcwd()
         if print_only:
             typer.echo(f"(cd {shlex.quote(cwd)} && {shlex.join(argv)})" if cwd != os.getcwd() else shlex.join(argv))

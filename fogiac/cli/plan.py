@@ -50,7 +50,7 @@ def _key_inputs(resource: Mapping[str, Any]) -> list[str]:
 
 def _render_diff(doc: dict[str, Any], lines: list[str]) -> None:
     out = console()
-    stack, target = (escape(review.visible(str(doc[k]))) for k in ("stack", "target"))
+    stack, target = (escape(review.visible(text)) for text in (stack_label(doc), str(doc["target"])))
     out.print(f"[bold]fogiac plan[/] {stack}: target {target}")
     for line in lines:
         out.print(escape(line), highlight=False)
@@ -76,11 +76,17 @@ def _spot_cell(host: Mapping[str, Any]) -> str:
     return f"{each:.4f} ({saving_pct(host['usd_per_hour'], each)}% less)"
 
 
+def stack_label(doc: Mapping[str, Any]) -> str:
+    """``first-day-dev (--env dev)``: the stack's name says where its suffix comes from."""
+    env = doc.get("environment")
+    return f"{doc['stack']} (--env {env})" if env else str(doc["stack"])
+
+
 def render(doc: Mapping[str, Any]) -> None:
     doc = review.visible_doc(doc)  # no value reaches the terminal with a control or bidi character in it
     out = console()
     where = f", region {doc['region']}, mode {doc['mode']}" if doc["resources"] else ""
-    out.print(f"[bold]fogiac plan[/] {doc['stack']}: target {doc['target']}{where}")
+    out.print(f"[bold]fogiac plan[/] {stack_label(doc)}: target {doc['target']}{where}")
     carrier = doc["middleware"]
     out.print(f"ROS {carrier['ros_distro']} via {escape(carrier['label'])}\n  edge: {escape(carrier['edge'])}\n"
               f"  each host: {escape(carrier['cloud'])}, port {carrier['port']}", highlight=False)

@@ -1,7 +1,7 @@
-"""The manifest reference in the README, generated from the models so the two never drift.
+"""The manifest reference page (docs/reference/manifest.md), generated from the models so the two never drift.
 
-A test compares the README's block between the markers with :func:`manifest_reference`;
-``python -m fogiac.manifest.reference --write README.md`` refreshes it.
+A test compares the page's block between the markers with :func:`manifest_reference`;
+``python -m fogiac.manifest.reference --write docs/reference/manifest.md`` refreshes it.
 """
 
 from __future__ import annotations
@@ -72,7 +72,7 @@ def _default(info: FieldInfo) -> str:
 def manifest_reference() -> str:
     lines = [BEGIN]
     for title, model in SECTIONS:
-        lines += ["", f"#### `{title}`", "", "| key | type | default | meaning |", "|---|---|---|---|"]
+        lines += ["", f"## `{title}`", "", "| key | type | default | meaning |", "|---|---|---|---|"]
         for name, info in model.model_fields.items():
             key = info.alias or name
             desc = (info.description or "").replace("|", "\\|")

@@ -40,7 +40,8 @@ class Manager(Protocol):
     def stop_all(self, host: Host, layout: Layout) -> list[str]:
         ...
 
-    def logs_command(self, layout: Layout, name: str, *, lines: int) -> str:
+    def logs_command(self, layout: Layout, name: str, *, lines: int, follow: bool = False) -> str:
+        """The shell command printing the last ``lines`` of service ``name``; ``follow``: and what it writes after."""
         ...
 
 
@@ -121,8 +122,8 @@ class Supervisor:
         out = host.run(f"test -f {q(layout.supervisor)} && {self._sup(layout, 'stop-all')}", check=False).stdout
         return [line.split(":")[0] for line in out.splitlines() if line.endswith(": stopped")]
 
-    def logs_command(self, layout: Layout, name: str, *, lines: int) -> str:
-        return f"tail -n {lines} {q(layout.run + '/' + name + '.log')}"
+    def logs_command(self, layout: Layout, name: str, *, lines: int, follow: bool = False) -> str:
+        return f"tail -n {lines}{' -F' if follow else ''} {q(layout.run + '/' + name + '.log')}"
 
 
 class Systemd:
@@ -183,8 +184,8 @@ class Systemd:
     def stop_all(self, host: Host, layout: Layout) -> list[str]:
         return self.prune(host, layout, keep=())
 
-    def logs_command(self, layout: Layout, name: str, *, lines: int) -> str:
-        return f"journalctl -u {self.unit(layout, name)} -n {lines} --no-pager"
+    def logs_command(self, layout: Layout, name: str, *, lines: int, follow: bool = False) -> str:
+        return f"journalctl -u {self.unit(layout, name)} -n {lines} --no-pager{' -f' if follow else ''}"
 
 
 MANAGERS: dict[str, Manager] = {"systemd": Systemd(), "supervisor": Supervisor()}

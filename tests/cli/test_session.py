@@ -133,7 +133,7 @@ def test_4_plan_detailed_exitcode_is_0_right_after_up(deployed: tuple[Session, l
     for _ in range(2):
         code, out = session("plan", str(session.manifest), "--detailed-exitcode")
         assert code == 0, out
-        assert out[0] == "fogiac plan motion-planning-dev: target local"
+        assert out[0] == "fogiac plan motion-planning-dev (--env dev): target local"
     changed = session.manifest.read_text()
     session.manifest.write_text(changed.replace("disk_gb: 30", "disk_gb: 40"))
     try:
@@ -177,7 +177,7 @@ def test_7_status_shows_directions_latency_address_uptime_and_cost(deployed: tup
 
 def test_9_up_on_local_shows_the_plan_before_it_deploys(deployed: tuple[Session, list[str]]) -> None:
     _, up = deployed
-    plan_at = up.index("fogiac plan motion-planning-dev: target local")
+    plan_at = up.index("fogiac plan motion-planning-dev (--env dev): target local")
     provisioned_at = next(i for i, line in enumerate(up) if line.startswith("provisioning:"))
     assert plan_at < provisioned_at
     assert "cost: $0.0000 per hour (about $0.00 per month (730 h) if left running)" in up

@@ -1,11 +1,11 @@
-"""What a forgotten stack costs, with and without autostop: the README's cost table, from the catalogue.
+"""What a forgotten stack costs, with and without autostop: the cost guide's table, from the catalogue.
 
 "Forgotten" means deployed and then left with nobody connected: the instances run on, the
 Client VPN association is billed per hour whether or not anyone is connected, and no
 connection-hours accrue. With autostop the instances run for the idle time once (the
 watchdog's wait after the edge leaves), then stop; the association stays until ``fogiac down``.
 A stopped instance's disk (EBS) is billed too but is not in the catalogue, so it is not counted.
-``python -m fogiac.targets.aws.forgotten --write README.md`` refreshes the table; a test keeps it in sync.
+``python -m fogiac.targets.aws.forgotten --write docs/guides/cost.md`` refreshes the table; a test keeps it in sync.
 """
 
 from __future__ import annotations

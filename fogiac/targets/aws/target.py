@@ -24,7 +24,7 @@ from fogiac.plan.placement import Placement, Tags
 from fogiac.provision import SshAccess, idle, recorded_access
 from fogiac.state import StackState, read_json, stack_lock
 from fogiac.tables import table
-from fogiac.targets.aws import api, engine, observe, offline, placement, quotas, spot
+from fogiac.targets.aws import api, engine, iam, observe, offline, placement, quotas, spot
 from fogiac.targets.aws import sweep as sweeping
 from fogiac.targets.aws.catalog import catalog
 from fogiac.targets.aws.vpn import write_client_profile
@@ -217,6 +217,7 @@ class AwsTarget:
             checks.append(Check("Pulumi CLI", True, str(engine.pulumi_cli())))
         except CloudError as err:
             checks.append(Check("Pulumi CLI", False, str(err)))
+        checks.append(iam.doctor_check(plan, {str(r["type"]) for r in self.declare(plan)}))
         known = engine.known_ids(plan.stack) if StackState(plan.stack).exists() else frozenset()
         try:
             report = api.preflight(plan, operator_cidr=ssh_from, known_ids=known)

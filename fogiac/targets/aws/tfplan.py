@@ -53,7 +53,7 @@ TYPES: dict[str, str] = {
 RENAMED: dict[tuple[str, str], str] = {("aws_route_table", "routes"): "route"}
 MAPS = frozenset({"tags", "volume_tags", "tags_all"})  # map attributes: keys kept as written
 
-# Checks fogiac fails on purpose, with the one-sentence reason the README's security section gives.
+# Checks fogiac fails on purpose, with the one-sentence reason docs/guides/pull-requests.md gives.
 # ``when``: a plan-level condition under which the check is declared ("always", or "no flow logs").
 BY_DESIGN: tuple[tuple[str, str, str], ...] = (
     ("CKV_AWS_88", "always",

@@ -1,0 +1,97 @@
+"""``fogiac ls`` (also ``fogiac stacks``): every stack deployed from this machine, read from the local state.
+
+Offline and fast: it reads each stack's deployment record and applied plan from the state folder
+(:mod:`fogiac.state`) and asks no cloud. The cost so far is the applied plan's hourly cost times the
+hours since the first ``up``: an upper bound (hosts that autostop stopped bill less); ``fogiac status``
+asks the cloud for the real figure.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import typer
+
+from fogiac import deployment
+from fogiac.errors import FogiacError
+from fogiac.manifest.fogros import load_any
+from fogiac.plan.compile import compile_plan
+from fogiac.plan.document import APPLIED_FILE
+from fogiac.plan.guard import duration
+from fogiac.state import StackState, stack_names, state_root
+from fogiac.tables import console, table
+
+STATES = {deployment.COMPLETE: "up", deployment.PARTIAL: "partial", deployment.REMOVED: "removed"}
+
+
+def _environment(record: deployment.Deployment, applied: dict[str, Any] | None, name: str | None) -> str | None:
+    if applied and isinstance(applied.get("environment"), str):
+        return str(applied["environment"])
+    if name and record.stack.startswith(f"{name}-"):
+        return record.stack[len(name) + 1:]
+    return None
+
+
+def _autostop_and_env(record: deployment.Deployment, applied: dict[str, Any] | None) -> tuple[str, str]:
+    """What autostop does for the stack, and its ``--env``, from the manifest that made it (read, compiled offline)."""
+    try:
+        loaded = load_any(Path(record.manifest))
+    except FogiacError:
+        env = _environment(record, applied, None)
+        return "unknown (manifest gone)", env or "?"
+    env = _environment(record, applied, loaded.name) or "?"
+    try:
+        plan = compile_plan(loaded, target=record.target, environment=env)
+    except FogiacError:
+        return "unknown (manifest changed)", env
+    if plan.autostop is None:
+        return "off", env
+    return f"{plan.autostop.action} after {duration(plan.autostop.idle_s)} idle", env
+
+
+def rows(*, everything: bool = False, now: float | None = None) -> list[dict[str, str]]:
+    """One row per stack with a deployment record (``everything``: also those ``down`` removed)."""
+    now = time.time() if now is None else now
+    out = []
+    for stack in stack_names():
+        try:
+            record = deployment.read(stack)
+        except FogiacError:
+            continue  # not a stack fogiac wrote
+        if record is None or (not record.exists and not everything):
+            continue
+        applied = StackState(stack).read(APPLIED_FILE)
+        applied = applied if isinstance(applied, dict) else None
+        autostop, env = _autostop_and_env(record, applied)
+        hourly = float(applied["cost"]["hourly_usd"]) if applied and "cost" in applied else None
+        hours = max(0.0, now - record.since_epoch) / 3600
+        so_far = "—" if hourly is None or not record.exists else f"at most ${hourly * hours:.2f} (${hourly:.4f}/h)"
+        out.append({"stack": stack, "env": env, "target": record.target,
+                    "state": STATES.get(record.state, record.state), "since": record.since,
+                    "cost so far": so_far, "autostop": autostop, "manifest": record.manifest})
+    return out
+
+
+def register(app: typer.Typer) -> None:
+    def ls(everything: bool = typer.Option(False, "--all", help="Also stacks that `down` removed."),
+           manifests: bool = typer.Option(False, "--manifests", help="Show the manifest file that made each.")) -> None:
+        """Every stack deployed from this machine: target, state, cost so far and autostop (offline)."""
+        found = rows(everything=everything)
+        if not found:
+            typer.echo("no stacks deployed from this machine (state in "
+                       f"{state_root()}); `fogiac up` deploys one")
+            return
+        columns = ["stack", "env", "target", "state", "since", "cost so far", "autostop"] + (
+            ["manifest"] if manifests else [])
+        out = table(None, *columns)
+        for row in found:
+            out.add_row(*(row[c] for c in columns))
+        screen = console()
+        screen.print(out)
+        screen.print("cost so far: the applied plan's hourly cost since the first up, an upper bound; "
+                     "`fogiac status MANIFEST` asks the cloud", markup=False, style="dim")
+
+    app.command("ls")(ls)
+    app.command("stacks", help="Same as `fogiac ls`.")(ls)

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The policy gate: every example's offline plan, exported as Terraform plan JSON, scanned by
 # checkov (pinned in .ci/checkov.sh, in its own venv). Fails on any failed check that the exported
-# document does not declare by design (its "fogiac.by_design" list, each with a reason; the
-# README's security section gives the same reasons). Needs no credentials and no Pulumi CLI.
+# document does not declare by design (its "fogiac.by_design" list, each with a reason;
+# docs/guides/pull-requests.md, "Checks that fail by design", gives the same reasons). Needs no
+# credentials and no Pulumi CLI.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash .ci/checkov.sh >/dev/null

@@ -23,7 +23,7 @@ runner = CliRunner()
 def export(path: Path) -> dict[str, Any]:
     result = runner.invoke(app, ["plan", str(path), "--format", "terraform-json"])
     assert result.exit_code == 0, result.output
-    exported: dict[str, Any] = json.loads(result.output)
+    exported: dict[str, Any] = json.loads(result.stdout)  # stderr holds the placeholder warnings (proxy.yaml)
     return exported
 
 

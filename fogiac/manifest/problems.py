@@ -98,7 +98,7 @@ def suggest(value: object, choices: Iterable[str]) -> str:
         close = difflib.get_close_matches(value, choices, n=1, cutoff=0.6)
         if close:
             return f"; did you mean {close[0]!r}?"
-    if 0 < len(choices) <= 8:
+    if 0 < len(choices) <= 12:  # the manifest's top level has 9 keys: a typo there still lists them
         return "; valid: " + ", ".join(repr(c) for c in choices)
     return ""
 

@@ -198,6 +198,7 @@ def run(scenario: str, args: argparse.Namespace, home: Path, hosts: list[LabHost
         connect[impaired.name] = f"127.0.0.1:{proxy.port}"
     stop = threading.Event()
     kills: list[str] = []
+    probes: dict[str, int] = {}
     robot: Proc | None = None
     state = StackState(plan.stack)
     try:
@@ -215,6 +216,7 @@ def run(scenario: str, args: argparse.Namespace, home: Path, hosts: list[LabHost
             wait_for(warm, 180, "every replica's first answer")
             go.touch()
             wait_for(lambda: "start" in robot.lines, 30, "the robot's start")
+            probes = {r["host"]: r["won"] for r in group_stats(plan).get("replicas", [])}  # won before the run
             chaos = None
             if scenario.endswith("killed"):
                 def killer() -> None:
@@ -234,7 +236,8 @@ def run(scenario: str, args: argparse.Namespace, home: Path, hosts: list[LabHost
             if chaos is not None:
                 chaos.join()
         time.sleep(1.5)  # the group's stats file is rewritten every second
-        won = {r["host"]: r["won"] for r in group_stats(plan).get("replicas", [])} if two else {hosts[0].name: None}
+        won = {r["host"]: r["won"] - probes.get(r["host"], 0) for r in group_stats(plan).get("replicas", [])} \
+            if two else {hosts[0].name: None}
         replies = [json.loads(line) for line in robot.lines if line.startswith("{")]
         measured = [r for r in replies if r["i"] >= 0]
         seen = Counter(r["i"] for r in measured)

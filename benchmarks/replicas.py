@@ -35,8 +35,8 @@ at 20 s and 40 s). With one replica impaired, two replicas keep P50 within 1-4 m
 replica and P99 at 41.7-49.3 ms against 30.9-52.1 ms: the 1.2x goal on P99 is met against run 2's
 healthy figure, not against run 1's. On this box both replicas, both relay ends and the robot share two
 CPUs at load 5-9, so a second replica's 20 ms of busy work per request competes with the first's (the
-2-healthy row costs about as much as the impaired ones); on separate hosts it would not. Not run here:
-the hosts target with the motion planner.
+2-healthy row costs about as much as the impaired ones); on separate hosts it would not. The hosts target
+with the motion planner, each replica on a core of its own: benchmarks/replicas_hosts.py.
 """
 
 from __future__ import annotations

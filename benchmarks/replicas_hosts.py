@@ -197,6 +197,16 @@ def manifest(path: Path, stack: str, hosts: list[LabHost], key: Path, edge: Mast
     return compile_plan(load_manifest(path))
 
 
+def reap(procs: Procs) -> None:
+    """After ``procs.close()`` (SIGINT to each group): SIGKILL to each group, so that no roscore's rosmaster
+    outlives a run (one did, once, when SIGINT came early)."""
+    for popen in procs.started:
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            popen.wait(timeout=5)
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.killpg(popen.pid, signal.SIGKILL)
+
+
 def group_stats(plan: Plan) -> dict:
     try:
         return json.loads((edge_dir(plan) / "relay-replicas-planner.stats.json").read_text())
@@ -324,6 +334,7 @@ def main() -> None:
                 print(json.dumps(result), flush=True)
     finally:
         procs.close()
+        reap(procs)
     print(f"\n{'scenario':<11} {'replies':>7} {'dup':>4} {'lost':>4} {'p50':>7} {'p95':>7} {'p99':>7}  won  load")
     for r in results:
         print(f"{r['scenario']:<11} {r['replies']:>7} {r['duplicates']:>4} {r['lost']:>4} {r['p50']:>7} "

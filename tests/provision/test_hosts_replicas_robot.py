@@ -20,6 +20,7 @@ import contextlib
 import json
 import os
 import signal
+import subprocess
 import sys
 from collections import Counter
 from collections.abc import Iterator
@@ -76,6 +77,17 @@ def replicated(tmp_path: Path, hosts: list[LabHost], key: Path, *,
         with contextlib.suppress(Exception):  # a host whose link was cut is back by now; teardown is best effort
             teardown(plan, hosts=access, state_dir=StackState(plan.stack).ensure())
         procs.close()
+        reap(procs)
+
+
+def reap(procs: Procs) -> None:
+    """After ``procs.close()`` (SIGINT to each group): SIGKILL to each group, so that no roscore's rosmaster
+    outlives a run (one did, once, when SIGINT came early)."""
+    for popen in procs.started:
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            popen.wait(timeout=5)
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.killpg(popen.pid, signal.SIGKILL)
 
 
 def group_stats(plan: Plan) -> dict:

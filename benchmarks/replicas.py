@@ -35,8 +35,8 @@ at 20 s and 40 s). With one replica impaired, two replicas keep P50 within 1-4 m
 replica and P99 at 41.7-49.3 ms against 30.9-52.1 ms: the 1.2x goal on P99 is met against run 2's
 healthy figure, not against run 1's. On this box both replicas, both relay ends and the robot share two
 CPUs at load 5-9, so a second replica's 20 ms of busy work per request competes with the first's (the
-2-healthy row costs about as much as the impaired ones); on separate hosts it would not. Not run here:
-the hosts target with the motion planner.
+2-healthy row costs about as much as the impaired ones); on separate hosts it would not. The hosts target
+with the motion planner, each replica on a core of its own: benchmarks/replicas_hosts.py.
 """
 
 from __future__ import annotations
@@ -45,7 +45,6 @@ import argparse
 import json
 import os
 import signal
-import socket
 import statistics
 import sys
 import threading
@@ -58,77 +57,12 @@ sys.path.insert(0, str(ROOT))
 
 from fogiac.certs import write_relay_lab  # noqa: E402
 from tests.net.relay.relay_support import Master, Proc, Procs, free_port, wait_for  # noqa: E402
+from tests.support.delayproxy import DelayProxy  # noqa: E402
 from tests.support.ros import ros_missing  # noqa: E402
 
 NODES = ROOT / "tests" / "net" / "relay" / "replica_nodes.py"
 REQ, REP = "/bench/request", "/bench/reply"
 SCENARIOS = ("1-healthy", "1-delayed", "1-starved", "2-delayed", "2-killed", "2-starved", "2-healthy")
-
-
-class DelayProxy:
-    """Forwards TCP both ways, each chunk held ``delay`` seconds (a slow link, in user space)."""
-
-    def __init__(self, target: tuple[str, int], delay: float) -> None:
-        self.target, self.delay = target, delay
-        self.listener = socket.create_server(("127.0.0.1", 0))
-        self.port = self.listener.getsockname()[1]
-        self.stopped = False
-        threading.Thread(target=self._accept, daemon=True).start()
-
-    def _accept(self) -> None:
-        while not self.stopped:
-            try:
-                client, _ = self.listener.accept()
-            except OSError:
-                return
-            try:
-                server = socket.create_connection(self.target)
-            except OSError:
-                client.close()
-                continue
-            for a, b in ((client, server), (server, client)):
-                a.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-                self._pipe(a, b)
-
-    def _pipe(self, src: socket.socket, dst: socket.socket) -> None:
-        queue: list[tuple[float, bytes]] = []
-        cond = threading.Condition()
-
-        def read() -> None:
-            while True:
-                try:
-                    data = src.recv(65536)
-                except OSError:
-                    data = b""
-                with cond:
-                    queue.append((time.monotonic() + self.delay, data))
-                    cond.notify()
-                if not data:
-                    return
-
-        def write() -> None:
-            while True:
-                with cond:
-                    while not queue:
-                        cond.wait()
-                    due, data = queue.pop(0)
-                wait = due - time.monotonic()
-                if wait > 0:
-                    time.sleep(wait)
-                try:
-                    if not data:
-                        dst.shutdown(socket.SHUT_WR)
-                        return
-                    dst.sendall(data)
-                except OSError:
-                    return
-
-        threading.Thread(target=read, daemon=True).start()
-        threading.Thread(target=write, daemon=True).start()
-
-    def close(self) -> None:
-        self.stopped = True
-        self.listener.close()
 
 
 class Replica:

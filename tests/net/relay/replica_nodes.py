@@ -1,11 +1,13 @@
 """rospy nodes for the replica tests and benchmark: a robot asking, and a node answering (one per process).
 
-    python replica_nodes.py echo REQ REPLY --name NAME [--work-ms W]
+    python replica_nodes.py echo REQ REPLY --name NAME [--work-ms W] [--pad BYTES]
     python replica_nodes.py robot REQ REPLY --count N [--rate HZ] [--base B] [--wait S]
 
 Both topics carry ``std_msgs/Header``. ``echo`` answers each request with a Header of the same seq
 and stamp and ``frame_id`` NAME, after W ms of CPU work (a busy loop, so a CPU quota or a stop
-slows it). ``robot`` waits until someone subscribes to REQ and publishes to REPLY, sends N requests
+slows it; ``--name ip``: this host's global IPv4 address, for replicas that run one command on
+several hosts; ``--pad``: that many random characters after a ``|`` in ``frame_id``, a reply big enough
+for a slow link to delay). ``robot`` waits until someone subscribes to REQ and publishes to REPLY, sends N requests
 (seq i, stamp base+i s), and prints one JSON line per reply it gets: {"i", "from", "ms"} (ms: from
 its send to the reply's arrival), then ``done``.
 """
@@ -14,8 +16,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import secrets
+import subprocess
 import threading
 import time
+
+
+def _host_address() -> str:
+    """This host's (network namespace's) global IPv4 address."""
+    out = subprocess.run(["ip", "-4", "-o", "addr", "show", "scope", "global"], capture_output=True, text=True).stdout
+    return out.split()[3].split("/")[0]
 
 
 def main() -> None:
@@ -25,6 +35,7 @@ def main() -> None:
     parser.add_argument("reply")
     parser.add_argument("--name", default="echo")
     parser.add_argument("--work-ms", type=float, default=0.0)
+    parser.add_argument("--pad", type=int, default=0, help="echo: random characters added to each reply")
     parser.add_argument("--count", type=int, default=100)
     parser.add_argument("--rate", type=float, default=20.0)
     parser.add_argument("--base", type=int, default=1000, help="robot: request i is stamped base + i seconds")
@@ -36,13 +47,16 @@ def main() -> None:
 
     rospy.init_node(f"replica_{args.role}", anonymous=True, disable_signals=True)
     if args.role == "echo":
+        name = _host_address() if args.name == "ip" else args.name
+        if args.pad:
+            name += "|" + secrets.token_urlsafe(args.pad)[:args.pad]  # random: the relay's compression keeps it big
         pub = rospy.Publisher(args.reply, Header, queue_size=100)
 
         def answer(req: Header) -> None:
             end = time.perf_counter() + args.work_ms / 1e3
             while time.perf_counter() < end:
                 pass
-            pub.publish(Header(seq=req.seq, stamp=req.stamp, frame_id=args.name))
+            pub.publish(Header(seq=req.seq, stamp=req.stamp, frame_id=name))
 
         rospy.Subscriber(args.request, Header, answer, queue_size=100, tcp_nodelay=True)
         print("ready", flush=True)
@@ -59,7 +73,7 @@ def main() -> None:
         with lock:
             t0 = sent.get(i)
         ms = None if t0 is None else round((now - t0) * 1e3, 3)
-        print(json.dumps({"i": i, "from": reply.frame_id, "ms": ms}), flush=True)
+        print(json.dumps({"i": i, "from": reply.frame_id.split("|")[0], "ms": ms}), flush=True)
 
     pub = rospy.Publisher(args.request, Header, queue_size=100, tcp_nodelay=True)
     sub = rospy.Subscriber(args.reply, Header, got, queue_size=1000, tcp_nodelay=True)

@@ -27,6 +27,7 @@ from fogiac.plan.compile import compile_plan
 from fogiac.plan.model import Replica, Route
 from fogiac.provision import supervise
 from tests.net.relay.relay_support import Master, Proc, Procs, free_port, wait_for
+from tests.support.delayproxy import DelayProxy
 
 pytestmark = pytest.mark.ros
 NODES = Path(__file__).with_name("replica_nodes.py")
@@ -130,6 +131,32 @@ def test_a_stopped_replica_leaves_the_healthy_one_winning(three_masters: tuple[M
     assert Counter(r["from"] for r in got) == {"r1": 60}  # the stalled replica never wins
     r0, r1 = stats["replicas"]
     assert r0["won"] == 0 and r0["health"] in ("silent", "down") and r1["won"] == 60 and r1["health"] == "ok"
+
+
+def test_a_replica_behind_a_slow_link_leaves_the_healthy_one_winning(three_masters: tuple[Master, Master, Master],
+                                                                     certs: Path, procs: Procs, tmp_path: Path) -> None:
+    """Replica 0 answers every request, but through a user-space proxy that holds each chunk 400 ms each way
+    (a slow link): the robot gets each reply once, from replica 1, and replica 0's copies are dropped as late."""
+    edge, m0, m1 = three_masters
+    req, rep = "/slow/request", "/slow/reply"
+    _, a0 = cloud_end(procs, m0, certs, req, rep)
+    _, a1 = cloud_end(procs, m1, certs, req, rep)
+    node(procs, m0, "echo", req, rep, "--name", "r0")
+    node(procs, m1, "echo", req, rep, "--name", "r1")
+    proxy = DelayProxy(a0, 0.4)
+    try:
+        with group(edge, certs, [("127.0.0.1", proxy.port), a1], req, rep, tmp_path) as g:
+            got = run_robot(procs, edge, req, rep, 60, rate=10.0)
+            wait_for(lambda: g.stats()["replicas"][0]["late"] >= 50, 20, "the slow replica's copies")
+            stats = g.stats()
+    finally:
+        proxy.close()
+    assert sorted(r["i"] for r in got) == list(range(60))  # every request answered, none twice
+    winners = Counter(r["from"] for r in got)
+    assert winners["r1"] >= 57, winners  # nearly all: the healthy replica's reply comes first
+    r0, r1 = stats["replicas"]
+    assert r0["won"] + r1["won"] == stats["delivered"] == 60
+    assert r0["late"] >= 50 and r0["health"] == "ok"  # replica 0 answered too, only late; it is linked and alive
 
 
 def test_delayed_hedge_asks_the_second_replica_only_when_the_first_is_late(

@@ -71,3 +71,59 @@ nodes:
     finally:
         down = runner.invoke(app, ["down", str(manifest), "--target", "local", "--yes"])
     assert down.exit_code == 0, down.output
+
+
+def test_up_with_two_replicas_and_one_stopped_node_the_other_wins(
+        ros_ready: None, tmp_path: Path, _state_dir: Path, procs: Procs) -> None:
+    """Two sandboxes; replica 1's node is stopped (SIGSTOP: a stalled host) for the robot's whole run: every
+    request is answered once, all by replica 2, and status names replica 1 as not answering."""
+    edge_port = free_port()
+    manifest = tmp_path / "fogiac.yaml"
+    manifest.write_text(f"""name: stalls
+cloud: {{provider: local}}
+edge: {{ros_master: "http://127.0.0.1:{edge_port}"}}
+nodes:
+  - name: echo
+    machine: t3.micro
+    command: [{sys.executable}, {NODES}, echo, /stall/request, /stall/reply, --name, echo]
+    replicas: 2
+    topics: {{in: [/stall/request], out: [/stall/reply]}}
+""")
+    runner = CliRunner()
+    sandboxes = _state_dir / "stalls-dev" / "local"
+    try:
+        up = runner.invoke(app, ["up", str(manifest), "--target", "local", "--yes", "--start-edge-master"])
+        assert up.exit_code == 0, up.output
+
+        def replicas() -> dict[str, dict]:
+            status = runner.invoke(app, ["status", str(manifest), "--target", "local", "--json"])
+            assert status.exit_code == 0, status.output
+            return {link["host"]: link["replica"] for link in json.loads(status.output)["relays"]}
+
+        wait_for(lambda: all(r.get("connected") for r in replicas().values()), 60, "both replicas linked")
+        uri = f"http://127.0.0.1:{edge_port}/"
+        edge = Master(uri, dict(os.environ, ROS_MASTER_URI=uri, ROS_HOSTNAME="127.0.0.1",
+                                ROS_HOME=str(tmp_path / "ros"), ROS_LOG_DIR=str(tmp_path / "ros" / "log")))
+        # both answer a first request before the stall (a node that never answered is not yet "silent")
+        probe = procs.spawn([sys.executable, str(NODES), "robot", "/stall/request", "/stall/reply", "--count", "5",
+                             "--rate", "5", "--wait", "2", "--base", "500"], edge.env)
+        wait_for(lambda: "done" in probe.lines, 90, "the probe run")
+        wait_for(lambda: all(r.get("answers", 0) >= 5 for r in replicas().values()), 15, "both replicas answering")
+        before = {host: r["won"] for host, r in replicas().items()}
+        node = int((sandboxes / "echo-r1" / "run" / "node-echo.child").read_text().split()[0])
+        os.kill(node, signal.SIGSTOP)
+        try:
+            robot = procs.spawn([sys.executable, str(NODES), "robot", "/stall/request", "/stall/reply", "--count",
+                                 "40", "--rate", "10", "--wait", "3"], edge.env)
+            wait_for(lambda: "done" in robot.lines, 120, "the robot's run")
+            answered = [json.loads(line)["i"] for line in robot.lines if line.startswith("{")]
+            assert sorted(answered) == list(range(40))  # every request answered, none twice
+            wait_for(lambda: replicas()["echo-r2"]["won"] - before["echo-r2"] >= 40, 15, "the figures written")
+            figures = replicas()
+            assert figures["echo-r1"]["won"] == before["echo-r1"]  # the stalled replica won nothing
+            assert figures["echo-r1"]["health"] == "silent" and figures["echo-r2"]["health"] == "ok", figures
+        finally:
+            os.kill(node, signal.SIGCONT)
+    finally:
+        down = runner.invoke(app, ["down", str(manifest), "--target", "local", "--yes"])
+    assert down.exit_code == 0, down.output

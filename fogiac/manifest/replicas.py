@@ -41,7 +41,7 @@ _HEADERED = frozenset({
     "visualization_msgs/Marker", "visualization_msgs/ImageMarker", "vision_msgs/Detection2DArray",
     "vision_msgs/Detection3DArray", "vision_msgs/Classification", "moveit_msgs/DisplayTrajectory",
 })
-_HEADERLESS_PACKAGES = ("std_msgs/",)  # std_msgs/Float64, String, ... (a bare std_msgs/Header has no header field)
+_HEADERLESS_PACKAGES = ("std_msgs/",)  # std_msgs/Float64, String, ... (std_msgs/Header itself: see has_header)
 _HEADERLESS = frozenset({
     "geometry_msgs/Point", "geometry_msgs/Point32", "geometry_msgs/Pose", "geometry_msgs/Pose2D",
     "geometry_msgs/PoseWithCovariance", "geometry_msgs/Quaternion", "geometry_msgs/Transform", "geometry_msgs/Twist",
@@ -82,7 +82,9 @@ def check_match(value: str) -> str:
 def has_header(type_name: str) -> bool | None:
     """Whether the type carries a std_msgs/Header: True, False, or None when the table does not know it."""
     name = canonical_type(type_name)
-    if name in _HEADERED:
+    if name in _HEADERED or name == "std_msgs/Header":
+        # a bare Header is laid out as a message that starts with one (seq, stamp, frame_id on ROS 1; stamp,
+        # frame_id in CDR), and the edge reads a header's stamp from those leading bytes: it matches the same way
         return True
     if name in _HEADERLESS or name.startswith(_HEADERLESS_PACKAGES):
         return False

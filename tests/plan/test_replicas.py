@@ -97,6 +97,9 @@ def test_an_untyped_out_topic_is_accepted_with_a_one_line_warning() -> None:
 def test_header_table_ros1_and_ros2_spellings() -> None:
     assert has_header("geometry_msgs/PoseArray") and has_header("sensor_msgs/msg/Image")
     assert has_header("my_msgs/GraspStamped") is True  # the convention
+    # a reply that is a bare Header starts with the same bytes a headered message does: matched the same way
+    assert has_header("std_msgs/Header") is True and has_header("std_msgs/msg/Header") is True
+    assert has_header("std_msgs/Float64") is False
     assert has_header("std_msgs/Float64") is False and has_header("geometry_msgs/msg/Pose") is False
     assert has_header("my_msgs/Grasp") is None
 

@@ -70,14 +70,18 @@ def test_local_sandboxes_run_provision_log_and_tear_down_cleanly(tmp_path: Path,
     assert sorted(p.name for p in (_state_dir / "demo-dev" / "local").iterdir()) == ["ports.json"]
 
 
-def test_a_failing_host_exits_non_zero_with_its_line(tmp_path: Path) -> None:
+def test_a_failing_host_exits_non_zero_with_its_line(tmp_path: Path, _state_dir: Path) -> None:
     manifest = tmp_path / "fogiac.yaml"
     manifest.write_text("name: boxed\ncloud: {provider: local}\nnodes:\n"
-                        "  - {name: talker, machine: t3.small, image: 'ros:noetic-ros-core'}\n")
-    result = CliRunner().invoke(app, ["provision", str(manifest)])
+                        "  - {name: talker, machine: t3.small, command: ['/nonexistent/fogiac-test-node']}\n")
+    try:
+        result = CliRunner().invoke(app, ["provision", str(manifest)])
+    finally:  # a failed host is left for teardown, as a failed up is left for down: take it down here
+        down = CliRunner().invoke(app, ["provision", str(manifest), "--teardown"])
+    assert down.exit_code == 0, down.output
+    assert _processes_mentioning(str(_state_dir)) == []  # nothing of the failed host runs on (it had restarted)
     assert result.exit_code == 1
     assert "1 of 1 host(s) failed" in result.output
-    # runtime auto is decided at plan time on local (podman here, no docker), so the image does run; it has no
-    # command of its own, and the host's line names the node and the container engine's own words
-    assert ("error: talker: node-talker unhealthy: process not running; log: Error: no command or entrypoint "
-            "provided") in result.output
+    # the node's program does not exist: the host's line names the node, what is wrong and the log's last line
+    assert "error: talker: node-talker unhealthy: process not running; log: " in result.output
+    assert "/nonexistent/fogiac-test-node: No such file or directory" in result.output

@@ -93,6 +93,16 @@ def percentile(values: list[float], q: float) -> float:
     return ordered[min(len(ordered) - 1, int(round(q * (len(ordered) - 1))))]
 
 
+def report(results: list[dict], json_path: Path | None) -> None:
+    """The table of every scenario's replies, duplicates, losses, percentiles and wins (and the JSON, if asked)."""
+    print(f"\n{'scenario':<11} {'replies':>7} {'dup':>4} {'lost':>4} {'p50':>7} {'p95':>7} {'p99':>7}  won  load")
+    for r in results:
+        print(f"{r['scenario']:<11} {r['replies']:>7} {r['duplicates']:>4} {r['lost']:>4} {r['p50']:>7} "
+              f"{r['p95']:>7} {r['p99']:>7}  {r['won']}  {r['load']:.1f}")
+    if json_path:
+        json_path.write_text(json.dumps(results, indent=1))
+
+
 def run(scenario: str, args: argparse.Namespace, procs: Procs, certs: Path, edge: Master) -> dict:
     count = args.count if scenario != "2-killed" else max(args.count, int(args.rate * 60))
     two = scenario.startswith("2")
@@ -191,12 +201,7 @@ def main() -> None:
             print(json.dumps(result), flush=True)
     finally:
         procs.close()
-    print(f"\n{'scenario':<11} {'replies':>7} {'dup':>4} {'lost':>4} {'p50':>7} {'p95':>7} {'p99':>7}  won  load")
-    for r in results:
-        print(f"{r['scenario']:<11} {r['replies']:>7} {r['duplicates']:>4} {r['lost']:>4} {r['p50']:>7} "
-              f"{r['p95']:>7} {r['p99']:>7}  {r['won']}  {r['load']:.1f}")
-    if args.json:
-        args.json.write_text(json.dumps(results, indent=1))
+    report(results, args.json)
 
 
 if __name__ == "__main__":

@@ -73,6 +73,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from benchmarks.replicas import percentile, report  # noqa: E402
 from fogiac.lifecycle.edge import dialed_addresses, edge_dir, provision_and_connect, stop_edge  # noqa: E402
 from fogiac.manifest.schema import load_manifest  # noqa: E402
 from fogiac.plan.compile import compile_plan  # noqa: E402
@@ -143,11 +144,6 @@ def robot_main(argv: list[str]) -> None:
     print("done", flush=True)
 
 
-def percentile(values: list[float], q: float) -> float:
-    ordered = sorted(values)
-    return ordered[min(len(ordered) - 1, int(round(q * (len(ordered) - 1))))]
-
-
 def pin(host: LabHost, cpu: int) -> None:
     """Every process of the host's namespace (its sshd: what fogiac starts there inherits it) onto ``cpu``."""
     for pid in host.ns.pids():
@@ -197,14 +193,6 @@ def manifest(path: Path, stack: str, hosts: list[LabHost], key: Path, edge: Mast
     return compile_plan(load_manifest(path))
 
 
-def reap(procs: Procs) -> None:
-    """After ``procs.close()`` (SIGINT to each group): SIGKILL to each group, so that no roscore's rosmaster
-    outlives a run (one did, once, when SIGINT came early)."""
-    for popen in procs.started:
-        with contextlib.suppress(subprocess.TimeoutExpired):
-            popen.wait(timeout=5)
-        with contextlib.suppress(ProcessLookupError, PermissionError):
-            os.killpg(popen.pid, signal.SIGKILL)
 
 
 def group_stats(plan: Plan) -> dict:
@@ -333,14 +321,8 @@ def main() -> None:
                 results.append(result)
                 print(json.dumps(result), flush=True)
     finally:
-        procs.close()
-        reap(procs)
-    print(f"\n{'scenario':<11} {'replies':>7} {'dup':>4} {'lost':>4} {'p50':>7} {'p95':>7} {'p99':>7}  won  load")
-    for r in results:
-        print(f"{r['scenario']:<11} {r['replies']:>7} {r['duplicates']:>4} {r['lost']:>4} {r['p50']:>7} "
-              f"{r['p95']:>7} {r['p99']:>7}  {r['won']}  {r['load']:.1f}")
-    if args.json:
-        args.json.write_text(json.dumps(results, indent=1))
+        procs.close()  # each process group signalled, then SIGKILLed (stop_group): no rosmaster outlives it
+    report(results, args.json)
 
 
 if __name__ == "__main__":

@@ -20,7 +20,6 @@ import contextlib
 import json
 import os
 import signal
-import subprocess
 import sys
 from collections import Counter
 from collections.abc import Iterator
@@ -76,18 +75,9 @@ def replicated(tmp_path: Path, hosts: list[LabHost], key: Path, *,
         stop_edge(plan)
         with contextlib.suppress(Exception):  # a host whose link was cut is back by now; teardown is best effort
             teardown(plan, hosts=access, state_dir=StackState(plan.stack).ensure())
-        procs.close()
-        reap(procs)
+        procs.close()  # each process group signalled, then SIGKILLed (stop_group): no rosmaster outlives it
 
 
-def reap(procs: Procs) -> None:
-    """After ``procs.close()`` (SIGINT to each group): SIGKILL to each group, so that no roscore's rosmaster
-    outlives a run (one did, once, when SIGINT came early)."""
-    for popen in procs.started:
-        with contextlib.suppress(subprocess.TimeoutExpired):
-            popen.wait(timeout=5)
-        with contextlib.suppress(ProcessLookupError, PermissionError):
-            os.killpg(popen.pid, signal.SIGKILL)
 
 
 def group_stats(plan: Plan) -> dict:

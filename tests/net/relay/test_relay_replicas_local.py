@@ -10,6 +10,7 @@ import json
 import os
 import signal
 import sys
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -25,33 +26,7 @@ NODES = Path(__file__).with_name("replica_nodes.py")
 
 def test_up_with_two_replicas_answers_every_request_once_while_one_dies(
         ros_ready: None, tmp_path: Path, _state_dir: Path, procs: Procs) -> None:
-    edge_port = free_port()
-    manifest = tmp_path / "fogiac.yaml"
-    manifest.write_text(f"""name: echoes
-cloud: {{provider: local}}
-edge: {{ros_master: "http://127.0.0.1:{edge_port}"}}
-nodes:
-  - name: echo
-    machine: t3.micro
-    command: [{sys.executable}, {NODES}, echo, /echo/request, /echo/reply, --name, echo]
-    replicas: 2
-    topics: {{in: [/echo/request], out: [/echo/reply]}}
-""")
-    runner = CliRunner()
-    sandboxes = _state_dir / "echoes-dev" / "local"
-    try:
-        up = runner.invoke(app, ["up", str(manifest), "--target", "local", "--yes", "--start-edge-master"])
-        assert up.exit_code == 0, up.output
-
-        def replicas() -> dict[str, dict]:
-            status = runner.invoke(app, ["status", str(manifest), "--target", "local", "--json"])
-            assert status.exit_code == 0, status.output
-            return {link["host"]: link["replica"] for link in json.loads(status.output)["relays"]}
-
-        wait_for(lambda: all(r.get("connected") for r in replicas().values()), 60, "both replicas linked")
-        uri = f"http://127.0.0.1:{edge_port}/"
-        edge = Master(uri, dict(os.environ, ROS_MASTER_URI=uri, ROS_HOSTNAME="127.0.0.1",
-                                ROS_HOME=str(tmp_path / "ros"), ROS_LOG_DIR=str(tmp_path / "ros" / "log")))
+    with _two_echo_replicas("echoes", "/echo", tmp_path, _state_dir) as (runner, manifest, sandboxes, replicas, edge):
         robot = procs.spawn([sys.executable, str(NODES), "robot", "/echo/request", "/echo/reply", "--count", "60",
                              "--rate", "10", "--wait", "3"], edge.env)
         wait_for(lambda: sum(line.startswith("{") for line in robot.lines) >= 20, 90, "a third of the replies")
@@ -68,42 +43,13 @@ nodes:
         assert sum(r["answers"] for r in figures.values()) > 60  # both answered: copies were dropped
         shown = runner.invoke(app, ["status", str(manifest), "--target", "local"], terminal_width=200)
         assert "replicas (first reply wins)" in shown.output and "echo-r1" in shown.output, shown.output
-    finally:
-        down = runner.invoke(app, ["down", str(manifest), "--target", "local", "--yes"])
-    assert down.exit_code == 0, down.output
 
 
 def test_up_with_two_replicas_and_one_stopped_node_the_other_wins(
         ros_ready: None, tmp_path: Path, _state_dir: Path, procs: Procs) -> None:
     """Two sandboxes; replica 1's node is stopped (SIGSTOP: a stalled host) for the robot's whole run: every
     request is answered once, all by replica 2, and status names replica 1 as not answering."""
-    edge_port = free_port()
-    manifest = tmp_path / "fogiac.yaml"
-    manifest.write_text(f"""name: stalls
-cloud: {{provider: local}}
-edge: {{ros_master: "http://127.0.0.1:{edge_port}"}}
-nodes:
-  - name: echo
-    machine: t3.micro
-    command: [{sys.executable}, {NODES}, echo, /stall/request, /stall/reply, --name, echo]
-    replicas: 2
-    topics: {{in: [/stall/request], out: [/stall/reply]}}
-""")
-    runner = CliRunner()
-    sandboxes = _state_dir / "stalls-dev" / "local"
-    try:
-        up = runner.invoke(app, ["up", str(manifest), "--target", "local", "--yes", "--start-edge-master"])
-        assert up.exit_code == 0, up.output
-
-        def replicas() -> dict[str, dict]:
-            status = runner.invoke(app, ["status", str(manifest), "--target", "local", "--json"])
-            assert status.exit_code == 0, status.output
-            return {link["host"]: link["replica"] for link in json.loads(status.output)["relays"]}
-
-        wait_for(lambda: all(r.get("connected") for r in replicas().values()), 60, "both replicas linked")
-        uri = f"http://127.0.0.1:{edge_port}/"
-        edge = Master(uri, dict(os.environ, ROS_MASTER_URI=uri, ROS_HOSTNAME="127.0.0.1",
-                                ROS_HOME=str(tmp_path / "ros"), ROS_LOG_DIR=str(tmp_path / "ros" / "log")))
+    with _two_echo_replicas("stalls", "/stall", tmp_path, _state_dir) as (runner, manifest, sandboxes, replicas, edge):
         # both answer a first request before the stall (a node that never answered is not yet "silent")
         probe = procs.spawn([sys.executable, str(NODES), "robot", "/stall/request", "/stall/reply", "--count", "5",
                              "--rate", "5", "--wait", "2", "--base", "500"], edge.env)
@@ -124,6 +70,41 @@ nodes:
             assert figures["echo-r1"]["health"] == "silent" and figures["echo-r2"]["health"] == "ok", figures
         finally:
             os.kill(node, signal.SIGCONT)
+
+
+@contextlib.contextmanager
+def _two_echo_replicas(stack: str, prefix: str, tmp_path: Path, state_dir: Path) -> Iterator[
+        tuple[CliRunner, Path, Path, Callable[[], dict[str, dict]], Master]]:
+    """``fogiac up`` of an echo node with ``replicas: 2`` on ``local`` (its topics PREFIX/request and PREFIX/reply),
+    both replicas linked; yields the runner, the manifest, the sandboxes' folder, a reader of each replica's
+    figures in ``fogiac status --json`` and the edge master; ``fogiac down`` on the way out, which must succeed."""
+    edge_port = free_port()
+    manifest = tmp_path / "fogiac.yaml"
+    manifest.write_text(f"""name: {stack}
+cloud: {{provider: local}}
+edge: {{ros_master: "http://127.0.0.1:{edge_port}"}}
+nodes:
+  - name: echo
+    machine: t3.micro
+    command: [{sys.executable}, {NODES}, echo, {prefix}/request, {prefix}/reply, --name, echo]
+    replicas: 2
+    topics: {{in: [{prefix}/request], out: [{prefix}/reply]}}
+""")
+    runner = CliRunner()
+    try:
+        up = runner.invoke(app, ["up", str(manifest), "--target", "local", "--yes", "--start-edge-master"])
+        assert up.exit_code == 0, up.output
+
+        def replicas() -> dict[str, dict]:
+            status = runner.invoke(app, ["status", str(manifest), "--target", "local", "--json"])
+            assert status.exit_code == 0, status.output
+            return {link["host"]: link["replica"] for link in json.loads(status.output)["relays"]}
+
+        wait_for(lambda: all(r.get("connected") for r in replicas().values()), 60, "both replicas linked")
+        uri = f"http://127.0.0.1:{edge_port}/"
+        edge = Master(uri, dict(os.environ, ROS_MASTER_URI=uri, ROS_HOSTNAME="127.0.0.1",
+                                ROS_HOME=str(tmp_path / "ros"), ROS_LOG_DIR=str(tmp_path / "ros" / "log")))
+        yield runner, manifest, state_dir / f"{stack}-dev" / "local", replicas, edge
     finally:
         down = runner.invoke(app, ["down", str(manifest), "--target", "local", "--yes"])
     assert down.exit_code == 0, down.output

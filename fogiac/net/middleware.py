@@ -114,6 +114,13 @@ class Deployment(Protocol):
         """Files of the stack's certificate folder the link services read from the host's certs folder."""
         ...
 
+    @property
+    def link_program(self) -> str:
+        """The file of fogiac's code (relative to the folder holding the ``fogiac`` package) its link
+        services run: provisioning's probe looks for it on the host, and a host without it gets the link
+        services' scripts only, not started. Empty when it has no link services."""
+        ...
+
     def host_credentials(self, host: Host, *, python: str, folder: str, certs_dir: Path, plan: Plan,
                          spec: HostSpec, dialed: str) -> bool:
         """Credentials made on the host itself (its private key never leaves it); True when they changed.
@@ -132,6 +139,12 @@ class Deployment(Protocol):
 
     def edge_links(self, plan: Plan, *, folder: Path, connect: Mapping[str, str]) -> list[dict[str, Any]]:
         """Per host: ``{host, connect, connected, rtt_ms?, topics: [{topic, direction, msgs, ...}]}``."""
+        ...
+
+    def edge_stats(self, plan: Plan, *, folder: Path) -> tuple[Path, ...]:
+        """The stats files its edge link processes under ``folder`` rewrite while they run, each a JSON
+        object whose ``connected`` says whether that link is up: what dates the edge's last link
+        (:func:`fogiac.lifecycle.edge.edge_idle_since`). Empty where the edge's files cannot say."""
         ...
 
     @property

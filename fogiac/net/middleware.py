@@ -28,6 +28,8 @@ from fogiac import middlewares
 from fogiac.hostmodel import Launching as Launching  # re-exported: what a middleware answers
 from fogiac.hostmodel import NativeRos as NativeRos
 from fogiac.middlewares import MiddlewareEntry as MiddlewareEntry  # re-exported: what a middleware publishes
+from fogiac.middlewares import block_model as block_model  # re-exported: the table's questions, asked here too
+from fogiac.middlewares import distros as distros
 
 if TYPE_CHECKING:
     from fogiac.hostmodel import Service, Where

@@ -5,7 +5,8 @@ entry point in a group named ``fogiac.<table>``; fogiac's own are declared in it
 ``pyproject.toml`` like anyone else's, so another installed package adds a target, a middleware
 or a workload by declaring one more, with no edit to fogiac. An entry point is loaded when it is
 first asked for: compiling for ``local`` loads nothing of ``aws``. Tests (and embedders) may
-also :meth:`Registry.register` an object for the life of the process.
+also :meth:`Registry.register` an object for the life of the process: a table that keeps objects
+(the targets' drivers, the middlewares' halves) is a :class:`Registry`, never a dict of its own.
 """
 
 from __future__ import annotations
@@ -87,14 +88,18 @@ def find(group: str, name: str) -> Any:
 class Registry(Generic[T]):
     """One table: ``get(name)`` loads an entry point of ``group`` (or returns a registered object).
 
-    An unknown name fails in one line naming the known ones, through ``error`` (a
+    ``make`` turns what the entry point names into the table's object, once per name (a target's
+    entry into its driver, a middleware's entry into one of its halves); several tables may read one
+    group that way. An unknown name fails in one line naming the known ones, through ``error`` (a
     :class:`~fogiac.errors.FogiacError` the CLI prints without a traceback).
     """
 
-    def __init__(self, group: str, *, what: str, error: Callable[[str], FogiacError] = PlanError) -> None:
+    def __init__(self, group: str, *, what: str, error: Callable[[str], FogiacError] = PlanError,
+                 make: Callable[[Any], T] | None = None) -> None:
         self.group = group
         self.what = what
         self.error = error
+        self.make = make
         self._loaded: dict[str, T] = {}
         self._registered: dict[str, T] = {}
 
@@ -108,8 +113,13 @@ class Registry(Generic[T]):
             point = _declared(self.group).get(name)
             if point is None:
                 raise self.error(f"unknown {self.what} {name!r}; valid: {', '.join(self.names())}")
-            self._loaded[name] = point.load()
+            found = point.load()
+            self._loaded[name] = self.make(found) if self.make is not None else found
         return self._loaded[name]
+
+    def ready(self, name: str) -> bool:
+        """Whether ``name``'s object is at hand without loading anything (registered, or loaded already)."""
+        return name in self._registered or name in self._loaded
 
     def value(self, name: str) -> str:
         """The entry point's ``module:attr`` text, without loading it (what a lazy table needs to know)."""
@@ -123,4 +133,6 @@ class Registry(Generic[T]):
         return obj
 
     def unregister(self, name: str) -> None:
+        """Forget ``name``'s registered object and what was loaded for it (a plug-in uninstalled since)."""
         self._registered.pop(name, None)
+        self._loaded.pop(name, None)

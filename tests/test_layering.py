@@ -1,7 +1,12 @@
 """The layering the lifecycle issue asks for, checked over the source with ``ast`` (nothing is imported).
 
 Every import counts: at module level, inside functions, under ``TYPE_CHECKING``, through
-``importlib.import_module("...")`` and as ``"fogiac.x:attr"`` registry strings.
+``importlib.import_module("...")``, as ``"fogiac.x:attr"`` registry strings, and through an entry point
+group: a module that names a group ``pyproject.toml`` declares (``registry.load("fogiac.x", ...)``,
+``Registry("fogiac.x", ...)``, ``GROUP = "fogiac.x"``) imports the modules that group's entry points name.
+An entry point in a plug-in's own folder (a target's, a middleware's, a workload's) is the other way
+round: the plug-in answers the loader's protocol, and its own imports of that protocol are the edge; an
+entry point anywhere else is a plain import in disguise and counts as one.
 
 - manifest never imports plan, net, provision, lifecycle, cli or a target's folder;
 - plan never imports a middleware's folder, provision, lifecycle or a target's folder;
@@ -22,6 +27,7 @@ import tokenize
 from pathlib import Path
 
 import pytest
+import tomllib
 
 REPO = Path(__file__).resolve().parents[1]
 CLOUD = ("boto3", "botocore", "pulumi", "pulumi_aws", "stacks")
@@ -31,6 +37,11 @@ TARGET_FOLDERS = tuple(f"fogiac.targets.{name}" for name in TARGET_NAMES)
 # What "naming AWS" means in a code line: the SDKs, the Client VPN, EC2 and its catalogue.
 AWS_WORDS = re.compile(r"boto3|botocore|pulumi_aws|client[ _]?vpn|clientvpn|\bec2\b|instance_types\.json", re.I)
 REF = re.compile(r"^((?:fogiac|stacks|workloads)(?:\.\w+)+):\w+$")
+# Where a plug-in lives: an entry point here is the plug-in answering its loader, not the loader importing it.
+PLUGIN_FOLDERS = (*TARGET_FOLDERS, *MIDDLEWARES, "workloads")
+# group -> {name: "module:attr"}, as fogiac declares its own plug-ins.
+ENTRY_POINTS: dict[str, dict[str, str]] = tomllib.loads((REPO / "pyproject.toml").read_text())["project"].get(
+    "entry-points", {})
 
 
 def _modules() -> dict[str, Path]:
@@ -42,6 +53,10 @@ def _modules() -> dict[str, Path]:
 
 
 MODULES = _modules()
+
+
+def _under(module: str, prefixes: tuple[str, ...]) -> bool:
+    return any(module == p or module.startswith(p + ".") for p in prefixes)
 
 
 def _resolve(name: str) -> str:
@@ -70,7 +85,14 @@ def imports(module: str) -> set[str]:
             found.add(node.args[0].value)
         elif isinstance(node, ast.Constant) and isinstance(node.value, str) and REF.match(node.value):
             found.add(node.value.split(":")[0])
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value in ENTRY_POINTS:
+            found.update(name for name in group_modules(node.value) if not _under(name, PLUGIN_FOLDERS))
     return {_resolve(name) for name in found} - {module}
+
+
+def group_modules(group: str) -> set[str]:
+    """The modules the entry points of ``group`` name (``module:attr`` or a module)."""
+    return {_resolve(value.partition(":")[0]) for value in ENTRY_POINTS[group].values()}
 
 
 GRAPH = {name: imports(name) for name in MODULES}
@@ -79,10 +101,6 @@ GRAPH = {name: imports(name) for name in MODULES}
 def folder(module: str) -> str:
     """``fogiac.plan.model`` -> ``plan``; a module at fogiac's top (``fogiac.state``) is a folder of its own."""
     return module.split(".")[1] if module.count(".") >= 1 else module
-
-
-def _under(module: str, prefixes: tuple[str, ...]) -> bool:
-    return any(module == p or module.startswith(p + ".") for p in prefixes)
 
 
 RULES = [
@@ -100,6 +118,19 @@ def test_a_layer_imports_only_what_is_below_it(layer: str, forbidden: tuple[str,
     offenders = sorted(f"{MODULES[m].relative_to(REPO)} imports {imported}" for m in MODULES if _under(m, (layer,))
                        for imported in GRAPH[m] if _under(imported, forbidden))
     assert offenders == []
+
+
+def test_an_entry_point_group_is_an_import_of_its_loader() -> None:
+    """The CLI names its verbs' modules only through ``fogiac.commands``: the graph sees its own, not the
+    verbs a target's folder adds (``fogiac vpn``: the plug-in's side), and every group fogiac declares is
+    loaded somewhere (a table nothing reads is a table to remove)."""
+    verbs = group_modules("fogiac.commands")
+    own = {m for m in verbs if not _under(m, PLUGIN_FOLDERS)}
+    assert own and own <= GRAPH["fogiac.cli"]
+    assert verbs - own and not (verbs - own) & GRAPH["fogiac.cli"]
+    loaders = {group: sorted(m for m, path in MODULES.items() if f'"{group}"' in path.read_text())
+               for group in ENTRY_POINTS}
+    assert [group for group, found in loaders.items() if not found] == []
 
 
 def test_no_import_cycle_spans_two_folders() -> None:

@@ -90,15 +90,15 @@ def running_edge(plan: Plan) -> list[dict[str, Any]]:
 
 
 def edge_idle_since(plan: Plan, *, now: float) -> float | None:
-    """Since when no edge relay of the stack has run on this machine, from their stats files.
+    """Since when no edge link of the stack has run on this machine, from the stats files its
+    middleware names (:meth:`fogiac.net.middleware.Deployment.edge_stats`).
 
-    A running relay rewrites its stats every second: a fresh file that says connected means an
-    edge is there now (None); a stale one dates the relay's last breath. A fresh file that says
-    disconnected cannot be dated, nor can a relay this machine never ran: None, unknown.
+    A running link rewrites its stats every second: a fresh file that says connected means an
+    edge is there now (None); a stale one dates the link's last breath. A fresh file that says
+    disconnected cannot be dated, nor can a link this machine never ran: None, unknown.
     """
     last: list[float] = []
-    for route in plan.routes:
-        path = edge_dir(plan) / f"relay-edge-{route.host}.stats.json"
+    for path in middleware.deployment(plan.middleware).edge_stats(plan, folder=edge_dir(plan)):
         try:
             written = path.stat().st_mtime
         except OSError:

@@ -22,7 +22,7 @@ from pydantic import (
     field_validator,
 )
 
-from fogiac import registry
+from fogiac import middlewares
 from fogiac.manifest.clouds import CloudVariant, providers, variant
 
 _DNS_NAME = re.compile(r"^[a-z]([a-z0-9-]{0,38}[a-z0-9])?$")
@@ -152,7 +152,7 @@ def _served(value: object, handler: ValidatorFunctionWrapHandler) -> object:
     try:
         return handler(value)
     except ValidationError:
-        if isinstance(value, str) and value in registry.load("fogiac.middleware", "distros")():
+        if isinstance(value, str) and value in middlewares.distros():
             return value
         raise
 

@@ -10,7 +10,10 @@ from pydantic import (
     Discriminator,
     Field,
     Tag,
+    ValidationError,
     ValidationInfo,
+    ValidatorFunctionWrapHandler,
+    WrapValidator,
     field_validator,
     model_validator,
 )
@@ -134,10 +137,21 @@ class Machine(_Model):
         )
 
 
+def _installed(value: object, handler: ValidatorFunctionWrapHandler) -> object:
+    """A workload another installed package declares (entry point group ``fogiac.workloads``); the
+    distributions are read only for a name that is not fogiac's own, so ``validate`` stays fast."""
+    try:
+        return handler(value)
+    except ValidationError:
+        if isinstance(value, str) and registry.known("fogiac.workloads", value):
+            return value
+        raise
+
+
 if TYPE_CHECKING:
     Workload = str
-else:  # the workloads fogiac ships (entry points of fogiac.workloads that fogiac itself declares)
-    Workload = Literal[registry.names("fogiac.workloads", own=True)]
+else:  # the workloads fogiac ships (what the schema and reference list), and (_installed) another package's
+    Workload = Annotated[Literal[registry.names("fogiac.workloads", own=True)], WrapValidator(_installed)]
 
 
 NodeKind = Literal["image", "launch", "workload", "command"]  # which of the four a node runs
@@ -153,7 +167,8 @@ class Node(_Model):
     )
     build: Build | None = Field(default=None, description="Container image built on the host from a Dockerfile.")
     launch: Launch | None = Field(default=None, description="ROS package + launch file from a workspace.")
-    workload: Workload | None = Field(default=None, description="A workload that ships with fogiac.")
+    workload: Workload | None = Field(default=None, description="A workload that ships with fogiac, or one another "
+                                              "installed package declares (entry point group fogiac.workloads).")
     command: tuple[str, ...] = Field(
         default=(), description="Arguments after the image; alone: a command run as the node (in the ROS image "
         "on container hosts)."

@@ -20,7 +20,7 @@ from pydantic import (
 )
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
-from fogiac import registry
+from fogiac import middlewares
 from fogiac.errors import ManifestError
 from fogiac.manifest.blocks import Autostop, Cloud, Edge, HostMachine, Network, Registry, Relay, Ros
 from fogiac.manifest.clouds import known
@@ -60,7 +60,7 @@ class Manifest(_Model):
         """The model of a top-level key an installed middleware owns (``beacon:``), or None."""
         if key in cls.model_fields:
             return None
-        found: type[BaseModel] | None = registry.load("fogiac.middleware", "block_model")(key)
+        found: type[BaseModel] | None = middlewares.block_model(key)
         return found
 
     def block(self, middleware: str) -> BaseModel | None:
@@ -89,7 +89,7 @@ class Manifest(_Model):
         except ValidationError as err:
             problems = _moved(err, ()) + problems
         else:
-            chosen = registry.load("fogiac.middleware", "for_distro")(manifest.ros.distro).name
+            chosen = middlewares.for_distro(manifest.ros.distro).name
             problems += [InitErrorDetails(type=PydanticCustomError("value_error", "{message}", {"message": (
                 f"the {key} middleware's block, but ROS {manifest.ros.distro} crosses through {chosen}")}),
                 loc=(key,), input=data[key]) for key in blocks if key != chosen]
@@ -155,7 +155,7 @@ class Manifest(_Model):
                                                  choices=tuple(host_names)))
             if node.host is not None and node.replica_hosts:
                 problems.append(FieldProblem("give host or replica_hosts, not both", field=f"nodes[{i}].replica_hosts"))
-        chosen = registry.load("fogiac.middleware", "for_distro")(self.ros.distro)
+        chosen = middlewares.for_distro(self.ros.distro)
         for message, field in chosen.manifest_problems(self):  # the middleware's own rules, in its words
             problems.append(FieldProblem(message, field=field))
         raise_all(problems)

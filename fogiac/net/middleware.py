@@ -9,26 +9,27 @@
 The ROS distribution picks the middleware (:func:`for_distro`). A variant is one folder with two
 halves: its :class:`Middleware` (what compile, the targets' firewalls, plan, cost and graph ask: its
 port and its words) and its :class:`Deployment` (what ``up``, ``down`` and provisioning ask), both
-named by the :class:`MiddlewareEntry` it publishes under the ``fogiac.middlewares`` entry point
-group. The halves load apart, so compiling never imports provisioning, certificates or templates.
-Nothing else in fogiac names a variant; another installed package can add one, serving a ROS
+named by the :class:`~fogiac.middlewares.MiddlewareEntry` it publishes under the ``fogiac.middlewares``
+entry point group. The halves load apart, so compiling never imports provisioning, certificates or
+templates. Nothing else in fogiac names a variant; another installed package can add one, serving a ROS
 distribution fogiac does not list and owning a top-level manifest block named after it
-(:attr:`Middleware.block`), whose validated settings reach its deployment as ``Plan.middleware_settings``;
-the manifest asks through the ``fogiac.middleware`` entry points (``distros``, ``block_model``).
+(:attr:`Middleware.block`), whose validated settings reach its deployment as ``Plan.middleware_settings``.
+The table itself is :mod:`fogiac.middlewares` (neutral: the manifest asks it which middleware a
+distribution picks, what its block is); this module adds what the layers above the manifest ask.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol, cast
 
-from fogiac import registry
-from fogiac.errors import PlanError
+from fogiac import middlewares
 from fogiac.hostmodel import Launching as Launching  # re-exported: what a middleware answers
 from fogiac.hostmodel import NativeRos as NativeRos
-from fogiac.registry import Registry
+from fogiac.middlewares import MiddlewareEntry as MiddlewareEntry  # re-exported: what a middleware publishes
+from fogiac.middlewares import block_model as block_model  # re-exported: the table's questions, asked here too
+from fogiac.middlewares import distros as distros
 
 if TYPE_CHECKING:
     from fogiac.hostmodel import Service, Where
@@ -36,14 +37,8 @@ if TYPE_CHECKING:
     from fogiac.provision.host import Host
 
 
-class Middleware(Protocol):
-    """What the rest of fogiac may know about a middleware."""
-
-    @property
-    def name(self) -> str: ...  # registry key, shown in the plan document
-
-    @property
-    def distros(self) -> tuple[str, ...]: ...  # the ROS distributions it serves
+class Middleware(middlewares.MiddlewareFacts, Protocol):
+    """What the rest of fogiac may know about a middleware (the manifest's part: :class:`MiddlewareFacts`)."""
 
     @property
     def port(self) -> int: ...  # the TCP port the edge dials on each cloud host
@@ -75,17 +70,9 @@ class Middleware(Protocol):
     @property
     def launching(self) -> Launching: ...  # how its ROS generation builds a workspace and runs a launch file
 
-    @property
-    def block(self) -> type[Any] | None: ...  # the pydantic model of its own top-level manifest key (``name:``)
-
     def edge_entry(self, edge: Any) -> str:
         """What the robot's side is reached at (``Plan.edge_master``): a master URI, a router endpoint,
         read from the manifest's ``edge:`` block (typed ``Any``: the manifest is imported by no middleware)."""
-        ...
-
-    def manifest_problems(self, manifest: Any) -> tuple[tuple[str, str], ...]:
-        """What this middleware cannot carry in a validated manifest: (message, field path) pairs, which
-        the schema reports as its own field problems (the middleware owns its block's rules)."""
         ...
 
 
@@ -114,6 +101,13 @@ class Deployment(Protocol):
         """Files of the stack's certificate folder the link services read from the host's certs folder."""
         ...
 
+    @property
+    def link_program(self) -> str:
+        """The file of fogiac's code (relative to the folder holding the ``fogiac`` package) its link
+        services run: provisioning's probe looks for it on the host, and a host without it gets the link
+        services' scripts only, not started. Empty when it has no link services."""
+        ...
+
     def host_credentials(self, host: Host, *, python: str, folder: str, certs_dir: Path, plan: Plan,
                          spec: HostSpec, dialed: str) -> bool:
         """Credentials made on the host itself (its private key never leaves it); True when they changed.
@@ -134,6 +128,12 @@ class Deployment(Protocol):
         """Per host: ``{host, connect, connected, rtt_ms?, topics: [{topic, direction, msgs, ...}]}``."""
         ...
 
+    def edge_stats(self, plan: Plan, *, folder: Path) -> tuple[Path, ...]:
+        """The stats files its edge link processes under ``folder`` rewrite while they run, each a JSON
+        object whose ``connected`` says whether that link is up: what dates the edge's last link
+        (:func:`fogiac.lifecycle.edge.edge_idle_since`). Empty where the edge's files cannot say."""
+        ...
+
     @property
     def robot_side(self) -> tuple[str, ...]:
         """Edge services that stand in for the robot's own ROS graph (a demo's roscore): ``down`` stops
@@ -141,74 +141,32 @@ class Deployment(Protocol):
         ...
 
 
-@dataclass(frozen=True)
-class MiddlewareEntry:
-    """What a middleware publishes under the ``fogiac.middlewares`` entry point group: ``module:attr``
-    references into its own folder, its :class:`Middleware` (compile) and its :class:`Deployment`
-    (up, down, provisioning), each loaded when first asked for."""
-
-    name: str
-    middleware: str
-    deployment: str
-
-
-ENTRIES: Registry[MiddlewareEntry] = Registry("fogiac.middlewares", what="middleware")
-_REGISTRY: dict[str, Middleware] = {}
-_DEPLOYED: dict[str, Deployment] = {}
-
-
 def register(middleware: Middleware, deployment: Deployment) -> Middleware:
     """Add (or replace) a middleware for this process (tests, embedders); returns it."""
-    _REGISTRY[middleware.name] = middleware
-    _DEPLOYED[middleware.name] = deployment
-    return middleware
+    middlewares.DEPLOYMENTS.register(middleware.name, deployment)
+    return middlewares.FACTS.register(middleware.name, middleware)
 
 
 def unregister(name: str) -> None:
-    _REGISTRY.pop(name, None)
-    _DEPLOYED.pop(name, None)
+    middlewares.FACTS.unregister(name)
+    middlewares.DEPLOYMENTS.unregister(name)
 
 
 def names() -> tuple[str, ...]:
-    return tuple(sorted(set(_REGISTRY) | set(ENTRIES.names())))
+    return middlewares.names()
 
 
 def get(name: str) -> Middleware:
-    if name not in _REGISTRY:
-        _REGISTRY[name] = registry.resolve(_entry(name).middleware)
-    return _REGISTRY[name]
+    found: Middleware = middlewares.FACTS.get(name)
+    return found
 
 
 def deployment(name: str) -> Deployment:
     """How ``name`` is deployed (imported on first use: see the module docstring)."""
-    if name not in _DEPLOYED:
-        _DEPLOYED[name] = registry.resolve(_entry(name).deployment)
-    return _DEPLOYED[name]
-
-
-def _entry(name: str) -> MiddlewareEntry:
-    if name not in ENTRIES.names():
-        raise PlanError(f"unknown middleware {name!r}; valid: {', '.join(names())}")
-    return ENTRIES.get(name)
+    found: Deployment = middlewares.DEPLOYMENTS.get(name)
+    return found
 
 
 def for_distro(distro: str) -> Middleware:
     """The middleware that serves ROS ``distro``; an unknown one fails listing those served."""
-    served: list[str] = []
-    for name in names():
-        middleware = get(name)
-        if distro in middleware.distros:
-            return middleware
-        served += middleware.distros
-    raise PlanError(f"no middleware serves ROS {distro!r}; served: {', '.join(sorted(served))}")
-
-
-def distros() -> tuple[str, ...]:
-    """Every ROS distribution some middleware serves."""
-    return tuple(d for name in names() for d in get(name).distros)
-
-
-def block_model(key: str) -> type[Any] | None:
-    """The model that validates the manifest's top-level ``key`` when an installed middleware of that name
-    owns a block (its settings, which reach its deployment as ``Plan.middleware_settings``); else None."""
-    return get(key).block if key in names() else None
+    return cast(Middleware, middlewares.for_distro(distro))  # FACTS holds whole Middlewares

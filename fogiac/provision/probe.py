@@ -22,7 +22,7 @@ class Facts:
 
     base: str
     missing: list[str] = field(default_factory=list)
-    flags: set[str] = field(default_factory=set)  # engine, ros, roscore, nvidia, systemd, relaycli
+    flags: set[str] = field(default_factory=set)  # engine, ros, roscore, nvidia, systemd, linkprogram
     engines: list[str] = field(default_factory=list)  # container engines that answered, docker first
 
     @property
@@ -52,11 +52,12 @@ class Facts:
         return self.markers.get(self._rel(path), "")
 
 
-def gather(host: Host, layout: Layout, *, relay_cli: str, engines: tuple[str, ...] = ("docker",)) -> Facts:
-    """``engines``: the container engines to ask, in order of preference (each answer costs a moment)."""
+def gather(host: Host, layout: Layout, *, link_program: str, engines: tuple[str, ...] = ("docker",)) -> Facts:
+    """``engines``: the container engines to ask, in order of preference (each answer costs a moment);
+    ``link_program``: the host's path of what the middleware's link services run ('' for none)."""
     folders = (layout.bin, layout.run, layout.services, layout.ws, layout.env, layout.state, layout.certs,
                layout.ros_home, layout.tmp)
-    script = render("provision/probe.sh.j2", folders=folders, relay_cli=relay_cli, base=layout.base,
+    script = render("provision/probe.sh.j2", folders=folders, link_program=link_program, base=layout.base,
                     supervisor=layout.supervisor, run_dir=layout.run, engines=engines, pip_settings=PIP_SETTINGS)
     facts = Facts(base=layout.base)
     for line in host.run(script, check=False).stdout.splitlines():
@@ -66,7 +67,7 @@ def gather(host: Host, layout: Layout, *, relay_cli: str, engines: tuple[str, ..
         elif key == "engine":
             facts.flags.add(key)
             facts.engines.append(rest.strip())
-        elif key in ("ros", "roscore", "nvidia", "systemd", "relaycli"):
+        elif key in ("ros", "roscore", "nvidia", "systemd", "linkprogram"):
             facts.flags.add(key)
         elif key == "sha":
             digest, _, path = rest.partition(" ")

@@ -141,7 +141,7 @@ class HostRun:
 
     def link_services(self) -> tuple[Service, ...]:
         """What joins the host to the edge after its nodes (none without certificates or fogiac's code)."""
-        if self.options.certs_dir is None or not relay_available(self):
+        if self.options.certs_dir is None or not link_available(self):
             return ()
         return self.deploying.link_services(self.plan, self.spec, self.where())
 
@@ -169,7 +169,7 @@ def step_connect(run: HostRun) -> StepResult:
 
 def step_runtime(run: HostRun) -> StepResult:
     host, layout, changes = run.host, run.layout, []
-    facts = run.facts = gather(host, layout, relay_cli=_relay_cli(run), engines=runtimes.engines(run.spec))
+    facts = run.facts = gather(host, layout, link_program=_link_program(run), engines=runtimes.engines(run.spec))
     if facts.missing:
         host.run(f"mkdir -p -m 700 {' '.join(q(f) for f in facts.missing)}")
         changes.append("folders")
@@ -188,8 +188,9 @@ def step_runtime(run: HostRun) -> StepResult:
                 changes.append(f"{package} code")
         if _push_metadata(run, facts):
             changes.append("fogiac metadata")
-        if (package_dir("fogiac") / "cli" / "relay.py").is_file():
-            facts.flags.add("relaycli")  # pushed just now: the probe ran before the first push
+        program = run.deploying.link_program
+        if program and (package_dir("fogiac").parent / program).is_file():
+            facts.flags.add("linkprogram")  # pushed just now: the probe ran before the first push
     detail = f"{run.runtime.name} ROS" + (f"; {', '.join(changes)}" if changes else "")
     return (CHANGED if changes else OK), detail
 
@@ -208,9 +209,13 @@ def _push_metadata(run: HostRun, facts: Facts) -> bool:
     return pushed.changed
 
 
-def _relay_cli(run: HostRun) -> str:
+def _link_program(run: HostRun) -> str:
+    """Where the middleware's link program (:attr:`Deployment.link_program`) is on the host; '' for none."""
+    program = run.deploying.link_program
+    if not program:
+        return ""
     code_root = run.layout.lib if run.access.ship_code else str(package_dir("fogiac").parent)
-    return f"{code_root}/fogiac/cli/relay.py"
+    return f"{code_root}/{program}"
 
 
 def step_images(run: HostRun) -> StepResult:
@@ -315,14 +320,19 @@ def step_services(run: HostRun) -> StepResult:
     return CHANGED, "; ".join(parts or ["ROS environment updated"]) + f" ({manager.name})"
 
 
-def relay_available(run: HostRun) -> bool:
+def link_available(run: HostRun) -> bool:
+    """Whether the host has what the middleware's link services run (its :attr:`Deployment.link_program`)."""
+    program = _link_program(run)
+    if not program:
+        return True
     if run.facts is not None:
-        return "relaycli" in run.facts.flags
-    return run.host.run(f"test -f {q(_relay_cli(run))}", check=False).ok
+        return "linkprogram" in run.facts.flags
+    return run.host.run(f"test -f {q(program)}", check=False).ok
 
 
 def step_link(run: HostRun) -> StepResult:
-    """The middleware's link to the edge, after the nodes (the relay's cloud end and its watchdog)."""
+    """The middleware's link to the edge, after the nodes (its :meth:`Deployment.link_services`: the relay's
+    cloud end and its watchdog, say); the step is the same for every middleware, which it only asks."""
     certs = run.options.certs_dir
     if certs is None:
         return SKIPPED, "no certificates given"
@@ -331,7 +341,7 @@ def step_link(run: HostRun) -> StepResult:
         return OK, "the host's services carry the link"
     changed = [name for name, mode in run.deploying.link_files()
                if ensure_file(run, (certs / name).read_bytes(), f"{run.layout.certs}/{name}", mode=mode)]
-    if not relay_available(run):
+    if not link_available(run):
         for service in wanted:
             ensure_file(run, service.script.encode(), f"{run.layout.services}/{service.name}.sh", mode=0o700)
         return SKIPPED, "fogiac's code is not on the host; service scripts rendered only"

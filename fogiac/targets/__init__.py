@@ -50,30 +50,27 @@ class TargetEntry:
 
 
 ENTRIES: Registry[TargetEntry] = Registry("fogiac.targets", what="target")
-_DRIVERS: dict[str, Target] = {}
+DRIVERS: Registry[Target] = Registry("fogiac.targets", what="target", make=lambda entry: entry.load_driver())
 
 
 def register(target: Target) -> Target:
     """Add (or replace) a driver object under its name for this process; returns it."""
-    _DRIVERS[target.name] = target
-    return target
+    return DRIVERS.register(target.name, target)
 
 
 def unregister(name: str) -> None:
-    _DRIVERS.pop(name, None)
+    DRIVERS.unregister(name)
 
 
 def get(name: str) -> Target:
     """The target called ``name``; an unknown name fails in one line listing the known ones."""
-    if name not in _DRIVERS:
-        _DRIVERS[name] = _entry(name).load_driver()
-    return _DRIVERS[name]
+    return DRIVERS.get(name)
 
 
 def placer(name: str) -> Place:
     """``name``'s ``place``: from its placement module when it has one and its driver is not loaded yet."""
-    if name in _DRIVERS:
-        return _DRIVERS[name].place
+    if DRIVERS.ready(name):
+        return DRIVERS.get(name).place
     return _entry(name).load_placement()
 
 
@@ -89,7 +86,7 @@ def exporter(name: str, fmt: str) -> Callable[[Mapping[str, Any]], dict[str, Any
 
 
 def names() -> tuple[str, ...]:
-    return tuple(sorted(set(_DRIVERS) | set(ENTRIES.names())))
+    return DRIVERS.names()
 
 
 def _entry(name: str) -> TargetEntry:

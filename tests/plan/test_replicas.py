@@ -10,8 +10,9 @@ from pathlib import Path
 import pytest
 
 from fogiac.errors import ManifestError, PlanError
-from fogiac.manifest.replicas import MatchUnchecked, has_header
+from fogiac.manifest.replicas import MatchUnchecked
 from fogiac.manifest.schema import load_manifest, parse_manifest
+from fogiac.msgtypes import has_header
 from fogiac.plan import cost, diagram
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.document import document

@@ -8,14 +8,13 @@ from pathlib import Path
 import pytest
 
 from fogiac.certs import Bundle, new_bundle, relay_name, save_bundle, save_pair
-from fogiac.provision import relaycert
+from fogiac.net import hostcert
 from fogiac.provision.local import LocalHost
 from fogiac.targets.aws.offline import OfflinePlan
 from stacks.program import network_program
-
-from .conftest import EXAMPLES, compiled
 from tests.support.tls import handshake, public_der
 
+from .conftest import EXAMPLES, compiled
 from .recorder import Recorder, is_secret
 
 
@@ -118,7 +117,7 @@ def test_acm_server_certificate_is_no_hosts(recorded: tuple[Recorder, dict], bun
         host = LocalHost(name=spec.name, base=str(tmp_path / "hosts" / spec.name))
         host.connect()
         folder = f"{host.base}/certs"
-        assert relaycert.ensure(host, python=sys.executable, folder=folder, ca=bundle.ca,
+        assert hostcert.ensure(host, python=sys.executable, folder=folder, ca=bundle.ca,
                                 name=relay_name(plan.stack, spec.name))
         mine = Path(folder, "server.pem").read_bytes()
         assert mine != acm and public_der(mine) != public_der(acm)

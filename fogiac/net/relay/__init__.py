@@ -10,7 +10,7 @@ Modules: ``framing`` and ``tcpros`` (pure codecs), ``rosapi`` (master/slave XML-
 
 from __future__ import annotations
 
-from fogiac.net.middleware import MiddlewareEntry
+from fogiac.middlewares import MiddlewareEntry
 from fogiac.net.relay.config import RELAY_PORT, CloudConfig, EdgeConfig
 from fogiac.net.relay.graph import TopicPolicy
 from fogiac.net.relay.stats import RelayStats, TopicStats, read_stats

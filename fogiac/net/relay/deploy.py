@@ -19,11 +19,12 @@ from urllib.parse import urlparse
 from fogiac.certs import load_bundle, relay_name
 from fogiac.errors import FogiacError
 from fogiac.hostmodel import NativeRos, Service, Where, autostop_service
+from fogiac.net import hostcert
 from fogiac.net.relay.services import CLOUD_END, master_service, node_env, relay_service, relay_stats
 from fogiac.net.replicas import groups_of, host_figures
 from fogiac.plan.model import HostSpec, Plan, Route
 from fogiac.procs import poll
-from fogiac.provision import relaycert, supervise
+from fogiac.provision import supervise
 from fogiac.provision.host import Host, q
 from fogiac.render import render
 from fogiac.state import read_json
@@ -91,7 +92,7 @@ def _stats(folder: Path, host: str) -> Path:
 
 def host_credentials(host: Host, *, python: str, folder: str, certs_dir: Path, plan: Plan, spec: HostSpec) -> bool:
     """The cloud end's certificate of the host's own: its key made on the host, only a CSR signed here."""
-    return relaycert.ensure(host, python=python, folder=folder, ca=load_bundle(certs_dir).ca,
+    return hostcert.ensure(host, python=python, folder=folder, ca=load_bundle(certs_dir).ca,
                             name=relay_name(plan.stack, spec.name))
 
 
@@ -219,6 +220,8 @@ class RelayDeployment:
     def link_files(self) -> tuple[tuple[str, int], ...]:
         return CERT_FILES
 
+    link_program = "fogiac/cli/relay.py"  # the cloud end runs as `python -m fogiac relay cloud`
+
     def host_credentials(self, host: Host, *, python: str, folder: str, certs_dir: Path, plan: Plan,
                          spec: HostSpec, dialed: str) -> bool:
         return host_credentials(host, python=python, folder=folder, certs_dir=certs_dir, plan=plan, spec=spec)
@@ -232,6 +235,9 @@ class RelayDeployment:
 
     def edge_links(self, plan: Plan, *, folder: Path, connect: Mapping[str, str]) -> list[dict[str, Any]]:
         return edge_links(folder, connect, plan)
+
+    def edge_stats(self, plan: Plan, *, folder: Path) -> tuple[Path, ...]:
+        return tuple(_stats(folder, route.host) for route in plan.routes)
 
 
 DEPLOYMENT = RelayDeployment()

@@ -9,7 +9,7 @@ rendering of router configs), ``tls`` (one certificate per host from fogiac's CA
 (a router process for hosts without ``zenohd``), ``monitor`` (latency and throughput topics).
 """
 
-from fogiac.net.middleware import MiddlewareEntry
+from fogiac.middlewares import MiddlewareEntry
 
 ENTRY = MiddlewareEntry(name="zenoh", middleware="fogiac.net.zenoh.middleware:ZENOH",
                         deployment="fogiac.net.zenoh.deploy:DEPLOYMENT")

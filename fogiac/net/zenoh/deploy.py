@@ -5,7 +5,7 @@ The Zenoh variant's answers to :class:`fogiac.net.middleware.Middleware`'s deplo
 - Each host runs its router (``python -m fogiac.net.zenoh.router``, supervised like any service)
   before its nodes: mutual TLS for the edge on the host's middleware port, plain TCP on loopback
   at the host's own ROS port for its nodes, access control from :func:`config.cloud_router`. Its
-  key is made on the host, as the relay's is (:mod:`fogiac.provision.relaycert`): the stack's CA
+  key is made on the host, as the relay's is (:mod:`fogiac.net.hostcert`): the stack's CA
   signs its CSR for the router's name and the address the edge dials, one certificate per host.
 - Nodes get ``RMW_IMPLEMENTATION=rmw_zenoh_cpp`` and that loopback endpoint
   (``ZENOH_CONFIG_OVERRIDE``; ``FOGIAC_ZENOH_ROUTER`` for clients that are not rmw_zenoh).
@@ -29,13 +29,14 @@ from fogiac.certs import KeyPair, load_bundle, load_or_create_bundle, write_priv
 from fogiac.endpoint import Endpoint
 from fogiac.errors import ProvisionError
 from fogiac.hostmodel import NativeRos, Service, Where, autostop_service, make_service
+from fogiac.net import hostcert
 from fogiac.net.replicas import groups_of, host_figures
 from fogiac.net.zenoh import tls
 from fogiac.net.zenoh.config import TlsFiles, cloud_router, edge_router
 from fogiac.net.zenoh.middleware import ROUTER
 from fogiac.net.zenoh.replicas import SUPPORTED_MATCH, replica_prefix
 from fogiac.plan.model import HostSpec, Plan, Route
-from fogiac.provision import relaycert, supervise
+from fogiac.provision import supervise
 from fogiac.provision.host import Host, q
 from fogiac.render import render
 from fogiac.state import read_json
@@ -120,7 +121,7 @@ def host_credentials(host: Host, *, python: str, folder: str, certs_dir: Path, p
     """The router's key made on the host; the CA signs its CSR for the router's name and ``dialed``."""
     for old in (certs_dir / "zenoh").glob(f"{spec.name}@*"):  # earlier versions made the host's key here
         old.unlink()
-    return relaycert.ensure(host, python=python, folder=router_folder(folder), ca=load_bundle(certs_dir).ca,
+    return hostcert.ensure(host, python=python, folder=router_folder(folder), ca=load_bundle(certs_dir).ca,
                             name=tls.host_name(plan.stack, spec.name), addresses=(dialed,), what="Zenoh router")
 
 
@@ -271,6 +272,8 @@ class ZenohDeployment:
     def link_files(self) -> tuple[tuple[str, int], ...]:
         return ()
 
+    link_program = ""  # no link services: the router (a host service) is the link
+
     def host_credentials(self, host: Host, *, python: str, folder: str, certs_dir: Path, plan: Plan,
                          spec: HostSpec, dialed: str) -> bool:
         return host_credentials(host, python=python, folder=folder, certs_dir=certs_dir, plan=plan, spec=spec,
@@ -285,6 +288,9 @@ class ZenohDeployment:
 
     def edge_links(self, plan: Plan, *, folder: Path, connect: Mapping[str, str]) -> list[dict[str, Any]]:
         return edge_links(plan, folder=folder, connect=connect)
+
+    def edge_stats(self, plan: Plan, *, folder: Path) -> tuple[Path, ...]:
+        return ()  # the edge router's stats list linked routers, not one link's state: not dated here
 
 
 DEPLOYMENT = ZenohDeployment()

@@ -10,9 +10,9 @@ robot, never a duplicate. Payloads, encodings and attachments (rmw_zenoh's seque
 pass unchanged.
 
 A reply names its request by the ``header.stamp`` of a CDR message whose first field is its
-``std_msgs/Header``: bytes 4..12 after the 4-byte encapsulation header (int32 sec, uint32 nanosec), the
-same offsets as ROS 1's. Other keys need the message's type description, which rmw_zenoh does not send:
-only ``header.stamp`` is supported here.
+``std_msgs/Header``: where :data:`fogiac.msgtypes.CDR` places it (bytes 4..12, after the 4-byte
+encapsulation header: int32 sec, uint32 nanosec), the same offsets as ROS 1's. Other keys need the
+message's type description, which rmw_zenoh does not send: only ``header.stamp`` is supported here.
 
     python -m fogiac.net.zenoh.replicas cloud ROUTER --prefix P --to-cloud /t ... --to-edge /r ...
     python -m fogiac.net.zenoh.replicas edge ROUTER --group G --replica INDEX,HOST[,ROUTER_ID] ... \\
@@ -32,6 +32,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from fogiac import msgtypes
 from fogiac.errors import ZenohError
 from fogiac.extras import need
 from fogiac.net.replicas import HEDGES, Merge
@@ -40,7 +41,8 @@ from fogiac.state import read_json, write_json_atomic
 
 log = logging.getLogger(__name__)
 PREFIX = "fogiac/replica"
-SUPPORTED_MATCH = "header.stamp"
+SUPPORTED_MATCH = msgtypes.DEFAULT_MATCH
+_STAMP = msgtypes.CDR.key_reader(msgtypes.HEADER, SUPPORTED_MATCH)
 
 
 def replica_prefix(group: str, index: int) -> str:
@@ -49,7 +51,7 @@ def replica_prefix(group: str, index: int) -> str:
 
 def stamp_key(payload: bytes) -> bytes | None:
     """A CDR message's header stamp (after the 4-byte encapsulation header), or None if too short."""
-    return payload[4:12] if len(payload) >= 12 else None
+    return _STAMP(payload)
 
 
 def _session(router: str) -> Any:

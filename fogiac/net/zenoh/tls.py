@@ -1,7 +1,7 @@
 """Certificates for Zenoh routers: one per cloud host and one for the edge, all from fogiac's CA.
 
 A cloud router's key is made on its host and its certificate names the address the edge dials
-(the edge checks it: ``verify_name_on_connect``); see :mod:`fogiac.provision.relaycert`. The
+(the edge checks it: ``verify_name_on_connect``); see :mod:`fogiac.net.hostcert`. The
 edge's carries the common name the cloud routers' access control recognises. Keys are written
 0600 (:func:`fogiac.certs.write_private`).
 """

@@ -7,7 +7,8 @@ import struct
 import pytest
 
 from fogiac.errors import RelayError
-from fogiac.net.relay.match import key_reader, parse_definition
+from fogiac.msgtypes import parse_definition
+from fogiac.net.relay.match import key_reader
 
 
 def string(text: str) -> bytes:

@@ -4,7 +4,7 @@ A :class:`ZenohLab` writes fogiac's rendered configs and certificates under ``tm
 each router with ``python -m fogiac.net.zenoh.router`` and each "ROS 2 node" with
 ``python -m tests.net.zenoh.ros2node``; every process it started is stopped on exit. The cloud
 router's key is made as on a real host: in a :class:`LocalHost` folder, by the same code that
-makes every host's key (:mod:`fogiac.provision.relaycert`), only its CSR signed by the lab's CA.
+makes every host's key (:mod:`fogiac.net.hostcert`), only its CSR signed by the lab's CA.
 """
 
 from __future__ import annotations
@@ -18,12 +18,12 @@ from pathlib import Path
 from typing import Any
 
 from fogiac.certs import KeyPair, new_ca
+from fogiac.net import hostcert
 from fogiac.net.zenoh import tls
 from fogiac.net.zenoh.config import TlsFiles, cloud_router, edge_router
 from fogiac.net.zenoh.deploy import router_folder
 from fogiac.plan.model import RelayRoute
 from fogiac.procs import free_port, poll, stop_tree
-from fogiac.provision import relaycert
 from fogiac.provision.local import LocalHost
 
 REPO = Path(__file__).resolve().parents[3]
@@ -86,7 +86,7 @@ class ZenohLab:
         machine = LocalHost(name=host, base=str(self.root / "hosts" / host))
         machine.connect()
         folder = router_folder(f"{machine.base}/certs")
-        relaycert.ensure(machine, python=sys.executable, folder=folder, ca=self.ca, name=tls.host_name(STACK, host),
+        hostcert.ensure(machine, python=sys.executable, folder=folder, ca=self.ca, name=tls.host_name(STACK, host),
                          addresses=(address,), what="Zenoh router")
         machine.put(self.ca.cert_pem, f"{folder}/ca.pem")
         return TlsFiles(ca=f"{folder}/ca.pem", cert=f"{folder}/server.pem", key=f"{folder}/server.key")

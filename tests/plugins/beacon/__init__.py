@@ -5,7 +5,7 @@ in fogiac/ names it; the entry point below is its whole registration."""
 
 from __future__ import annotations
 
-from fogiac.net.middleware import MiddlewareEntry
+from fogiac.middlewares import MiddlewareEntry
 
 ENTRY = MiddlewareEntry(name="beacon", middleware="tests.plugins.beacon.middleware:BEACON",
                         deployment="tests.plugins.beacon.deploy:DEPLOYMENT")

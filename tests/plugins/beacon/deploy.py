@@ -51,6 +51,8 @@ class BeaconDeployment:
     def link_files(self) -> tuple[tuple[str, int], ...]:
         return ()
 
+    link_program = ""  # no link services: the beacon's host service is the link
+
     def host_credentials(self, host: Host, *, python: str, folder: str, certs_dir: Path, plan: Plan,
                          spec: HostSpec, dialed: str) -> bool:
         return False  # plain TCP: nothing to sign
@@ -72,6 +74,9 @@ class BeaconDeployment:
         return [{"host": host, "connect": address, "connected": bool(seen.get(host, {}).get("connected")),
                  "beats": seen.get(host, {}).get("beats", 0), "interval_s": seen.get(host, {}).get("interval_s"),
                  "topics": []} for host, address in sorted(connect.items())]
+
+    def edge_stats(self, plan: Plan, *, folder: Path) -> tuple[Path, ...]:
+        return ()  # the listener's one file holds every host: it does not date a link
 
 
 DEPLOYMENT = BeaconDeployment()

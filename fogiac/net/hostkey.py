@@ -57,7 +57,7 @@ def main(argv: list[str]) -> int:
     if len(argv) == 3 and argv[0] == "new":
         sys.stdout.write(_new(argv[1], argv[2]).decode())
         return 0
-    print("usage: relaykey.py show DIR | new DIR NAME", file=sys.stderr)
+    print("usage: hostkey.py show DIR | new DIR NAME", file=sys.stderr)
     return 2
 
 

@@ -18,7 +18,7 @@ from cryptography.x509.oid import NameOID
 
 from fogiac.certs import Bundle, KeyPair, issue, load_or_create_bundle, new_ca, relay_name, serves, sign_csr
 from fogiac.errors import CertError, ProvisionError
-from fogiac.provision import relaycert
+from fogiac.net import hostcert
 from fogiac.provision.local import LocalHost
 from tests.support.tls import handshake, private_keys_under, public_der
 
@@ -38,7 +38,7 @@ class Fleet:
         return f"{self.hosts[name].base}/certs"
 
     def ensure(self, name: str, *, ca: KeyPair | None = None) -> bool:
-        return relaycert.ensure(self.hosts[name], python=sys.executable, folder=self.folder(name),
+        return hostcert.ensure(self.hosts[name], python=sys.executable, folder=self.folder(name),
                                 ca=ca or self.bundle.ca, name=relay_name(STACK, name))
 
     def cert(self, name: str) -> bytes:
@@ -137,7 +137,7 @@ def test_hostile_requests_are_refused_in_one_line(fleet: Fleet, csr: bytes | Non
 
 def test_a_host_that_answers_garbage_fails_in_one_line(fleet: Fleet) -> None:
     with pytest.raises(ProvisionError, match=r"^a: the relay key's show on the host printed no JSON object$"):
-        relaycert.ensure(fleet.hosts["a"], python="/bin/echo", folder=fleet.folder("a"), ca=fleet.bundle.ca,
+        hostcert.ensure(fleet.hosts["a"], python="/bin/echo", folder=fleet.folder("a"), ca=fleet.bundle.ca,
                          name=relay_name(STACK, "a"))
     assert not Path(fleet.folder("a"), "server.key").exists()
 

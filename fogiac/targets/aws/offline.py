@@ -58,7 +58,8 @@ def declare(plan: Plan, *, mocks: Any | None = None) -> OfflinePlan:
     :data:`PLACEHOLDERS`); a plan without a cloud network (another target's) declares nothing."""
     if plan.network is None:
         return OfflinePlan(plan=plan, resources=(), outputs=MappingProxyType({}))
-    program = need("stacks.program")  # the aws extra named if pulumi is missing, before the engine asks
+    need("pulumi")  # a missing SDK names the aws extra, before the engine asks for it
+    program = need("stacks.program")
 
     def programs(earlier: Earlier) -> dict[str, Program]:
         return program.layer_programs(

@@ -1,9 +1,10 @@
 """The two stack programs, network and compute, built from a compiled Plan.
 
 Both are plain functions run inside a Pulumi program: by ``stacks/__main__.py`` under
-``pulumi preview``/``up``, by the engine's Automation API, or under mocks for the offline plan
-(:mod:`fogiac.targets.aws.offline`). Compute takes network's outputs as plain values, so a second ``up``
-after ``down --keep-network`` never waits for the slow VPN association again.
+``pulumi preview``/``up``, by the engine's Automation API (:mod:`fogiac.pulumi_engine.engine`, fed by
+:mod:`fogiac.targets.aws.engine`), or under mocks for the offline plan (:mod:`fogiac.targets.aws.offline`).
+Compute takes network's outputs as plain values, so a second ``up`` after ``down --keep-network``
+never waits for the slow VPN association again.
 """
 
 from __future__ import annotations

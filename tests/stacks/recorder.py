@@ -8,7 +8,7 @@ from typing import Any
 
 import pulumi
 
-from fogiac.targets.aws.offline import run_program
+from fogiac.pulumi_engine.offline import run_program
 
 
 class Recorder(pulumi.runtime.Mocks):

@@ -1,11 +1,12 @@
-"""fogiac.targets.aws.offline: declaration order, redaction, determinism, and nothing written for a plan."""
+"""fogiac.targets.aws.offline: declaration order, determinism, and nothing written for a plan (redaction is the
+engine's: tests/pulumi_engine/test_offline.py)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 from fogiac.plan import document as plan_document
-from fogiac.targets.aws.offline import SECRET, OfflinePlan, declare, redact
+from fogiac.targets.aws.offline import OfflinePlan, declare
 
 from .conftest import EXAMPLES, GPU, compiled, write_manifest
 
@@ -78,8 +79,3 @@ def test_document_shape(offline: dict[str, OfflinePlan]) -> None:
         "Client VPN subnet association", "Client VPN connection (the edge)"
     ]
 
-
-def test_redact() -> None:
-    wrapped = {"4dabf18193072939515e22adb298388d": "1b47061264138c4ac30d75fd1eb44270", "value": "hunter2"}
-    pem = "-----BEGIN PRIVATE KEY-----\nMIIE\n-----END PRIVATE KEY-----\n"
-    assert redact({"b": wrapped, "a": [pem, 22.0, 1.5, True]}) == {"a": [SECRET, 22, 1.5, True], "b": SECRET}

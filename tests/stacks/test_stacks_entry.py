@@ -109,7 +109,7 @@ def test_region_mismatch_is_refused(config: _Config) -> None:
 _RUN_MAIN = """
 import json, runpy, sys
 import pulumi
-from fogiac.targets.aws.offline import run_program
+from fogiac.pulumi_engine.offline import run_program
 
 class M(pulumi.runtime.Mocks):
     def new_resource(self, args):

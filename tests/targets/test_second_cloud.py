@@ -1,6 +1,7 @@
 """A second cloud, defined only in the tests (``tests/plugins/nimbus/``) and registered through an entry
 point, goes through the one lifecycle: its own catalogue and ``cloud:`` variant validate the manifest
-in its words, its stack program declares the plan's resources under Pulumi's mocks, ``up`` creates its
+in its words, its stack program declares the plan's resources through fogiac's one Pulumi engine (under
+Pulumi's mocks, which are its API), ``up`` creates its
 machines and fogiac provisions them and connects the robot's edge, a planning request crosses the relay,
 ``status`` reports it, and ``down`` deletes the machines and leaves no process. Nothing in fogiac/
 names it."""

@@ -22,6 +22,7 @@ from fogiac.plan import drift, guard
 from fogiac.plan.model import Plan
 from fogiac.plan.placement import Placement, Tags
 from fogiac.provision import SshAccess, idle, recorded_access
+from fogiac.pulumi_engine.workspace import pulumi_cli
 from fogiac.state import StackState, read_json, stack_lock
 from fogiac.tables import table
 from fogiac.targets.aws import api, engine, iam, observe, offline, placement, quotas, spot
@@ -66,12 +67,12 @@ class AwsTarget:
         return placement.place(manifest, stack=stack, tags=tags)
 
     def declare(self, plan: Plan) -> tuple[Mapping[str, Any], ...]:
-        return tuple(r.to_dict() for r in offline.declare(plan).resources if r.custom)
+        return offline.declare(plan).rows()
 
     # -- up ---------------------------------------------------------------------------------------
 
     def ready(self, plan: Plan, *, verb: str) -> None:
-        engine.pulumi_cli()
+        pulumi_cli()
         if verb == "down":
             api.identity(region=plan.region)
 
@@ -214,7 +215,7 @@ class AwsTarget:
         """Every check ``up`` would make, each as (what, ok, detail); nothing is created."""
         checks: list[Check] = []
         try:
-            checks.append(Check("Pulumi CLI", True, str(engine.pulumi_cli())))
+            checks.append(Check("Pulumi CLI", True, str(pulumi_cli())))
         except CloudError as err:
             checks.append(Check("Pulumi CLI", False, str(err)))
         checks.append(iam.doctor_check(plan, {str(r["type"]) for r in self.declare(plan)}))

@@ -6,7 +6,8 @@ machine, so fogiac really provisions it, connects the robot's edge to it and tea
 
     catalogue.py   its machine types and regions, and the manifest ``cloud:`` variant answering from them
     placement.py   compile's question: one machine per node, priced from its catalogue
-    program.py     its stack program (Pulumi resources of type ``nimbus:compute:Machine``), run under mocks
+    program.py     its stack program (Pulumi resources of type ``nimbus:compute:Machine``), run by fogiac's
+                   one Pulumi engine under mocks that are its API
     driver.py      the lifecycle's questions: create, reach, destroy, describe ...
 """
 

@@ -1,4 +1,5 @@
-"""Nimbus's answers to the lifecycle: its machines are made through its stack program and are sandboxes here."""
+"""Nimbus's answers to the lifecycle: its machines are made by its stack program through fogiac's one Pulumi
+engine (under mocks that are nimbus's API) and are sandboxes here."""
 
 from __future__ import annotations
 
@@ -18,15 +19,17 @@ from fogiac.lifecycle.driver import (
     Refreshed,
     SweepOutcome,
 )
-from fogiac.lifecycle.events import OnEvent, Progress
+from fogiac.lifecycle.events import OnEvent
 from fogiac.manifest.schema import Manifest
 from fogiac.plan.model import Plan
 from fogiac.plan.placement import Placement, Tags
 from fogiac.provision import teardown
 from fogiac.provision.local import PORTS_FILE, local_access, sandbox_root
+from fogiac.pulumi_engine import offline
+from fogiac.pulumi_engine.engine import Engine
 from fogiac.state import stack_dir
 from tests.plugins.nimbus import placement
-from tests.plugins.nimbus.program import Cloud, run
+from tests.plugins.nimbus.program import LAYER, Cloud, programs, project
 
 CLOUD_FILE = "nimbus-cloud.json"  # what the nimbus API holds for the stack
 
@@ -43,10 +46,7 @@ class NimbusTarget:
         return placement.place(manifest, stack=stack, tags=tags)
 
     def declare(self, plan: Plan) -> tuple[Mapping[str, Any], ...]:
-        planned = Cloud(None)
-        run(plan, planned)
-        return tuple({"stack": "machines", "type": d["type"], "name": d["name"], "action": "create",
-                      "inputs": d["inputs"]} for d in planned.declared)
+        return offline.declare(plan, project(plan), programs(plan), answers=Cloud(None)).rows()
 
     def ready(self, plan: Plan, *, verb: str) -> None:
         return None
@@ -57,13 +57,8 @@ class NimbusTarget:
 
     def create(self, plan: Plan, prepared: Prepared, *, announce: Callable[[str], None],
                on_event: OnEvent | None) -> Created:
-        for host in plan.hosts:
-            if on_event is not None:
-                on_event(Progress("start", host.name, host.name, "nimbus:compute:Machine", "create"))
-        ids = run(plan, self._cloud(plan))
-        for host in plan.hosts:
-            if on_event is not None:
-                on_event(Progress("done", host.name))
+        outputs = Engine(project(plan), on_event=on_event, mocks=self._cloud(plan)).up(programs(plan))
+        ids = outputs[LAYER]["machines"]
         return Created(plan=plan, outputs={"machines": ids},
                        machines=tuple(Machine(h.name, ids[h.name], h.machine, "127.0.0.1") for h in plan.hosts))
 

@@ -1,8 +1,10 @@
-"""Nimbus's stack program: one ``nimbus:compute:Machine`` per planned host, run under Pulumi's mocks.
+"""Nimbus's stack program: one ``nimbus:compute:Machine`` per planned host, declared through fogiac's one
+Pulumi engine (:mod:`fogiac.pulumi_engine`), as aws's programs are.
 
-The mocks are the nimbus cloud's API here: ``Cloud`` keeps the machines it was asked for in a JSON
-file (the cloud's own record, as a provider's API would), so ``up`` creates, a second ``up`` finds
-them, and ``down`` deletes them.
+The engine runs it under Pulumi's mocks, which are the nimbus cloud's API here: ``Cloud`` keeps
+the machines it was asked for in a JSON file (the cloud's own record, as a provider's API would),
+so ``up`` creates, a second ``up`` finds them, and ``down`` deletes them. For ``plan`` the engine's
+offline preview runs the same program against ``Cloud(None)``, which makes nothing.
 """
 
 from __future__ import annotations
@@ -14,13 +16,13 @@ from typing import Any
 
 import pulumi
 from pulumi.runtime import mocks as pulumi_mocks
-from pulumi.runtime.stack import run_pulumi_func
-from pulumi.runtime.sync_await import _sync_await
 
 from fogiac.plan.model import Plan
+from fogiac.pulumi_engine.project import Earlier, Program, Programs, Project
 from fogiac.state import read_json, write_json_atomic
 
 MACHINE = "nimbus:compute:Machine"
+LAYER = "machines"  # nimbus's one layer: no network of its own
 
 
 class Machine(pulumi.CustomResource):
@@ -28,13 +30,23 @@ class Machine(pulumi.CustomResource):
         super().__init__(MACHINE, name, dict(props), opts)
 
 
-def program(plan: Plan) -> dict[str, pulumi.Output[Any]]:
-    out: dict[str, pulumi.Output[Any]] = {}
-    for host in plan.hosts:
-        made = Machine(f"{plan.stack}-{host.name}", {"shape": host.machine, "region": plan.region,
-                                                     "tags": dict(host.tags)})
-        out[host.name] = made.id
-    return out
+def project(plan: Plan) -> Project:
+    return Project("nimbus", plan.stack, (LAYER,), {"nimbus:region": plan.region})
+
+
+def programs(plan: Plan) -> Programs:
+    """The program of nimbus's one layer: a machine per host, their ids exported as ``machines``."""
+
+    def machines() -> None:
+        made = {host.name: Machine(f"{plan.stack}-{host.name}", {"shape": host.machine, "region": plan.region,
+                                                                  "tags": dict(host.tags)}).id
+                for host in plan.hosts}
+        pulumi.export("machines", made)
+
+    def build(earlier: Earlier) -> dict[str, Program]:
+        return {LAYER: machines}
+
+    return build
 
 
 class Cloud(pulumi_mocks.Mocks):
@@ -42,13 +54,11 @@ class Cloud(pulumi_mocks.Mocks):
 
     def __init__(self, path: Path | None) -> None:
         self.path = path
-        self.declared: list[dict[str, Any]] = []
 
     def machines(self) -> dict[str, Any]:
         return (read_json(self.path) or {}) if self.path is not None else {}
 
     def new_resource(self, args: pulumi_mocks.MockResourceArgs) -> tuple[str | None, dict[str, Any]]:
-        self.declared.append({"type": args.typ, "name": args.name, "inputs": dict(args.inputs)})
         if self.path is None:  # a plan: nothing is made
             return f"{args.name}-id", dict(args.inputs)
         made = self.machines()
@@ -58,16 +68,3 @@ class Cloud(pulumi_mocks.Mocks):
 
     def call(self, args: pulumi_mocks.MockCallArgs) -> tuple[dict[str, Any], list[tuple[str, str]] | None]:
         return {}, None
-
-
-def run(plan: Plan, cloud: Cloud) -> dict[str, str]:
-    """Run the program against ``cloud``; host -> machine id."""
-    pulumi.runtime.set_mocks(cloud, project="nimbus", stack=plan.stack, preview=cloud.path is None)
-    found: dict[str, str] = {}
-
-    def body() -> Any:
-        outputs = program(plan)
-        return pulumi.Output.all(**outputs).apply(found.update)
-
-    _sync_await(run_pulumi_func(lambda: _sync_await(pulumi.Output.from_input(body()).future())))
-    return found

@@ -1,6 +1,6 @@
 """Apply the compiled stacks to LocalStack without the Pulumi engine (which cannot run here).
 
-The stack programs run under Pulumi's mock runtime (:func:`fogiac.targets.aws.offline.run_program`); this
+The stack programs run under Pulumi's mock runtime (:func:`fogiac.pulumi_engine.offline.run_program`); this
 ``Mocks`` creates each resource it is told about through boto3 and answers with the real id,
 so dependants receive real ids as Pulumi would give them. Like Pulumi, it keeps a state (ids
 by layer, type and logical name, in creation order) and a re-apply reuses what the state names
@@ -24,8 +24,9 @@ from botocore.exceptions import ClientError
 
 from fogiac.targets.aws.api import error_code
 from fogiac.certs import Bundle
-from fogiac.targets.aws.offline import PROJECT, run_program
+from fogiac.pulumi_engine.offline import run_program
 from fogiac.plan.model import Plan
+from stacks import PROJECT
 
 _SECRET_SIG = "4dabf18193072939515e22adb298388d"
 CLIENT_VPN = ("aws:ec2clientvpn/endpoint:Endpoint", "aws:ec2clientvpn/networkAssociation:NetworkAssociation",

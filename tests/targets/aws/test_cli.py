@@ -19,7 +19,7 @@ from fogiac.lifecycle import sequence
 from fogiac.cli import app
 from fogiac.targets import get as target
 from fogiac.targets.base import UpOptions
-from fogiac.targets.aws.engine import PULUMI_CLI_VERSION
+from fogiac.pulumi_engine.workspace import PULUMI_CLI_VERSION
 from fogiac.errors import PreflightError
 
 from .plans import make_plan, with_region, write_manifest

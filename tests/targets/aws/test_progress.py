@@ -7,7 +7,7 @@ from pulumi.automation import events
 from rich.console import Console
 
 from fogiac.cli.deploy import _Progress
-from fogiac.targets.aws.engine import translated
+from fogiac.pulumi_engine.events import translated
 
 
 def _pre(op: str, urn: str, typ: str) -> events.EngineEvent:

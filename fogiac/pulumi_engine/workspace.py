@@ -1,0 +1,83 @@
+"""Where the engine keeps a stack's Pulumi state: a file backend in the stack's folder, secrets under a
+passphrase, and the pinned Pulumi CLI that does the work.
+
+State stays on the user's disk (``<stack folder>/pulumi``), secrets are encrypted with a passphrase
+(``$PULUMI_CONFIG_PASSPHRASE``, else a generated 0600 file), so no Pulumi account is needed.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import secrets
+import shutil
+import subprocess
+from pathlib import Path
+from types import ModuleType
+
+from fogiac import extras
+from fogiac.certs import write_private
+from fogiac.errors import EngineError
+from fogiac.state import StackState
+
+# The one place the Pulumi CLI version is pinned: the release matching the pulumi SDK in use.
+PULUMI_CLI_VERSION = "3.272.0"
+INSTALL = f"curl -fsSL https://get.pulumi.com | sh -s -- --version {PULUMI_CLI_VERSION}"
+PASSPHRASE_FILE = "pulumi-passphrase"
+BACKEND_DIR = "pulumi"  # in the stack folder: the file backend's root
+
+
+def need(module: str) -> ModuleType:
+    """The Pulumi SDK (a cloud's target checks its own extra first, so its users see that one named)."""
+    return extras.need(module, extra="pulumi")
+
+
+def backend_dir(stack: str, *, create: bool = True) -> Path:
+    state = StackState(stack)
+    return (state.ensure() if create else state.folder) / BACKEND_DIR
+
+
+def pulumi_cli() -> Path:
+    """The Pulumi CLI on PATH (or where its installer puts it), at least the pinned version."""
+    found = shutil.which("pulumi") or next(
+        (str(p) for p in [Path.home() / ".pulumi" / "bin" / "pulumi"] if p.is_file() and os.access(p, os.X_OK)), None)
+    if found is None:
+        raise EngineError(f"the Pulumi CLI is not installed (fogiac needs {PULUMI_CLI_VERSION}); "
+                          f"install it with: {INSTALL}")
+    try:
+        out = subprocess.run([found, "version"], capture_output=True, text=True, timeout=30, check=True).stdout
+    except (OSError, subprocess.SubprocessError) as err:
+        raise EngineError(f"the Pulumi CLI at {found} does not run ({err}); reinstall it with: {INSTALL}") from None
+    match = re.search(r"(\d+)\.(\d+)\.(\d+)", out)
+    have = tuple(int(x) for x in match.groups()) if match else (0, 0, 0)
+    want = tuple(int(x) for x in PULUMI_CLI_VERSION.split("."))
+    if have[0] != want[0] or have < want:
+        raise EngineError(f"the Pulumi CLI at {found} is {'.'.join(map(str, have))}, fogiac needs "
+                          f"{PULUMI_CLI_VERSION} or a later 3.x; install it with: {INSTALL}")
+    return Path(found)
+
+
+def passphrase(stack: str) -> str:
+    """The secrets passphrase: from the environment, else the stack's generated 0600 file."""
+    given = os.environ.get("PULUMI_CONFIG_PASSPHRASE")
+    if given is not None:
+        return given
+    given_file = os.environ.get("PULUMI_CONFIG_PASSPHRASE_FILE")
+    if given_file:
+        return Path(given_file).read_text().strip()
+    path = StackState(stack).ensure() / PASSPHRASE_FILE
+    if not path.exists():
+        write_private(path, secrets.token_urlsafe(32).encode())
+    return path.read_text().strip()
+
+
+def workspace_env(stack: str) -> dict[str, str]:
+    """What the Pulumi CLI needs: the file backend, the passphrase, no update nagging."""
+    backend = backend_dir(stack)
+    backend.mkdir(mode=0o700, exist_ok=True)
+    return {
+        "PULUMI_BACKEND_URL": backend.as_uri(),
+        "PULUMI_CONFIG_PASSPHRASE": passphrase(stack),
+        "PULUMI_SKIP_UPDATE_CHECK": "true",
+        "PULUMI_AUTOMATION_API_SKIP_VERSION_CHECK": "false",
+    }

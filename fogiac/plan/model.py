@@ -78,11 +78,8 @@ class NetworkSpec(typing.Protocol):
     """The network the target puts the hosts in, its own part of the plan (the aws target's VPC and
     subnets: ``fogiac.targets.aws.model.VpcSpec``); None where the target has none of its own. What
     every target says about reaching the hosts is the plan's own (``mode``, ``ssh_from``,
-    ``security_groups``, ``routes``); neutral code asks only whether there is a network, and its name.
-    The plan document holds what ``document`` makes of its ``dataclasses.asdict``."""
-
-    @property
-    def label(self) -> str: ...
+    ``security_groups``, ``routes``); neutral code asks only whether there is a network. The plan
+    document holds what ``document`` makes of its ``dataclasses.asdict``."""
 
     def document(self, fields: dict[str, Any]) -> dict[str, Any]:
         """Its fields as the plan document (and so the plan's digest) holds them."""

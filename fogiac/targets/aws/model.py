@@ -33,10 +33,6 @@ class VpcSpec:
     subnets: tuple[Subnet, ...]
     flow_logs: bool = False  # VPC flow logs to a CloudWatch log group of the stack
 
-    @property
-    def label(self) -> str:
-        return f"VPC {self.vpc_cidr}"
-
     def document(self, fields: dict[str, Any]) -> dict[str, Any]:
         """A subnet in the plan's zone has no ``zone`` key: plans from before replicas keep their bytes
         (and digests)."""

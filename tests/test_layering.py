@@ -14,6 +14,8 @@ Every import counts: at module level, inside functions, under ``TYPE_CHECKING``,
   (aws, VPC, its ranges, flow logs, Amazon Time Sync), no region default, no tag limit or subnet-derived
   cap; those are the aws ``cloud:`` variant's and target's (comments, docstrings and the documentation
   strings of a field's ``description=`` or an option's ``help=`` may name them);
+- ``fogiac/errors.py`` is one neutral tree: it names no middleware, VPN, cloud or engine, whose errors
+  subclass its classes in their own folders;
 - no branch on a target's name outside that target's own folder.
 """
 
@@ -46,6 +48,9 @@ TAG_LINE, TAG_LIMIT, NODE_CAP = re.compile(r"tag", re.I), re.compile(r"^(50|128|
 # Importers of another tool's files, which are AWS-only by that tool's design (FogROS, FogROS2): they
 # read and name its AWS calls, regions and images.
 CLOUD_IMPORTERS = ("fogiac.manifest.fogros", "fogiac.manifest.fogros2")
+# What errors.py may not name: a middleware (relay, Zenoh), a VPN, a cloud, an engine.
+PLUGIN_WORDS = re.compile(r"relay|zenoh|vpn|aws|amazon|pulumi|engine|boto", re.I)
+PLUGIN_FOLDERS = ("fogiac.net", "fogiac.targets")
 
 
 def _modules() -> dict[str, Path]:
@@ -227,6 +232,19 @@ def test_the_cloud_check_sees_what_it_is_meant_to(tmp_path: Path) -> None:
                       'Field(default=1, description="AWS region (documentation)")\n'
                       'Field(default="aws", description="Where cloud nodes run.")\n')
     assert [line.split(":")[1] for line in _cloud_lines(sample, tmp_path)] == ["2", "3", "4", "5", "6", "9"]
+
+
+def test_errors_is_one_neutral_tree() -> None:
+    """errors.py names no middleware, VPN, cloud or engine in code; their errors live in their folders,
+    each a subclass of a neutral error rather than of FogiacError itself."""
+    path = REPO / "fogiac" / "errors.py"
+    named = sorted(f"errors.py:{line}: {text}" for line, text in _code_lines(path) if PLUGIN_WORDS.search(text))
+    assert named == []
+    direct = sorted(f"{path.relative_to(REPO)}:{node.lineno}: {node.name}" for m, path in MODULES.items()
+                    if _under(m, PLUGIN_FOLDERS) for node in ast.walk(ast.parse(path.read_text()))
+                    if isinstance(node, ast.ClassDef)
+                    and any(ast.unparse(base).endswith("FogiacError") for base in node.bases))
+    assert direct == []
 
 
 def test_no_branch_on_a_target_name_outside_its_own_folder() -> None:

@@ -14,7 +14,7 @@ import struct
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from fogiac.errors import RelayError
+from fogiac.net.relay.errors import RelayError
 from fogiac.net.relay.framing import Payload
 
 DEFAULT_MATCH = "header.stamp"

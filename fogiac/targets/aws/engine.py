@@ -20,11 +20,11 @@ from pathlib import Path
 from typing import Any
 
 from fogiac.certs import SSH_KEY, load_or_create_bundle, load_or_create_ssh_key, write_private
-from fogiac.errors import EngineError
 from fogiac.lifecycle.events import OnEvent, Progress
 from fogiac.lifecycle.events import Timers as _Timers
 from fogiac.plan.model import Plan
 from fogiac.state import StackState, read_json
+from fogiac.targets.aws.errors import EngineError
 from fogiac.targets.aws.sdk import need
 from stacks import LAYERS, PROJECT
 

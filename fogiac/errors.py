@@ -1,4 +1,4 @@
-"""One error hierarchy for everything a user can cause or fix.
+"""One error hierarchy for everything a user can cause or fix, in neutral terms.
 
 The CLI catches :class:`FogiacError` once, prints ``str(err)`` on one line (or one line per
 problem for a :class:`ManifestError`) and exits 1. Anything else escaping is a bug.
@@ -8,18 +8,20 @@ problem for a :class:`ManifestError`) and exits 1. Anything else escaping is a b
     ├── PlanError              a saved plan is stale, corrupt or for another manifest
     ├── StateError             the state directory is unusable
     │   └── LockHeld           another fogiac holds the stack's lock
-    ├── CloudError             a cloud API said no
-    │   ├── CredentialsError   no usable AWS credentials
-    │   ├── PreflightError     something would fail before any money is spent
-    │   └── EngineError        the Pulumi engine is missing or failed
+    ├── CloudError             a target's cloud (its API, or the engine that drives it) said no
+    │   ├── CredentialsError   no usable credentials for the target's cloud
+    │   └── PreflightError     something would fail before any money is spent
     ├── ProvisionError         a host could not be provisioned
     │   └── HostKeyError       a host presented a key other than the recorded one
-    ├── RelayError             the relay could not start or lost its peer for good
-    ├── ZenohError             a Zenoh router could not open (bad config, certificate, port)
-    ├── VpnError               OpenVPN could not be set up
+    ├── LinkError              the link between the edge and the hosts could not open, or was lost for good
     ├── CertError              a certificate folder or request is unusable
     ├── WorkloadError          a workload's input is unusable
-    └── MissingExtra           an optional dependency (fogiac[aws], [ssh], [ros2], [workloads]) is not installed
+    └── MissingExtra           an optional dependency is not installed
+
+A plug-in's own errors subclass these in its own folder, and it translates its backend's exceptions
+(an SDK's, an engine's, a socket's) into them at its edge: a middleware's link errors under
+``fogiac/net/<middleware>/errors.py``, a target's cloud and tunnel errors under
+``fogiac/targets/<target>/errors.py``. A caller that catches the neutral class catches every plug-in's.
 """
 
 from __future__ import annotations
@@ -63,10 +65,6 @@ class PreflightError(CloudError):
     pass
 
 
-class EngineError(CloudError):
-    pass
-
-
 class ProvisionError(FogiacError):
     pass
 
@@ -75,16 +73,8 @@ class HostKeyError(ProvisionError):
     pass
 
 
-class RelayError(FogiacError):
-    pass
-
-
-class ZenohError(FogiacError):
-    pass
-
-
-class VpnError(FogiacError):
-    pass
+class LinkError(FogiacError):
+    """What carries topics (or the edge's tunnel) between the edge and the hosts failed for good."""
 
 
 class CertError(FogiacError):

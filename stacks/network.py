@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import pulumi
 import pulumi_aws as aws
 
-from fogiac.plan.model import NetworkSpec
+from fogiac.targets.aws.model import VpcSpec
 from stacks.tags import tagged
 
 _ANYWHERE = "0.0.0.0/0"  # the public route table's default route (egress, not a firewall rule)
@@ -56,7 +56,7 @@ def _write_logs(log_group_arn: str) -> str:
 
 @dataclass(frozen=True)
 class NetworkArgs:
-    spec: NetworkSpec
+    spec: VpcSpec
     zone: str
     tags: Mapping[str, str]
 

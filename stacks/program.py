@@ -17,7 +17,7 @@ import pulumi
 from fogiac.certs import Bundle
 from fogiac.errors import PlanError
 from fogiac.plan.model import Plan
-from fogiac.targets.aws.model import vpn_of, zone_subnet
+from fogiac.targets.aws.model import vpc_of, vpn_of, zone_subnet
 from stacks.compute import Compute, ComputeArgs
 from stacks.firewall import Firewall, FirewallArgs
 from stacks.network import Network, NetworkArgs
@@ -50,9 +50,10 @@ def layer_programs(plan: Plan, *, certs: Bundle, operator_cidrs: tuple[str, ...]
 def network_program(plan: Plan, *, certs: Bundle, operator_cidrs: tuple[str, ...]) -> None:
     """Declare Network, Firewall and (in vpn mode) ClientVpn; export their ids."""
     _require_aws(plan)
-    assert plan.network is not None
+    vpc = vpc_of(plan)
+    assert vpc is not None
     tags = dict(plan.tags)
-    network = Network(plan.stack, NetworkArgs(spec=plan.network, zone=plan.zone, tags=tags))
+    network = Network(plan.stack, NetworkArgs(spec=vpc, zone=plan.zone, tags=tags))
     firewall = Firewall(
         plan.stack,
         FirewallArgs(

@@ -19,6 +19,12 @@ entry point anywhere else is a plain import in disguise and counts as one.
   except that the provider-neutral engine ``fogiac/pulumi_engine/`` imports ``pulumi`` (and nothing else
   of these); no code line outside ``targets/aws/`` names Client VPN, EC2 or the instance catalogue
   (comments and docstrings may);
+- the neutral core (manifest, plan, lifecycle, provision, cli) names no cloud in code: no AWS name
+  (aws, VPC, its ranges, flow logs, Amazon Time Sync), no region default, no tag limit or subnet-derived
+  cap; those are the aws ``cloud:`` variant's and target's (comments, docstrings and the documentation
+  strings of a field's ``description=`` or an option's ``help=`` may name them);
+- ``fogiac/errors.py`` is one neutral tree: it names no middleware, VPN, cloud or engine, whose errors
+  subclass its classes in their own folders;
 - no branch on a target's name outside that target's own folder.
 """
 
@@ -47,6 +53,20 @@ PLUGIN_FOLDERS = (*TARGET_FOLDERS, *MIDDLEWARES, "workloads")
 # group -> {name: "module:attr"}, as fogiac declares its own plug-ins.
 ENTRY_POINTS: dict[str, dict[str, str]] = tomllib.loads((REPO / "pyproject.toml").read_text())["project"].get(
     "entry-points", {})
+NEUTRAL_CORE = ("fogiac.manifest", "fogiac.plan", "fogiac.lifecycle", "fogiac.provision", "fogiac.cli")
+# A cloud's own words in a neutral code line: the provider, its network (VPC, the VPN's client range,
+# flow logs to CloudWatch), its time service, a region name (us-west-2, ap-southeast-1, us-gov-east-1).
+CLOUD_WORDS = re.compile(r"\baws\b|amazon|cloudwatch|\bvpcs?\b|vpc_|vpc[A-Z]|client_cidr|flow_?logs?|time ?sync|"
+                         r"169\.254\.169\.123|\b[a-z]{2}-(?:gov-)?(?:north|south|east|west|central)[a-z]*-\d\b", re.I)
+# A cloud's limits: a tag count or length (AWS: 50 a resource, keys of 128, values of 256) and a node cap
+# its subnet sets (250); fogiac's own numbers may sit on other lines.
+TAG_LINE, TAG_LIMIT, NODE_CAP = re.compile(r"tag", re.I), re.compile(r"^(50|128|256)$"), re.compile(r"^25[01]$")
+# Importers of another tool's files, which are AWS-only by that tool's design (FogROS, FogROS2): they
+# read and name its AWS calls, regions and images.
+CLOUD_IMPORTERS = ("fogiac.manifest.fogros", "fogiac.manifest.fogros2")
+# What errors.py may not name: a middleware (relay, Zenoh), a VPN, a cloud, an engine.
+PLUGIN_WORDS = re.compile(r"relay|zenoh|vpn|aws|amazon|pulumi|engine|boto", re.I)
+ERROR_FOLDERS = ("fogiac.net", "fogiac.targets", "fogiac.pulumi_engine")  # where plug-ins keep their own errors
 
 
 def _modules() -> dict[str, Path]:
@@ -187,20 +207,25 @@ def test_the_engine_imports_pulumi() -> None:
     assert any(imported.split(".")[0] == "pulumi" for m in MODULES if _under(m, (ENGINE,)) for imported in GRAPH[m])
 
 
-def _code_lines(path: Path) -> list[tuple[int, str]]:
-    """The file's code without comments and docstrings: (line, text of its names and strings)."""
+def _code_tokens(path: Path) -> list[tuple[tuple[int, int], tuple[int, int], str]]:
+    """The file's code without comments and docstrings: (start, end, text) of its names and strings."""
     source = path.read_text()
     docstrings = {(n.body[0].value.lineno, n.body[0].value.end_lineno) for n in ast.walk(ast.parse(source))
                   if isinstance(n, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and n.body
                   and isinstance(n.body[0], ast.Expr) and isinstance(n.body[0].value, ast.Constant)
                   and isinstance(n.body[0].value.value, str)}
     skipped = {line for first, last in docstrings for line in range(first, (last or first) + 1)}
-    out: list[tuple[int, str]] = []
+    out: list[tuple[tuple[int, int], tuple[int, int], str]] = []
     for token in tokenize.generate_tokens(io.StringIO(source).readline):
         if token.type in (tokenize.COMMENT, tokenize.NL, tokenize.NEWLINE) or token.start[0] in skipped:
             continue
-        out.append((token.start[0], token.string))
+        out.append((token.start, token.end, token.string))
     return out
+
+
+def _code_lines(path: Path) -> list[tuple[int, str]]:
+    """The file's code without comments and docstrings: (line, text of its names and strings)."""
+    return [(start[0], text) for start, _, text in _code_tokens(path)]
 
 
 def test_no_code_line_outside_the_aws_target_names_aws() -> None:
@@ -208,6 +233,64 @@ def test_no_code_line_outside_the_aws_target_names_aws() -> None:
                         if not _under(m, ("fogiac.targets.aws",))
                         for line, text in _code_lines(path) if AWS_WORDS.search(text)})
     assert offenders == []
+
+
+def _documentation(path: Path) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+    """Where the strings given as ``description=`` or ``help=`` are (a field's or an option's documentation)."""
+    return [((node.value.lineno, node.value.col_offset), (node.value.end_lineno or 0, node.value.end_col_offset or 0))
+            for node in ast.walk(ast.parse(path.read_text()))
+            if isinstance(node, ast.keyword) and node.arg in ("description", "help")
+            and not any(isinstance(n, ast.Call) for n in ast.walk(node.value))]
+
+
+def _cloud_lines(path: Path, root: Path = REPO) -> list[str]:
+    """The code lines of ``path`` that name a cloud's words or limits (:data:`CLOUD_WORDS`, the limits)."""
+    documentation = _documentation(path)
+    lines: dict[int, list[str]] = {}
+    for start, end, text in _code_tokens(path):
+        if not any(first <= start and end <= last for first, last in documentation):
+            lines.setdefault(start[0], []).append(text)
+    out = []
+    for line, tokens in lines.items():
+        text = " ".join(tokens)
+        if CLOUD_WORDS.search(text) or any(NODE_CAP.match(t) for t in tokens) \
+                or (TAG_LINE.search(text) and any(TAG_LIMIT.match(t) for t in tokens)):
+            out.append(f"{path.relative_to(root)}:{line}: {text}")
+    return out
+
+
+def test_the_neutral_core_names_no_cloud() -> None:
+    offenders = sorted(found for m, path in MODULES.items() if _under(m, NEUTRAL_CORE) and m not in CLOUD_IMPORTERS
+                       for found in _cloud_lines(path))
+    assert offenders == []
+
+
+def test_the_cloud_check_sees_what_it_is_meant_to(tmp_path: Path) -> None:
+    """The words and limits the neutral-core check looks for are found where they were (and would be again)."""
+    sample = tmp_path / "sample.py"
+    sample.write_text('"""Docstrings may say aws, VPC and us-west-2."""\n'
+                      'DEFAULT = "aws"  # comments may too\n'
+                      'REGION = "us-west-2"\n'
+                      'vpc_cidr = client_cidr = flow_logs = "169.254.169.123"\n'
+                      'MAX_TAGS, MAX_TAG_KEY, MAX_TAG_VALUE = 50, 128, 256\n'
+                      'MAX_NODES = 250\n'
+                      'PORT = 128  # a number alone is not a limit\n'
+                      'Field(default=1, description="AWS region (documentation)")\n'
+                      'Field(default="aws", description="Where cloud nodes run.")\n')
+    assert [line.split(":")[1] for line in _cloud_lines(sample, tmp_path)] == ["2", "3", "4", "5", "6", "9"]
+
+
+def test_errors_is_one_neutral_tree() -> None:
+    """errors.py names no middleware, VPN, cloud or engine in code; their errors live in their folders,
+    each a subclass of a neutral error rather than of FogiacError itself."""
+    path = REPO / "fogiac" / "errors.py"
+    named = sorted(f"errors.py:{line}: {text}" for line, text in _code_lines(path) if PLUGIN_WORDS.search(text))
+    assert named == []
+    direct = sorted(f"{path.relative_to(REPO)}:{node.lineno}: {node.name}" for m, path in MODULES.items()
+                    if _under(m, ERROR_FOLDERS) for node in ast.walk(ast.parse(path.read_text()))
+                    if isinstance(node, ast.ClassDef)
+                    and any(ast.unparse(base).endswith("FogiacError") for base in node.bases))
+    assert direct == []
 
 
 def test_no_branch_on_a_target_name_outside_its_own_folder() -> None:

@@ -1,10 +1,12 @@
 """The manifest's blocks other than its nodes: ``ros``, ``cloud`` (with ``hosts`` and ``autostop``),
-``network``, ``edge`` and ``relay``."""
+``network``, ``edge`` and ``relay``.
+
+What a block leaves unsaid is the default provider's ``cloud:`` variant's to fill in (its name, its
+region, the keys it adds to ``network:``): this module names no cloud."""
 
 from __future__ import annotations
 
-import ipaddress
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 from urllib.parse import urlparse
 
 from pydantic import (
@@ -15,9 +17,8 @@ from pydantic import (
     model_validator,
 )
 
-from fogiac.manifest.clouds import variant
+from fogiac.manifest.clouds import DEFAULT, default_region, variant
 from fogiac.manifest.fields import (
-    _MIN_SUBNET_PREFIX,
     Compression,
     Distro,
     DnsName,
@@ -27,11 +28,10 @@ from fogiac.manifest.fields import (
     Topic,
     _address,
     _Model,
-    _sizing,
     _topic,
     _user,
-    ssh_from_problem,
 )
+from fogiac.manifest.network import NetworkBlock
 from fogiac.manifest.problems import FieldProblem, raise_all
 
 
@@ -91,8 +91,8 @@ class Registry(_Model):
 
 
 class Cloud(_Model):
-    provider: Provider = Field(default="aws", description="Where cloud nodes run.")
-    region: str = Field(default="us-west-2", description="AWS region (one the price table covers).")
+    provider: Provider = Field(default=DEFAULT, description="Where cloud nodes run.")
+    region: str = Field(default=default_region(), description="The provider's region (one its price table covers).")
     zone: str | None = Field(default=None, description="Availability zone; chosen by preflight if absent.")
     hosts: tuple[HostMachine, ...] = Field(default=(), description="Machines for the hosts target.")
     autostop: Literal["off"] | Autostop | None = Field(
@@ -133,71 +133,17 @@ class Cloud(_Model):
         return self
 
 
-class Network(_Model):
-    mode: Literal["vpn", "proxy"] = Field(
-        default="vpn", description="vpn: the edge joins the target's VPN; proxy: relay over TLS to the public address."
-    )
-    vpc_cidr: ipaddress.IPv4Network = Field(
-        default=ipaddress.IPv4Network("10.10.0.0/16"), description="VPC address range (/16 to /26)."
-    )
-    client_cidr: ipaddress.IPv4Network = Field(
-        default=ipaddress.IPv4Network("10.200.0.0/22"),
-        description="The edge's VPN address range (the target's VPN sets its limits), outside the VPC.",
-    )
-    ssh_from: Literal["auto"] | tuple[ipaddress.IPv4Network, ...] = Field(
-        default="auto", description="CIDRs allowed to SSH (and, in proxy mode, reach the relay); auto: your address."
-    )
-    egress_tcp: tuple[int, ...] = Field(
-        default=(80, 443), description="TCP ports the hosts may open to the internet (packages, images); "
-        "DNS and time use the VPC's resolver and Amazon Time Sync, which security groups do not filter."
-    )
-    flow_logs: bool = Field(
-        default=False, description="VPC flow logs to a CloudWatch log group that goes with the stack (billed per GB)."
-    )
+def network_model() -> type[NetworkBlock]:
+    """The model of the ``network:`` block: the default variant's, with the keys it adds (every manifest
+    has accepted them, whichever provider it names), else the neutral block."""
+    found: type[NetworkBlock] = getattr(variant(), "network", NetworkBlock)
+    return found
 
-    @field_validator("egress_tcp")
-    @classmethod
-    def _ports(cls, value: tuple[int, ...]) -> tuple[int, ...]:
-        for port in value:
-            if not 1 <= port <= 65535:
-                raise ValueError(f"{port} is not a TCP port (1-65535)")
-        return tuple(sorted(set(value)))
 
-    @field_validator("vpc_cidr")
-    @classmethod
-    def _vpc(cls, value: ipaddress.IPv4Network) -> ipaddress.IPv4Network:
-        if not 16 <= value.prefixlen <= _MIN_SUBNET_PREFIX - 1:
-            raise ValueError(
-                f"{value} must be between /16 and /{_MIN_SUBNET_PREFIX - 1} "
-                f"(it holds two subnets of at least /{_MIN_SUBNET_PREFIX})"
-            )
-        return value
-
-    @field_validator("client_cidr")
-    @classmethod
-    def _client(cls, value: ipaddress.IPv4Network, info: ValidationInfo) -> ipaddress.IPv4Network:
-        _sizing(info).check_edge_vpn_range(str(value), value.prefixlen)  # the target's VPN says what it allows
-        return value
-
-    @field_validator("ssh_from")
-    @classmethod
-    def _no_world(cls, value: object) -> object:
-        if isinstance(value, tuple):
-            for net in value:
-                if net.prefixlen == 0:
-                    raise ValueError(f"{net} opens SSH to the whole internet; name your own network")
-            problem = ssh_from_problem(value)
-            if problem:
-                raise ValueError(problem)
-        return value
-
-    @model_validator(mode="after")
-    def _no_overlap(self) -> Network:
-        if self.mode == "vpn" and self.client_cidr.overlaps(self.vpc_cidr):
-            raise FieldProblem(
-                f"{self.client_cidr} overlaps vpc_cidr {self.vpc_cidr}", field="client_cidr"
-            )
-        return self
+if TYPE_CHECKING:
+    Network = NetworkBlock
+else:  # the default provider's model: the neutral block and the keys its variant adds (aws: VPC ranges, flow logs)
+    Network = network_model()
 
 
 class Edge(_Model):

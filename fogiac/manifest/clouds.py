@@ -10,22 +10,51 @@ A node's machine is checked where the node is, before the ``cloud:`` block's own
 schema passes the provider it read from the raw manifest as validation context, and a model
 built without one (in code, or the checks across fields) names machines in :data:`DEFAULT`'s
 terms (targets without a catalogue of their own size and price their machines in the default's).
+
+What a manifest leaves out is the default variant's to fill in: its region, and the keys it adds to
+the ``network:`` block (``network``, read by :mod:`fogiac.manifest.blocks`). What a cloud allows
+(tags per resource, nodes per stack) is each variant's :class:`Limits`; a variant that names none
+is held to the default's.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Protocol
 
-from fogiac import registry
+from fogiac import defaults, registry
 from fogiac.manifest.machines import Choice, MachineSpec, PriceSource, Requirement
 
 GROUP = "fogiac.clouds"
-DEFAULT = "aws"  # the provider a manifest without ``provider:`` names
+DEFAULT = defaults.PROVIDER  # the provider a manifest without ``provider:`` names
+
+
+@dataclass(frozen=True)
+class Limits:
+    """What a cloud allows, checked at ``validate`` rather than found at ``up``; None: no limit."""
+
+    tags: int | None = None  # tags one resource holds, fogiac's own among them
+    tag_key: int | None = None  # characters in a tag's key
+    tag_value: int | None = None  # characters in a tag's value
+    reserved: tuple[str, ...] = ()  # tag key prefixes the cloud keeps for itself
+    nodes: int | None = None  # nodes one stack holds
+
+
+NO_LIMITS = Limits()
 
 
 class CloudVariant(Protocol):
-    """What a target answers about its part of the manifest's ``cloud:`` block."""
+    """What a target answers about its part of the manifest's ``cloud:`` block.
+
+    Optional attributes, read where present: ``limits`` (:class:`Limits`) and ``network`` (the model
+    of the ``network:`` block with the variant's own keys, a subclass of
+    :class:`~fogiac.manifest.network.NetworkBlock`, asked of the default variant).
+    """
+
+    @property
+    def default_region(self) -> str:
+        """The region of a manifest that names none (asked of the default variant)."""
 
     def regions(self) -> Sequence[str]: ...
 
@@ -78,3 +107,15 @@ def prices(target: str | None = None) -> PriceSource:
     """Where ``target``'s prices come from; a target without a ``cloud:`` variant of its own (one
     registered in code only) prices its machines in the default's terms, as it sized them."""
     return variant(target if known(target) else None).prices()
+
+
+def limits(provider: str | None = None) -> Limits:
+    """What ``provider``'s cloud allows; a variant naming none is held to the default's, as its machines
+    are sized in the default's terms (a manifest valid for one target stays valid for the others)."""
+    found: Limits | None = getattr(variant(provider), "limits", None)
+    return found if found is not None else getattr(variant(), "limits", NO_LIMITS)
+
+
+def default_region() -> str:
+    """The region of a manifest without one: the default variant's."""
+    return variant().default_region

@@ -42,9 +42,6 @@ _IMAGE_REF = re.compile(
 )
 
 
-_MIN_SUBNET_PREFIX = 27
-
-
 # ssh_from may cover at most a /8 (16.7 M addresses) in all: the largest block one organisation
 # holds (the legacy /8s); anything wider is not "my network" but a share of the whole internet,
 # and /1 pairs would otherwise slip past a check for 0.0.0.0/0 alone.

@@ -14,6 +14,7 @@ from pydantic import (
     Field,
     PrivateAttr,
     ValidationError,
+    ValidationInfo,
     ValidatorFunctionWrapHandler,
     field_validator,
     model_validator,
@@ -23,7 +24,7 @@ from pydantic_core import InitErrorDetails, PydanticCustomError
 from fogiac import middlewares
 from fogiac.errors import ManifestError
 from fogiac.manifest.blocks import Autostop, Cloud, Edge, HostMachine, Network, Registry, Relay, Ros
-from fogiac.manifest.clouds import known
+from fogiac.manifest.clouds import Limits, known, limits
 from fogiac.manifest.crossfield import cross_field_problems
 from fogiac.manifest.fields import DnsName, _Model, ssh_from_problem
 from fogiac.manifest.machines import NoMachine
@@ -33,10 +34,8 @@ from fogiac.manifest.replicas import Hedge
 from fogiac.manifest.requirements import RequirementsProblem, specifiers
 from fogiac.manifest.source import read_source
 
-MAX_TAGS, FOGIAC_TAGS, MAX_TAG_KEY, MAX_TAG_VALUE = 50, 4, 128, 256  # AWS's limits per resource
-# Nodes in one stack: the aws hosts subnet (a /24 at most) holds 251 machines, and a plan of 250 aws
-# nodes takes seconds (Pulumi declares each instance); 1600 took 25 s and 530 MB before this cap.
-MAX_NODES = 250
+FOGIAC_TAGS = 4  # the tags fogiac sets on every resource: fogiac:stack, fogiac:manifest, fogiac:node, Name
+RESERVED_TAGS = ("fogiac:",)  # fogiac's own tag prefix; the cloud's variant names its own (Limits.reserved)
 
 
 class Manifest(_Model):
@@ -100,9 +99,10 @@ class Manifest(_Model):
 
     @field_validator("nodes", mode="before")
     @classmethod
-    def _not_too_many(cls, value: object) -> object:
-        if isinstance(value, (list, tuple)) and len(value) > MAX_NODES:  # before any node is validated
-            raise ValueError(f"{len(value)} nodes; a stack holds at most {MAX_NODES}: split them into several "
+    def _not_too_many(cls, value: object, info: ValidationInfo) -> object:
+        most = _limits(info).nodes  # the provider's cap (aws: what its hosts subnet holds)
+        if most is not None and isinstance(value, (list, tuple)) and len(value) > most:  # before any node is validated
+            raise ValueError(f"{len(value)} nodes; a stack holds at most {most}: split them into several "
                              "manifests (or environments)")
         return value
 
@@ -115,20 +115,20 @@ class Manifest(_Model):
 
     @field_validator("tags")
     @classmethod
-    def _tags(cls, value: dict[str, str]) -> dict[str, str]:
+    def _tags(cls, value: dict[str, str], info: ValidationInfo) -> dict[str, str]:
+        cloud = _limits(info)  # the provider's limits, found at validate rather than at up
+        reserved = RESERVED_TAGS + cloud.reserved
         for key in value:
-            if key.startswith(("fogiac:", "aws:")):
-                raise ValueError(f"tag {key!r} uses a reserved prefix (fogiac:, aws:)")
-        # the cloud's limits, found at validate rather than at up (AWS: 50 tags a resource, keys of 128
-        # characters, values of 256); fogiac's own take FOGIAC_TAGS of the 50
-        if len(value) > MAX_TAGS - FOGIAC_TAGS:
-            raise ValueError(f"{len(value)} tags; a cloud resource holds {MAX_TAGS} and fogiac sets {FOGIAC_TAGS} "
-                             f"(fogiac:stack, fogiac:manifest, fogiac:node, Name): at most {MAX_TAGS - FOGIAC_TAGS}")
+            if key.startswith(reserved):
+                raise ValueError(f"tag {key!r} uses a reserved prefix ({', '.join(reserved)})")
+        if cloud.tags is not None and len(value) > cloud.tags - FOGIAC_TAGS:  # fogiac's own take FOGIAC_TAGS
+            raise ValueError(f"{len(value)} tags; a cloud resource holds {cloud.tags} and fogiac sets {FOGIAC_TAGS} "
+                             f"(fogiac:stack, fogiac:manifest, fogiac:node, Name): at most {cloud.tags - FOGIAC_TAGS}")
         for key, text in value.items():
-            if len(key) > MAX_TAG_KEY:
-                raise ValueError(f"tag key {key[:20]!r}... is {len(key)} characters; the limit is {MAX_TAG_KEY}")
-            if len(text) > MAX_TAG_VALUE:
-                raise ValueError(f"tag {key!r}: its value is {len(text)} characters; the limit is {MAX_TAG_VALUE}")
+            if cloud.tag_key is not None and len(key) > cloud.tag_key:
+                raise ValueError(f"tag key {key[:20]!r}... is {len(key)} characters; the limit is {cloud.tag_key}")
+            if cloud.tag_value is not None and len(text) > cloud.tag_value:
+                raise ValueError(f"tag {key!r}: its value is {len(text)} characters; the limit is {cloud.tag_value}")
         return value
 
     @model_validator(mode="after")
@@ -160,6 +160,12 @@ class Manifest(_Model):
             problems.append(FieldProblem(message, field=field))
         raise_all(problems)
         return self
+
+
+def _limits(info: ValidationInfo) -> Limits:
+    """What the manifest's provider allows (the validation context names it; without one: the default's)."""
+    context = info.context if isinstance(info.context, dict) else {}
+    return limits(context.get("provider"))
 
 
 def _moved(err: ValidationError, prefix: tuple[str, ...]) -> list[InitErrorDetails]:

@@ -28,7 +28,6 @@ OPERATOR = "operator"  # stands for the operator's address in ssh_from: auto unt
 OPERATOR_PLACEHOLDER = "<operator>/32"  # what an offline plan shows for the operator's address
 
 Protocol = Literal["tcp", "udp", "icmp", "-1"]  # "-1": every protocol (AWS's spelling)
-SubnetRole = Literal["instances", "vpn"]
 NodeKind = Literal["image", "launch", "workload", "command"]
 NetworkMode = Literal["vpn", "proxy", "relay"]  # how the edge reaches the hosts
 ConnectVia = Literal["private", "public", "address", "loopback"]  # which host address the edge relay dials
@@ -75,20 +74,15 @@ class SecurityGroup:
     egress: tuple[Rule, ...]
 
 
-@dataclass(frozen=True)
-class Subnet:
-    name: str
-    cidr: str
-    role: SubnetRole  # "instances" (public, the hosts) or "vpn" (Client VPN target)
-    public: bool
-    zone: str | None = None  # None: the plan's zone; a replicated node's hosts have subnets in zones of their own
+class NetworkSpec(typing.Protocol):
+    """The network the target puts the hosts in, its own part of the plan (the aws target's VPC and
+    subnets: ``fogiac.targets.aws.model.VpcSpec``); None where the target has none of its own. What
+    every target says about reaching the hosts is the plan's own (``mode``, ``ssh_from``,
+    ``security_groups``, ``routes``); neutral code asks only whether there is a network. The plan
+    document holds what ``document`` makes of its ``dataclasses.asdict``."""
 
-
-@dataclass(frozen=True)
-class NetworkSpec:
-    vpc_cidr: str
-    subnets: tuple[Subnet, ...]
-    flow_logs: bool = False  # VPC flow logs to a CloudWatch log group of the stack
+    def document(self, fields: dict[str, Any]) -> dict[str, Any]:
+        """Its fields as the plan document (and so the plan's digest) holds them."""
 
 
 class EdgeVpn(typing.Protocol):
@@ -315,9 +309,8 @@ class Plan:
         for host in out["hosts"]:
             if host["zone"] is None:  # absent unless set: existing plans keep their bytes (and digests)
                 del host["zone"]
-        for subnet in (out["network"] or {}).get("subnets", ()):
-            if subnet["zone"] is None:
-                del subnet["zone"]
+        if self.network is not None:
+            out["network"] = self.network.document(out["network"])
         if not self.notes:
             del out["notes"]
         for node in out["nodes"]:

@@ -14,9 +14,9 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from fogiac.errors import EngineError
 from fogiac.lifecycle.events import OnEvent
 from fogiac.pulumi_engine import offline
+from fogiac.pulumi_engine.errors import EngineError
 from fogiac.pulumi_engine.events import translated
 from fogiac.pulumi_engine.project import Program, Programs, Project
 from fogiac.pulumi_engine.workspace import backend_dir, need, pulumi_cli, workspace_env

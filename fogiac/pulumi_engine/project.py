@@ -6,7 +6,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from fogiac.errors import EngineError
+from fogiac.pulumi_engine.errors import EngineError
 
 Program = Callable[[], None]  # declares one layer's resources; run inside a Pulumi program
 Earlier = Callable[[str], Mapping[str, Any]]  # an earlier layer's outputs, once that layer has run

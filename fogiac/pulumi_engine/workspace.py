@@ -17,7 +17,7 @@ from types import ModuleType
 
 from fogiac import extras
 from fogiac.certs import write_private
-from fogiac.errors import EngineError
+from fogiac.pulumi_engine.errors import EngineError
 from fogiac.state import StackState
 
 # The one place the Pulumi CLI version is pinned: the release matching the pulumi SDK in use.

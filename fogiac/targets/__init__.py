@@ -16,15 +16,18 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from fogiac import registry
 from fogiac.errors import PlanError
-from fogiac.lifecycle.driver import Target
-from fogiac.plan.placement import Placement
 from fogiac.registry import Registry
 
-Place = Callable[..., Placement]  # place(manifest, *, stack, tags) -> Placement, as Target.place
+if TYPE_CHECKING:  # not at run time: a target's ``cloud:`` variant (``targets/<name>/manifest.py``) is loaded
+    # while the manifest's models are being built, before the lifecycle (which imports them) can be
+    from fogiac.lifecycle.driver import Target
+    from fogiac.plan.placement import Placement
+
+Place = Callable[..., "Placement"]  # place(manifest, *, stack, tags) -> Placement, as Target.place
 
 
 @dataclass(frozen=True)

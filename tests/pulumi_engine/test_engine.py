@@ -15,7 +15,7 @@ import pulumi
 import pytest
 from pulumi.automation import events
 
-from fogiac.errors import EngineError
+from fogiac.pulumi_engine.errors import EngineError
 from fogiac.lifecycle.events import Progress
 from fogiac.pulumi_engine import engine, workspace
 from fogiac.pulumi_engine.events import Timers

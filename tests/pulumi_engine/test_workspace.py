@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from fogiac.errors import EngineError
+from fogiac.pulumi_engine.errors import EngineError
 from fogiac.pulumi_engine import workspace
 from fogiac.state import stack_dir
 

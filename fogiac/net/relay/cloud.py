@@ -21,10 +21,10 @@ import ssl
 import threading
 from dataclasses import dataclass, field
 
-from fogiac.errors import RelayError
 from fogiac.net.relay import framing
 from fogiac.net.relay.config import CloudConfig
 from fogiac.net.relay.end import RelayEnd
+from fogiac.net.relay.errors import RelayError
 from fogiac.net.relay.framing import Frame, FrameError, Kind
 from fogiac.net.relay.graph import Direction, GraphState, may_cross
 from fogiac.net.relay.ratelog import RateLimitedLog

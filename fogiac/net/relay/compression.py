@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import lz4.frame
 import zstandard
 
-from fogiac.errors import RelayError
+from fogiac.net.relay.errors import RelayError
 from fogiac.net.relay.framing import MAX_FRAME, FrameError, Payload
 
 

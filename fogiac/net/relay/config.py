@@ -8,8 +8,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from fogiac.endpoint import Endpoint
-from fogiac.errors import FogiacError, RelayError
+from fogiac.errors import FogiacError
 from fogiac.net.relay.compression import check_name
+from fogiac.net.relay.errors import RelayError
 from fogiac.net.relay.graph import TopicPolicy
 from fogiac.plan.model import RELAY_PORT as RELAY_PORT  # the port's one definition, beside the plan's others
 

@@ -8,8 +8,8 @@ import threading
 from collections.abc import Mapping
 from typing import Any
 
-from fogiac.errors import RelayError
 from fogiac.net.relay.config import EndConfig
+from fogiac.net.relay.errors import RelayError
 from fogiac.net.relay.graph import GraphState, from_system_state
 from fogiac.net.relay.monitor import Monitor
 from fogiac.net.relay.node import RelayNode

@@ -19,7 +19,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
-from fogiac.errors import RelayError
+from fogiac.net.relay.errors import RelayError
 
 HEADER = struct.Struct("!IBI")
 _FIXED = HEADER.size - 4  # kind + topic, counted by ``length``

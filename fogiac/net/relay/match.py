@@ -13,10 +13,10 @@ field is an error; a message too short for it has no key.
 from __future__ import annotations
 
 from fogiac import msgtypes
-from fogiac.errors import RelayError
 from fogiac.msgtypes import DEFAULT_MATCH as DEFAULT_MATCH
 from fogiac.msgtypes import Key as Key
 from fogiac.msgtypes import KeyOf as KeyOf
+from fogiac.net.relay.errors import RelayError
 
 
 def key_reader(match: str, type_name: str = "*", definition: str = "") -> KeyOf:

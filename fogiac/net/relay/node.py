@@ -14,8 +14,8 @@ import threading
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
-from fogiac.errors import RelayError
 from fogiac.net.relay import tcpros
+from fogiac.net.relay.errors import RelayError
 from fogiac.net.relay.rosapi import Master, SlaveHandlers, SlaveServer
 
 if TYPE_CHECKING:

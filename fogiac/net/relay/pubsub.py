@@ -13,8 +13,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from fogiac.errors import RelayError
 from fogiac.net.relay import tcpros
+from fogiac.net.relay.errors import RelayError
 from fogiac.net.relay.framing import Payload
 from fogiac.net.relay.rosapi import request_topic
 

@@ -37,9 +37,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from fogiac.errors import RelayError
 from fogiac.net.relay.config import EdgeConfig, default_ros_host, parse_hostport, policy_from_spec
 from fogiac.net.relay.edge import EdgeRelay
+from fogiac.net.relay.errors import RelayError
 from fogiac.net.relay.framing import Payload
 from fogiac.net.relay.match import DEFAULT_MATCH, KeyOf, key_reader
 from fogiac.net.relay.monitor import Monitor

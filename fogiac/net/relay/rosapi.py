@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from typing import Any
 from xmlrpc.server import SimpleXMLRPCRequestHandler, SimpleXMLRPCServer
 
-from fogiac.errors import RelayError
+from fogiac.net.relay.errors import RelayError
 
 log = logging.getLogger(__name__)
 

@@ -22,10 +22,10 @@ import time
 from collections.abc import Callable
 from typing import Any, Protocol
 
-from fogiac.errors import RelayError
 from fogiac.net.relay import framing
 from fogiac.net.relay.compression import codec
 from fogiac.net.relay.config import EndConfig
+from fogiac.net.relay.errors import RelayError
 from fogiac.net.relay.framing import Frame, FrameError, Kind, Payload
 from fogiac.net.relay.node import RelayNode
 from fogiac.net.relay.pubsub import LocalPublisher, LocalSubscription, TopicMeta

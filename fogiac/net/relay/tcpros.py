@@ -10,7 +10,7 @@ from __future__ import annotations
 import socket
 import struct
 
-from fogiac.errors import RelayError
+from fogiac.net.relay.errors import RelayError
 from fogiac.net.relay.framing import Payload
 
 _U32 = struct.Struct("<I")

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from cryptography import x509
 
-from fogiac.errors import RelayError
+from fogiac.net.relay.errors import RelayError
 
 
 def _need(directory: Path, *names: str) -> list[Path]:

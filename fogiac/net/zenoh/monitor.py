@@ -29,10 +29,10 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-from fogiac.errors import ZenohError
 from fogiac.extras import need
 from fogiac.net.relay.stats import TopicCounters, TopicStats
 from fogiac.net.zenoh.config import topic_key
+from fogiac.net.zenoh.errors import ZenohError
 from fogiac.state import write_json_atomic
 
 LATENCY_TOPIC = "/fogros/latency"

@@ -33,10 +33,10 @@ from pathlib import Path
 from typing import Any
 
 from fogiac import msgtypes
-from fogiac.errors import ZenohError
 from fogiac.extras import need
 from fogiac.net.replicas import HEDGES, Merge
 from fogiac.net.zenoh.config import topic_key
+from fogiac.net.zenoh.errors import ZenohError
 from fogiac.state import read_json, write_json_atomic
 
 log = logging.getLogger(__name__)

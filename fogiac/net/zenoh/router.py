@@ -15,8 +15,8 @@ import threading
 from pathlib import Path
 from typing import Any
 
-from fogiac.errors import ZenohError
 from fogiac.extras import need
+from fogiac.net.zenoh.errors import ZenohError
 from fogiac.state import write_json_atomic
 
 STATS_PERIOD_S = 1.0

@@ -6,15 +6,24 @@ but the EC2 API knows (:mod:`.known`, botocore's own lists) is accepted with a o
 that its cost is unknown, and a typo gets suggestions from the catalogue's facts. Named by the
 ``fogiac.clouds`` entry point; loading it imports no SDK and nothing of the lifecycle, and the
 catalogue itself is read on first use.
+
+The manifest's AWS-only keys and limits are this variant's too: the ``network:`` block's VPC and VPN
+address ranges and flow logs (:class:`Network`), the default region, the tag limits and the reserved
+``aws:`` prefix, and the node cap the hosts subnet sets (:data:`LIMITS`).
 """
 
 from __future__ import annotations
 
+import ipaddress
 import re
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
+from pydantic import Field, ValidationInfo, field_validator, model_validator
+
+from fogiac.manifest.clouds import Limits
+from fogiac.manifest.fields import _sizing
 from fogiac.manifest.machines import (
     ALTERNATIVES,
     Bound,
@@ -26,6 +35,7 @@ from fogiac.manifest.machines import (
     RankedBy,
     Requirement,
 )
+from fogiac.manifest.network import EGRESS_TCP, NetworkBlock
 from fogiac.manifest.problems import FieldProblem
 from fogiac.state import state_root
 from fogiac.targets.aws import known
@@ -41,6 +51,12 @@ from fogiac.targets.aws.catalogue import (
     suggest_type,
 )
 
+DEFAULT_REGION = "us-west-2"  # a manifest without cloud.region
+# AWS's tag limits per resource (50 tags, keys of 128 characters, values of 256; the aws: prefix is
+# AWS's own). Nodes in one stack: the hosts subnet (a /24 at most) holds 251 machines, and a plan of
+# 250 aws nodes takes seconds (Pulumi declares each instance); 1600 took 25 s and 530 MB before this cap.
+LIMITS = Limits(tags=50, tag_key=128, tag_value=256, reserved=("aws:",), nodes=250)
+MIN_SUBNET_PREFIX = 27  # the smallest subnet the VPC is cut into: vpc_cidr holds two of them
 GPU_EXAMPLE = "g4dn.xlarge"  # named when a node sets gpu: true on a type without one
 EDGE_VPN_PREFIX = (12, 22)  # the Client VPN's shortest and longest client range
 SPOT_CEILING = "AWS never charges more than on-demand"
@@ -57,6 +73,56 @@ NOT_CUDA = ("Radeon", "Gaudi")
 
 _GRAVITON = re.compile(r"^(a1|[a-z]+\d+g[a-z]*)\.")  # c7g, m6gd, t4g, x2gd, im4gn, g5g ...
 _BOTOCORE = Source("botocore's EC2 service model: the type exists; its hardware is not in the catalogue", "", "")
+
+
+class Network(NetworkBlock):
+    """The ``network:`` block with the keys only the aws target reads: the VPC's and the edge VPN's
+    address ranges, and the VPC's flow logs."""
+
+    vpc_cidr: ipaddress.IPv4Network = Field(
+        default=ipaddress.IPv4Network("10.10.0.0/16"), description="VPC address range (/16 to /26)."
+    )
+    client_cidr: ipaddress.IPv4Network = Field(
+        default=ipaddress.IPv4Network("10.200.0.0/22"),
+        description="The edge's VPN address range (the target's VPN sets its limits), outside the VPC.",
+    )
+    egress_tcp: tuple[int, ...] = Field(
+        default=(80, 443), description=EGRESS_TCP + "; DNS and time use the VPC's resolver and Amazon Time Sync, "
+        "which security groups do not filter."
+    )
+    flow_logs: bool = Field(
+        default=False, description="VPC flow logs to a CloudWatch log group that goes with the stack (billed per GB)."
+    )
+
+    @field_validator("vpc_cidr")
+    @classmethod
+    def _vpc(cls, value: ipaddress.IPv4Network) -> ipaddress.IPv4Network:
+        if not 16 <= value.prefixlen <= MIN_SUBNET_PREFIX - 1:
+            raise ValueError(
+                f"{value} must be between /16 and /{MIN_SUBNET_PREFIX - 1} "
+                f"(it holds two subnets of at least /{MIN_SUBNET_PREFIX})"
+            )
+        return value
+
+    @field_validator("client_cidr")
+    @classmethod
+    def _client(cls, value: ipaddress.IPv4Network, info: ValidationInfo) -> ipaddress.IPv4Network:
+        _sizing(info).check_edge_vpn_range(str(value), value.prefixlen)  # the target's VPN says what it allows
+        return value
+
+    @model_validator(mode="after")
+    def _no_overlap(self) -> Network:
+        if self.mode == "vpn" and self.client_cidr.overlaps(self.vpc_cidr):
+            raise FieldProblem(
+                f"{self.client_cidr} overlaps vpc_cidr {self.vpc_cidr}", field="client_cidr"
+            )
+        return self
+
+
+def network_of(block: NetworkBlock) -> Network:
+    """The manifest's ``network:`` block as this variant's model made it (the default provider's)."""
+    assert isinstance(block, Network), type(block)
+    return block
 
 
 def _unpriced(what: str) -> None:
@@ -125,6 +191,10 @@ def user_catalogue() -> Path:
 
 class AwsCloud:
     """The ``cloud:`` variant (:class:`fogiac.manifest.clouds.CloudVariant`) for EC2."""
+
+    default_region = DEFAULT_REGION
+    limits = LIMITS
+    network = Network
 
     @property
     def catalogue(self) -> Catalogue:

@@ -17,16 +17,15 @@ from fogiac.plan.model import (
     CostLine,
     HostSpec,
     MachineImage,
-    NetworkSpec,
     Rule,
     SecurityGroup,
-    Subnet,
     server_name,
 )
 from fogiac.plan.placement import Placement, Tags, autostop_for, host_per_node, replica_groups, ssh_sources
 from fogiac.targets.aws.catalog import catalog, on_demand, spot_price
 from fogiac.targets.aws.manifest import CLOUD as AWS
-from fogiac.targets.aws.model import ImageQuery, VpnSpec, zone_subnet
+from fogiac.targets.aws.manifest import network_of
+from fogiac.targets.aws.model import ImageQuery, Subnet, VpcSpec, VpnSpec, zone_subnet
 
 _WORLD = "0.0.0.0/0"
 AUTOSTOP_MINUTES = 30  # unless the manifest says otherwise, an EC2 host idle this long powers itself off
@@ -63,23 +62,23 @@ def image_for(spec: MachineSpec) -> MachineImage:
     return IMAGES[(spec.arch if spec.arch == "arm64" else "x86_64", spec.has_gpu)]
 
 
-def _network(manifest: Manifest, zones: tuple[str, ...] = ()) -> NetworkSpec:
+def _network(manifest: Manifest, zones: tuple[str, ...] = ()) -> VpcSpec:
     """The hosts' and the VPN's subnets in the plan's zone, and one hosts subnet per zone a replica uses."""
-    vpc = manifest.network.vpc_cidr
+    vpc = network_of(manifest.network).vpc_cidr
     prefix = max(vpc.prefixlen + 1, 24) if vpc.prefixlen < 24 else vpc.prefixlen + 1
     blocks = list(vpc.subnets(new_prefix=prefix))
     if len(blocks) < 2 + len(zones):
         raise PlanError(f"network.vpc_cidr: {vpc} has room for {len(blocks)} subnets; the replicas' {len(zones)} "
                         f"zones need {2 + len(zones)} (a larger range, e.g. a /16)")
     first, second = blocks[:2]
-    return NetworkSpec(
+    return VpcSpec(
         vpc_cidr=str(vpc),
         subnets=(
             Subnet(name="hosts", cidr=str(first), role="instances", public=True),
             Subnet(name="vpn", cidr=str(second), role="vpn", public=False),
         ) + tuple(Subnet(name=zone_subnet(zone), cidr=str(block), role="instances", public=True, zone=zone)
                   for zone, block in zip(zones, blocks[2:], strict=False)),
-        flow_logs=manifest.network.flow_logs,
+        flow_logs=network_of(manifest.network).flow_logs,
     )
 
 
@@ -127,7 +126,7 @@ def replica_zones(manifest: Manifest, hosts: tuple[HostSpec, ...],
 AWS_RESERVED_PER_SUBNET = 5  # the network, the router, DNS, one for the future, the broadcast
 
 
-def _room_for(manifest: Manifest, network: NetworkSpec, machines: int) -> None:
+def _room_for(manifest: Manifest, network: VpcSpec, machines: int) -> None:
     """The hosts subnet holds an address for every machine: found at validate, not when EC2 runs out at up."""
     subnet = next(s for s in network.subnets if s.role == "instances")
     usable = ipaddress.IPv4Network(subnet.cidr).num_addresses - AWS_RESERVED_PER_SUBNET
@@ -135,7 +134,7 @@ def _room_for(manifest: Manifest, network: NetworkSpec, machines: int) -> None:
         wider = ("give vpc_cidr a shorter prefix (a /24 or wider)" if ipaddress.IPv4Network(subnet.cidr).prefixlen > 24
                  else "fogiac's hosts subnet is a /24 at most: split the nodes into several stacks")
         raise FogiacError(
-            f"network.vpc_cidr: {manifest.network.vpc_cidr} gives the hosts subnet {subnet.cidr}, {usable} usable "
+            f"network.vpc_cidr: {network.vpc_cidr} gives the hosts subnet {subnet.cidr}, {usable} usable "
             f"addresses (AWS keeps 5), for {machines} machines; {wider}")
 
 
@@ -155,9 +154,10 @@ def _firewall(manifest: Manifest, ssh_from: tuple[str, ...], *, vpn_mode: bool) 
     never from the world. ROS 2 traffic leaves a host only through its Zenoh router."""
     carrier = middleware.for_distro(manifest.ros.distro)
     port, what = carrier.port, carrier.rule_description
-    inside = [str(manifest.network.vpc_cidr)]
+    ranges = network_of(manifest.network)
+    inside = [str(ranges.vpc_cidr)]
     if vpn_mode:
-        inside.append(str(manifest.network.client_cidr))
+        inside.append(str(ranges.client_cidr))
     ingress = [Rule("tcp", SSH_PORT, SSH_PORT, cidr, "SSH from the operator") for cidr in ssh_from]
     for cidr in inside:
         if carrier.node_master:  # ROS 1 over the VPN reaches the master and its nodes; ROS 2 crosses only the router
@@ -181,15 +181,15 @@ def _firewall(manifest: Manifest, ssh_from: tuple[str, ...], *, vpn_mode: bool) 
                 name="vpn",
                 description="fogiac Client VPN endpoint: no ingress, egress to the VPC only",
                 ingress=(),
-                egress=(Rule("-1", 0, 0, str(manifest.network.vpc_cidr), "VPN clients to the VPC"),),
+                egress=(Rule("-1", 0, 0, str(ranges.vpc_cidr), "VPN clients to the VPC"),),
             )
         )
     return tuple(groups)
 
 
-def _vpn(manifest: Manifest, stack: str, network: NetworkSpec) -> VpnSpec:
+def _vpn(manifest: Manifest, stack: str, network: VpcSpec) -> VpnSpec:
     return VpnSpec(
-        client_cidr=str(manifest.network.client_cidr),
+        client_cidr=str(network_of(manifest.network).client_cidr),
         server_name=server_name(stack),
         target_subnet="vpn",
         authorize_cidr=network.vpc_cidr,

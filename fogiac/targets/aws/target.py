@@ -13,7 +13,7 @@ from typing import Any
 
 from fogiac import deployment
 from fogiac.certs import load_or_create_bundle
-from fogiac.errors import CloudError, EngineError, ProvisionError
+from fogiac.errors import CloudError, ProvisionError
 from fogiac.lifecycle.edge import edge_idle_since
 from fogiac.lifecycle.events import OnEvent
 from fogiac.lifecycle.report import autostop_line
@@ -28,6 +28,7 @@ from fogiac.tables import table
 from fogiac.targets.aws import api, engine, iam, observe, offline, placement, quotas, spot
 from fogiac.targets.aws import sweep as sweeping
 from fogiac.targets.aws.catalog import catalog
+from fogiac.targets.aws.errors import EngineError
 from fogiac.targets.aws.vpn import write_client_profile
 from fogiac.targets.base import (
     Check,

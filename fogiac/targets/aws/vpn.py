@@ -21,10 +21,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from fogiac import certs
-from fogiac.errors import VpnError
 from fogiac.procs import pid_alive, poll, stop_tree
 from fogiac.render import render
 from fogiac.state import StackState
+from fogiac.targets.aws.errors import VpnError
 
 PROFILE_NAME = "client.ovpn"
 _PROTOCOLS = ("udp", "tcp")

@@ -9,8 +9,8 @@ import pytest
 from typer.testing import CliRunner
 
 from fogiac.cli import app
-from fogiac.errors import RelayError
 from fogiac.net.relay.config import parse_hostport, policy_from_spec
+from fogiac.net.relay.errors import RelayError
 from fogiac.net.relay.graph import TopicPolicy
 from fogiac.net.relay.tls import expected_server_name
 

@@ -8,9 +8,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fogiac.errors import RelayError
 from fogiac.net.relay import framing, tcpros
 from fogiac.net.relay.compression import codec, parse_spec
+from fogiac.net.relay.errors import RelayError
 from fogiac.net.relay.framing import Frame, FrameError, Kind
 from fogiac.net.relay.graph import GraphState, Route, TopicPolicy, from_system_state, may_cross, select_routes
 from fogiac.net.relay.queues import Outbox

@@ -6,7 +6,7 @@ import struct
 
 import pytest
 
-from fogiac.errors import RelayError
+from fogiac.net.relay.errors import RelayError
 from fogiac.msgtypes import parse_definition
 from fogiac.net.relay.match import key_reader
 

@@ -14,7 +14,7 @@ from cryptography import x509
 from cryptography.hazmat.primitives import serialization
 
 from fogiac import certs
-from fogiac.errors import VpnError
+from fogiac.targets.aws.errors import VpnError
 from fogiac.targets.aws.vpn import parse_log, render_client_profile, write_client_profile
 
 AWS_DNS = "*.cvpn-endpoint-0123456789abcdef0.prod.clientvpn.eu-west-1.amazonaws.com"

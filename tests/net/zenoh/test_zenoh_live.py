@@ -15,9 +15,9 @@ from pathlib import Path
 import pytest
 
 from fogiac.certs import new_ca
-from fogiac.errors import ZenohError
 from fogiac.net.zenoh import tls
 from fogiac.net.zenoh.config import cloud_router
+from fogiac.net.zenoh.errors import ZenohError
 from fogiac.net.zenoh.router import open_router
 from fogiac.procs import poll
 from tests.net.zenoh.lab import STACK, ZenohLab, free_ports, read_events, route

@@ -17,11 +17,11 @@ from typing import Any
 
 import pytest
 
-from fogiac.errors import ZenohError
 from fogiac.hostmodel import Layout, Where
 from fogiac.manifest.schema import load_manifest
 from fogiac.net.zenoh.config import access_control, edge_access_control
 from fogiac.net.zenoh.deploy import edge_links, replica_merges, replica_service
+from fogiac.net.zenoh.errors import ZenohError
 from fogiac.net.zenoh.replicas import CloudPrefix, EdgeMerge, replica_prefix
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.model import Replica, Route

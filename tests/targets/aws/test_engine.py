@@ -15,10 +15,10 @@ from pathlib import Path
 
 import pytest
 
-from fogiac.errors import EngineError
 from fogiac.pulumi_engine.workspace import PULUMI_CLI_VERSION, passphrase
 from fogiac.state import stack_dir
 from fogiac.targets.aws import engine
+from fogiac.targets.aws.errors import EngineError
 
 
 def fake_pulumi(folder: Path, answer: str) -> Path:
@@ -36,8 +36,8 @@ def no_pulumi(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
 
 
 def test_engine_without_cli_touches_no_state(no_pulumi: None, tmp_path: Path) -> None:
-    from fogiac.plan.compile import compile_plan
     from fogiac.manifest.schema import load_manifest
+    from fogiac.plan.compile import compile_plan
 
     plan = compile_plan(load_manifest(Path(__file__).parents[3] / "examples" / "minimal.yaml"))
     with pytest.raises(EngineError, match=r"^the Pulumi CLI is not installed"):
@@ -77,8 +77,8 @@ def test_no_boto3_or_pulumi_on_import() -> None:
 
 
 def test_workspace_options_for_the_automation_api(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from fogiac.plan.compile import compile_plan
     from fogiac.manifest.schema import load_manifest
+    from fogiac.plan.compile import compile_plan
 
     monkeypatch.setenv("PATH", str(tmp_path / "bin"))
     fake_pulumi(tmp_path / "bin", f"v{PULUMI_CLI_VERSION}")
@@ -96,8 +96,8 @@ def test_workspace_options_for_the_automation_api(tmp_path: Path, monkeypatch: p
 
 def test_destroy_and_refresh_of_a_never_applied_stack_write_nothing(tmp_path: Path,
                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
-    from fogiac.plan.compile import compile_plan
     from fogiac.manifest.schema import load_manifest
+    from fogiac.plan.compile import compile_plan
 
     monkeypatch.setenv("PATH", str(tmp_path / "bin"))
     fake_pulumi(tmp_path / "bin", f"v{PULUMI_CLI_VERSION}")

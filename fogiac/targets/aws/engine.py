@@ -33,7 +33,7 @@ PULUMI_CLI_VERSION = "3.272.0"
 INSTALL = f"curl -fsSL https://get.pulumi.com | sh -s -- --version {PULUMI_CLI_VERSION}"
 PASSPHRASE_FILE = "pulumi-passphrase"
 OUTPUTS_FILE = "outputs.json"
-SSH_KEY_FILE = Path("ssh") / SSH_KEY  # in the stack folder, where stacks/entry.py (plain pulumi up) keeps it too
+SSH_KEY_FILE = Path(StackState.SSH) / SSH_KEY  # in the stack folder, where stacks/entry.py (plain pulumi up) keeps it
 CERTS_DIR = StackState.CERTS
 VPN_NOTICE = ("The Client VPN endpoint's subnet association takes about 10 minutes to create "
               "(and again to delete); its resources wait up to 30 minutes.")
@@ -47,8 +47,7 @@ def layer_stack(stack: str, layer: str) -> str:
 
 
 def backend_dir(stack: str, *, create: bool = True) -> Path:
-    state = StackState(stack)
-    return (state.ensure() if create else state.folder) / "pulumi"
+    return StackState(stack).target_file("pulumi", create=create)
 
 
 def pulumi_cli() -> Path:
@@ -79,7 +78,7 @@ def passphrase(stack: str) -> str:
     given_file = os.environ.get("PULUMI_CONFIG_PASSPHRASE_FILE")
     if given_file:
         return Path(given_file).read_text().strip()
-    path = StackState(stack).ensure() / PASSPHRASE_FILE
+    path = StackState(stack).target_file(PASSPHRASE_FILE, create=True)
     if not path.exists():
         write_private(path, secrets.token_urlsafe(32).encode())
     return path.read_text().strip()
@@ -106,13 +105,15 @@ def ssh_public_key(stack: str) -> str:
 
     Kept where ``stacks/entry.py`` (plain ``pulumi up``) keeps it, so both paths use one key.
     """
-    return load_or_create_ssh_key(StackState(stack).ensure() / SSH_KEY_FILE.parent)
+    state = StackState(stack)
+    state.ensure()
+    return load_or_create_ssh_key(state.ssh_dir)
 
 
 def known_ids(stack: str) -> frozenset[str]:
     """Every cloud id fogiac's state knows for ``stack`` (outputs and Pulumi checkpoints)."""
     ids: set[str] = set()
-    root = StackState(stack).folder
+    state = StackState(stack)
 
     def walk(value: Any) -> None:
         if isinstance(value, Mapping):
@@ -124,8 +125,8 @@ def known_ids(stack: str) -> frozenset[str]:
             for item in value:
                 walk(item)
 
-    walk(read_json(root / OUTPUTS_FILE))
-    for checkpoint in (root / "pulumi").glob(".pulumi/stacks/**/*.json") if root.exists() else ():
+    walk(read_json(state.target_file(OUTPUTS_FILE)))
+    for checkpoint in state.target_file("pulumi").glob(".pulumi/stacks/**/*.json") if state.exists() else ():
         walk(read_json(checkpoint))
     return frozenset(ids)
 

@@ -99,6 +99,14 @@ class Section:
     where: str
 
 
+def _beside(name: str) -> str:
+    """A file's name beside the record: never the record, the lock or an older layout's record file, which
+    only the store writes (a section is written with :meth:`StackState.set`)."""
+    if not name or "/" in name or name in (*LEGACY_FILES.values(), RECORD, LOCK):
+        raise ValueError(f"{name!r} is not a name for a file beside the stack's record")
+    return name
+
+
 def _now() -> str:
     return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
 
@@ -153,9 +161,7 @@ class StackState:
     def target_file(self, name: str, *, create: bool = False) -> Path:
         """A file (or folder) a target keeps for the stack, by the target's own name for it; ``create``
         makes the stack's folder first."""
-        if not name or "/" in name or name in (*LEGACY_FILES.values(), RECORD, LOCK):
-            raise ValueError(f"{name!r} is not a name for a target's own file")
-        return (self.ensure() if create else self.folder) / name
+        return (self.ensure() if create else self.folder) / _beside(name)
 
     @property
     def known_hosts(self) -> Path:
@@ -180,12 +186,12 @@ class StackState:
     def write(self, name: str, data: Any) -> Path:
         """A JSON file of the stack beside the record, 0600, atomically; the folder is made if needed."""
         self.ensure()
-        write_json_atomic(self.folder / name, data)
+        write_json_atomic(self.folder / _beside(name), data)
         return self.folder / name
 
     def remove(self, *names: str) -> None:
         for name in names:
-            (self.folder / name).unlink(missing_ok=True)
+            (self.folder / _beside(name)).unlink(missing_ok=True)
 
     def discard(self) -> None:
         """The whole stack: record, lock and files (an ``up`` that made the folder and failed at once)."""

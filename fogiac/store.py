@@ -230,13 +230,13 @@ class FolderStore:
         folder = self.folder(stack, create=True)
         data = dumps(document)
         with self._exclusive(folder):
-            _, current, origin = self._read(folder)
+            _, current, _ = self._read(folder)
             if current != expected:
                 raise StaleRecord(f"{folder / RECORD}: the stack's record changed since it was read "
                                   "(another fogiac wrote it); nothing was written, run the command again")
             write_atomic(folder / RECORD, data, mode=0o600)
-            for section in origin:
-                (folder / LEGACY_FILES[section]).unlink(missing_ok=True)
+            for name in LEGACY_FILES.values():  # migrated (or left by a crash right after migrating)
+                (folder / name).unlink(missing_ok=True)
         return "sha256:" + _digest(data)
 
     def delete(self, stack: str) -> None:

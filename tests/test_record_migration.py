@@ -113,7 +113,12 @@ def test_the_first_write_migrates_to_the_one_record(legacy: tuple[Path, Path, di
     assert doc["applied"] == files["applied.json"]
     assert doc["edges"] == [{"name": STACK, **files["deployment.json"]}]
     assert doc["hosts"] == files["provision.json"]["hosts"]
+    # a crash between writing the record and removing the four files: the record is what is read,
+    # and the next write removes what was left
+    (folder / "stack.json").write_text(json.dumps({**files["stack.json"], "target": "aws"}))
+    assert deployment.read(STACK).target == "local"  # type: ignore[union-attr]
     deployment.removed(STACK)
+    assert _json_files(folder) == [StackState.RECORD]
     again = json.loads((folder / StackState.RECORD).read_text())
     assert again["serial"] == 2 and again["lineage"] == doc["lineage"]
     assert deployment.read(STACK).state == deployment.REMOVED  # type: ignore[union-attr]

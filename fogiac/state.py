@@ -297,7 +297,7 @@ class StackState:
         try:
             yield
         finally:
-            self.store.release(self.stack)
+            self.store.release(self.stack, me)
 
 
 def _gone(holder: dict[str, Any], *, host: str) -> bool:

@@ -102,7 +102,10 @@ class StateStore(Protocol):
 
     ``put(..., expected=None)`` creates and fails if a record exists; ``expected=<version>`` replaces
     and fails (:class:`StaleRecord`) unless the record is still that version. ``acquire`` creates the
-    lock only if there is none and returns None, else returns the holder it found (``{}`` if unreadable).
+    lock only if there is none and returns None, else returns the holder it found (``{}`` if unreadable);
+    ``release`` drops the lock its holder took; ``break_lock`` removes a lock only while it still names the
+    holder given (a dead one, by the caller's judgement). ``where`` names the record (or the lock) for a
+    message; ``folder`` is the local folder for the stack's files that are not record: keys, certificates.
     """
 
     #: a lock whose holder is a process gone from this very machine may be broken without asking
@@ -118,7 +121,7 @@ class StateStore(Protocol):
 
     def acquire(self, stack: str, holder: Mapping[str, Any]) -> dict[str, Any] | None: ...
 
-    def release(self, stack: str) -> None: ...
+    def release(self, stack: str, holder: Mapping[str, Any]) -> None: ...
 
     def break_lock(self, stack: str, holder: Mapping[str, Any]) -> None: ...
 
@@ -271,7 +274,8 @@ class FolderStore:
             json.dump(dict(holder), fh)
         return None
 
-    def release(self, stack: str) -> None:
+    def release(self, stack: str, holder: Mapping[str, Any]) -> None:
+        """Drop the lock ``holder`` took (on this machine nobody else can have taken over a live holder's)."""
         (self.folder(stack) / LOCK).unlink(missing_ok=True)
 
     def break_lock(self, stack: str, holder: Mapping[str, Any]) -> None:

@@ -1,9 +1,10 @@
 """What a stack is: the target it went to, the manifest that made it, and how far ``up`` got.
 
 It is the ``deployment`` section of the stack's one record (:mod:`fogiac.state`), beside the
-applied plan (:func:`read_applied`). Every target writes it on ``up``: :func:`begin` before the first thing is created
-(state ``partial``), :func:`finish` when ``up`` completes (state ``complete``, with the plan
-digest ``plan --detailed-exitcode`` compares against), and ``down`` marks it ``removed`` once
+applied plan (:func:`read_applied`). Every target writes it on ``up``: :func:`begin` before the
+first thing is created (state ``partial``), :func:`finish` when ``up`` completes (state
+``complete``, with the plan digest ``plan --detailed-exitcode`` compares against, and the applied
+plan in the same write), and ``down`` marks it ``removed`` once
 nothing is left (so a second ``down`` still knows where to look, and says nothing is there).
 The CLI reads it before it picks a target, so ``status``, ``down``, ``logs``, ``ssh`` and
 ``plan --detailed-exitcode`` look where the deployment is, and a second manifest with the same
@@ -61,10 +62,11 @@ def _kind(value: Any, want: type | tuple[type, ...]) -> bool:
 
 
 def read(stack: str) -> Deployment | None:
-    """The stack's record, or None if nothing was ever deployed (no file).
+    """The stack's deployment, or None if nothing was ever deployed (no record, or none in it).
 
-    A file that is not a record (null, a list, a field of the wrong type, an unknown state) is an
-    error in one line: taking it as "no record" would send status and down to the manifest's target.
+    A section (or an older fogiac's ``stack.json``) that is not a deployment (null, a list, a field of
+    the wrong type, an unknown state) is an error in one line: taking it as "no record" would send
+    status and down to the manifest's target.
     """
     found = StackState(stack).section(StackState.DEPLOYMENT)
     if found is None:
@@ -95,10 +97,11 @@ _APPLIED_SECTIONS = ("resources", "hosts", "nodes", "topics", "security_rules")
 
 
 def read_applied(stack: str) -> dict[str, Any] | None:
-    """The plan document the last complete ``up`` applied, or None when there is none (no file).
+    """The plan document the last complete ``up`` applied, or None when there is none.
 
-    A file that is not such a document (null, a list, a section that is not a list of mappings,
-    a cost that is not a mapping) is an error in one line, not a traceback in the diff."""
+    A section (or an older fogiac's file) that is not such a document (null, a list, a section that
+    is not a list of mappings, a cost that is not a mapping) is an error in one line, not a traceback
+    in the diff."""
     found = StackState(stack).section(StackState.APPLIED)
     if found is None:
         return None

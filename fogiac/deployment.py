@@ -1,8 +1,10 @@
 """What a stack is: the target it went to, the manifest that made it, and how far ``up`` got.
 
-Every target writes this record on ``up``: :func:`begin` before the first thing is created
-(state ``partial``), :func:`finish` when ``up`` completes (state ``complete``, with the plan
-digest ``plan --detailed-exitcode`` compares against), and ``down`` marks it ``removed`` once
+It is the ``deployment`` section of the stack's one record (:mod:`fogiac.state`), beside the
+applied plan (:func:`read_applied`). Every target writes it on ``up``: :func:`begin` before the
+first thing is created (state ``partial``), :func:`finish` when ``up`` completes (state
+``complete``, with the plan digest ``plan --detailed-exitcode`` compares against, and the applied
+plan in the same write), and ``down`` marks it ``removed`` once
 nothing is left (so a second ``down`` still knows where to look, and says nothing is there).
 The CLI reads it before it picks a target, so ``status``, ``down``, ``logs``, ``ssh`` and
 ``plan --detailed-exitcode`` look where the deployment is, and a second manifest with the same
@@ -11,6 +13,7 @@ stack name cannot take the stack over by accident.
 
 from __future__ import annotations
 
+import hashlib
 import time
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields
@@ -19,9 +22,9 @@ from typing import Any
 
 from fogiac.errors import FogiacError, StateError
 from fogiac.plan.model import Plan
-from fogiac.state import StackState, read_json, write_json_atomic
+from fogiac.state import StackState
 
-RECORD_FILE = StackState.RECORD
+RECORD_FILE = StackState.RECORD  # the stack's one record, whose deployment section this module keeps
 PARTIAL = "partial"  # up started and did not finish (interrupted or failed): things may exist
 COMPLETE = "complete"
 REMOVED = "removed"  # down removed everything; the stack is free for any target or manifest
@@ -36,6 +39,7 @@ class Deployment:
     since: str  # when the first up began, UTC ISO 8601
     since_epoch: float
     plan_digest: str = ""  # the plan document's digest at the last complete up
+    manifest_digest: str = ""  # sha256 of the manifest's bytes at the last up (a record of an older fogiac: "")
 
     @property
     def partial(self) -> bool:
@@ -45,10 +49,6 @@ class Deployment:
     def exists(self) -> bool:
         """Something of the stack may be there (up began and down has not removed it all)."""
         return self.state != REMOVED
-
-
-def _path(stack: str) -> Path:
-    return StackState(stack).record
 
 
 def shown(text: str) -> str:
@@ -62,22 +62,23 @@ def _kind(value: Any, want: type | tuple[type, ...]) -> bool:
 
 
 def read(stack: str) -> Deployment | None:
-    """The stack's record, or None if nothing was ever deployed (no file).
+    """The stack's deployment, or None if nothing was ever deployed (no record, or none in it).
 
-    A file that is not a record (null, a list, a field of the wrong type, an unknown state) is an
-    error in one line: taking it as "no record" would send status and down to the manifest's target.
+    A section (or an older fogiac's ``stack.json``) that is not a deployment (null, a list, a field of
+    the wrong type, an unknown state) is an error in one line: taking it as "no record" would send
+    status and down to the manifest's target.
     """
-    path = _path(stack)
-    data = read_json(path)
-    if data is None and not path.exists():
+    found = StackState(stack).section(StackState.DEPLOYMENT)
+    if found is None:
         return None
-    bad = f"{path}: not a fogiac deployment record"
+    data = found.value
+    bad = f"{found.where}: not a fogiac deployment record"
     hint = "; remove it if the stack is gone"
     if not isinstance(data, dict):
         raise StateError(f"{bad} (a JSON {type(data).__name__ if data is not None else 'null'}){hint}")
     want: dict[str, type | tuple[type, ...]] = {f.name: str for f in fields(Deployment)}
     want["since_epoch"] = (int, float)
-    required = {f.name for f in fields(Deployment) if f.name != "plan_digest"}
+    required = {f.name for f in fields(Deployment) if f.name not in ("plan_digest", "manifest_digest")}
     for name in sorted(required - set(data)):
         raise StateError(f"{bad} ({name} is missing){hint}")
     for name in sorted(data):
@@ -96,14 +97,15 @@ _APPLIED_SECTIONS = ("resources", "hosts", "nodes", "topics", "security_rules")
 
 
 def read_applied(stack: str) -> dict[str, Any] | None:
-    """The plan document the last complete ``up`` applied, or None when there is none (no file).
+    """The plan document the last complete ``up`` applied, or None when there is none.
 
-    A file that is not such a document (null, a list, a section that is not a list of mappings,
-    a cost that is not a mapping) is an error in one line, not a traceback in the diff."""
-    path = StackState(stack).applied
-    data = read_json(path)
-    if data is None and not path.exists():
+    A section (or an older fogiac's file) that is not such a document (null, a list, a section that
+    is not a list of mappings, a cost that is not a mapping) is an error in one line, not a traceback
+    in the diff."""
+    found = StackState(stack).section(StackState.APPLIED)
+    if found is None:
         return None
+    data, path = found.value, found.where
     hint = "; the next `fogiac up` writes it again, or remove it"
     if not isinstance(data, dict):
         kind = type(data).__name__ if data is not None else "null"
@@ -119,35 +121,60 @@ def read_applied(stack: str) -> dict[str, Any] | None:
     return data
 
 
+def applied_where(stack: str) -> str:
+    """Where the applied document is kept (its record section, or an older fogiac's file), for a message."""
+    found = StackState(stack).section(StackState.APPLIED)
+    return found.where if found is not None else StackState(stack).where(StackState.APPLIED)
+
+
 def manifest_id(path: Path) -> str:
     return str(path.expanduser().resolve())
 
 
-def begin(plan: Plan, manifest: Path) -> Deployment:
-    """Record, before anything is created, that ``up`` of ``manifest`` to ``plan.target`` began."""
+def _digest(manifest: Path) -> str:
+    try:
+        return hashlib.sha256(manifest.expanduser().read_bytes()).hexdigest()
+    except OSError:
+        return ""  # a manifest gone since it was compiled: the path still says which it was
+
+
+def _begun(plan: Plan, manifest: Path) -> Deployment:
     old = read(plan.stack)
     old = old if old is not None and old.exists else None
     now = time.time()
-    record = Deployment(
+    return Deployment(
         stack=plan.stack, target=plan.target, manifest=manifest_id(manifest), state=PARTIAL,
         since=old.since if old else time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(now)),
-        since_epoch=old.since_epoch if old else now, plan_digest=old.plan_digest if old else "")
-    StackState(plan.stack).write(RECORD_FILE, asdict(record))
+        since_epoch=old.since_epoch if old else now, plan_digest=old.plan_digest if old else "",
+        manifest_digest=_digest(manifest))
+
+
+def begin(plan: Plan, manifest: Path) -> Deployment:
+    """Record, before anything is created, that ``up`` of ``manifest`` to ``plan.target`` began."""
+    record = _begun(plan, manifest)
+    StackState(plan.stack).set(StackState.DEPLOYMENT, asdict(record))
     return record
 
 
-def finish(plan: Plan, manifest: Path, *, plan_digest: str) -> Deployment:
-    """``up`` completed: everything the plan asks for exists."""
-    record = begin(plan, manifest)
-    done = Deployment(**{**asdict(record), "state": COMPLETE, "plan_digest": plan_digest})
-    StackState(plan.stack).write(RECORD_FILE, asdict(done))
+def finish(plan: Plan, manifest: Path, *, plan_digest: str, applied: Mapping[str, Any] | None = None) -> Deployment:
+    """``up`` completed: everything the plan asks for exists; ``applied``, the plan document it applied,
+    is recorded in the same write."""
+    done = Deployment(**{**asdict(_begun(plan, manifest)), "state": COMPLETE, "plan_digest": plan_digest})
+
+    def change(document: dict[str, Any]) -> None:
+        document[StackState.DEPLOYMENT] = asdict(done)
+        if applied is not None:
+            document[StackState.APPLIED] = dict(applied)
+
+    StackState(plan.stack).update(change)
     return done
 
 
 def _mark(stack: str, state: str) -> None:
     record = read(stack)
     if record is not None:
-        write_json_atomic(_path(stack), asdict(Deployment(**{**asdict(record), "state": state, "plan_digest": ""})))
+        StackState(stack).set(StackState.DEPLOYMENT, asdict(Deployment(**{**asdict(record), "state": state,
+                                                                           "plan_digest": ""})))
 
 
 def cut_back(stack: str) -> None:
@@ -162,7 +189,7 @@ def removed(stack: str) -> None:
 
 def forget(stack: str) -> None:
     """Up failed before it created anything: as if it never ran."""
-    _path(stack).unlink(missing_ok=True)
+    StackState(stack).drop(StackState.DEPLOYMENT)
 
 
 def choose_target(stack: str, manifest: Path, requested: str | None, *, force_hint: bool,

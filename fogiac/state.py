@@ -1,83 +1,89 @@
-"""fogiac's state directory: keys, certificates, Pulumi backend, applied plans, locks.
+"""fogiac's state: one record per stack, its lock, and the stack's secret files.
 
-It lives outside any repository (``$FOGIAC_STATE_DIR``, else ``~/.fogiac``), one folder per
-stack (manifest name and environment), created 0700 because it holds private keys. A
-:class:`StackState` owns one stack's folder: every file fogiac keeps there is named by it, once.
+A stack (manifest name and environment) has one record: a versioned JSON document that says what
+is deployed, so every verb reads the same facts and a write replaces all of them at once.
 
 ::
 
-    stack.json        the deployment record (fogiac.deployment)        applied.json   what the last up applied
-    deployment.json   the edge's links as the last up made them        refreshed.json what refresh saw
-    lock.json         who holds the stack now                         known_hosts    the hosts' pinned keys
-    certs/            the stack's CA and the edge's certificates       edge/          the edge's processes
-    <target's own>    named by the target (the aws target's outputs.json, host-keys.json, pulumi/ ...)
+    format_version, serial, lineage, stack, written_at   what the document is, which write, which stack's history
+    deployment   target, manifest (path and digest), state partial/complete/removed, since (fogiac.deployment)
+    applied      the plan document the last complete ``up`` applied (fogiac.plan.document)
+    edges        a list of edges, each with its name, edge master, links host -> HOST:PORT and nodes
+    hosts        each provisioned host: how it is reached (its access description), its base folder, its nodes
+
+:class:`StackState` owns it: it reads and writes the record through a :class:`~fogiac.store.StateStore`
+(get, compare-and-swap put, lock with holder, list, delete), so a second store (an object store
+with conditional writes) changes where records live and nothing else. The only store today is
+the stack folder (:class:`~fogiac.store.FolderStore`): ``$FOGIAC_STATE_DIR``, else ``~/.fogiac``,
+one folder per stack, 0700 because it holds private keys. A folder an older fogiac wrote (four
+files: ``stack.json``, ``applied.json``, ``deployment.json``, ``provision.json``) is read as one
+record and migrated on the first write.
+
+What is not record stays as files under the store's folder, each named once, here::
+
+    record.json   the record                                 lock.json      who holds the stack now
+    certs/        the stack's CA and the edge's certificates  known_hosts    the hosts' pinned keys
+    edge/         the edge's processes                        ssh/           the stack's SSH key
+    refreshed.json what refresh saw                           <target's own> named by the target
+                                                              (aws: outputs.json, host-keys.json, pulumi/ ...)
+
+Nothing outside this module and the store builds a path inside a stack's folder (a test checks).
 """
 
 from __future__ import annotations
 
-import json
 import os
+import shutil
 import socket
 import time
-from collections.abc import Iterator
+import uuid
+from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager, contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from fogiac.errors import LockHeld, StateError
 from fogiac.procs import same_process, start_time
+from fogiac.store import (
+    LEGACY_FILES,
+    LOCK,
+    RECORD,
+    FolderStore,
+    Snapshot,
+    StaleRecord,
+    StateStore,
+    check_name,
+    dumps,
+    read_json,
+    state_root,
+    write_atomic,
+)
+
+__all__ = ["FORMAT_VERSION", "LEGACY_FILES", "Section", "StackState", "StaleRecord", "StateStore", "read_json",
+           "stack_dir", "stack_lock", "stack_names", "state_root", "write_atomic", "write_json_atomic",
+           "write_text_atomic"]
+
+FORMAT_VERSION = 1  # of the record document; a newer one is refused, never half-read
 
 
-def state_root() -> Path:
-    root = os.environ.get("FOGIAC_STATE_DIR")
-    return Path(root).expanduser() if root else Path.home() / ".fogiac"
+def default_store() -> StateStore:
+    return FolderStore()
 
 
 def stack_dir(stack: str, *, create: bool = True) -> Path:
     """The folder for one stack (``<name>-<environment>``), 0700; never a path outside the root."""
-    if not stack or "/" in stack or stack.startswith(".") or any(ord(c) < 32 for c in stack):
-        raise StateError(f"{stack!r} is not a stack name")
-    path = state_root() / stack
-    if create:
-        try:
-            path.mkdir(parents=True, exist_ok=True, mode=0o700)
-            os.chmod(path, 0o700)
-        except OSError as err:
-            raise StateError(f"cannot use state directory {path}: {err.strerror}") from None
-    return path
+    return FolderStore().folder(stack, create=create)
 
 
 def stack_names() -> list[str]:
-    """The stacks that have a folder under the state root, sorted (reads the folder, creates nothing)."""
-    root = state_root()
-    try:
-        return sorted(entry.name for entry in root.iterdir() if entry.is_dir() and not entry.name.startswith("."))
-    except FileNotFoundError:
-        return []
-
-
-def write_atomic(path: Path, data: bytes, *, mode: int) -> None:
-    """Write ``data`` whole or not at all, with ``mode`` from the first byte.
-
-    A crash leaves either the old file or the new one; a 0600 file is never readable by others,
-    not even for a moment. Every state, key and user-facing file fogiac writes goes through here.
-    """
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, mode)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.chmod(tmp, mode)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    """The stacks the store holds, sorted (reads, creates nothing)."""
+    return default_store().list()
 
 
 def write_json_atomic(path: Path, data: Any, *, mode: int = 0o600) -> None:
     """State as JSON (sorted, indented), written atomically."""
-    write_atomic(path, (json.dumps(data, indent=2, sort_keys=True) + "\n").encode(), mode=mode)
+    write_atomic(path, dumps(data), mode=mode)
 
 
 def write_text_atomic(path: Path, text: str, *, mode: int = 0o644) -> None:
@@ -85,63 +91,77 @@ def write_text_atomic(path: Path, text: str, *, mode: int = 0o644) -> None:
     write_atomic(path, text.encode(), mode=mode)
 
 
-def read_json(path: Path) -> Any | None:
-    try:
-        return json.loads(path.read_text())
-    except FileNotFoundError:
-        return None
-    except (OSError, ValueError) as err:
-        raise StateError(f"{path}: unreadable state file ({err})") from None
+@dataclass(frozen=True)
+class Section:
+    """One section of a record as read, and where it was read from (for a message naming the file)."""
+
+    value: Any
+    where: str
+
+
+def _beside(name: str) -> str:
+    """A file's name beside the record: never the record, the lock or an older layout's record file, which
+    only the store writes (a section is written with :meth:`StackState.set`)."""
+    if not name or "/" in name or name in (*LEGACY_FILES.values(), RECORD, LOCK):
+        raise ValueError(f"{name!r} is not a name for a file beside the stack's record")
+    return name
+
+
+def _now() -> str:
+    return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
 
 
 class StackState:
-    """One stack's folder: a typed path for each file every target shares, and the stack's lock.
+    """One stack: its record's sections, a typed path for each file every target shares, and its lock.
 
     Asking for a path creates nothing; :meth:`ensure` makes the folder (0700) for a writer.
-    A target's own files live here too, named in its folder (:meth:`file`).
+    A target's own files live there too, named by the target (:meth:`target_file`).
     """
 
-    RECORD = "stack.json"
-    APPLIED = "applied.json"
-    DEPLOYMENT = "deployment.json"
+    RECORD = RECORD
+    LOCK = LOCK
+    # the record's sections
+    DEPLOYMENT = "deployment"
+    APPLIED = "applied"
+    EDGES = "edges"
+    HOSTS = "hosts"
+    SECTIONS = (DEPLOYMENT, APPLIED, EDGES, HOSTS)
+    # the files beside it
     REFRESHED = "refreshed.json"
-    LOCK = "lock.json"
     KNOWN_HOSTS = "known_hosts"
     CERTS = "certs"
     EDGE = "edge"
+    SSH = "ssh"
 
-    def __init__(self, stack: str) -> None:
-        self.stack = stack
-        self.folder = stack_dir(stack, create=False)  # checks the name; creates nothing
+    def __init__(self, stack: str, *, store: StateStore | None = None) -> None:
+        self.stack = check_name(stack)
+        self.store = store if store is not None else default_store()
+
+    @classmethod
+    def at(cls, folder: Path) -> StackState:
+        """The stack whose folder is ``folder`` (provisioning is handed a folder, in tests any folder)."""
+        return cls(folder.name, store=FolderStore(folder.parent))
 
     def __repr__(self) -> str:
         return f"StackState({self.stack!r})"
+
+    # -- files -----------------------------------------------------------------------------------------
+
+    @property
+    def folder(self) -> Path:
+        return self.store.folder(self.stack)
 
     def exists(self) -> bool:
         return self.folder.exists()
 
     def ensure(self) -> Path:
         """The folder, made (0700) if it is not there yet."""
-        return stack_dir(self.stack)
+        return self.store.folder(self.stack, create=True)
 
-    def file(self, name: str) -> Path:
-        return self.folder / name
-
-    @property
-    def record(self) -> Path:
-        return self.folder / self.RECORD
-
-    @property
-    def applied(self) -> Path:
-        return self.folder / self.APPLIED
-
-    @property
-    def deployment(self) -> Path:
-        return self.folder / self.DEPLOYMENT
-
-    @property
-    def refreshed(self) -> Path:
-        return self.folder / self.REFRESHED
+    def target_file(self, name: str, *, create: bool = False) -> Path:
+        """A file (or folder) a target keeps for the stack, by the target's own name for it; ``create``
+        makes the stack's folder first."""
+        return (self.ensure() if create else self.folder) / _beside(name)
 
     @property
     def known_hosts(self) -> Path:
@@ -155,22 +175,136 @@ class StackState:
     def edge(self) -> Path:
         return self.folder / self.EDGE
 
+    @property
+    def ssh_dir(self) -> Path:
+        return self.folder / self.SSH
+
     def read(self, name: str) -> Any | None:
-        """A JSON file of the stack (None when it is not there)."""
+        """A JSON file of the stack beside the record (None when it is not there)."""
         return read_json(self.folder / name)
 
     def write(self, name: str, data: Any) -> Path:
-        """A JSON file of the stack, 0600, atomically; the folder is made if needed."""
+        """A JSON file of the stack beside the record, 0600, atomically; the folder is made if needed."""
         self.ensure()
-        write_json_atomic(self.folder / name, data)
+        write_json_atomic(self.folder / _beside(name), data)
         return self.folder / name
 
     def remove(self, *names: str) -> None:
         for name in names:
-            (self.folder / name).unlink(missing_ok=True)
+            (self.folder / _beside(name)).unlink(missing_ok=True)
 
-    def lock(self, *, operation: str) -> AbstractContextManager[None]:
-        return stack_lock(self.stack, operation=operation)
+    def discard(self) -> None:
+        """The whole stack: record, lock and files (an ``up`` that made the folder and failed at once)."""
+        self.store.delete(self.stack)
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+    # -- the record ------------------------------------------------------------------------------------
+
+    def where(self, section: str | None = None) -> str:
+        """Where the record (or one section of it) is kept, for a message."""
+        where = self.store.where(self.stack)
+        return where if section is None else f"{where} (section {section})"
+
+    def snapshot(self) -> Snapshot:
+        """The record and its version, as the store holds it now (an older layout's files read as one)."""
+        snap = self.store.get(self.stack)
+        if snap.document is not None and not snap.origin:
+            version = snap.document.get("format_version")
+            where = self.store.where(self.stack)
+            if not isinstance(version, int) or isinstance(version, bool):
+                raise StateError(f"{where}: not a fogiac stack record (format_version is "
+                                 f"{'missing' if version is None else 'not a number'}); remove it if the stack is gone")
+            if version > FORMAT_VERSION:
+                raise StateError(f"{where}: written by a newer fogiac (record format {version}, this one reads "
+                                 f"{FORMAT_VERSION}); upgrade fogiac")
+        return snap
+
+    def section(self, name: str) -> Section | None:
+        """One section of the record, or None when the record has none (a JSON null is a value, not none)."""
+        snap = self.snapshot()
+        if snap.document is None or name not in snap.document:
+            return None
+        return Section(snap.document[name], snap.origin.get(name) or self.where(name))
+
+    def get(self, name: str) -> Any | None:
+        """One section's value, unchecked (None when absent)."""
+        found = self.section(name)
+        return found.value if found is not None else None
+
+    def update(self, change: Callable[[dict[str, Any]], None]) -> dict[str, Any]:
+        """Read the record, let ``change`` edit its sections, and write it back if nobody wrote meanwhile.
+
+        Every write goes through here: the serial counts writes, the lineage (made once) tells this
+        stack's history from another of the same name, and an older layout is migrated by the write.
+        A record left with no section is deleted. Another writer between the read and the write: the
+        store refuses the put (:class:`~fogiac.store.StaleRecord`), nothing is lost.
+        """
+        snap = self.snapshot()
+        document = dict(snap.document or {})
+        change(document)
+        if not any(name in document for name in self.SECTIONS):
+            if snap.version is not None:
+                self.store.delete(self.stack)
+            return document
+        document.update(format_version=FORMAT_VERSION, stack=self.stack,
+                        lineage=str(document.get("lineage") or uuid.uuid4()),
+                        serial=int(document.get("serial") or 0) + 1, written_at=_now())
+        self.store.put(self.stack, document, expected=snap.version)
+        return document
+
+    def set(self, name: str, value: Any) -> None:
+        """Replace one section."""
+        if name not in self.SECTIONS:
+            raise ValueError(f"{name!r} is not a section of a stack record")
+        self.update(lambda document: document.__setitem__(name, value))
+
+    def drop(self, *names: str) -> None:
+        """Remove sections (the record goes with the last one)."""
+        def change(document: dict[str, Any]) -> None:
+            for name in names:
+                document.pop(name, None)
+
+        if self.section_names() & frozenset(names):
+            self.update(change)
+
+    def section_names(self) -> frozenset[str]:
+        """The sections the record has now."""
+        snap = self.snapshot()
+        return frozenset(name for name in self.SECTIONS if snap.document is not None and name in snap.document)
+
+    # -- the lock --------------------------------------------------------------------------------------
+
+    @contextmanager
+    def lock(self, *, operation: str) -> Iterator[None]:
+        """Hold the stack's lock for ``operation``; a second holder fails at once, naming the first.
+
+        The lock holds who took it: pid and start time, as the supervisor's pid files. Where the store
+        allows it, a lock whose process is gone (same host), or whose pid now names another process (its
+        start time differs: the pid was reused after a crash or a reboot), is stale and taken over.
+        """
+        me = {"pid": os.getpid(), "started": start_time(os.getpid()), "host": socket.gethostname(),
+              "operation": operation, "since": _now()}
+        holder = self.store.acquire(self.stack, me)
+        if holder is not None and self.store.reclaims_dead_holders and _gone(holder, host=str(me["host"])):
+            self.store.break_lock(self.stack, holder)
+            holder = self.store.acquire(self.stack, me)  # another may have taken it meanwhile: named below
+        if holder is not None:
+            said = {k: _said(holder.get(k, "?")) for k in ("operation", "pid", "host", "since")}
+            raise LockHeld(
+                f"stack {self.stack!r} is locked by {said['operation']} (pid {said['pid']} on {said['host']} since "
+                f"{said['since']}); wait for it or remove {self.store.where(self.stack, LOCK)} if it is gone"
+            ) from None
+        try:
+            yield
+        finally:
+            self.store.release(self.stack, me)
+
+
+def _gone(holder: dict[str, Any], *, host: str) -> bool:
+    """The holder is a process of this machine that no longer runs (or its pid now names another)."""
+    pid, started = holder.get("pid"), holder.get("started")
+    return holder.get("host") == host and isinstance(pid, int) and not isinstance(pid, bool) and pid > 0 \
+        and not same_process(pid, started if isinstance(started, str) else None)
 
 
 def _said(value: object) -> str:
@@ -179,41 +313,6 @@ def _said(value: object) -> str:
     return text if text.isprintable() else repr(text)[1:-1]
 
 
-@contextmanager
-def stack_lock(stack: str, *, operation: str) -> Iterator[None]:
-    """Hold the stack's lock for ``operation``; a second holder fails at once, naming the first.
-
-    The lock is a file created with O_EXCL holding who took it: pid and start time, as the supervisor's
-    pid files. A lock whose process is gone (same host), or whose pid now names another process (its start
-    time differs: the pid was reused after a crash or a reboot), is stale and taken over.
-    """
-    path = stack_dir(stack) / StackState.LOCK
-    me = {"pid": os.getpid(), "started": start_time(os.getpid()), "host": socket.gethostname(),
-          "operation": operation, "since": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
-    for _ in range(2):
-        try:
-            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-        except FileExistsError:
-            try:
-                holder = read_json(path)
-            except StateError:
-                holder = None  # being written this instant, or garbage: named below, never taken over
-            holder = holder if isinstance(holder, dict) else {}
-            same_host = holder.get("host") == me["host"]
-            pid, started = holder.get("pid"), holder.get("started")
-            if same_host and isinstance(pid, int) and not isinstance(pid, bool) and pid > 0 \
-                    and not same_process(pid, started if isinstance(started, str) else None):
-                path.unlink(missing_ok=True)
-                continue
-            said = {k: _said(holder.get(k, "?")) for k in ("operation", "pid", "host", "since")}
-            raise LockHeld(
-                f"stack {stack!r} is locked by {said['operation']} (pid {said['pid']} on {said['host']} since "
-                f"{said['since']}); wait for it or remove {path} if it is gone"
-            ) from None
-        with os.fdopen(fd, "w") as fh:
-            json.dump(me, fh)
-        break
-    try:
-        yield
-    finally:
-        path.unlink(missing_ok=True)
+def stack_lock(stack: str, *, operation: str) -> AbstractContextManager[None]:
+    """Hold ``stack``'s lock for ``operation`` (see :meth:`StackState.lock`)."""
+    return StackState(stack).lock(operation=operation)

@@ -24,7 +24,7 @@ from fogiac.errors import PlanError
 from fogiac.manifest.schema import load_manifest
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.model import OPERATOR, Plan
-from fogiac.state import stack_dir
+from fogiac.state import StackState
 from stacks import LAYERS, PROJECT
 from stacks.program import layer_programs
 
@@ -80,8 +80,10 @@ def main(*, base: Path | None = None) -> None:
         ref = pulumi.StackReference(str(config.network_stack))
         return {key: ref.require_output(key) for key in ("subnet_ids", "security_group_ids")}
 
+    state = StackState(plan.stack)
+    state.ensure()
     programs = layer_programs(
-        plan, certs=load_or_create_bundle(plan.stack, stack_dir(plan.stack) / "certs"),
+        plan, certs=load_or_create_bundle(plan.stack, state.certs),
         operator_cidrs=operator_cidrs(plan, config) if config.layer == "network" else (),
-        public_key_openssh=load_or_create_ssh_key(stack_dir(plan.stack) / "ssh"), network_outputs=network_outputs)
+        public_key_openssh=load_or_create_ssh_key(state.ssh_dir), network_outputs=network_outputs)
     programs[config.layer]()

@@ -47,7 +47,7 @@ def _host_of(node: str, manifest: Path, env: str) -> tuple[str, Any, str, Path, 
 def _ssh_argv(access: Any, state: Path, *remote: str, tty: bool) -> list[str]:
     """ssh to a recorded host with the key and the pinned host keys provisioning used."""
     return ["ssh", *(["-t"] if tty else []), "-i", str(access.key), "-p", str(access.port), "-o", "IdentitiesOnly=yes",
-            "-o", f"UserKnownHostsFile={state / 'known_hosts'}", "-o", "StrictHostKeyChecking=yes",
+            "-o", f"UserKnownHostsFile={StackState.at(state).known_hosts}", "-o", "StrictHostKeyChecking=yes",
             f"{access.user}@{access.address}", *remote]
 
 
@@ -104,7 +104,7 @@ def register(app: typer.Typer) -> None:
                                          help="Keep printing what the node writes until Ctrl-C.")) -> None:
         """Print the last lines a node wrote on its host (--follow: and what it writes next)."""
         name, access, base, state, plan = _host_of(node, manifest, env)
-        host = access.open(name=name, known_hosts=state / "known_hosts", stack=plan.stack)
+        host = access.open(name=name, known_hosts=StackState.at(state).known_hosts, stack=plan.stack)
         try:
             host.connect()
             command = manager_for(host).logs_command(Layout(base or host.base, plan.stack), f"node-{node}", lines=lines,

@@ -27,7 +27,7 @@ from fogiac.plan.compile import compile_plan
 from fogiac.plan.cost import MONTH, menu_line, per_month, saving_pct
 from fogiac.plan.diff import annotate, autostop_words, diff_documents, with_drift
 from fogiac.plan.document import document, plan_document
-from fogiac.state import StackState, write_json_atomic
+from fogiac.state import write_json_atomic
 from fogiac.tables import console, table
 
 KEY_INPUTS = "fogiac.key_inputs"  # plug-in group: a Pulumi package -> {resource type: the inputs worth a glance}
@@ -182,7 +182,7 @@ def plan(
         if against is not None or before is None:
             raise
         # a value fogiac never writes (a number where a name goes, a host row without its name): one line
-        raise StateError(f"{StackState(compiled.stack).applied}: not a plan document fogiac applied "
+        raise StateError(f"{deployment.applied_where(compiled.stack)}: not a plan document fogiac applied "
                          f"({type(err).__name__}: {err}); the next `fogiac up` writes it again, or remove it") from None
     if out is not None and str(out) == "-":  # the document on stdout, instead of the table
         as_json = True

@@ -18,7 +18,6 @@ from fogiac import deployment
 from fogiac.errors import FogiacError
 from fogiac.manifest.fogros import load_any
 from fogiac.plan.compile import compile_plan
-from fogiac.plan.document import APPLIED_FILE
 from fogiac.plan.guard import duration
 from fogiac.state import StackState, stack_names, state_root
 from fogiac.tables import console, table
@@ -62,7 +61,7 @@ def rows(*, everything: bool = False, now: float | None = None) -> list[dict[str
             continue  # not a stack fogiac wrote
         if record is None or (not record.exists and not everything):
             continue
-        applied = StackState(stack).read(APPLIED_FILE)
+        applied = StackState(stack).get(StackState.APPLIED)
         applied = applied if isinstance(applied, dict) else None
         autostop, env = _autostop_and_env(record, applied)
         hourly = float(applied["cost"]["hourly_usd"]) if applied and "cost" in applied else None

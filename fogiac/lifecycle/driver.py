@@ -60,7 +60,7 @@ class Machine:
 @dataclass(frozen=True)
 class UpResult:
     outputs: Mapping[str, Any]
-    applied: Path
+    applied: str  # where the record of what was applied is kept
     report: Any = None  # the provisioning report (fogiac.provision.runner.ProvisionReport), if any
     relays: Mapping[str, str] = field(default_factory=dict)  # host -> HOST:PORT the edge relay dials
     edge_master: str = ""

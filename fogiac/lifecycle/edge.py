@@ -21,7 +21,6 @@ from fogiac.plan.model import Plan
 from fogiac.provision import provision, supervise
 from fogiac.state import StackState, read_json
 
-DEPLOYMENT_FILE = StackState.DEPLOYMENT
 STATS_STALE_S = 30.0  # a relay writes its stats every second: this much older and it no longer runs
 
 
@@ -30,7 +29,7 @@ class FleetUp:
     report: Any  # fogiac.provision.runner.ProvisionReport
     relays: Mapping[str, str]  # host -> HOST:PORT the edge relay connects to
     edge_master: str
-    deployment: Path
+    deployment: str  # where the record that now names the edge's links is kept
     notes: tuple[str, ...] = ()  # the middleware's lines for the user: files written, what to install
 
 
@@ -68,14 +67,40 @@ def provision_and_connect(plan: Plan, *, access: Mapping[str, Any], connect: Map
     relays = {o.host: connect[o.host] for o in report.hosts if o.ok and o.host in connect}
     notes = middleware.deployment(plan.middleware).edge_up(plan, entry=master, connect=relays, certs=certs,
                                                            folder=edge_dir(plan)) if relays else []
-    deployment = state.write(DEPLOYMENT_FILE, {
-        "target": plan.target, "edge_master": master, "relays": relays,
-        "started_edge_master": started_edge_master, "nodes": {n.name: n.host for n in plan.nodes},
-    })
+    record_edge(plan, {"target": plan.target, "edge_master": master, "relays": relays,
+                       "started_edge_master": started_edge_master, "nodes": {n.name: n.host for n in plan.nodes}})
+    deployment = state.where()
     if not report.ok:
         lines = [o.error or f"{o.host}: failed" for o in report.failed]
         raise ProvisionError("; ".join(lines) + " (the other hosts are up; `fogiac down` removes everything)")
     return FleetUp(report=report, relays=relays, edge_master=master, deployment=deployment, notes=tuple(notes))
+
+
+def edge_name(plan: Plan) -> str:
+    """The identity of the stack's edge in the record: today's manifests have one, named after the stack."""
+    return plan.stack
+
+
+def record_edge(plan: Plan, links: Mapping[str, Any]) -> None:
+    """Record the stack's edge (its master, its links host -> HOST:PORT, the nodes) in the record's list
+    of edges, replacing the entry of the same identity and keeping the others."""
+    name = edge_name(plan)
+
+    def change(document: dict[str, Any]) -> None:
+        edges = document.get(StackState.EDGES)
+        others = [e for e in edges if not (isinstance(e, Mapping) and e.get("name") == name)] \
+            if isinstance(edges, list) else []
+        document[StackState.EDGES] = [*others, {"name": name, **links}]
+
+    StackState(plan.stack).update(change)
+
+
+def recorded_edge(plan: Plan) -> dict[str, Any]:
+    """The stack's edge as the last ``up`` recorded it (``{}`` when none is)."""
+    edges = StackState(plan.stack).get(StackState.EDGES)
+    name = edge_name(plan)
+    found = [e for e in edges if isinstance(e, Mapping) and e.get("name") == name] if isinstance(edges, list) else []
+    return dict(found[0]) if found else {}
 
 
 def edge_services(plan: Plan) -> list[str]:

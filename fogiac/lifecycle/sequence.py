@@ -28,16 +28,16 @@ from fogiac.lifecycle.driver import (
     untouched_on_failure,
 )
 from fogiac.lifecycle.edge import (
-    DEPLOYMENT_FILE,
     edge_dir,
     edge_services,
     ensure_edge_master,
     provision_and_connect,
+    recorded_edge,
     running_edge,
     stop_edge,
 )
 from fogiac.net import middleware
-from fogiac.plan.document import APPLIED_FILE, plan_document
+from fogiac.plan.document import plan_document
 from fogiac.plan.model import Plan
 from fogiac.provision import recorded_access, teardown
 from fogiac.state import StackState, stack_lock
@@ -46,7 +46,7 @@ from fogiac.state import StackState, stack_lock
 def up(target: Target, plan: Plan, opts: UpOptions) -> UpResult:
     """Apply ``plan`` on ``target``: nothing before the user said yes; a failure leaves a record ``down`` finds."""
     target.ready(plan, verb="up")  # before any state is touched
-    # applied.json is the document `fogiac plan` builds from the compiled plan, so that
+    # the applied section is the document `fogiac plan` builds from the compiled plan, so that
     # `plan --detailed-exitcode` compares like with like.
     doc = plan_document(plan, target.declare(plan), manifest=opts.manifest_path)
     infra_only = opts.infra_only and Feature.INFRA_ONLY in target.features
@@ -74,8 +74,8 @@ def up(target: Target, plan: Plan, opts: UpOptions) -> UpResult:
             for note in done.notes:
                 opts.announce(note)
             report, relays = done.report, dict(done.relays)
-        applied = StackState(plan.stack).write(APPLIED_FILE, doc)
-        deployment.finish(plan, opts.manifest_path, plan_digest=doc["plan_digest"])
+        deployment.finish(plan, opts.manifest_path, plan_digest=doc["plan_digest"], applied=doc)
+        applied = StackState(plan.stack).where()
     return UpResult(outputs=created.outputs or {"relays": relays}, applied=applied, report=report, relays=relays,
                     edge_master=master, plan=plan, machines=created.machines)
 
@@ -89,7 +89,7 @@ def _edge_or_undo(plan: Plan, master: str, *, start: bool, before: deployment.De
         ensure_edge_master(plan, master, start=start)
     except FogiacError:
         if not existed:
-            shutil.rmtree(StackState(plan.stack).folder, ignore_errors=True)
+            StackState(plan.stack).discard()
         elif before is None:
             deployment.forget(plan.stack)
         elif not before.exists:
@@ -136,7 +136,7 @@ def down(target: Target, plan: Plan, opts: DownOptions) -> DownResult:
         deleted += destroyed.deleted
         left = [f"process {e['name']} (pid {e['pid']})" for e in running_edge(plan)] + list(destroyed.left)
         if not left and not errors:
-            state.remove(DEPLOYMENT_FILE, APPLIED_FILE)
+            state.drop(state.EDGES, state.APPLIED)
             shutil.rmtree(state.edge, ignore_errors=True)  # nothing runs there now: its logs (the edge master's too)
             target.forget(plan, keep_network=opts.keep_network)
             if destroyed.kept:
@@ -169,7 +169,7 @@ def status(target: Target, plan: Plan, *, now: float | None = None) -> dict[str,
         return {**nothing, "unchecked": str(err)}
     if not known and not provisioned and not described.get("hosts"):
         return {**nothing, "checked": "the cloud reports no instances"}  # asked, and nothing runs there
-    saved = state.read(DEPLOYMENT_FILE) or {}
+    saved = recorded_edge(plan)
     relays = middleware.deployment(plan.middleware).edge_links(plan, folder=edge_dir(plan, create=False),
                                                                connect=saved.get("relays", {}))
     return {**head, "deployed": True, "partial": record.partial if record is not None and known else provisioned,

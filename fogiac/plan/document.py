@@ -9,7 +9,7 @@ Version 2 adds what a reviewer compares besides resources: ``edge_master``, ``to
 the edge, ``security_rules``, and each node's command, environment and topics; ``plan --json``
 adds each resource's ``action`` against what it was compared with, and a ``changes`` object
 (:mod:`fogiac.plan.diff`). Version 1 had the same top-level keys less those, every resource's
-``action`` was ``create``, and there was no ``changes``. A version 1 document (an ``applied.json``
+``action`` was ``create``, and there was no ``changes``. A version 1 document (an applied document
 written before) is still read as the "before" side of a diff: its missing sections are skipped.
 
 Within version 2, later fogiacs added (each skipped in a diff when the "before" document lacks it, so
@@ -17,7 +17,7 @@ an applied document of an earlier fogiac compares without a made-up change): ``p
 ``up`` pushes, with its content digest), ``autostop``, ``relay`` (compression and queue size),
 ``registries``, each host's ``ssh`` (user, key, port) and ``runtime``. A node's ``env`` shows values
 known harmless as they are, any other as ``sha256:`` and 12 hex digits, and a named secret as
-``[secret env:NAME]``: no value reaches a plan, ``applied.json`` or a pull-request comment.
+``[secret env:NAME]``: no value reaches a plan, the stack's record or a pull-request comment.
 """
 
 from __future__ import annotations
@@ -33,10 +33,12 @@ from fogiac import __version__
 from fogiac.net import middleware
 from fogiac.plan import cost, pushed
 from fogiac.plan.model import HostSpec, NodeSpec, Plan, Rule
-from fogiac.state import StackState
+from fogiac.state import LEGACY_FILES, StackState
 
 FORMAT_VERSION = 2
-APPLIED_FILE = StackState.APPLIED  # the document of the last successful up, in the stack's folder
+# The document of the last successful up is the record's applied section (fogiac.deployment.read_applied);
+# an older fogiac kept it in this file of the stack's folder, still read and migrated.
+APPLIED_FILE = LEGACY_FILES[StackState.APPLIED]
 
 
 # Env values a plan shows as they are: settings, not secrets. Anything else is shown as a digest, so a
@@ -166,7 +168,7 @@ def document(plan: Plan, resources: Sequence[Mapping[str, Any]], *, manifest_pat
 def plan_document(plan: Plan, resources: Sequence[Mapping[str, Any]], *, manifest: Path) -> dict[str, Any]:
     """The document for ``plan`` and what its target declares (:meth:`Target.declare`).
 
-    ``up`` saves it as APPLIED_FILE. Both sides must build it from the declared resources: the
+    ``up`` records it as the stack record's applied section. Both sides must build it from the declared resources: the
     digest covers the offline placeholders (operator address, certificates, SSH key), not the
     real values ``up`` used.
     """

@@ -20,7 +20,7 @@ from fogiac.errors import ProvisionError
 from fogiac.plan.model import Plan
 from fogiac.procs import free_port
 from fogiac.provision.host import Host, Result
-from fogiac.state import read_json, write_json_atomic
+from fogiac.state import StackState, read_json, write_json_atomic
 
 
 @dataclass(frozen=True)
@@ -124,8 +124,11 @@ class LocalHost:
 PORTS_FILE = "ports.json"
 
 
+SANDBOXES = "local"  # the local target's own folder in the stack's: one sandbox per host, and the ports
+
+
 def sandbox_root(state_dir: Path) -> Path:
-    return state_dir / "local"
+    return StackState.at(state_dir).target_file(SANDBOXES)
 
 
 def local_access(plan: Plan, *, state_dir: Path) -> Mapping[str, LocalAccess]:

@@ -23,10 +23,10 @@ from fogiac.provision.local import LocalAccess
 from fogiac.provision.managers import manager_for
 from fogiac.provision.ssh import SshAccess
 from fogiac.provision.steps import CHANGED, HostRun, Options, step
-from fogiac.state import StackState, read_json, write_json_atomic
+from fogiac.state import LEGACY_FILES, StackState
 
 Progress = Callable[[str, str, str], None]  # (host, step, status)
-RECORD = "provision.json"
+RECORD = LEGACY_FILES[StackState.HOSTS]  # where an older fogiac kept what the record's hosts section holds
 KNOWN_HOSTS = StackState.KNOWN_HOSTS  # the SSH host keys provisioning has seen, in the stack's folder
 
 
@@ -137,14 +137,14 @@ def provision(plan: Plan, *, hosts: Mapping[str, HostAccess], state_dir: Path, c
               allow_install: bool = False, dialed: Mapping[str, str] | None = None) -> ProvisionReport:
     """Run each host's steps (``HostSpec.steps``) on all hosts in parallel; never raises per host.
 
-    ``state_dir`` is the stack's state folder: its ``known_hosts`` records SSH host keys, and
-    ``provision.json`` records how each host was reached so ``fogiac logs``/``ssh`` find it.
+    ``state_dir`` is the stack's state folder: its ``known_hosts`` records SSH host keys, and the
+    record's hosts section how each host was reached so ``fogiac logs``/``ssh`` find it.
     ``dialed``: host -> the address the edge dials (a certificate may name it); unset, the SSH address.
     """
     started = time.monotonic()
     options = Options(certs_dir=certs_dir, health_timeout=health_timeout, allow_install=allow_install,
                       dialed=dict(dialed or {}))
-    known_hosts = state_dir / KNOWN_HOSTS
+    known_hosts = StackState.at(state_dir).known_hosts
     record_access(state_dir, plan, hosts, {})  # first: an interrupted run's hosts are found again
     outcomes = _for_each(plan, hosts, lambda spec, access: _provision_one(
         plan, spec, access, known_hosts=known_hosts, options=options, progress=progress))
@@ -153,13 +153,20 @@ def provision(plan: Plan, *, hosts: Mapping[str, HostAccess], state_dir: Path, c
 
 
 def record_access(state_dir: Path, plan: Plan, hosts: Mapping[str, HostAccess], bases: Mapping[str, str]) -> None:
-    record = read_json(state_dir / RECORD) or {"hosts": {}}
-    for spec in plan.hosts:
-        entry = dict(hosts[spec.name].describe())
-        entry["base"] = bases.get(spec.name) or record["hosts"].get(spec.name, {}).get("base", "")
-        entry["nodes"] = list(spec.nodes)
-        record["hosts"][spec.name] = entry
-    write_json_atomic(state_dir / RECORD, record)
+    """Record each planned host's access description (opaque here), base folder and nodes in the
+    record's hosts section; a base not known this time is kept from before."""
+    def change(document: dict[str, Any]) -> None:
+        recorded = document.get(StackState.HOSTS)
+        recorded = dict(recorded) if isinstance(recorded, Mapping) else {}
+        for spec in plan.hosts:
+            entry = dict(hosts[spec.name].describe())
+            before = recorded.get(spec.name)
+            entry["base"] = bases.get(spec.name) or (before.get("base", "") if isinstance(before, Mapping) else "")
+            entry["nodes"] = list(spec.nodes)
+            recorded[spec.name] = entry
+        document[StackState.HOSTS] = recorded
+
+    StackState.at(state_dir).update(change)
 
 
 def _ssh_from_dict(d: Mapping[str, Any]) -> SshAccess:
@@ -191,9 +198,14 @@ def access_from_dict(data: Mapping[str, Any]) -> HostAccess:
 
 def recorded_access(state_dir: Path) -> dict[str, tuple[HostAccess, str, tuple[str, ...]]]:
     """{host: (access, base folder, nodes)} as the last provisioning recorded them."""
-    record = read_json(state_dir / RECORD) or {"hosts": {}}
+    found = StackState.at(state_dir).section(StackState.HOSTS)
+    if found is None or found.value is None:
+        return {}
+    if not isinstance(found.value, Mapping) or not all(isinstance(e, Mapping) for e in found.value.values()):
+        raise ProvisionError(f"{found.where}: not fogiac's record of provisioned hosts (each host should be a "
+                             "mapping); remove it if the stack is gone")
     return {name: (access_from_dict(entry), str(entry.get("base", "")), tuple(entry.get("nodes", ())))
-            for name, entry in record["hosts"].items()}
+            for name, entry in found.value.items()}
 
 
 def _stop_one(plan: Plan, spec: HostSpec, access: HostAccess, *, known_hosts: Path, remove: bool) -> HostOutcome:
@@ -242,7 +254,7 @@ def stop_all(plan: Plan, *, hosts: Mapping[str, HostAccess], state_dir: Path) ->
     """Stop every service fogiac started on every host (files stay, so ``provision`` restarts them)."""
     started = time.monotonic()
     outcomes = _for_each(plan, hosts, lambda spec, access: _stop_one(
-        plan, spec, access, known_hosts=state_dir / "known_hosts", remove=False))
+        plan, spec, access, known_hosts=StackState.at(state_dir).known_hosts, remove=False))
     return ProvisionReport(hosts=outcomes, seconds=time.monotonic() - started)
 
 
@@ -250,7 +262,7 @@ def teardown(plan: Plan, *, hosts: Mapping[str, HostAccess], state_dir: Path) ->
     """Stop everything and remove fogiac's folder on each host (a local sandbox entirely)."""
     started = time.monotonic()
     outcomes = _for_each(plan, hosts, lambda spec, access: _stop_one(
-        plan, spec, access, known_hosts=state_dir / "known_hosts", remove=True))
+        plan, spec, access, known_hosts=StackState.at(state_dir).known_hosts, remove=True))
     if all(o.ok for o in outcomes):
-        (state_dir / RECORD).unlink(missing_ok=True)
+        StackState.at(state_dir).drop(StackState.HOSTS)
     return ProvisionReport(hosts=outcomes, seconds=time.monotonic() - started)

@@ -33,8 +33,7 @@ def need(module: str) -> ModuleType:
 
 
 def backend_dir(stack: str, *, create: bool = True) -> Path:
-    state = StackState(stack)
-    return (state.ensure() if create else state.folder) / BACKEND_DIR
+    return StackState(stack).target_file(BACKEND_DIR, create=create)
 
 
 def pulumi_cli() -> Path:
@@ -65,7 +64,7 @@ def passphrase(stack: str) -> str:
     given_file = os.environ.get("PULUMI_CONFIG_PASSPHRASE_FILE")
     if given_file:
         return Path(given_file).read_text().strip()
-    path = StackState(stack).ensure() / PASSPHRASE_FILE
+    path = StackState(stack).target_file(PASSPHRASE_FILE, create=True)
     if not path.exists():
         write_private(path, secrets.token_urlsafe(32).encode())
     return path.read_text().strip()

@@ -4,7 +4,6 @@ first, other tools' verbs answered with fogiac's, a missing manifest pointing at
 
 from __future__ import annotations
 
-import json
 import re
 import time
 from pathlib import Path
@@ -16,7 +15,7 @@ from fogiac import deployment, targets
 from fogiac.cli import COMMANDS, MAIN_COMMANDS, app
 from fogiac.manifest.schema import load_manifest
 from fogiac.plan.compile import compile_plan
-from fogiac.plan.document import APPLIED_FILE, plan_document
+from fogiac.plan.document import plan_document
 from fogiac.state import StackState
 from tests.conftest import EXAMPLES
 
@@ -77,10 +76,10 @@ def _deployed(manifest: Path, env: str, *, state: str, hours_ago: float, applied
     record = deployment.finish(plan, manifest, plan_digest="x") if state == deployment.COMPLETE else \
         deployment.begin(plan, manifest)
     back = {**record.__dict__, "since_epoch": time.time() - hours_ago * 3600}
-    StackState(plan.stack).write(deployment.RECORD_FILE, back)
+    StackState(plan.stack).set(StackState.DEPLOYMENT, back)
     if applied:
-        StackState(plan.stack).write(APPLIED_FILE, plan_document(plan, targets.get(plan.target).declare(plan),
-                                                                 manifest=manifest))
+        StackState(plan.stack).set(StackState.APPLIED, plan_document(plan, targets.get(plan.target).declare(plan),
+                                                                     manifest=manifest))
     return plan.stack
 
 
@@ -105,7 +104,7 @@ def test_ls_lists_each_deployed_stack_with_target_state_cost_and_autostop(tmp_pa
     motion_row = next(r for r in rows if "motion-planning-prod" in r)
     cells = [c.strip() for c in motion_row.split("│")[1:-1]]
     assert cells[:4] == ["motion-planning-prod", "prod", "aws", "up"]
-    hourly = json.loads((_state_dir / "motion-planning-prod" / APPLIED_FILE).read_text())["cost"]["hourly_usd"]
+    hourly = StackState("motion-planning-prod").get(StackState.APPLIED)["cost"]["hourly_usd"]
     so_far = re.fullmatch(r"at most \$([\d.]+) \(\$([\d.]+)/h\)", cells[5])
     assert so_far and float(so_far[2]) == pytest.approx(hourly, abs=1e-4), cells
     assert float(so_far[1]) == pytest.approx(2 * hourly, abs=0.02)  # two hours at that rate

@@ -25,7 +25,7 @@ from fogiac.targets.aws.sdk import need
 from stacks import LAYERS, PROJECT
 
 OUTPUTS_FILE = "outputs.json"
-SSH_KEY_FILE = Path("ssh") / SSH_KEY  # in the stack folder, where stacks/entry.py (plain pulumi up) keeps it too
+SSH_KEY_FILE = Path(StackState.SSH) / SSH_KEY  # in the stack folder, where stacks/entry.py (plain pulumi up) keeps it
 CERTS_DIR = StackState.CERTS
 VPN_NOTICE = ("The Client VPN endpoint's subnet association takes about 10 minutes to create "
               "(and again to delete); its resources wait up to 30 minutes.")
@@ -45,13 +45,15 @@ def ssh_public_key(stack: str) -> str:
 
     Kept where ``stacks/entry.py`` (plain ``pulumi up``) keeps it, so both paths use one key.
     """
-    return load_or_create_ssh_key(StackState(stack).ensure() / SSH_KEY_FILE.parent)
+    state = StackState(stack)
+    state.ensure()
+    return load_or_create_ssh_key(state.ssh_dir)
 
 
 def known_ids(stack: str) -> frozenset[str]:
     """Every cloud id fogiac's state knows for ``stack`` (outputs and Pulumi checkpoints)."""
     ids: set[str] = set()
-    root = StackState(stack).folder
+    state = StackState(stack)
 
     def walk(value: Any) -> None:
         if isinstance(value, Mapping):
@@ -63,9 +65,8 @@ def known_ids(stack: str) -> frozenset[str]:
             for item in value:
                 walk(item)
 
-    walk(read_json(root / OUTPUTS_FILE))
-    backend = backend_dir(stack, create=False)
-    for checkpoint in backend.glob(".pulumi/stacks/**/*.json") if root.exists() else ():
+    walk(read_json(state.target_file(OUTPUTS_FILE)))
+    for checkpoint in backend_dir(stack, create=False).glob(".pulumi/stacks/**/*.json") if state.exists() else ():
         walk(read_json(checkpoint))
     return frozenset(ids)
 

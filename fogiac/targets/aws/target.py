@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from fogiac import deployment
-from fogiac.certs import load_or_create_bundle
+from fogiac.certs import SSH_KEY, load_or_create_bundle
 from fogiac.errors import CloudError, ProvisionError
 from fogiac.lifecycle.edge import edge_idle_since
 from fogiac.lifecycle.events import OnEvent
@@ -281,7 +281,7 @@ def watchdogs(plan: Plan, rows: list[api.InstanceStatus]) -> dict[str, dict[str,
     if plan.autostop is None or not folder.exists():
         return {}
     recorded = recorded_access(folder)
-    pinned = read_json(folder / HOST_KEYS_FILE) or {}
+    pinned = read_json(state.target_file(HOST_KEYS_FILE)) or {}
     ask: dict[str, tuple[Any, str]] = {}
     unpinned: dict[str, dict[str, Any] | None] = {}
     for r in rows:
@@ -354,7 +354,7 @@ def access_from_outputs(plan: Plan, outputs: Mapping[str, Any], *, fingerprints:
     In vpn mode the edge reaches a host's private address through the Client VPN; in proxy mode
     its public address, which the security group opens to ``ssh_from`` only.
     """
-    key = StackState(plan.stack).folder / engine.SSH_KEY_FILE
+    key = StackState(plan.stack).ssh_dir / SSH_KEY
     hosts = outputs.get("compute", {}).get("hosts", {})
     access: dict[str, SshAccess] = {}
     connect: dict[str, str] = {}

@@ -82,8 +82,7 @@ def render_client_profile(
 
 def default_profile_path(stack: str, *, create: bool = True) -> Path:
     """``client.ovpn`` in the stack's state folder (made 0700 when ``create``)."""
-    state = StackState(stack)
-    return (state.ensure() if create else state.folder) / PROFILE_NAME
+    return StackState(stack).target_file(PROFILE_NAME, create=create)
 
 
 def git_work_tree(path: Path) -> Path | None:

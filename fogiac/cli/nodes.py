@@ -68,7 +68,10 @@ def register(app: typer.Typer) -> None:
         """Provision an existing set of hosts (no cloud resources): ROS, code, nodes, relay."""
         plan = compile_for(manifest, env, target)
         chosen = targets.get(plan.target)
-        if Feature.CREATES_MACHINES in chosen.features or Feature.PROVISIONS not in chosen.features:
+        if Feature.PROVISIONS not in chosen.features:
+            raise ProvisionError(f"target {plan.target} runs its nodes itself: `fogiac provision` has nothing to "
+                                 "provision there; `fogiac up` starts them")
+        if Feature.CREATES_MACHINES in chosen.features:
             usable = ", ".join(n for n in targets.names() if Feature.CREATES_MACHINES not in targets.get(n).features
                                and Feature.PROVISIONS in targets.get(n).features)
             raise ProvisionError(f"`fogiac provision` is for targets whose machines exist ({usable}); "

@@ -37,8 +37,12 @@ def _host_of(node: str, manifest: Path, env: str) -> tuple[str, Any, str, Path, 
     known = sorted(n.name for n in plan.nodes)
     if node not in known:
         raise ProvisionError(f"{manifest} has no node {node!r}; its nodes: {', '.join(known)}")
+    chosen = targets.get(plan.target)
+    if Feature.PROVISIONS not in chosen.features:
+        raise ProvisionError(f"target {plan.target} runs its nodes itself: fogiac reaches none of its hosts, so "
+                             f"node {node!r} has no host to open here")
     state = StackState(plan.stack).folder
-    for name, (access, base, nodes) in recorded_access(state, targets.get(plan.target).access_from).items():
+    for name, (access, base, nodes) in recorded_access(state, chosen.access_from).items():
         if node in nodes:
             return name, access, base, state, plan
     raise ProvisionError(f"node {node!r} is not deployed: stack {plan.stack} is not up; "

@@ -83,6 +83,12 @@ def test_up_request_status_down_with_nodes_the_platform_runs(stratus: None, tmp_
         supervised = sorted(p.relative_to(folder).parts[0] for p in folder.rglob("*.child"))  # a supervisor's child
         assert pids and set(supervised) == {"edge"}, supervised
 
+        for verb in ("logs", "ssh"):  # nothing of fogiac's runs there to open
+            code, out = run(verb, "planner", str(manifest))
+            assert code == 1 and out.strip().splitlines() == [
+                "error: target stratus runs its nodes itself: fogiac reaches none of its hosts, so node 'planner' "
+                "has no host to open here"], out
+
         answer = ask_planner(edge_port, cwd=tmp_path)
         assert answer["solved"] and answer["poses"] >= 2 and answer["free"], answer
 

@@ -212,11 +212,11 @@ def run(scenario: str, args: argparse.Namespace, home: Path, hosts: list[LabHost
     by_name = {h.name: h for h in hosts}
     access = {n: replace(a, base_dir=str(by_name[n].base_dir / stack), ship_code=False)
               for n, a in HOSTS.access(plan, state_dir=folder, python=sys.executable).items()}
-    connect = {n: f"{a.address}:{a.relay_port}" for n, a in access.items()}
+    connect = {n: f"{a.address}:{plan.host(n).relay_port}" for n, a in access.items()}
     impaired = hosts[0]
     proxy = None
     if scenario.endswith("delayed"):
-        proxy = DelayProxy((impaired.address, access[impaired.name].relay_port), args.delay_ms / 1e3)
+        proxy = DelayProxy((impaired.address, plan.host(impaired.name).relay_port), args.delay_ms / 1e3)
         connect[impaired.name] = f"127.0.0.1:{proxy.port}"
     stop = threading.Event()
     kills: list[str] = []

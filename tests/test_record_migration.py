@@ -19,14 +19,15 @@ from typing import Any
 import pytest
 from typer.testing import CliRunner
 
-from fogiac import deployment
+from fogiac import deployment, targets
 from fogiac.cli import app
 from fogiac.lifecycle.edge import recorded_edge
 from fogiac.manifest.schema import load_manifest
 from fogiac.plan.compile import compile_plan
 from fogiac.procs import free_port
 from fogiac.provision import recorded_access
-from fogiac.state import FORMAT_VERSION, LEGACY_FILES, StackState, StaleRecord
+from fogiac.provision.local import PORTS_FILE, sandbox_root
+from fogiac.state import FORMAT_VERSION, LEGACY_FILES, StackState, StaleRecord, read_json
 from fogiac.store import FolderStore
 from tests.conftest import EXAMPLES
 from tests.support.procs import alive_pids
@@ -89,11 +90,12 @@ def test_an_older_folder_is_read_as_one_record_without_writing(legacy: tuple[Pat
     assert record == deployment.Deployment(**files["stack.json"])
     assert record is not None and record.state == deployment.COMPLETE and record.target == "local"
     assert deployment.read_applied(STACK) == files["applied.json"]
-    hosts = recorded_access(folder)
+    hosts = recorded_access(folder, targets.get("local").access_from)
     assert list(hosts) == ["planner"]
     assert hosts["planner"][1:] == (f"{folder}/local/planner", ("planner",))
-    assert hosts["planner"][0].describe() == {k: v for k, v in files["provision.json"]["hosts"]["planner"].items()
-                                              if k not in ("base", "nodes")}
+    older = files["provision.json"]["hosts"]["planner"]  # ports were the access's then: the relay's is where the edge dials
+    assert hosts["planner"][0].describe() == {"kind": older["kind"], "sandbox": older["sandbox"],
+                                              "python": older["python"], "location": f"127.0.0.1:{older['relay_port']}"}
     plan = compile_plan(load_manifest(manifest), target="local")
     assert recorded_edge(plan) == {"name": STACK, **files["deployment.json"]}
     code, out = cli("ls")
@@ -231,11 +233,16 @@ def test_status_and_down_work_on_a_running_stack_with_an_older_folder(
         doc = json.loads((folder / StackState.RECORD).read_text())
         host = doc["hosts"]["planner"]
         since = doc["deployment"]
-        files = write_legacy(folder, **_values(folder, manifest, edge=edge, master=host["master_port"],
-                                               relay=host["relay_port"], since=since["since"],
+        ports = read_json(sandbox_root(folder) / PORTS_FILE)["planner"]  # the older fogiac kept them in the access
+        files = write_legacy(folder, **_values(folder, manifest, edge=edge, master=ports["master"],
+                                               relay=ports["relay"], since=since["since"],
                                                since_epoch=since["since_epoch"], python=host["python"]))
-        # the older fogiac's files say what this fogiac's sections say (less what the record adds)
-        assert files["provision.json"]["hosts"] == doc["hosts"]
+        # the older fogiac's files say what this fogiac's sections say (less what the record adds, and with
+        # the ports where the access kept them then: the relay's is the address the edge dials)
+        older = files["provision.json"]["hosts"]["planner"]
+        assert host["location"] == f"127.0.0.1:{older['relay_port']}"
+        assert {k: v for k, v in older.items() if k not in ("master_port", "relay_port")} == \
+            {k: v for k, v in host.items() if k != "location"}
         assert [{"name": STACK, **files["deployment.json"]}] == doc["edges"]
         # (the digests: of this run's manifest and plan, whose edge port the fixture's were not made with)
         assert {**files["stack.json"], "manifest_digest": since["manifest_digest"],
@@ -243,7 +250,7 @@ def test_status_and_down_work_on_a_running_stack_with_an_older_folder(
         code, out = cli("status", str(manifest), "--json")
         assert code == 0, out
         now = _facts(json.loads(out))
-        relay = f"127.0.0.1:{host['relay_port']}"
+        relay = host["location"]
         assert now["deployed"] and not now["partial"] and now["hosts"] == [("planner", relay, [("planner", True)])]
         assert now["relays"] == [("planner", relay)], now
         (folder / StackState.RECORD).unlink()  # the folder now is as the older fogiac left it
@@ -259,5 +266,6 @@ def test_status_and_down_work_on_a_running_stack_with_an_older_folder(
     assert alive_pids(_state_dir) == []
     assert _json_files(folder) == [StackState.RECORD]  # migrated by down's write, the four files gone
     assert deployment.read(STACK).state == deployment.REMOVED  # type: ignore[union-attr]
-    assert recorded_access(folder) == {} and StackState(STACK).section_names() == {StackState.DEPLOYMENT}
+    assert recorded_access(folder, targets.get("local").access_from) == {}
+    assert StackState(STACK).section_names() == {StackState.DEPLOYMENT}
     assert cli("status", str(manifest))[1].splitlines() == [f"{STACK}: not deployed"]

@@ -21,7 +21,7 @@ from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_deployed, compile_
 from fogiac.errors import ProvisionError
 from fogiac.lifecycle.driver import Created, Feature
 from fogiac.plan.model import Plan
-from fogiac.provision import LocalAccess, provision, recorded_access
+from fogiac.provision import provision, recorded_access
 from fogiac.provision import teardown as tear_down
 from fogiac.provision.managers import manager_for
 from fogiac.provision.report import report_table
@@ -31,24 +31,22 @@ from fogiac.tables import console
 
 
 def _host_of(node: str, manifest: Path, env: str) -> tuple[str, Any, str, Path, Plan]:
-    """(host name, access, base, stack dir, plan) of the host running ``node``, from the last provisioning."""
+    """(host name, access, base, stack dir, plan) of the host running ``node``, from the last provisioning;
+    the target that made the stack reads its recorded access back."""
     plan = compile_deployed(manifest, env)
     known = sorted(n.name for n in plan.nodes)
     if node not in known:
         raise ProvisionError(f"{manifest} has no node {node!r}; its nodes: {', '.join(known)}")
+    chosen = targets.get(plan.target)
+    if Feature.PROVISIONS not in chosen.features:
+        raise ProvisionError(f"target {plan.target} runs its nodes itself: fogiac reaches none of its hosts, so "
+                             f"node {node!r} has no host to open here")
     state = StackState(plan.stack).folder
-    for name, (access, base, nodes) in recorded_access(state).items():
+    for name, (access, base, nodes) in recorded_access(state, chosen.access_from).items():
         if node in nodes:
             return name, access, base, state, plan
     raise ProvisionError(f"node {node!r} is not deployed: stack {plan.stack} is not up; "
                          f"run `fogiac up {manifest}` first")
-
-
-def _ssh_argv(access: Any, state: Path, *remote: str, tty: bool) -> list[str]:
-    """ssh to a recorded host with the key and the pinned host keys provisioning used."""
-    return ["ssh", *(["-t"] if tty else []), "-i", str(access.key), "-p", str(access.port), "-o", "IdentitiesOnly=yes",
-            "-o", f"UserKnownHostsFile={StackState.at(state).known_hosts}", "-o", "StrictHostKeyChecking=yes",
-            f"{access.user}@{access.address}", *remote]
 
 
 def _follow(argv: list[str]) -> None:
@@ -74,22 +72,26 @@ def register(app: typer.Typer) -> None:
         """Provision an existing set of hosts (no cloud resources): ROS, code, nodes, relay."""
         plan = compile_for(manifest, env, target)
         chosen = targets.get(plan.target)
+        if Feature.PROVISIONS not in chosen.features:
+            raise ProvisionError(f"target {plan.target} runs its nodes itself: `fogiac provision` has nothing to "
+                                 "provision there; `fogiac up` starts them")
         if Feature.CREATES_MACHINES in chosen.features:
-            usable = ", ".join(n for n in targets.names() if Feature.CREATES_MACHINES not in targets.get(n).features)
+            usable = ", ".join(n for n in targets.names() if Feature.CREATES_MACHINES not in targets.get(n).features
+                               and Feature.PROVISIONS in targets.get(n).features)
             raise ProvisionError(f"`fogiac provision` is for targets whose machines exist ({usable}); "
                                  f"{plan.target} hosts are provisioned by `fogiac up`")
         stack = StackState(plan.stack)
         state = stack.ensure()
         screen = console()
         with stack_lock(plan.stack, operation="teardown" if teardown else "provision"):
-            hosts = chosen.reach(plan, Created(plan=plan), announce=lambda line: None).access
+            reach = chosen.reach(plan, Created(plan=plan), announce=lambda line: None)
             if teardown:
-                report = tear_down(plan, hosts=hosts, state_dir=state)
+                report = tear_down(plan, hosts=reach.access, state_dir=state)
             else:
                 load_or_create_bundle(plan.stack, stack.certs)
                 with screen.status(f"provisioning {len(plan.hosts)} host(s)"):
-                    report = provision(plan, hosts=hosts, state_dir=state, certs_dir=stack.certs,
-                                       health_timeout=health_timeout, allow_install=allow_install)
+                    report = provision(plan, hosts=reach.access, state_dir=state, certs_dir=stack.certs,
+                                       health_timeout=health_timeout, allow_install=allow_install, ports=reach.ports)
         screen.print(report_table(report, title="teardown" if teardown else "provisioning"))
         for failed in report.failed:  # whole lines, whatever the terminal's width
             typer.echo(f"error: {failed.error}", err=True)
@@ -111,8 +113,7 @@ def register(app: typer.Typer) -> None:
                                                      follow=follow)
             if follow:  # streamed by a process of its own: the host's run() returns only when a command ends
                 host.close()
-                _follow(["bash", "-c", command] if isinstance(access, LocalAccess)
-                        else _ssh_argv(access, state, command, tty=False))
+                _follow(access.follow_argv(command, known_hosts=StackState(plan.stack).known_hosts))
                 return
             text = host.run(command, check=False).stdout
             typer.echo(text, nl=False)
@@ -125,13 +126,8 @@ def register(app: typer.Typer) -> None:
     def ssh(node: str, manifest: Path = MANIFEST, env: str = ENV,
             print_only: bool = typer.Option(False, "--print", help="Print the command instead of running it.")) -> None:
         """Open a shell on the host running NODE (a local sandbox: a shell in its folder)."""
-        name, access, base, state, _ = _host_of(node, manifest, env)
-        if isinstance(access, LocalAccess):
-            argv = ["bash", "--rcfile", f"{base}/env/ros.sh", "-i"]
-            cwd = base
-        else:
-            argv = _ssh_argv(access, state, f"cd {shlex.quote(base)} && exec $SHELL -l", tty=True)
-            cwd = os.getcwd()
+        name, access, base, state, plan = _host_of(node, manifest, env)
+        argv, cwd = access.shell_argv(base=base, known_hosts=StackState(plan.stack).known_hosts)
         if print_only:
             typer.echo(f"(cd {shlex.quote(cwd)} && {shlex.join(argv)})" if cwd != os.getcwd() else shlex.join(argv))
             return

@@ -27,6 +27,10 @@ class Feature(str, Enum):
     """What a target can do, declared (as SkyPilot's clouds declare theirs), never detected by callers."""
 
     CREATES_MACHINES = "creates machines"  # makes and destroys machines (else they exist; down stops what runs)
+    # fogiac provisions each host over the runner the target hands back (``reach``), and down stops what it
+    # started there; a target whose platform runs the nodes itself declares nothing of the kind: its
+    # ``create`` starts them and its ``reach`` answers only the links the edge dials
+    PROVISIONS = "provisions hosts"
     INFRA_ONLY = "infra only"  # up --infra-only: make the machines, provision nothing
     KEEP_NETWORK = "keep network"  # down --keep-network: a network layer that outlives the machines
 
@@ -139,10 +143,17 @@ class Created:
 
 @dataclass(frozen=True)
 class Reach:
-    """How provisioning reaches each host, and the ``HOST:PORT`` the robot's edge dials for it."""
+    """What a target hands back once its machines are there: the command runner for each host (as
+    SkyPilot's ``get_command_runners``), the ``HOST:PORT`` the robot's edge dials for each, and what the
+    host's services listen on where the target chose it (else the plan says).
+
+    A target without :attr:`Feature.PROVISIONS` hands back no runner: its platform runs the nodes and
+    the middleware's host end, and ``connect`` is all the lifecycle needs to start the edge's end.
+    """
 
     access: Mapping[str, Any]  # host -> fogiac.provision.HostAccess
     connect: Mapping[str, str]
+    ports: Mapping[str, Any] = field(default_factory=dict)  # host -> fogiac.provision.HostPorts
 
 
 @dataclass(frozen=True)
@@ -190,7 +201,14 @@ class Target(Protocol):
         """Make (or start again) the machines; the deployment is recorded already, so ``down`` finds them."""
         ...
 
-    def reach(self, plan: Plan, created: Created, *, announce: Callable[[str], None]) -> Reach: ...
+    def reach(self, plan: Plan, created: Created, *, announce: Callable[[str], None]) -> Reach:
+        """Each host's runner and the links the edge dials (only the links where the platform runs the nodes)."""
+        ...
+
+    def access_from(self, description: Mapping[str, Any]) -> Any:
+        """A recorded host's runner again (a ``fogiac.provision.HostAccess``), from the ``describe()`` this
+        target's access wrote: ``logs``, ``ssh``, ``status`` and ``down`` find the host as it was reached."""
+        ...
 
     def recorded(self, plan: Plan) -> bool:
         """Whether this target knows anything of the stack (so ``down`` has something to undo)."""

@@ -2,7 +2,8 @@
 
 Provision and connect: certificates, provisioning of every host in parallel, then the
 middleware's edge end for each host that came up (one relay per host, or the edge router's
-links), supervised from the stack's ``edge/`` folder. Stopping them, and reading from their
+links), supervised from the stack's ``edge/`` folder. A target whose platform runs the nodes
+itself skips the provisioning and goes straight to :func:`connect_edge`. Stopping them, and reading from their
 stats files when the edge was last there, live here too.
 """
 
@@ -52,27 +53,41 @@ def dialed_addresses(connect: Mapping[str, str]) -> dict[str, str]:
 
 def provision_and_connect(plan: Plan, *, access: Mapping[str, Any], connect: Mapping[str, str], master: str,
                           started_edge_master: bool = False,
-                          progress: Callable[[str, str, str], None] | None = None) -> FleetUp:
+                          progress: Callable[[str, str, str], None] | None = None,
+                          ports: Mapping[str, Any] | None = None) -> FleetUp:
     """Provision every host, start the middleware's edge side for the hosts that came up, record the deployment.
 
-    Every target ends here: ``local`` and ``hosts`` with their own access records, a cloud with
-    its instances' addresses and pinned host keys. A failed host fails the run; the others stay
-    up so ``fogiac down`` (or a fixed re-run) finds them.
+    Every target that provisions (``Feature.PROVISIONS``) ends here: ``local`` and ``hosts`` with
+    their own access records, a cloud with its instances' addresses and pinned host keys. A failed
+    host fails the run; the others stay up so ``fogiac down`` (or a fixed re-run) finds them.
     """
     state = StackState(plan.stack)
     folder, certs = state.ensure(), state.certs
     load_or_create_bundle(plan.stack, certs)
     report = provision(plan, hosts=access, state_dir=folder, certs_dir=certs, progress=progress,
-                       dialed=dialed_addresses(connect))
+                       dialed=dialed_addresses(connect), ports=ports)
     relays = {o.host: connect[o.host] for o in report.hosts if o.ok and o.host in connect}
+    done = connect_edge(plan, connect=relays, master=master, started_edge_master=started_edge_master, report=report)
+    if not report.ok:
+        lines = [o.error or f"{o.host}: failed" for o in report.failed]
+        raise ProvisionError("; ".join(lines) + " (the other hosts are up; `fogiac down` removes everything)")
+    return done
+
+
+def connect_edge(plan: Plan, *, connect: Mapping[str, str], master: str, started_edge_master: bool = False,
+                 report: Any = None) -> FleetUp:
+    """Start the middleware's edge side for the hosts in ``connect`` (host -> HOST:PORT) and record the
+    deployment: after provisioning, or straight away for a target whose platform runs the nodes and the
+    host's end itself (it answered ``connect`` on its own)."""
+    state = StackState(plan.stack)
+    state.ensure()
+    certs = state.certs
+    relays = dict(connect)
     notes = middleware.deployment(plan.middleware).edge_up(plan, entry=master, connect=relays, certs=certs,
                                                            folder=edge_dir(plan)) if relays else []
     record_edge(plan, {"target": plan.target, "edge_master": master, "relays": relays,
                        "started_edge_master": started_edge_master, "nodes": {n.name: n.host for n in plan.nodes}})
     deployment = state.where()
-    if not report.ok:
-        lines = [o.error or f"{o.host}: failed" for o in report.failed]
-        raise ProvisionError("; ".join(lines) + " (the other hosts are up; `fogiac down` removes everything)")
     return FleetUp(report=report, relays=relays, edge_master=master, deployment=deployment, notes=tuple(notes))
 
 

@@ -1,7 +1,9 @@
 """``up``, ``down`` and ``status``, written once for every target.
 
 Up: show the plan, ask, lock, start (or check) the robot's side, record the deployment, let the
-target create its machines, provision and connect every host, record what was applied. Down:
+target create its machines, provision and connect every host (a target whose platform runs the
+nodes itself, without ``Feature.PROVISIONS``, answers the links and only the edge's end starts
+here), record what was applied. Down:
 stop the edge, stop what runs on machines that stay, let the target destroy what it made, prove
 nothing is left, forget. Status: the record, the target's machines and cost, the edge's links.
 A target (:class:`~fogiac.lifecycle.driver.Target`) answers only the questions that differ.
@@ -28,6 +30,7 @@ from fogiac.lifecycle.driver import (
     untouched_on_failure,
 )
 from fogiac.lifecycle.edge import (
+    connect_edge,
     edge_dir,
     edge_services,
     ensure_edge_master,
@@ -39,7 +42,7 @@ from fogiac.lifecycle.edge import (
 from fogiac.net import middleware
 from fogiac.plan.document import plan_document
 from fogiac.plan.model import Plan
-from fogiac.provision import recorded_access, teardown
+from fogiac.provision import recorded_access, recorded_hosts, teardown
 from fogiac.state import StackState, stack_lock
 
 
@@ -69,8 +72,12 @@ def up(target: Target, plan: Plan, opts: UpOptions) -> UpResult:
         report, relays = None, {}
         if not infra_only:
             reach = target.reach(plan, created, announce=opts.announce)
-            done = provision_and_connect(plan, access=reach.access, connect=reach.connect, master=master,
-                                         started_edge_master=opts.start_edge_master)
+            if Feature.PROVISIONS in target.features:
+                done = provision_and_connect(plan, access=reach.access, connect=reach.connect, master=master,
+                                             started_edge_master=opts.start_edge_master, ports=reach.ports)
+            else:  # the platform runs the nodes and their end of the link: the target answered the links
+                done = connect_edge(plan, connect=reach.connect, master=master,
+                                    started_edge_master=opts.start_edge_master)
             for note in done.notes:
                 opts.announce(note)
             report, relays = done.report, dict(done.relays)
@@ -97,10 +104,11 @@ def _edge_or_undo(plan: Plan, master: str, *, start: bool, before: deployment.De
         raise
 
 
-def _recorded_hosts_too(plan: Plan, access: Mapping[str, Any]) -> tuple[Plan, dict[str, Any]]:
-    """The plan's hosts and every other host the stack's provisioning record names, with their access: a
-    ``down --force`` with another manifest of the same stack stops the first manifest's hosts too."""
-    recorded = recorded_access(StackState(plan.stack).folder)
+def _recorded_hosts_too(target: Target, plan: Plan, access: Mapping[str, Any]) -> tuple[Plan, dict[str, Any]]:
+    """The plan's hosts and every other host the stack's provisioning record names, with their access (the
+    target reads back what it recorded): a ``down --force`` with another manifest of the same stack stops
+    the first manifest's hosts too."""
+    recorded = recorded_access(StackState(plan.stack).folder, target.access_from)
     extra = {name: entry for name, entry in recorded.items() if name not in access}
     if not extra or not plan.hosts:
         return plan, dict(access)
@@ -116,16 +124,17 @@ def down(target: Target, plan: Plan, opts: DownOptions) -> DownResult:
     folder = state.folder
     record = deployment.read(plan.stack)
     known = record is not None and record.exists
-    if not known and not recorded_access(folder) and not edge_services(plan) and not target.recorded(plan):
+    if not known and not recorded_hosts(folder) and not edge_services(plan) and not target.recorded(plan):
         return DownResult(engine_errors=(), left=(), not_checked=(), existed=False)  # and nothing created
     errors: list[str] = []
     deleted = [f"edge process {e['name']}" for e in running_edge(plan)]
     with untouched_on_failure(plan.stack), stack_lock(plan.stack, operation="down"):
         stop_edge(plan, keep_master=True)  # the edge relays first: their peers are about to go
-        if Feature.CREATES_MACHINES not in target.features:  # the machines stay: stop what fogiac runs there
+        # the machines stay: stop what fogiac started there (a platform that runs the nodes stops its own)
+        if Feature.PROVISIONS in target.features and Feature.CREATES_MACHINES not in target.features:
             try:
                 access = target.reach(plan, Created(plan=plan), announce=lambda _: None).access
-                every, hosts = _recorded_hosts_too(plan, access)
+                every, hosts = _recorded_hosts_too(target, plan, access)
                 report = teardown(every, hosts=hosts, state_dir=folder)
                 errors += [o.error or f"{o.host}: failed" for o in report.failed]
                 deleted += [f"{o.host} process {name}" for o in report.hosts for name in o.stopped]
@@ -155,7 +164,7 @@ def status(target: Target, plan: Plan, *, now: float | None = None) -> dict[str,
     folder = state.folder
     record = deployment.read(plan.stack)
     known = record is not None and record.exists
-    provisioned = bool(recorded_access(folder))  # provisioning's own record of the hosts it reached
+    provisioned = bool(recorded_hosts(folder))  # provisioning's own record of the hosts it reached
     nothing = {**head, "deployed": False, "hosts": [], "relays": [], "edge": []}
     if not known and not provisioned and not target.recorded(plan):
         return nothing

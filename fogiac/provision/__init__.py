@@ -9,26 +9,27 @@ The lead's entry points::
 ``access`` maps each planned host to how it is reached (a :class:`HostAccess`); each target
 makes its own (``fogiac.targets.<name>``). On ``aws`` build ``SshAccess(address=...,
 user="ubuntu", key=d / "ssh_key", fingerprints=(...))`` per host from the stack outputs and the
-instances' console output; ``local`` takes :func:`fogiac.provision.local.local_access`.
+instances' console output; ``local`` takes :func:`fogiac.provision.local.local_access`, with
+its own ports (``ports=local_ports(...)``; unset, each host's come from the plan).
 """
 
 from __future__ import annotations
 
-from fogiac.provision.host import Host, HostAccess, Result
+from fogiac.provision.host import Host, HostAccess, HostPorts, Result, planned_ports
 from fogiac.provision.local import LocalAccess
 from fogiac.provision.runner import (
     HostOutcome,
     ProvisionReport,
     StepOutcome,
-    access_from_dict,
     provision,
     recorded_access,
+    recorded_hosts,
     stop_all,
     teardown,
 )
 from fogiac.provision.ssh import SshAccess
 
 __all__ = [
-    "Host", "HostAccess", "HostOutcome", "LocalAccess", "ProvisionReport", "Result", "SshAccess", "StepOutcome",
-    "access_from_dict", "provision", "recorded_access", "stop_all", "teardown",
+    "Host", "HostAccess", "HostOutcome", "HostPorts", "LocalAccess", "ProvisionReport", "Result", "SshAccess",
+    "StepOutcome", "planned_ports", "provision", "recorded_access", "recorded_hosts", "stop_all", "teardown",
 ]

@@ -1,8 +1,9 @@
 """The ``local`` target's :class:`~fogiac.provision.host.Host`: a sandbox folder on this machine.
 
 Why: demos and CI deploy the same manifest without any machine. Each planned host becomes a
-folder under the stack's state directory with its own ROS master port and relay port, so the
-steps run unchanged and ``teardown`` leaves nothing outside the state directory.
+folder under the stack's state directory with its own ROS master port and relay port
+(:func:`local_ports`, handed to provisioning beside the access), so the steps run unchanged and
+``teardown`` leaves nothing outside the state directory.
 """
 
 from __future__ import annotations
@@ -15,11 +16,12 @@ import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, ClassVar
 
 from fogiac.errors import ProvisionError
 from fogiac.plan.model import Plan
 from fogiac.procs import free_port
-from fogiac.provision.host import Host, Result
+from fogiac.provision.host import Host, HostPorts, Result
 from fogiac.state import StackState, read_json, write_json_atomic
 
 
@@ -27,37 +29,51 @@ from fogiac.state import StackState, read_json, write_json_atomic
 class LocalAccess:
     """A sandbox folder on this machine standing in for a host (the ``local`` target).
 
-    Each sandbox has its own ROS master port and relay port so sandboxes never share a graph.
+    ``location`` is what the edge dials (the sandbox's folder is in ``describe()`` and ``fogiac
+    ssh``); the ports each sandbox's services listen on are the target's (:func:`local_ports`).
     """
 
     sandbox: Path
-    master_port: int
-    relay_port: int
+    location: str = "127.0.0.1"
     python: str = field(default_factory=lambda: sys.executable)
     ros_address: str = "127.0.0.1"
     ship_code: bool = False
-    fingerprints: tuple[str, ...] = ()
+
+    KIND: ClassVar[str] = "local"
 
     @property
     def kind(self) -> str:
-        return "local"
+        return self.KIND
 
     @property
     def user(self) -> str:
         """The ``User=`` of rendered systemd units; never installed here (a sandbox uses the supervisor)."""
         return "root"
 
-    @property
-    def location(self) -> str:
-        """What the edge dials (the sandbox's folder is in ``describe()`` and ``fogiac ssh``)."""
-        return f"{self.ros_address}:{self.relay_port}"
-
     def open(self, *, name: str, known_hosts: Path, stack: str) -> Host:
         return LocalHost(name=name, base=str(self.sandbox))
 
     def describe(self) -> dict[str, object]:
-        return {"kind": "local", "sandbox": str(self.sandbox), "master_port": self.master_port,
-                "relay_port": self.relay_port, "python": self.python}
+        return {"kind": self.KIND, "sandbox": str(self.sandbox), "location": self.location, "python": self.python}
+
+    @classmethod
+    def from_description(cls, d: Mapping[str, Any]) -> LocalAccess:
+        """Inverse of :meth:`describe`; a record written while the ports were the access's has no
+        ``location`` but its ``relay_port``, which is what the edge dialed."""
+        if d.get("kind") != cls.KIND:
+            raise ProvisionError(f"recorded host access of kind {d.get('kind')!r} is not {cls.KIND!r}")
+        location = d.get("location") or f"127.0.0.1:{int(d['relay_port'])}"
+        return cls(sandbox=Path(str(d["sandbox"])), location=str(location), python=str(d["python"]))
+
+    def follow_argv(self, command: str, *, known_hosts: Path) -> list[str]:
+        return ["bash", "-c", command]
+
+    def shell_argv(self, *, base: str, known_hosts: Path) -> tuple[list[str], str]:
+        folder = base or str(self.sandbox)
+        return ["bash", "--rcfile", f"{folder}/env/ros.sh", "-i"], folder
+
+    def remove_base(self, host: Host) -> None:
+        shutil.rmtree(self.sandbox, ignore_errors=True)
 
 
 # The operator's credentials stay out of the sandbox: its services (and what they log: roslaunch writes its
@@ -131,8 +147,8 @@ def sandbox_root(state_dir: Path) -> Path:
     return StackState.at(state_dir).target_file(SANDBOXES)
 
 
-def local_access(plan: Plan, *, state_dir: Path) -> Mapping[str, LocalAccess]:
-    """One sandbox per planned host, ports chosen once and kept in ``local/ports.json``.
+def local_ports(plan: Plan, *, state_dir: Path) -> dict[str, HostPorts]:
+    """Each sandbox's own ROS master port and relay port, chosen once and kept in ``local/ports.json``.
 
     Keeping the ports makes a second ``up`` a no-op: the services' rendered commands match.
     """
@@ -140,11 +156,17 @@ def local_access(plan: Plan, *, state_dir: Path) -> Mapping[str, LocalAccess]:
     root.mkdir(parents=True, exist_ok=True, mode=0o700)
     ports_file = root / PORTS_FILE
     ports: dict[str, dict[str, int]] = read_json(ports_file) or {}
-    out: dict[str, LocalAccess] = {}
+    out: dict[str, HostPorts] = {}
     for host in plan.hosts:
         chosen = ports.get(host.name) or {"master": free_port(), "relay": free_port()}
         ports[host.name] = chosen
-        out[host.name] = LocalAccess(sandbox=root / host.name, master_port=chosen["master"],
-                                     relay_port=chosen["relay"])
+        out[host.name] = HostPorts(master_port=chosen["master"], relay_port=chosen["relay"])
     write_json_atomic(ports_file, ports)
     return out
+
+
+def local_access(plan: Plan, *, state_dir: Path) -> Mapping[str, LocalAccess]:
+    """One sandbox per planned host, shown at the address the edge dials it (its relay port)."""
+    root = sandbox_root(state_dir)
+    return {name: LocalAccess(sandbox=root / name, location=f"127.0.0.1:{ports.relay_port}")
+            for name, ports in local_ports(plan, state_dir=state_dir).items()}

@@ -7,21 +7,18 @@ the others; :class:`ProvisionReport` carries every host's steps and error line.
 
 from __future__ import annotations
 
-import shutil
 import time
 from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from fogiac.errors import FogiacError, ProvisionError
 from fogiac.hostmodel import Layout
-from fogiac.plan.model import RELAY_PORT, ROS_MASTER_PORT, HostSpec, Plan
-from fogiac.provision.host import Host, HostAccess, q
-from fogiac.provision.local import LocalAccess
+from fogiac.plan.model import HostSpec, Plan
+from fogiac.provision.host import Host, HostAccess, HostPorts, planned_ports, q
 from fogiac.provision.managers import manager_for
-from fogiac.provision.ssh import SshAccess
 from fogiac.provision.steps import CHANGED, HostRun, Options, step
 from fogiac.state import LEGACY_FILES, StackState
 
@@ -89,11 +86,11 @@ class ProvisionReport:
         return f"{changed} of {len(self.hosts)} host(s) changed"
 
 
-def _provision_one(plan: Plan, spec: HostSpec, access: HostAccess, *, known_hosts: Path, options: Options,
-                   progress: Progress | None) -> HostOutcome:
+def _provision_one(plan: Plan, spec: HostSpec, access: HostAccess, *, ports: HostPorts, known_hosts: Path,
+                   options: Options, progress: Progress | None) -> HostOutcome:
     started = time.monotonic()
     host = access.open(name=spec.name, known_hosts=known_hosts, stack=plan.stack)
-    run = HostRun(plan=plan, spec=spec, access=access, host=host, options=options)
+    run = HostRun(plan=plan, spec=spec, access=access, host=host, options=options, ports=ports)
     done: list[StepOutcome] = []
     error = None
     try:
@@ -134,20 +131,23 @@ def _for_each(plan: Plan, hosts: Mapping[str, HostAccess], work: Callable[[HostS
 
 def provision(plan: Plan, *, hosts: Mapping[str, HostAccess], state_dir: Path, certs_dir: Path | None = None,
               progress: Progress | None = None, health_timeout: float = 30.0,
-              allow_install: bool = False, dialed: Mapping[str, str] | None = None) -> ProvisionReport:
+              allow_install: bool = False, dialed: Mapping[str, str] | None = None,
+              ports: Mapping[str, HostPorts] | None = None) -> ProvisionReport:
     """Run each host's steps (``HostSpec.steps``) on all hosts in parallel; never raises per host.
 
     ``state_dir`` is the stack's state folder: its ``known_hosts`` records SSH host keys, and the
     record's hosts section how each host was reached so ``fogiac logs``/``ssh`` find it.
     ``dialed``: host -> the address the edge dials (a certificate may name it); unset, the SSH address.
+    ``ports``: host -> what its services listen on, where the target chose (unset: the plan's).
     """
     started = time.monotonic()
     options = Options(certs_dir=certs_dir, health_timeout=health_timeout, allow_install=allow_install,
                       dialed=dict(dialed or {}))
     known_hosts = StackState.at(state_dir).known_hosts
     record_access(state_dir, plan, hosts, {})  # first: an interrupted run's hosts are found again
+    listen = {**planned_ports(plan), **(ports or {})}
     outcomes = _for_each(plan, hosts, lambda spec, access: _provision_one(
-        plan, spec, access, known_hosts=known_hosts, options=options, progress=progress))
+        plan, spec, access, ports=listen[spec.name], known_hosts=known_hosts, options=options, progress=progress))
     record_access(state_dir, plan, hosts, {o.host: o.base for o in outcomes if o.base})
     return ProvisionReport(hosts=outcomes, seconds=time.monotonic() - started)
 
@@ -169,43 +169,30 @@ def record_access(state_dir: Path, plan: Plan, hosts: Mapping[str, HostAccess], 
     StackState.at(state_dir).update(change)
 
 
-def _ssh_from_dict(d: Mapping[str, Any]) -> SshAccess:
-    return SshAccess(address=str(d["address"]), user=str(d["user"]), port=int(d["port"]), key=Path(str(d["key"])),
-                     base_dir=d.get("base_dir"), python=str(d["python"]),
-                     master_port=int(d.get("master_port", ROS_MASTER_PORT)),
-                     relay_port=int(d.get("relay_port", RELAY_PORT)))
+A = TypeVar("A", bound=HostAccess)
+_NOT_ACCESS = ("base", "nodes")  # what the record keeps beside each host's access description
 
 
-def _local_from_dict(d: Mapping[str, Any]) -> LocalAccess:
-    return LocalAccess(sandbox=Path(str(d["sandbox"])), master_port=int(d["master_port"]),
-                       relay_port=int(d["relay_port"]), python=str(d["python"]))
-
-
-# kind (``HostAccess.kind``) -> the record that reads ``describe()``'s output back
-ACCESS_KINDS: dict[str, Callable[[Mapping[str, Any]], HostAccess]] = {"ssh": _ssh_from_dict,
-                                                                       "local": _local_from_dict}
-
-
-def access_from_dict(data: Mapping[str, Any]) -> HostAccess:
-    """Inverse of ``describe()``: how ``fogiac logs``/``ssh`` find a provisioned host again."""
-    try:
-        return ACCESS_KINDS[str(data["kind"])](data)
-    except KeyError:
-        raise ProvisionError(
-            f"unknown host access kind {data.get('kind')!r}; valid: {', '.join(ACCESS_KINDS)}"
-        ) from None
-
-
-def recorded_access(state_dir: Path) -> dict[str, tuple[HostAccess, str, tuple[str, ...]]]:
-    """{host: (access, base folder, nodes)} as the last provisioning recorded them."""
+def recorded_hosts(state_dir: Path) -> dict[str, dict[str, Any]]:
+    """{host: its record entry} as the last provisioning wrote them: the access description, ``base``
+    and ``nodes``. Read as data: whether anything is recorded needs no target to rebuild it."""
     found = StackState.at(state_dir).section(StackState.HOSTS)
     if found is None or found.value is None:
         return {}
     if not isinstance(found.value, Mapping) or not all(isinstance(e, Mapping) for e in found.value.values()):
         raise ProvisionError(f"{found.where}: not fogiac's record of provisioned hosts (each host should be a "
                              "mapping); remove it if the stack is gone")
-    return {name: (access_from_dict(entry), str(entry.get("base", "")), tuple(entry.get("nodes", ())))
-            for name, entry in found.value.items()}
+    return {name: dict(entry) for name, entry in found.value.items()}
+
+
+def recorded_access(state_dir: Path, rebuild: Callable[[Mapping[str, Any]], A]
+                    ) -> dict[str, tuple[A, str, tuple[str, ...]]]:
+    """{host: (access, base folder, nodes)} as the last provisioning recorded them; ``rebuild`` is the
+    target's (:meth:`~fogiac.lifecycle.driver.Target.access_from`): each description goes back to the
+    target that made it, so fogiac keeps no table of access kinds."""
+    return {name: (rebuild({k: v for k, v in entry.items() if k not in _NOT_ACCESS}), str(entry.get("base", "")),
+                   tuple(entry.get("nodes", ())))
+            for name, entry in recorded_hosts(state_dir).items()}
 
 
 def _stop_one(plan: Plan, spec: HostSpec, access: HostAccess, *, known_hosts: Path, remove: bool) -> HostOutcome:
@@ -221,10 +208,7 @@ def _stop_one(plan: Plan, spec: HostSpec, access: HostAccess, *, known_hosts: Pa
         detail = f"stopped {', '.join(stopped)}" if stopped else "nothing running"
         status = CHANGED if stopped else "ok"
         if remove:
-            if isinstance(access, LocalAccess):
-                shutil.rmtree(access.sandbox, ignore_errors=True)
-            elif host.base.count("/") >= 2:  # never "" or "/": only fogiac's own folder
-                host.run(f"rm -rf -- {q(host.base)}")
+            access.remove_base(host)  # the access knows its folder: a sandbox entirely, a remote one by path
             detail += "; removed files"
     except FogiacError as err:
         error, status, detail = str(err), "failed", str(err)

@@ -8,15 +8,16 @@ paramiko are the ``ssh`` extra, imported when a connection opens, not when this 
 
 from __future__ import annotations
 
+import os
 import threading
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, ClassVar
 
 from fogiac.errors import HostKeyError, ProvisionError
 from fogiac.extras import need
-from fogiac.plan.model import RELAY_PORT, ROS_MASTER_PORT
 from fogiac.procs import poll
 from fogiac.provision import hostkeys
 from fogiac.provision.host import Host, Result, q
@@ -47,12 +48,12 @@ class SshAccess:
     python: str = "python3"
     connect_timeout: float = 60.0
     ship_code: bool = True
-    master_port: int = ROS_MASTER_PORT  # the plan's (a shared lab machine's are the stack's own)
-    relay_port: int = RELAY_PORT
+
+    KIND: ClassVar[str] = "ssh"
 
     @property
     def kind(self) -> str:
-        return "ssh"
+        return self.KIND
 
     @property
     def ros_address(self) -> str:
@@ -66,9 +67,33 @@ class SshAccess:
         return SshHost(name=name, access=self, known_hosts=known_hosts, stack=stack)
 
     def describe(self) -> dict[str, object]:
-        return {"kind": "ssh", "address": self.address, "user": self.user, "port": self.port,
-                "key": str(self.key), "base_dir": self.base_dir, "python": self.python,
-                "master_port": self.master_port, "relay_port": self.relay_port}
+        return {"kind": self.KIND, "address": self.address, "user": self.user, "port": self.port,
+                "key": str(self.key), "base_dir": self.base_dir, "python": self.python}
+
+    @classmethod
+    def from_description(cls, d: Mapping[str, Any]) -> SshAccess:
+        """Inverse of :meth:`describe`; a record written before the ports left the access (its
+        ``master_port``/``relay_port``) reads the same: those keys are not the access's."""
+        if d.get("kind") != cls.KIND:
+            raise ProvisionError(f"recorded host access of kind {d.get('kind')!r} is not {cls.KIND!r}")
+        return cls(address=str(d["address"]), user=str(d["user"]), port=int(d["port"]), key=Path(str(d["key"])),
+                   base_dir=d.get("base_dir"), python=str(d["python"]))
+
+    def _argv(self, known_hosts: Path, *remote: str, tty: bool) -> list[str]:
+        """OpenSSH with the key and the pinned host keys provisioning used (never ~/.ssh/config's)."""
+        return ["ssh", *(["-t"] if tty else []), "-i", str(self.key), "-p", str(self.port), "-o", "IdentitiesOnly=yes",
+                "-o", f"UserKnownHostsFile={known_hosts}", "-o", "StrictHostKeyChecking=yes",
+                f"{self.user}@{self.address}", *remote]
+
+    def follow_argv(self, command: str, *, known_hosts: Path) -> list[str]:
+        return self._argv(known_hosts, command, tty=False)
+
+    def shell_argv(self, *, base: str, known_hosts: Path) -> tuple[list[str], str]:
+        return self._argv(known_hosts, f"cd {q(base)} && exec $SHELL -l", tty=True), os.getcwd()
+
+    def remove_base(self, host: Host) -> None:
+        if host.base.count("/") >= 2:  # never "" or "/": only fogiac's own folder
+            host.run(f"rm -rf -- {q(host.base)}")
 
 
 class SshHost:

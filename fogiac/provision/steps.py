@@ -19,7 +19,7 @@ from fogiac.net import middleware
 from fogiac.net.middleware import Deployment, Middleware
 from fogiac.plan.model import HostSpec, Plan
 from fogiac.provision import runtimes, venv
-from fogiac.provision.host import Host, HostAccess, q
+from fogiac.provision.host import Host, HostAccess, HostPorts, planned_ports, q
 from fogiac.provision.managers import Manager, manager_for
 from fogiac.provision.probe import Facts, gather
 from fogiac.provision.runtimes.base import CHANGED as CHANGED
@@ -62,6 +62,7 @@ class HostRun:
     systemd: bool | None = None  # whether the runtime step's probe saw systemd as PID 1; None: not probed
     files_pushed: int = 0
     digests: dict[str, str] = field(default_factory=dict)
+    ports: HostPorts | None = None  # what the host's services listen on, where the target chose; None: the plan's
     _manager: Manager | None = field(default=None, init=False, repr=False)
 
     @property
@@ -87,8 +88,9 @@ class HostRun:
 
     def where(self) -> Where:
         code_root = self.layout.lib if self.access.ship_code else str(package_dir("fogiac").parent)
-        return Where(layout=self.layout, runtime=self.chosen, master_port=self.access.master_port,
-                         relay_port=self.access.relay_port, ros_address=self.access.ros_address,
+        ports = self.ports or planned_ports(self.plan)[self.spec.name]
+        return Where(layout=self.layout, runtime=self.chosen, master_port=ports.master_port,
+                         relay_port=ports.relay_port, ros_address=self.access.ros_address,
                          python=self.venv_python or self.access.python, code_root=code_root, user=self.access.user,
                          workspace_digests=tuple(sorted(self.digests.items())), engine=self.engine or "docker",
                          images=tuple(sorted(self.images.items())),

@@ -2,8 +2,10 @@
 
 Nothing to create, everything to provision: the lifecycle provisions every host and connects
 the edge; ``down`` stops what fogiac runs there and proves it. A subclass says how to reach
-each host (:meth:`access`), which address the edge dials (:meth:`connect_address`), what of its
-own could be left (:meth:`leftovers`) and how to read a host's node states (:meth:`node_states`).
+each host (:meth:`access`, and :attr:`access_kind`, the access class whose recorded
+descriptions it reads back), what its services listen on where the plan does not say
+(:meth:`ports`), which address the edge dials (:meth:`connect_address`), what of its own could
+be left (:meth:`leftovers`) and how to read a host's node states (:meth:`node_states`).
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ from fogiac.lifecycle.events import OnEvent
 from fogiac.lifecycle.report import autostop_line, duration
 from fogiac.plan import guard
 from fogiac.plan.model import HostSpec, Plan
-from fogiac.provision import HostAccess, idle, recorded_access
+from fogiac.provision import HostAccess, HostPorts, idle, planned_ports, recorded_access
 from fogiac.state import StackState
 from fogiac.tables import table
 
@@ -39,14 +41,22 @@ class ExistingMachines:
 
     name = ""
     summary = ""
-    features: frozenset[Feature] = frozenset()
+    features: frozenset[Feature] = frozenset({Feature.PROVISIONS})
     no_cloud = "has no cloud account: nothing to {verb}"
+    access_kind: Any = None  # the HostAccess class this target makes: its ``from_description`` reads the record
 
     def access(self, plan: Plan, *, state_dir: Path) -> Mapping[str, HostAccess]:
         raise NotImplementedError
 
-    def connect_address(self, plan: Plan, host: str, access: HostAccess) -> str:
-        return f"{access.address}:{next(r.port for r in plan.routes if r.host == host)}"  # type: ignore[attr-defined]
+    def ports(self, plan: Plan, *, state_dir: Path) -> Mapping[str, HostPorts]:
+        return planned_ports(plan)
+
+    def connect_address(self, plan: Plan, host: str, access: HostAccess, ports: HostPorts) -> str:
+        return f"{access.ros_address}:{ports.relay_port}"
+
+    def access_from(self, description: Mapping[str, Any]) -> HostAccess:
+        found: HostAccess = self.access_kind.from_description(description)
+        return found
 
     def leftovers(self, plan: Plan, folder: Path) -> list[str]:
         return []
@@ -75,8 +85,10 @@ class ExistingMachines:
         return Created(plan=plan)
 
     def reach(self, plan: Plan, created: Created, *, announce: Callable[[str], None]) -> Reach:
-        access = self.access(plan, state_dir=StackState(plan.stack).ensure())
-        return Reach(access=access, connect={host: self.connect_address(plan, host, a) for host, a in access.items()})
+        folder = StackState(plan.stack).ensure()
+        access, ports = self.access(plan, state_dir=folder), self.ports(plan, state_dir=folder)
+        return Reach(access=access, ports=ports,
+                     connect={host: self.connect_address(plan, host, a, ports[host]) for host, a in access.items()})
 
     def recorded(self, plan: Plan) -> bool:
         return False  # what these targets record is provisioning's access record, which the lifecycle reads
@@ -100,7 +112,7 @@ class ExistingMachines:
         """Hosts (address, uptime, cost so far, nodes, autostop) and the cost guard."""
         record = deployment.read(plan.stack)
         record = record if record is not None and record.exists else None
-        recorded = recorded_access(StackState(plan.stack).folder)
+        recorded = recorded_access(StackState(plan.stack).folder, self.access_from)
         uptime = max(0.0, time.time() - record.since_epoch) if record else 0.0
         watched = self.autostop_states(plan, recorded)
         hosts = [{"host": spec.name, "machine": spec.machine,

@@ -65,7 +65,7 @@ def replicated(tmp_path: Path, hosts: list[LabHost], key: Path, *,
     by_name = {h.name: h for h in hosts}
     access = {n: replace(a, base_dir=str(by_name[n].base_dir / "reps"), ship_code=False)
               for n, a in HOSTS.access(plan, state_dir=tmp_path, python=sys.executable).items()}
-    connect = {n: f"{a.address}:{a.relay_port}" for n, a in access.items()}
+    connect = {n: f"{a.address}:{plan.host(n).relay_port}" for n, a in access.items()}
     try:
         provision_and_connect(plan, access=access, connect=connect, master=plan.edge_master)
         wait_for(lambda: all(r.get("connected") for r in group_stats(plan).get("replicas", [{}])), 60,

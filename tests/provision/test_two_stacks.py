@@ -50,8 +50,8 @@ def test_stacks_on_shared_hosts_get_ports_of_their_own_and_aws_hosts_keep_ros_de
     assert (a.master_port, a.relay_port) == stack_ports("alpha-dev") == stack_ports("alpha-dev")
     assert {a.master_port, a.relay_port}.isdisjoint({b.master_port, b.relay_port, ROS_MASTER_PORT, RELAY_PORT})
     assert alpha.routes[0].port == a.relay_port and 20000 <= a.master_port < 30000
-    (access,) = HOSTS.access(alpha, state_dir=tmp_path).values()
-    assert (access.master_port, access.relay_port) == (a.master_port, a.relay_port)
+    (ports,) = HOSTS.ports(alpha, state_dir=tmp_path).values()  # what the target hands provisioning beside the access
+    assert (ports.master_port, ports.relay_port) == (a.master_port, a.relay_port)
     (own,) = _plan(tmp_path, "alpha", provider="aws").hosts  # an instance of its own: ROS's usual ports
     assert (own.master_port, own.relay_port) == (ROS_MASTER_PORT, None)
 

@@ -68,7 +68,7 @@ nodes:
         plan = compile_plan(load_manifest(manifest))
         access = {n: replace(a, base_dir=str(host.base_dir))
                   for n, a in HOSTS.access(plan, state_dir=tmp_path, python=SYSTEM_PYTHON).items()}
-        connect = {n: f"{a.address}:{a.relay_port}" for n, a in access.items()}
+        connect = {n: f"{a.address}:{plan.host(n).relay_port}" for n, a in access.items()}
         try:
             done = provision_and_connect(plan, access=access, connect=connect, master=plan.edge_master)
             (outcome,) = done.report.hosts

@@ -78,6 +78,9 @@ class FakeTarget:
     def reach(self, plan: Plan, created: Created, *, announce: Callable[[str], None]) -> Reach:
         raise PlanError("fake machines cannot be reached")
 
+    def access_from(self, description: Mapping[str, Any]) -> Any:
+        raise PlanError("fake machines cannot be reached")
+
     def recorded(self, plan: Plan) -> bool:
         return self._file(plan).exists()
 

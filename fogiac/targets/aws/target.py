@@ -62,7 +62,7 @@ class _Preflight:
 class AwsTarget:
     name = "aws"
     summary = "EC2 machines in their own VPC, through a Client VPN (or proxy mode), made with Pulumi"
-    features = frozenset({Feature.CREATES_MACHINES, Feature.INFRA_ONLY, Feature.KEEP_NETWORK})
+    features = frozenset({Feature.CREATES_MACHINES, Feature.PROVISIONS, Feature.INFRA_ONLY, Feature.KEEP_NETWORK})
 
     def place(self, manifest: Manifest, *, stack: str, tags: Tags) -> Placement:
         return placement.place(manifest, stack=stack, tags=tags)
@@ -146,6 +146,10 @@ class AwsTarget:
         access, connect = access_from_outputs(plan, outputs, fingerprints=lambda iid: pinned_host_keys(
             plan.stack, iid, fetch=lambda: api.host_fingerprints(iid, region=plan.region)))
         return Reach(access=access, connect=connect)
+
+    def access_from(self, description: Mapping[str, Any]) -> SshAccess:
+        """Its instances are reached over SSH only (the host keys pinned apart, in ``host-keys.json``)."""
+        return SshAccess.from_description(description)
 
     # -- down -------------------------------------------------------------------------------------
 
@@ -280,13 +284,13 @@ def watchdogs(plan: Plan, rows: list[api.InstanceStatus]) -> dict[str, dict[str,
     folder = state.folder
     if plan.autostop is None or not folder.exists():
         return {}
-    recorded = recorded_access(folder)
+    recorded = recorded_access(folder, SshAccess.from_description)
     pinned = read_json(state.target_file(HOST_KEYS_FILE)) or {}
     ask: dict[str, tuple[Any, str]] = {}
     unpinned: dict[str, dict[str, Any] | None] = {}
     for r in rows:
         entry = recorded.get(r.name)
-        if r.state != "running" or entry is None or not isinstance(entry[0], SshAccess) or not r.public_ip:
+        if r.state != "running" or entry is None or not r.public_ip:
             continue
         keys = tuple(pinned.get(r.instance_id) or ())
         if not keys:

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from fogiac.errors import ProvisionError
 from fogiac.manifest.schema import Manifest
-from fogiac.plan.model import RELAY_PORT, Plan
+from fogiac.plan.model import Plan
 from fogiac.plan.placement import Placement, Tags
 from fogiac.provision import SshAccess
 from fogiac.targets.base import Check
@@ -26,6 +26,8 @@ class HostsTarget(ExistingMachines):
     def place(self, manifest: Manifest, *, stack: str, tags: Tags) -> Placement:
         return placement.place(manifest, stack=stack, tags=tags)
 
+    access_kind = SshAccess
+
     def access(self, plan: Plan, *, state_dir: Path, python: str = "python3",
                connect_timeout: float = 60.0) -> Mapping[str, SshAccess]:
         out: dict[str, SshAccess] = {}
@@ -33,8 +35,7 @@ class HostsTarget(ExistingMachines):
             if not (spec.address and spec.user and spec.key):
                 raise ProvisionError(f"host {spec.name}: the plan lacks its address, user or key")
             out[spec.name] = SshAccess(address=spec.address, user=spec.user, port=spec.port or 22, key=Path(spec.key),
-                                       python=python, connect_timeout=connect_timeout, master_port=spec.master_port,
-                                       relay_port=spec.relay_port or RELAY_PORT)
+                                       python=python, connect_timeout=connect_timeout)
         return out
 
     def doctor(self, plan: Plan, *, ssh_from: str | None = None) -> list[Check]:

@@ -11,8 +11,8 @@ from typing import Any
 from fogiac.manifest.schema import Manifest
 from fogiac.plan.model import HostSpec, Plan
 from fogiac.plan.placement import Placement, Tags
-from fogiac.provision import LocalAccess, supervise
-from fogiac.provision.local import PORTS_FILE, local_access, sandbox_root
+from fogiac.provision import HostPorts, LocalAccess, supervise
+from fogiac.provision.local import PORTS_FILE, local_access, local_ports, sandbox_root
 from fogiac.state import StackState
 from fogiac.targets.base import Check
 from fogiac.targets.existing import ExistingMachines
@@ -26,11 +26,13 @@ class LocalTarget(ExistingMachines):
     def place(self, manifest: Manifest, *, stack: str, tags: Tags) -> Placement:
         return placement.place(manifest, stack=stack, tags=tags)
 
+    access_kind = LocalAccess
+
     def access(self, plan: Plan, *, state_dir: Path) -> Mapping[str, LocalAccess]:
         return local_access(plan, state_dir=state_dir)
 
-    def connect_address(self, plan: Plan, host: str, access: Any) -> str:
-        return f"127.0.0.1:{access.relay_port}"
+    def ports(self, plan: Plan, *, state_dir: Path) -> Mapping[str, HostPorts]:
+        return local_ports(plan, state_dir=state_dir)  # a sandbox's own: they share this machine
 
     def leftovers(self, plan: Plan, folder: Path) -> list[str]:
         return [f"sandbox {p}" for p in sorted(sandbox_root(folder).glob("*")) if p.is_dir()]

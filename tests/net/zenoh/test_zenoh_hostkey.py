@@ -25,7 +25,7 @@ from tests.support.tls import private_keys_under, public_der
 
 def _run(tmp_path: Path, plan: Plan, *, dialed: dict[str, str]) -> HostRun:
     spec = plan.hosts[0]
-    access = LocalAccess(sandbox=tmp_path / "host", master_port=1, relay_port=2)
+    access = LocalAccess(sandbox=tmp_path / "host")
     host = access.open(name=spec.name, known_hosts=tmp_path / "known_hosts", stack=plan.stack)
     host.connect()
     return HostRun(plan=plan, spec=spec, access=access, host=host,

@@ -24,7 +24,7 @@ from fogiac.manifest.schema import Manifest
 from fogiac.plan.model import Plan
 from fogiac.plan.placement import Placement, Tags
 from fogiac.provision import teardown
-from fogiac.provision.local import PORTS_FILE, local_access, sandbox_root
+from fogiac.provision.local import PORTS_FILE, LocalAccess, local_access, local_ports, sandbox_root
 from fogiac.pulumi_engine import offline
 from fogiac.pulumi_engine.engine import Engine
 from fogiac.state import stack_dir
@@ -37,7 +37,7 @@ CLOUD_FILE = "nimbus-cloud.json"  # what the nimbus API holds for the stack
 class NimbusTarget:
     name = "nimbus"
     summary = "nimbus machines (a cloud defined in the tests: sandboxes behind a stack program)"
-    features = frozenset({Feature.CREATES_MACHINES})
+    features = frozenset({Feature.CREATES_MACHINES, Feature.PROVISIONS})
 
     def _cloud(self, plan: Plan) -> Cloud:
         return Cloud(stack_dir(plan.stack) / CLOUD_FILE)
@@ -63,8 +63,12 @@ class NimbusTarget:
                        machines=tuple(Machine(h.name, ids[h.name], h.machine, "127.0.0.1") for h in plan.hosts))
 
     def reach(self, plan: Plan, created: Created, *, announce: Callable[[str], None]) -> Reach:
-        access = local_access(plan, state_dir=stack_dir(plan.stack))
-        return Reach(access=access, connect={h: f"127.0.0.1:{a.relay_port}" for h, a in access.items()})
+        ports = local_ports(plan, state_dir=stack_dir(plan.stack))
+        return Reach(access=local_access(plan, state_dir=stack_dir(plan.stack)), ports=ports,
+                     connect={h: f"127.0.0.1:{p.relay_port}" for h, p in ports.items()})
+
+    def access_from(self, description: Mapping[str, Any]) -> LocalAccess:
+        return LocalAccess.from_description(description)  # a nimbus machine is a sandbox here
 
     def recorded(self, plan: Plan) -> bool:
         return (stack_dir(plan.stack, create=False) / CLOUD_FILE).exists()

@@ -57,7 +57,7 @@ def test_the_router_certificate_names_what_the_edge_dials(tmp_path: Path, mode: 
     assert dialed_addresses(connect) == {spec.name: dialed}
 
     load_or_create_bundle(plan.stack, tmp_path / "certs")
-    sandbox = LocalAccess(sandbox=tmp_path / "instance", master_port=1, relay_port=2)
+    sandbox = LocalAccess(sandbox=tmp_path / "instance")
     run = HostRun(plan=plan, spec=spec, access=dataclasses.replace(sandbox, ros_address=PUBLIC),
                   host=sandbox.open(name=spec.name, known_hosts=tmp_path / "known_hosts", stack=plan.stack),
                   options=Options(certs_dir=tmp_path / "certs", dialed=dialed_addresses(connect)))

@@ -36,6 +36,7 @@ import argparse
 import os
 import statistics
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -46,6 +47,7 @@ from workloads.motion_planning.planner import Solution, warm_up  # noqa: E402
 from workloads.motion_planning.pool import WarmPlanner  # noqa: E402
 from workloads.motion_planning.problem import PROBLEMS_DIR, Problem, load_problem  # noqa: E402
 from workloads.motion_planning.rounds import Division  # noqa: E402
+from workloads.motion_planning.share import Phases  # noqa: E402
 
 PAIRS_RUNS = 5
 CURVE_RUNS = 2  # six problems at 1, 2, 4, 8 and 16 workers in 3-4 minutes on 16 cores (twistycool: half of it)
@@ -102,7 +104,31 @@ def describe(name: str, runs: list[tuple[Solution, Solution, Solution]], cores: 
                  f"{_median([d.projected_speedup(96) for d in many_div]):.1f}x at 96 (from CPU seconds: "
                  f"{_median([d.projected_speedup_cpu(16) for d in many_div]):.1f}x, "
                  f"{_median([d.projected_speedup_cpu(96) for d in many_div]):.1f}x)")
+    lines += phase_lines(name, [m.phases for _, _, m in runs if m.solved and m.phases is not None])
     return lines
+
+
+def phase_lines(name: str, phases: list[Phases]) -> list[str]:
+    """The solve's split by phase in CPU seconds (medians), and its serial share: the part one worker runs
+    while the others wait, or every worker repeats (one copy counted), over one worker's equivalent."""
+    if not phases:
+        return []
+    n = phases[0].workers
+
+    def med(f: Callable[[Phases], float]) -> float:
+        return _median([f(p) for p in phases])
+
+    return [f"  {name}: the solve in CPU seconds, all {n} workers (medians of {len(phases)}): search "
+            f"{med(lambda p: p.search_cpu_s):.3f} (of which drawing and merging, per worker "
+            f"{med(lambda p: p.merge_cpu_s):.4f}), lift alone {med(lambda p: p.lift_cpu_s):.4f}, finish "
+            f"{med(lambda p: sum(p.finish_cpu_s)):.3f} (pieces per worker "
+            f"{'/'.join(str(c) for c in phases[0].finish_claims) or '-'}); wall: solve "
+            f"{med(lambda p: p.solve_wall_s):.3f} s, search {med(lambda p: p.search_wall_s):.3f}, lift alone "
+            f"{med(lambda p: p.lift_wall_s):.4f}, finish {med(lambda p: p.finish_wall_s):.3f} (waiting for the "
+            f"last piece {med(lambda p: p.finish_wait_s):.4f}); serial share of the solve's CPU seconds median "
+            f"{med(lambda p: p.serial_cpu_share):.2%} (max {max(p.serial_cpu_share for p in phases):.2%}); "
+            f"projection (Amdahl on that share, not a measurement): {med(lambda p: p.projected_speedup_cpu(16)):.1f}x "
+            f"at 16 cores, {med(lambda p: p.projected_speedup_cpu(96)):.1f}x at 96"]
 
 
 def main() -> None:

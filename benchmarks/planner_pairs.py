@@ -104,8 +104,32 @@ def describe(name: str, runs: list[tuple[Solution, Solution, Solution]], cores: 
                  f"{_median([d.projected_speedup(96) for d in many_div]):.1f}x at 96 (from CPU seconds: "
                  f"{_median([d.projected_speedup_cpu(16) for d in many_div]):.1f}x, "
                  f"{_median([d.projected_speedup_cpu(96) for d in many_div]):.1f}x)")
+    lines += round_lines(name, many_div)
     lines += phase_lines(name, [m.phases for _, _, m in runs if m.solved and m.phases is not None])
     return lines
+
+
+def round_lines(name: str, divs: list[Division]) -> list[str]:
+    """Per round of the divided search (medians over the runs): the CPU each worker spends drawing and merging
+    it (every worker does it all), the tasks' CPU (all workers), and the merge's share of a worker's CPU per
+    round; then what those per-sample costs give at 16 workers (batch 4 per worker beyond 8), by Amdahl's law:
+    a projection, not a measurement."""
+    rows = [(d.rounds, sum(d.samples), sum(d.serial_cpu_s) / len(d.cpu_s), sum(d.cpu_s) - sum(d.serial_cpu_s))
+            for d in divs if d.rounds and sum(d.samples) and d.cpu_s]
+    if not rows:
+        return []
+    n = len(divs[0].cpu_s)
+    merge = _median([m / r for r, _, m, _ in rows])  # per worker per round
+    tasks = _median([t / r for r, _, _, t in rows])  # all workers per round
+    per_sample_m = _median([m / s for _, s, m, _ in rows])  # a worker's merge CPU per sample of the round
+    per_sample_t = _median([t / s for _, s, _, t in rows])  # the tasks' CPU per sample
+    at16 = per_sample_m / (per_sample_m + per_sample_t / 16)
+    return [f"  {name}: per round (medians of {len(rows)}; {_median([float(r) for r, *_ in rows]):.0f} rounds, "
+            f"{_median([s / r for r, s, _, _ in rows]):.0f} samples each): drawing and merging {merge * 1e3:.2f} ms "
+            f"CPU per worker, tasks {tasks * 1e3:.2f} ms CPU over the {n} workers: the merge is "
+            f"{merge / (merge + tasks / n):.1%} of a worker's CPU per round; projection (Amdahl from these per-sample "
+            f"costs, not a measurement): {at16:.1%} at 16 workers, the search alone at most "
+            f"{(per_sample_m + per_sample_t) / (per_sample_m + per_sample_t / 16):.1f}x there"]
 
 
 def phase_lines(name: str, phases: list[Phases]) -> list[str]:

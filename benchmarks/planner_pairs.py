@@ -144,7 +144,8 @@ def phase_lines(name: str, phases: list[Phases]) -> list[str]:
 
     return [f"  {name}: the solve in CPU seconds, all {n} workers (medians of {len(phases)}): search "
             f"{med(lambda p: p.search_cpu_s):.3f} (of which drawing and merging, per worker "
-            f"{med(lambda p: p.merge_cpu_s):.4f}), lift alone {med(lambda p: p.lift_cpu_s):.4f}, finish "
+            f"{med(lambda p: p.merge_cpu_s):.4f}), lift alone {med(lambda p: p.lift_cpu_s):.4f}, the caller's "
+            f"thread {med(lambda p: p.parent_cpu_s):.4f}, finish "
             f"{med(lambda p: sum(p.finish_cpu_s)):.3f} (pieces per worker "
             f"{'/'.join(str(c) for c in phases[0].finish_claims) or '-'}); wall: solve "
             f"{med(lambda p: p.solve_wall_s):.3f} s, search {med(lambda p: p.search_wall_s):.3f}, lift alone "

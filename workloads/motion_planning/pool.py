@@ -127,6 +127,7 @@ class WarmPlanner:
                                       resolution=resolution)
         with self._lock:
             self._replace_dead()
+            parent_cpu = time.thread_time()  # this thread's work for the request: handing out, gathering, joining
             simplify = self.simplify_time if simplify_time is None else simplify_time
             sharing = self.mode == "share" and self.workers > 1
             request = {"name": name, "start": start or problem.start, "goal": goal or problem.goal,
@@ -152,7 +153,7 @@ class WarmPlanner:
                                              deadline=t0 + limit + simplify + 30.0)
             elapsed = time.perf_counter() - t0
         if winner is not None and "phase" in winner:
-            winner = {**winner, "phases": _phases(self.workers, elapsed, winner)}
+            winner = {**winner, "phases": _phases(self.workers, elapsed, winner, time.thread_time() - parent_cpu)}
         return solution_from(winner, statuses, cores=self.workers, elapsed=elapsed, planner=self.planner)
 
     def _race(self, request: dict[str, Any], *, deadline: float) -> tuple[dict[str, Any] | None, list[str]]:
@@ -430,11 +431,11 @@ def _finish_figures(reports: list[dict[str, Any] | None], wall: float) -> dict[s
             "claims": tuple(int(r.get("claims", 1)) for r in done)}
 
 
-def _phases(workers: int, elapsed: float, report: dict[str, Any]) -> Phases:
+def _phases(workers: int, elapsed: float, report: dict[str, Any], parent_cpu: float) -> Phases:
     phase, finish = report["phase"], report.get("finish") or {"wall_s": 0.0, "cpu_s": (), "busy_s": (), "claims": ()}
     return Phases(workers, elapsed, phase["search_wall_s"], phase["search_cpu_s"], phase["merge_cpu_s"],
                   phase["lift_wall_s"], phase["lift_cpu_s"], finish["wall_s"], finish["cpu_s"], finish["busy_s"],
-                  finish["claims"])
+                  finish["claims"], parent_cpu)
 
 
 def _serve(problems: Mapping[str, Problem], planner: str, seed: int, index: int, flag: Any, sync: Sync,

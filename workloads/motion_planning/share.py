@@ -104,8 +104,9 @@ class Phases:
 
     CPU seconds are the figures other jobs' load does not stretch (on a shared machine the wall can
     be half another job's). Serial CPU: one copy of the search's per-round draws and merges (every
-    worker runs them; the other copies are repeated, not divided, work) plus any step one worker runs
-    alone (``lift_cpu_s``: lifting the found path before it is cut, when that is not done in pieces).
+    worker runs them; the other copies are repeated, not divided, work), any step one worker runs alone
+    (``lift_cpu_s``: lifting the found path before it is cut, when that is not done in pieces), and the
+    caller's own thread (``parent_cpu_s``: handing the request out, gathering and joining the reports).
     """
 
     workers: int
@@ -119,14 +120,15 @@ class Phases:
     finish_cpu_s: tuple[float, ...]  # per worker
     finish_busy_s: tuple[float, ...]  # per worker: wall seconds on its pieces
     finish_claims: tuple[int, ...] = ()  # pieces each worker finished (claimed from a shared counter)
+    parent_cpu_s: float = 0.0  # the calling thread's: handing the request out, gathering and joining the reports
 
     @property
     def total_cpu_s(self) -> float:
-        return self.search_cpu_s + self.lift_cpu_s + sum(self.finish_cpu_s)
+        return self.search_cpu_s + self.lift_cpu_s + sum(self.finish_cpu_s) + self.parent_cpu_s
 
     @property
     def serial_cpu_s(self) -> float:
-        return self.merge_cpu_s + self.lift_cpu_s
+        return self.merge_cpu_s + self.lift_cpu_s + self.parent_cpu_s
 
     @property
     def serial_cpu_share(self) -> float:
@@ -153,5 +155,6 @@ class Phases:
                 "lift_wall_s": self.lift_wall_s, "lift_cpu_s": self.lift_cpu_s,
                 "finish_wall_s": self.finish_wall_s, "finish_cpu_s": list(self.finish_cpu_s),
                 "finish_busy_s": list(self.finish_busy_s), "finish_claims": list(self.finish_claims),
+                "parent_cpu_s": self.parent_cpu_s,
                 "serial_cpu_s": self.serial_cpu_s, "serial_cpu_share": self.serial_cpu_share,
                 "total_cpu_s": self.total_cpu_s}

@@ -228,6 +228,11 @@ def curve(problems: dict[str, Problem], counts: list[int], *, runs: int, seed: i
                       f"{_median([sum(d.cpu_s) / d.wall_s for d in divs if d.wall_s]):.2f}, solve "
                       f"{_median([c for _, c in rows]):.2f}; solved {sum(s.solved for s in sols)}/{runs}",
                       flush=True)
+                # per round and per phase at this count: on a many-core machine, where the merge's share and the
+                # solve's serial CPU are measured rather than projected
+                phases = [s.phases for s in sols if s.solved and s.phases is not None]
+                for line in round_lines(name, divs) + phase_lines(name, phases):
+                    print(f"  {n:>3} workers {line.strip()}", flush=True)
                 last[name] = divs
     for name, divs in last.items():
         if divs:

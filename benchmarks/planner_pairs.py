@@ -36,6 +36,7 @@ import argparse
 import os
 import statistics
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -46,6 +47,7 @@ from workloads.motion_planning.planner import Solution, warm_up  # noqa: E402
 from workloads.motion_planning.pool import WarmPlanner  # noqa: E402
 from workloads.motion_planning.problem import PROBLEMS_DIR, Problem, load_problem  # noqa: E402
 from workloads.motion_planning.rounds import Division  # noqa: E402
+from workloads.motion_planning.share import Phases  # noqa: E402
 
 PAIRS_RUNS = 5
 CURVE_RUNS = 2  # six problems at 1, 2, 4, 8 and 16 workers in 3-4 minutes on 16 cores (twistycool: half of it)
@@ -102,7 +104,56 @@ def describe(name: str, runs: list[tuple[Solution, Solution, Solution]], cores: 
                  f"{_median([d.projected_speedup(96) for d in many_div]):.1f}x at 96 (from CPU seconds: "
                  f"{_median([d.projected_speedup_cpu(16) for d in many_div]):.1f}x, "
                  f"{_median([d.projected_speedup_cpu(96) for d in many_div]):.1f}x)")
+    lines += round_lines(name, many_div)
+    lines += phase_lines(name, [m.phases for _, _, m in runs if m.solved and m.phases is not None])
     return lines
+
+
+def round_lines(name: str, divs: list[Division]) -> list[str]:
+    """Per round of the divided search (medians over the runs): the CPU each worker spends drawing and merging
+    it (every worker does it all), the tasks' CPU (all workers), and the merge's share of a worker's CPU per
+    round; then what those per-sample costs give at 16 workers (batch 4 per worker beyond 8), by Amdahl's law:
+    a projection, not a measurement."""
+    rows = [(d.rounds, sum(d.samples), sum(d.serial_cpu_s) / len(d.cpu_s), sum(d.cpu_s) - sum(d.serial_cpu_s))
+            for d in divs if d.rounds and sum(d.samples) and d.cpu_s]
+    if not rows:
+        return []
+    n = len(divs[0].cpu_s)
+    merge = _median([m / r for r, _, m, _ in rows])  # per worker per round
+    tasks = _median([t / r for r, _, _, t in rows])  # all workers per round
+    per_sample_m = _median([m / s for _, s, m, _ in rows])  # a worker's merge CPU per sample of the round
+    per_sample_t = _median([t / s for _, s, _, t in rows])  # the tasks' CPU per sample
+    at16 = per_sample_m / (per_sample_m + per_sample_t / 16)
+    return [f"  {name}: per round (medians of {len(rows)}; {_median([float(r) for r, *_ in rows]):.0f} rounds, "
+            f"{_median([s / r for r, s, _, _ in rows]):.0f} samples each): drawing and merging {merge * 1e3:.2f} ms "
+            f"CPU per worker, tasks {tasks * 1e3:.2f} ms CPU over the {n} workers: the merge is "
+            f"{merge / (merge + tasks / n):.1%} of a worker's CPU per round; projection (Amdahl from these per-sample "
+            f"costs, not a measurement): {at16:.1%} at 16 workers, the search alone at most "
+            f"{(per_sample_m + per_sample_t) / (per_sample_m + per_sample_t / 16):.1f}x there"]
+
+
+def phase_lines(name: str, phases: list[Phases]) -> list[str]:
+    """The solve's split by phase in CPU seconds (medians), and its serial share: the part one worker runs
+    while the others wait, or every worker repeats (one copy counted), over one worker's equivalent."""
+    if not phases:
+        return []
+    n = phases[0].workers
+
+    def med(f: Callable[[Phases], float]) -> float:
+        return _median([f(p) for p in phases])
+
+    return [f"  {name}: the solve in CPU seconds, all {n} workers (medians of {len(phases)}): search "
+            f"{med(lambda p: p.search_cpu_s):.3f} (of which drawing and merging, per worker "
+            f"{med(lambda p: p.merge_cpu_s):.4f}), lift alone {med(lambda p: p.lift_cpu_s):.4f}, the caller's "
+            f"thread {med(lambda p: p.parent_cpu_s):.4f}, finish "
+            f"{med(lambda p: sum(p.finish_cpu_s)):.3f} (pieces per worker "
+            f"{'/'.join(str(c) for c in phases[0].finish_claims) or '-'}); wall: solve "
+            f"{med(lambda p: p.solve_wall_s):.3f} s, search {med(lambda p: p.search_wall_s):.3f}, lift alone "
+            f"{med(lambda p: p.lift_wall_s):.4f}, finish {med(lambda p: p.finish_wall_s):.3f} (waiting for the "
+            f"last piece {med(lambda p: p.finish_wait_s):.4f}); serial share of the solve's CPU seconds median "
+            f"{med(lambda p: p.serial_cpu_share):.2%} (max {max(p.serial_cpu_share for p in phases):.2%}); "
+            f"projection (Amdahl on that share, not a measurement): {med(lambda p: p.projected_speedup_cpu(16)):.1f}x "
+            f"at 16 cores, {med(lambda p: p.projected_speedup_cpu(96)):.1f}x at 96"]
 
 
 def main() -> None:
@@ -177,6 +228,11 @@ def curve(problems: dict[str, Problem], counts: list[int], *, runs: int, seed: i
                       f"{_median([sum(d.cpu_s) / d.wall_s for d in divs if d.wall_s]):.2f}, solve "
                       f"{_median([c for _, c in rows]):.2f}; solved {sum(s.solved for s in sols)}/{runs}",
                       flush=True)
+                # per round and per phase at this count: on a many-core machine, where the merge's share and the
+                # solve's serial CPU are measured rather than projected
+                phases = [s.phases for s in sols if s.solved and s.phases is not None]
+                for line in round_lines(name, divs) + phase_lines(name, phases):
+                    print(f"  {n:>3} workers {line.strip()}", flush=True)
                 last[name] = divs
     for name, divs in last.items():
         if divs:

@@ -28,6 +28,7 @@ from workloads.motion_planning.problem import Pose, Problem, validity_resolution
 
 if TYPE_CHECKING:  # rounds imports fcl-side code; a Solution only carries its record
     from workloads.motion_planning.rounds import Division
+    from workloads.motion_planning.share import Phases
 
 # name accepted on the CLI / in ROS params -> class in ompl.geometric
 PLANNERS = {
@@ -63,6 +64,7 @@ class Solution:
     pieces: int = 1  # how many workers simplified and proved a piece of the path (share mode)
     cpu_s: float = 0.0  # CPU seconds on the critical path (winner's search + its, or the slowest piece's, finish)
     division: Division | None = None  # the divided search's work per worker and serial time (mode divide)
+    phases: Phases | None = None  # the whole solve's split by phase, serial CPU included (mode divide)
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -73,6 +75,7 @@ class Solution:
             "check_resolution": self.check_resolution, "repairs": self.repairs,
             "pieces": self.pieces, "cpu_s": self.cpu_s,
             "division": self.division.as_dict() if self.division is not None else None,
+            "phases": self.phases.as_dict() if self.phases is not None else None,
             "path": [p.as_dict() for p in self.path],
         }
 
@@ -134,7 +137,8 @@ def solution_from(report: dict[str, Any] | None, statuses: list[str], *, cores: 
     return Solution(report["solved"], report["status"], path, cores, elapsed, report["plan_time_s"],
                     report.get("simplify_time_s", 0.0), report["index"], planner, report["checks"],
                     report.get("resolution", 0.0), report.get("check_resolution", 0.0), report.get("repairs", 0),
-                    report.get("pieces", 1), report.get("cpu_s", 0.0), report.get("division"))
+                    report.get("pieces", 1), report.get("cpu_s", 0.0), report.get("division"),
+                    report.get("phases"))
 
 
 def solve(problem: Problem, *, cores: int | None = None, time_limit: float | None = None,

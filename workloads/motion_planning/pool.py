@@ -51,12 +51,22 @@ from workloads.motion_planning.planner import (
 )
 from workloads.motion_planning.problem import Pose, Problem
 from workloads.motion_planning.rounds import Division, Sync, worker_step
-from workloads.motion_planning.share import DEFAULT_MODE, MODES, join_reports, simplify_shares, split_path
+from workloads.motion_planning.share import (
+    DEFAULT_MODE,
+    MODES,
+    Phases,
+    cut_indices,
+    join_reports,
+    simplify_shares,
+    split_path,
+)
 
 _READY_TIMEOUT_S = 120.0
 _STOP_GRACE_S = 2.0
 _IDLE_POLL_S = 1.0
 _DIED = "a worker died during the request"
+FINISH_PIECES_PER_WORKER = 3  # the divided finish's pieces: enough that claiming evens the work out, few enough
+# that the cut poses (kept in the answer: no shortcut passes them) cost the path little
 
 
 class WarmPlanner:
@@ -75,6 +85,7 @@ class WarmPlanner:
         self.workers, _, _ = check_request(any_problem, cores=workers, time_limit=None, planner=planner,
                                            resolution=None)
         self.planner, self.simplify_time = planner, simplify_time
+        self.planner_class = PLANNERS[planner]
         self._seed = seed if seed is not None else random.SystemRandom().randrange(2**31)
         self._ctx = worker_context()
         self._flag = self._ctx.RawValue("b", 0)
@@ -116,6 +127,7 @@ class WarmPlanner:
                                       resolution=resolution)
         with self._lock:
             self._replace_dead()
+            parent_cpu = time.thread_time()  # this thread's work for the request: handing out, gathering, joining
             simplify = self.simplify_time if simplify_time is None else simplify_time
             sharing = self.mode == "share" and self.workers > 1
             request = {"name": name, "start": start or problem.start, "goal": goal or problem.goal,
@@ -133,10 +145,15 @@ class WarmPlanner:
             if winner is not None and self.mode == "divide" and not sharing:
                 winner = self._finish_whole(name, winner, request, left=t0 + limit - time.perf_counter(),
                                             deadline=t0 + limit + simplify + 30.0)
+            elif winner is not None and self.mode == "divide":
+                winner = self._finish_divided(name, winner, request, left=t0 + limit - time.perf_counter(),
+                                              deadline=t0 + limit + simplify + 30.0)
             elif winner is not None and sharing:
                 winner = self._finish_shared(name, winner, request, left=t0 + limit - time.perf_counter(),
                                              deadline=t0 + limit + simplify + 30.0)
             elapsed = time.perf_counter() - t0
+        if winner is not None and "phase" in winner:
+            winner = {**winner, "phases": _phases(self.workers, elapsed, winner, time.thread_time() - parent_cpu)}
         return solution_from(winner, statuses, cores=self.workers, elapsed=elapsed, planner=self.planner)
 
     def _race(self, request: dict[str, Any], *, deadline: float) -> tuple[dict[str, Any] | None, list[str]]:
@@ -170,25 +187,33 @@ class WarmPlanner:
         if found is None:
             return None, [done[0]["status"]]
         division = Division.from_reports(done, wall)
+        phase = {"search_wall_s": wall, "search_cpu_s": sum(division.cpu_s),
+                 "merge_cpu_s": sum(division.serial_cpu_s) / len(done), "lift_wall_s": 0.0, "lift_cpu_s": 0.0}
+        first = {"plan_time_s": wall, "checks": sum(division.checks) + done[0]["setup_checks"],
+                 "cpu_s": max(division.busy_s), "phase": phase, "division": division, "path": found["path"],
+                 "index": None, "solved": True, "status": "first path"}
+        if self.workers > 1:
+            return first, []  # lifted in pieces, by the workers that finish them (_finish_divided)
         self._request_id += 1
+        lift_began = time.perf_counter()
         self._send(0, {"id": self._request_id, "name": name, "op": "lift", "path": found["path"],
                        "resolution": request["resolution"]})
         lifted = self._gather(self._request_id, 1, deadline=deadline)[0]
         if lifted is None:
             return None, ["a worker died during the request"]
-        return {"plan_time_s": wall, "checks": sum(division.checks) + done[0]["setup_checks"],
-                "cpu_s": max(division.busy_s),
-                "division": division, "path": lifted["path"], "index": None, "solved": True,
-                "status": "first path"}, []
+        phase.update(lift_wall_s=time.perf_counter() - lift_began, lift_cpu_s=lifted.get("cpu_s", 0.0))
+        return {**first, "path": lifted["path"]}, []
 
     def _finish_whole(self, name: str, first: dict[str, Any], request: dict[str, Any], *, left: float,
                       deadline: float) -> dict[str, Any]:
         """One worker simplifies and proves the whole first path (the divided search on one worker)."""
         self._request_id += 1
+        began = time.perf_counter()
         self._send(0, {"id": self._request_id, "name": name, "piece": [Pose(*p) for p in first["path"]],
                        "resolution": request["resolution"], "time_limit": max(1e-3, left),
                        "simplify_time": request["simplify_time"]})
-        return join_reports(first, self._gather(self._request_id, 1, deadline=deadline))
+        reports = self._gather(self._request_id, 1, deadline=deadline)
+        return {**join_reports(first, reports), "finish": _finish_figures(reports, time.perf_counter() - began)}
 
     def _finish_shared(self, name: str, first: dict[str, Any], request: dict[str, Any], *, left: float,
                        deadline: float) -> dict[str, Any]:
@@ -201,12 +226,13 @@ class WarmPlanner:
         pieces = split_path(path, self.workers, radius=radius)
         self._request_id += 1
         self._flag.value = 0
+        began = time.perf_counter()
         for i, share in enumerate(simplify_shares(pieces, request["simplify_time"], radius=radius)):
             self._send(i, {"id": self._request_id, "name": name, "piece": pieces[i],
                            "resolution": request["resolution"], "time_limit": max(1e-3, left / 2),
                            "simplify_time": share})
         reports = self._gather(self._request_id, len(pieces), deadline=deadline)
-        joined = join_reports(first, reports)
+        joined = {**join_reports(first, reports), "finish": _finish_figures(reports, time.perf_counter() - began)}
         left = end - time.perf_counter()
         if joined["solved"] or len(pieces) < 2 or any(r is None for r in reports) or left <= 0:
             return joined
@@ -219,6 +245,49 @@ class WarmPlanner:
         whole = join_reports(first, self._gather(self._request_id, 1, deadline=deadline))
         spent = max((r.get("cpu_s", 0.0) for r in reports if r), default=0.0)
         return {**whole, "cpu_s": whole["cpu_s"] + spent, "pieces": len(pieces) + 1}
+
+    def _finish_divided(self, name: str, first: dict[str, Any], request: dict[str, Any], *, left: float,
+                        deadline: float) -> dict[str, Any]:
+        """The divided search's finish: the found path cut into ``FINISH_PIECES_PER_WORKER`` pieces per worker,
+        which the workers claim one at a time from a shared counter and lift, simplify and prove
+        (``rounds.finish_pieces``); no worker lifts the whole path while the others wait. When a piece cannot
+        be proven, one worker finishes the whole path in the time left, as ``share`` does."""
+        end = time.perf_counter() + left
+        path = [Pose(*p) for p in first["path"]]
+        radius = self.problems[name].robot.radius()
+        cuts = cut_indices(path, FINISH_PIECES_PER_WORKER * self.workers, radius=radius)
+        pieces = [path[a:b + 1] for a, b in zip(cuts, cuts[1:], strict=False)]
+        self._request_id += 1
+        self._sync.finish_next.value = 0
+        began = time.perf_counter()
+        message = {"id": self._request_id, "name": name, "op": "finish", "path": first["path"], "cuts": cuts,
+                   "resolution": request["resolution"], "time_limit": max(1e-3, left / 2),
+                   "simplify_times": simplify_shares(pieces, request["simplify_time"], radius=radius),
+                   "planner": self.planner_class}
+        for i in range(self.workers):
+            self._send(i, message)
+        reports = self._gather(self._request_id, self.workers, deadline=deadline)
+        figures = _finish_figures(reports, time.perf_counter() - began)
+        by_piece: dict[int, dict[str, Any]] = {}
+        for r in reports:
+            by_piece.update((r or {}).get("pieces", {}))
+        ordered = [by_piece.get(i) for i in range(len(pieces))]
+        # two pieces meet at a pose both lifted alike; a mismatch would leave an unproven step, so it fails
+        if any(a is not None and b is not None and a.get("path") and b.get("path") and a["path"][-1] != b["path"][0]
+               for a, b in zip(ordered, ordered[1:], strict=False)):
+            ordered[0] = {"solved": False, "status": "pieces did not meet"}
+        joined = {**join_reports(first, ordered), "pieces": len(pieces), "finish": figures,
+                  "cpu_s": first["cpu_s"] + max(figures["cpu_s"], default=0.0)}
+        left = end - time.perf_counter()
+        if joined["solved"] or any(r is None for r in reports) or left <= 0:
+            return joined
+        self.refinished += 1
+        self._request_id += 1
+        self._send(0, {"id": self._request_id, "name": name, "piece": path, "resolution": request["resolution"],
+                       "time_limit": left, "simplify_time": request["simplify_time"], "lift_first": True})
+        whole = join_reports(first, self._gather(self._request_id, 1, deadline=deadline))
+        return {**whole, "cpu_s": joined["cpu_s"] + whole["cpu_s"] - first["cpu_s"], "pieces": len(pieces) + 1,
+                "finish": figures}
 
     def _gather(self, request_id: int, count: int, *, deadline: float) -> list[dict[str, Any] | None]:
         """Workers 0..count-1's reports on this request, in order; None for one that died or hung."""
@@ -354,6 +423,21 @@ class WarmPlanner:
             self._discard(i)
 
 
+def _finish_figures(reports: list[dict[str, Any] | None], wall: float) -> dict[str, Any]:
+    """The finish's wall seconds and, per worker, its CPU and busy seconds and pieces finished."""
+    done = [r for r in reports if r is not None]
+    return {"wall_s": wall, "cpu_s": tuple(float(r.get("cpu_s", 0.0)) for r in done),
+            "busy_s": tuple(float(r.get("wall_s", 0.0)) for r in done),
+            "claims": tuple(int(r.get("claims", 1)) for r in done)}
+
+
+def _phases(workers: int, elapsed: float, report: dict[str, Any], parent_cpu: float) -> Phases:
+    phase, finish = report["phase"], report.get("finish") or {"wall_s": 0.0, "cpu_s": (), "busy_s": (), "claims": ()}
+    return Phases(workers, elapsed, phase["search_wall_s"], phase["search_cpu_s"], phase["merge_cpu_s"],
+                  phase["lift_wall_s"], phase["lift_cpu_s"], finish["wall_s"], finish["cpu_s"], finish["busy_s"],
+                  finish["claims"], parent_cpu)
+
+
 def _serve(problems: Mapping[str, Problem], planner: str, seed: int, index: int, flag: Any, sync: Sync,
            conn: Connection, parent_pid: int) -> None:
     """A warm worker: load every problem once, then answer requests until told to stop."""
@@ -387,7 +471,8 @@ def _serve(problems: Mapping[str, Problem], planner: str, seed: int, index: int,
                 report = worker_step(op, request, trees[request["name"]], search, sync, index, cancelled)
             elif "piece" in request:
                 report = search.finish(request["piece"], planner=planner, resolution=request["resolution"],
-                                       time_limit=request["time_limit"], simplify_time=request["simplify_time"])
+                                       time_limit=request["time_limit"], simplify_time=request["simplify_time"],
+                                       lift_first=request.get("lift_first", False))
             else:
                 seed = request.get("seed")
                 report = search.run(

@@ -61,13 +61,21 @@ class Sync:
     reached: Any  # RawArray("i", workers): rounds each worker has merged
     finished: Any  # RawValue("i")
     max_tasks: int
+    finish_lock: Any = None  # guards finish_next
+    finish_next: Any = None  # RawValue("i"): the divided finish's next unclaimed piece
 
     @classmethod
     def create(cls, ctx: Any, *, workers: int, batch: int) -> Sync:
         max_tasks = 2 * batch  # a round's samples plus at most as many connects going on
         return cls([ctx.Lock() for _ in range(SLOTS)], ctx.RawArray("i", SLOTS), ctx.RawArray("i", SLOTS),
                    ctx.RawArray("b", SLOTS * max_tasks), ctx.RawArray("d", SLOTS * max_tasks * RECORD),
-                   ctx.RawArray("i", workers), ctx.RawValue("i", 0), max_tasks)
+                   ctx.RawArray("i", workers), ctx.RawValue("i", 0), max_tasks, ctx.Lock(), ctx.RawValue("i", 0))
+
+    def claim_piece(self) -> int:
+        with self.finish_lock:
+            i = int(self.finish_next.value)
+            self.finish_next.value = i + 1
+            return i
 
     def reset(self) -> None:
         """Before a request, while no worker runs one."""
@@ -77,6 +85,7 @@ class Sync:
         for w in range(len(self.reached)):
             self.reached[w] = 0
         self.finished.value = 0
+        self.finish_next.value = 0
 
     def claim(self, number: int, tasks: int) -> int:
         slot = number % SLOTS
@@ -165,8 +174,30 @@ def worker_step(op: str, request: dict[str, Any], trees: TreeWorker, search: Any
         return run_rounds(trees, sync, index=index, start=request["start"], goal=request["goal"],
                           resolution=request["resolution"], seed=request["seed"], batch=request["batch"],
                           time_limit=request["time_limit"], cancelled=cancelled)
+    if op == "finish":
+        return finish_pieces(request, search, sync)
+    cpu = time.process_time()
     path = search.lift([Pose(*p) for p in request["path"]], request["resolution"])
-    return {"path": [(p.x, p.y, p.z, p.qx, p.qy, p.qz, p.qw) for p in path]}
+    return {"path": [(p.x, p.y, p.z, p.qx, p.qy, p.qz, p.qw) for p in path], "cpu_s": time.process_time() - cpu}
+
+
+def finish_pieces(request: dict[str, Any], search: Any, sync: Sync) -> dict[str, Any]:
+    """A worker's part of the divided finish: pieces of the found path claimed one at a time from the shared
+    counter until none is left, each lifted (its ends against the path as found, so the two workers of a
+    joint lift it alike), simplified and proven; a worker that drew long pieces claims fewer, so no worker
+    waits long for another's last piece, and none lifts the whole path while the others wait."""
+    cpu, began = time.process_time(), time.perf_counter()
+    path, cuts, res = [Pose(*p) for p in request["path"]], request["cuts"], request["resolution"]
+    deadline = time.perf_counter() + request["time_limit"]
+    pieces: dict[int, dict[str, Any]] = {}
+    while (i := sync.claim_piece()) < len(cuts) - 1:
+        a, b = cuts[i], cuts[i + 1]
+        piece = [search.lift_at(path, a, res), *path[a + 1:b], search.lift_at(path, b, res)]
+        pieces[i] = search.finish(piece, planner=request["planner"], resolution=res,
+                                  time_limit=max(1e-3, deadline - time.perf_counter()),
+                                  simplify_time=request["simplify_times"][i], lift_first=True)
+    return {"pieces": pieces, "claims": len(pieces), "cpu_s": time.process_time() - cpu,
+            "wall_s": time.perf_counter() - began, "solved": True, "status": "finished"}
 
 
 class _Stop(Exception):

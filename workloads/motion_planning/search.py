@@ -112,21 +112,26 @@ class Search:
         return {**first, **done, "cpu_s": first["cpu_s"] + done["cpu_s"]}
 
     def finish(self, path: list[Pose], *, planner: str, resolution: float, time_limit: float,
-               simplify_time: float) -> dict[str, Any]:
+               simplify_time: float, lift_first: bool = False) -> dict[str, Any]:
         """Simplify a planned path (or a piece of one) with clearance, then prove and repair it.
 
         ``cpu_s`` in the report (and in :meth:`run`'s, up to the first path and then for the whole)
         is this process's CPU time: work that other jobs' load does not stretch, unlike wall time.
+        ``lift_first``: the path's inner vertices are lifted here first (a piece of a found path that no
+        one worker lifted whole; its ends were lifted by :meth:`lift_at`).
         """
         self.certifier.queries = 0
-        deadline, cpu = _Clock(time_limit), time.process_time()
+        deadline, cpu, began = _Clock(time_limit), time.process_time(), time.perf_counter()
         self.set_resolution(resolution)
+        if lift_first:
+            path = self.lift(path, resolution)
         simplified = self.lift(self._simplify(self._geometric(path), simplify_time, resolution), resolution)
         floor = resolution / CHECK_DIVISOR
         proven, repairs = self._prove(simplified, planner=planner, resolution=resolution, floor=floor, depth=0,
                                       deadline=deadline)
         report = {"simplify_time_s": self.simplify_time_s, "repairs": repairs, "cpu_s": time.process_time() - cpu,
-                  "clearance_queries": self.certifier.queries, "resolution": resolution, "check_resolution": floor}
+                  "clearance_queries": self.certifier.queries, "resolution": resolution, "check_resolution": floor,
+                  "wall_s": time.perf_counter() - began}
         if proven is None:
             return {**report, "solved": False, "status": "unproven path"}
         return {**report, "solved": True, "status": "exact solution", "path": _tuples(proven)}
@@ -173,6 +178,15 @@ class Search:
             if lifted is not None:
                 out[i] = lifted
         return out
+
+    def lift_at(self, path: list[Pose], i: int, resolution: float) -> Pose:
+        """path[i] lifted against its neighbours as found (not as lifted): the pose where two pieces of a
+        divided finish meet, which both pieces' workers compute alike; the path's ends never move."""
+        if i <= 0 or i >= len(path) - 1:
+            return path[i]
+        self.set_resolution(resolution)
+        lifted = self._lifted(path[i - 1], path[i], path[i + 1], margin=resolution / 2)
+        return path[i] if lifted is None else lifted
 
     def _lifted(self, before: Pose, pose: Pose, after: Pose, *, margin: float) -> Pose | None:
         clearance, q = self.certifier.clearance, pose.quaternion()

@@ -15,6 +15,7 @@ neither.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from itertools import pairwise
 from typing import Any
 
@@ -39,8 +40,13 @@ def split_path(path: list[Pose], pieces: int, *, radius: float) -> list[list[Pos
 
     Cuts fall on the path's own vertices only, so a path of n poses gives at most n - 1 pieces.
     """
+    return [path[a:b + 1] for a, b in pairwise(cut_indices(path, pieces, radius=radius))]
+
+
+def cut_indices(path: list[Pose], pieces: int, *, radius: float) -> list[int]:
+    """The vertices :func:`split_path` cuts at, the path's ends included (piece i: cuts[i] to cuts[i + 1])."""
     if len(path) < 3 or pieces < 2:
-        return [path]
+        return [0, len(path) - 1]
     lengths = [sweep(a, b, radius) for a, b in pairwise(path)]
     total = sum(lengths)
     cuts, walked, target = [0], 0.0, 1
@@ -50,7 +56,7 @@ def split_path(path: list[Pose], pieces: int, *, radius: float) -> list[list[Pos
             cuts.append(i)
             target += 1
     cuts.append(len(path) - 1)
-    return [path[a:b + 1] for a, b in pairwise(cuts)]
+    return cuts
 
 
 def simplify_shares(pieces: list[list[Pose]], seconds: float, *, radius: float) -> list[float]:
@@ -89,3 +95,66 @@ def join_reports(first: dict[str, Any], pieces: list[dict[str, Any] | None]) -> 
         assert p is not None
         path += p["path"][1:]
     return {**report, "solved": True, "status": "exact solution", "path": path}
+
+
+@dataclass(frozen=True)
+class Phases:
+    """Where a divided solve's time went, phase by phase, and how much of it ran on one worker while
+    the others waited (what Amdahl's law keeps from dividing).
+
+    CPU seconds are the figures other jobs' load does not stretch (on a shared machine the wall can
+    be half another job's). Serial CPU: one copy of the search's per-round draws and merges (every
+    worker runs them; the other copies are repeated, not divided, work), any step one worker runs alone
+    (``lift_cpu_s``: lifting the found path before it is cut, when that is not done in pieces), and the
+    caller's own thread (``parent_cpu_s``: handing the request out, gathering and joining the reports).
+    """
+
+    workers: int
+    solve_wall_s: float  # the call, request in to answer out
+    search_wall_s: float
+    search_cpu_s: float  # every worker's, waiting included
+    merge_cpu_s: float  # drawing and merging the rounds: the mean per worker (each does it all)
+    lift_wall_s: float  # one worker lifting the whole found path while the others wait (0: not done so)
+    lift_cpu_s: float
+    finish_wall_s: float  # simplifying and proving, from the first piece sent to the last report in
+    finish_cpu_s: tuple[float, ...]  # per worker
+    finish_busy_s: tuple[float, ...]  # per worker: wall seconds on its pieces
+    finish_claims: tuple[int, ...] = ()  # pieces each worker finished (claimed from a shared counter)
+    parent_cpu_s: float = 0.0  # the calling thread's: handing the request out, gathering and joining the reports
+
+    @property
+    def total_cpu_s(self) -> float:
+        return self.search_cpu_s + self.lift_cpu_s + sum(self.finish_cpu_s) + self.parent_cpu_s
+
+    @property
+    def serial_cpu_s(self) -> float:
+        return self.merge_cpu_s + self.lift_cpu_s + self.parent_cpu_s
+
+    @property
+    def serial_cpu_share(self) -> float:
+        """Serial CPU over one worker's equivalent of the solve (the repeated merges counted once)."""
+        one = self.total_cpu_s - (self.workers - 1) * self.merge_cpu_s
+        return self.serial_cpu_s / one if one > 0 else 0.0
+
+    @property
+    def finish_wait_s(self) -> float:
+        """Wall seconds of the finish in which a worker waited for another's last piece (mean)."""
+        if not self.finish_busy_s:
+            return 0.0
+        return max(0.0, self.finish_wall_s - sum(self.finish_busy_s) / len(self.finish_busy_s))
+
+    def projected_speedup_cpu(self, cores: int) -> float:
+        """Amdahl's law on these CPU seconds: the serial CPU stays, the rest divides by ``cores``.
+        A projection from a measured split, not a measurement; waiting (imbalance) is left out."""
+        share = self.serial_cpu_share
+        return 1.0 / (share + (1.0 - share) / cores) if self.total_cpu_s > 0 else 1.0
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"workers": self.workers, "solve_wall_s": self.solve_wall_s, "search_wall_s": self.search_wall_s,
+                "search_cpu_s": self.search_cpu_s, "merge_cpu_s": self.merge_cpu_s,
+                "lift_wall_s": self.lift_wall_s, "lift_cpu_s": self.lift_cpu_s,
+                "finish_wall_s": self.finish_wall_s, "finish_cpu_s": list(self.finish_cpu_s),
+                "finish_busy_s": list(self.finish_busy_s), "finish_claims": list(self.finish_claims),
+                "parent_cpu_s": self.parent_cpu_s,
+                "serial_cpu_s": self.serial_cpu_s, "serial_cpu_share": self.serial_cpu_share,
+                "total_cpu_s": self.total_cpu_s}

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from fogiac.certs import load_or_create_bundle
+from fogiac.certs import load_or_create_edges
 from fogiac.endpoint import Endpoint
 from fogiac.errors import ProvisionError
 from fogiac.net import middleware
@@ -62,7 +62,7 @@ def provision_and_connect(plan: Plan, *, access: Mapping[str, Any], connect: Map
     """
     state = StackState(plan.stack)
     folder, certs = state.ensure(), state.certs
-    load_or_create_bundle(plan.stack, certs)
+    load_or_create_edges(plan.stack, certs, [edge.name for edge in plan.edges])  # the CA's, and each edge's
     report = provision(plan, hosts=access, state_dir=folder, certs_dir=certs, progress=progress,
                        dialed=dialed_addresses(connect))
     relays = {o.host: connect[o.host] for o in report.hosts if o.ok and o.host in connect}
@@ -114,6 +114,6 @@ def stop_edge(plan: Plan, *, keep_master: bool = False) -> None:
     """Stop this machine's edge processes of the stack: the links, and what stands in for the robot's
     graph (the demo's master) unless kept."""
     kept = middleware.deployment(plan.middleware).robot_side if keep_master else ()
-    names = [s for s in edge_services(plan) if s not in kept]
+    names = [s for s in edge_services(plan) if s.partition("@")[0] not in kept]  # every edge's ("NAME@edge")
     if names:
         supervise.stop_many(edge_dir(plan), names)

@@ -8,7 +8,7 @@ only its CSR comes here to be signed (:func:`sign_csr`). Private keys are writte
 printed; callers that put them into Pulumi mark them secret.
 
 Each edge has a client certificate of its own, whose name is its identity (the relay's cloud ends keep a
-session per identity): the edge named after the stack, the one today's manifests make, keeps the files
+session per identity): the edge named after the stack, the one today's manifests make (``edge:``), keeps the files
 it always had (``client.pem``/``.key``, ``client.<stack>.fogiac``); any other edge ``edge-<name>.pem``/``.key``
 for ``<name>.edge.<stack>.fogiac`` (:func:`load_or_create_edges`).
 """
@@ -221,25 +221,25 @@ def _vpn_pair(ca: KeyPair, stack: str) -> KeyPair:
 
 
 def _client_pair(ca: KeyPair, stack: str) -> KeyPair:
-    return issue(ca, edge_identity(stack, stack), server=False)
+    return issue(ca, edge_identity(stack, None), server=False)
 
 
 _EDGE_NAME = re.compile(r"^[a-z0-9]([a-z0-9-]{0,61}[a-z0-9])?$")  # one DNS label: it goes into a certificate
 
 
-def edge_identity(stack: str, edge: str) -> str:
+def edge_identity(stack: str, edge: str | None) -> str:
     """The name in ``edge``'s client certificate, which cloud ends tell edges apart by: today's one edge
-    (named after the stack) keeps the name it always had."""
-    if edge == stack:
+    (None: the manifest's ``edge:`` block, named after the stack) keeps the name it always had."""
+    if edge is None:
         return f"client.{stack}.fogiac"
     if not _EDGE_NAME.match(edge):
         raise CertError(f"edge {edge!r}: an edge's name must be one DNS label (a-z, 0-9, '-', up to 63)")
     return f"{edge}.edge.{stack}.fogiac"
 
 
-def edge_role(stack: str, edge: str) -> str:
+def edge_role(stack: str, edge: str | None) -> str:
     """The stem of ``edge``'s certificate files in the stack's certs folder (``ROLE.pem``, ``ROLE.key``)."""
-    return "client" if edge == stack else f"edge-{edge}"
+    return "client" if edge is None else f"edge-{edge}"
 
 
 def new_bundle(stack: str) -> Bundle:
@@ -303,11 +303,12 @@ def load_or_create_bundle(stack: str, directory: Path) -> Bundle:
     return bundle
 
 
-def load_or_create_edges(stack: str, directory: Path, edges: Iterable[str]) -> dict[str, KeyPair]:
-    """Each edge's client pair (name -> pair), issued by the stack's CA on first use and kept. The stack's
-    bundle is loaded (or made) first, so the edge named after the stack is its ``client`` pair as before."""
+def load_or_create_edges(stack: str, directory: Path, edges: Iterable[str | None]) -> dict[str | None, KeyPair]:
+    """Each edge's client pair (name -> pair; :attr:`fogiac.plan.model.EdgeSpec.named`), issued by the stack's
+    CA on first use and kept. The stack's bundle is loaded (or made) first, so today's one edge (None) is
+    its ``client`` pair as before."""
     bundle = load_or_create_bundle(stack, directory)
-    pairs: dict[str, KeyPair] = {}
+    pairs: dict[str | None, KeyPair] = {}
     for edge in edges:
         role = edge_role(stack, edge)
         pair = bundle.client if role == "client" else _load_pair(directory, role)

@@ -62,7 +62,7 @@ def provision_and_connect(plan: Plan, *, access: Mapping[str, Any], connect: Map
     """
     state = StackState(plan.stack)
     folder, certs = state.ensure(), state.certs
-    load_or_create_edges(plan.stack, certs, [edge.name for edge in plan.edges])  # the CA's, and each edge's
+    load_or_create_edges(plan.stack, certs, [edge.named for edge in plan.edges])  # the CA's, and each edge's
     report = provision(plan, hosts=access, state_dir=folder, certs_dir=certs, progress=progress,
                        dialed=dialed_addresses(connect))
     relays = {o.host: connect[o.host] for o in report.hosts if o.ok and o.host in connect}

@@ -45,12 +45,18 @@ class EdgeSpec:
 
     ``name`` is the edge's identity: its client certificate (the relay's cloud ends and the Zenoh routers
     tell edges apart by it), and its processes' and files' names on this machine. Today's manifests make one
-    edge, named after the stack (:meth:`Plan.is_default_edge`), whose files keep the names they had before
-    edges were a list.
+    edge from their ``edge:`` block, named after the stack (``shorthand``): its certificate, files and
+    processes keep the names they had before edges were a list, so a stack folder of then keeps working.
     """
 
     name: str
     entry: str  # its ROS 1 master URI, or the edge Zenoh router's endpoint
+    shorthand: bool = False  # the manifest's one-robot ``edge:`` block made it (see above)
+
+    @property
+    def named(self) -> str | None:
+        """The name its certificate and files carry: None for the shorthand edge, which keeps those of before."""
+        return None if self.shorthand else self.name
 
 
 @dataclass(frozen=True)
@@ -309,9 +315,9 @@ class Plan:
         return self.edges[0].entry
 
     def is_default_edge(self, edge: EdgeSpec) -> bool:
-        """Whether ``edge`` is the one today's manifests make (named after the stack): its certificate and
-        processes keep the file names they had before edges were a list, so a stack folder of then works."""
-        return edge.name == self.stack
+        """Whether ``edge`` is the one today's manifests make (``edge:``, named after the stack): its certificate
+        and processes keep the file names they had before edges were a list, so a stack folder of then works."""
+        return edge.shorthand
 
     def edges_at(self, entry: str | None = None) -> tuple[EdgeSpec, ...]:
         """The edges, the first reached at ``entry`` when given (``up --edge-master``, a test's own master)."""
@@ -364,7 +370,7 @@ class Plan:
             del out["registries"]
         if not self.middleware_settings:  # none: the same bytes (and digest) as before there could be any
             del out["middleware_settings"]
-        if self.edges == (EdgeSpec(self.stack, self.edge_master),):
+        if len(self.edges) == 1 and self.edges[0].shorthand:
             del out["edges"]  # the one edge of today's manifests: the same bytes (and digest) as before edges
             out["edge_master"] = self.edge_master
         out["hourly_usd"] = self.hourly_usd

@@ -104,7 +104,7 @@ def host_credentials(host: Host, *, python: str, folder: str, certs_dir: Path, p
 
 def _client_argv(stack: str, edge: str | None) -> list[str]:
     """``--client`` for an edge other than the one named after the stack (whose pair is ``client``)."""
-    role = edge_role(stack, edge) if edge is not None else "client"
+    role = edge_role(stack, edge)
     return ["--client", role] if role != "client" else []
 
 
@@ -113,8 +113,8 @@ def edge_argv(route: Route, *, stack: str, connect: str, master: str, certs: Pat
     # One ROS name per relay: a master drops a node when another registers with its name, so
     # the relays of several hosts (or several stacks, or edges) on one edge master would evict each other.
     # The server name is the host's own: another host's certificate (same CA) is refused.
-    # ``edge``: whose certificate it shows (None or the stack's name: today's one edge, ``client``).
-    other = f"_{edge}" if edge is not None and edge != stack else ""
+    # ``edge``: whose certificate it shows (EdgeSpec.named; None: today's one edge, ``client``).
+    other = f"_{edge}" if edge is not None else ""
     name = "/fogiac_relay_edge_" + re.sub(r"[^A-Za-z0-9_]", "_", f"{stack}_{route.host}{other}")
     argv = [sys.executable, "-m", "fogiac", "relay", "edge", "--connect", connect, "--master", master,
             "--certs", str(certs), "--stats-file", str(stats), "--queue-depth", str(route.queue_size),
@@ -146,7 +146,7 @@ def replicas_argv(group: str, routes: list[Route], *, stack: str, connect: Mappi
     first = routes[0]
     replica = first.replica
     assert replica is not None
-    other = f"_{edge}" if edge is not None and edge != stack else ""
+    other = f"_{edge}" if edge is not None else ""
     suffix = f"@{edge}" if other else ""
     name = "/fogiac_relay_replicas_" + re.sub(r"[^A-Za-z0-9_]", "_", f"{stack}_{group}{other}")
     argv = [sys.executable, "-m", "fogiac.net.relay.replicas", "--group", group, "--master", master,
@@ -177,7 +177,7 @@ def edge_up(plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path, 
             if route.host in connect and route.replica is None:
                 supervise.start(folder, f"relay-edge-{route.host}{suffix}", edge_argv(
                     route, stack=plan.stack, connect=connect[route.host], master=edge.entry, certs=certs,
-                    stats=_stats(folder, route.host, suffix), edge=edge.name))
+                    stats=_stats(folder, route.host, suffix), edge=edge.named))
         for group, routes in replica_groups(plan).items():
             up = [r for r in routes if r.host in connect]
             if len(up) < len(routes) and not suffix:  # said once, not per edge
@@ -186,7 +186,7 @@ def edge_up(plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path, 
             if up:
                 supervise.start(folder, f"relay-replicas-{group}{suffix}", replicas_argv(
                     group, up, stack=plan.stack, connect=connect, master=edge.entry, certs=certs, folder=folder,
-                    edge=edge.name))
+                    edge=edge.named))
     return notes
 
 

@@ -62,8 +62,8 @@ def router_id(stack: str, host: str) -> str:
 
 def edge_router_id(stack: str, edge: str | None = None) -> str:
     """An edge router's fixed Zenoh id: a cloud router's stats count only the edges' as "the edge connected"
-    (None, or the stack's name: the one edge of today's manifests, with the id it always had)."""
-    return _zid(f"{stack}/edge-router" if edge is None or edge == stack else f"{stack}/edge-router/{edge}")
+    (None: the one edge of today's manifests, with the id it always had; else ``EdgeSpec.named``)."""
+    return _zid(f"{stack}/edge-router" if edge is None else f"{stack}/edge-router/{edge}")
 
 
 def edge_suffix(plan: Plan, edge: EdgeSpec) -> str:
@@ -139,14 +139,14 @@ def host_services(plan: Plan, spec: HostSpec, where: Where, *, certs: Path) -> t
     files = TlsFiles(ca=f"{remote}/ca.pem", cert=f"{remote}/server.pem", key=f"{remote}/server.key")
     route = next(r for r in plan.routes if r.host == spec.name)
     listen = where.listen
-    names = [tls.edge_name(plan.stack, e.name) for e in plan.edges]
+    names = [tls.edge_name(plan.stack, e.named) for e in plan.edges]
     config = cloud_router(route, listen_host=listen, tls=files, edge_name=names[0] if len(names) == 1 else names,
                           local_port=where.master_port)
     config["id"] = router_id(plan.stack, spec.name)
     config["listen"]["endpoints"][0] = f"tls/{listen}:{where.relay_port}"
     path, stats = f"{where.layout.env}/zenoh-router.json", router_stats(where)
     command = (f"{q(where.python)} -m fogiac.net.zenoh.router {q(path)} --stats-file {q(stats)} "
-               + " ".join(f"--edge-id {edge_router_id(plan.stack, e.name)}" for e in plan.edges))
+               + " ".join(f"--edge-id {edge_router_id(plan.stack, e.named)}" for e in plan.edges))
     router = make_service(ROUTER, plan=plan, spec=spec, where=where, command=command, check="alive",
                               python_path=where.code_root, files=(
                                   (path, json.dumps(config, indent=1, sort_keys=True), 0o600),
@@ -225,12 +225,12 @@ def _edge_up(plan: Plan, edge: EdgeSpec, *, connect: Mapping[str, str], certs: P
     entry, suffix = edge.entry, edge_suffix(plan, edge)
     role = "edge" + suffix.replace("@", "-")  # its pair's files: edge.pem, edge-<name>.pem
     ca = load_or_create_bundle(plan.stack, certs).ca
-    pair = _issued(certs, role, lambda: tls.edge_pair(ca, stack=plan.stack, edge=edge.name))
+    pair = _issued(certs, role, lambda: tls.edge_pair(ca, stack=plan.stack, edge=edge.named))
     files = tls.write_files(folder / "zenoh", role, pair, ca)
     cloud = [(e.host, e.port) for e in (Endpoint.parse(address) for _, address in sorted(connect.items()))]
     policy = [(tls.host_name(plan.stack, r.host), r) for r in plan.routes if r.host in connect]
     config = edge_router(cloud, tls=files, local_port=_port(entry), policy=policy)
-    config["id"] = edge_router_id(plan.stack, edge.name)
+    config["id"] = edge_router_id(plan.stack, edge.named)
     router_file, stats = folder / f"zenoh-edge{suffix}.json", folder / f"zenoh-edge{suffix}.stats.json"
     router_file.write_text(json.dumps(config, indent=1, sort_keys=True))
     supervise.start(folder, EDGE_ROUTER + suffix, [sys.executable, "-m", "fogiac.net.zenoh.router", str(router_file),

@@ -19,9 +19,9 @@ def host_name(stack: str, host: str) -> str:
 
 
 def edge_name(stack: str, edge: str | None = None) -> str:
-    """The common name of ``edge``'s router certificate, its identity at the cloud routers (None, or the
-    stack's name: the one edge of today's manifests, with the name it always had)."""
-    return f"edge.router.{stack}.fogiac" if edge is None or edge == stack else f"{edge}.edge.router.{stack}.fogiac"
+    """The common name of ``edge``'s router certificate, its identity at the cloud routers (None: the one edge
+    of today's manifests, with the name it always had; else :attr:`fogiac.plan.model.EdgeSpec.named`)."""
+    return f"edge.router.{stack}.fogiac" if edge is None else f"{edge}.edge.router.{stack}.fogiac"
 
 
 def edge_pair(ca: KeyPair, *, stack: str, edge: str | None = None) -> KeyPair:

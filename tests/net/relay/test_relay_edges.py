@@ -29,7 +29,7 @@ def edge_certs(certs: Path, tmp_path: Path) -> Path:
     """The lab folder with a second edge's pair, issued the way ``up`` issues every edge's."""
     folder = tmp_path / "certs"
     shutil.copytree(certs, folder)
-    load_or_create_edges(STACK, folder, [STACK, SECOND])
+    load_or_create_edges(STACK, folder, [None, SECOND])  # None: the stack's one edge of today
     for name in ("server.pem", "server.key"):  # the lab's cloud end pair, which a stack's folder never keeps
         shutil.copy(certs / name, folder / name)
     return folder
@@ -64,7 +64,7 @@ def test_two_edges_are_linked_at_once_each_with_its_own_traffic(masters: tuple[M
                                                                  procs: Procs) -> None:
     robot_a, cloud_m = masters
     robot_b = procs.roscore()
-    ids = {edge_identity(STACK, STACK), edge_identity(STACK, SECOND)}
+    ids = {edge_identity(STACK, None), edge_identity(STACK, SECOND)}
     with linked(cloud_m, [(robot_a, "client"), (robot_b, edge_role(STACK, SECOND))], edge_certs) as (cloud, ends):
         wait_for(lambda: all(e.connected.is_set() for e in ends) and len(cloud.sessions) == 2, 15, "both links")
         assert set(cloud.sessions) == ids and all(s.alive for s in cloud.sessions.values())
@@ -107,7 +107,7 @@ def test_a_newer_session_replaces_only_its_own_identity(masters: tuple[Master, M
                                                         procs: Procs) -> None:
     robot_a, cloud_m = masters
     robot_b = procs.roscore()
-    first, second = edge_identity(STACK, STACK), edge_identity(STACK, SECOND)
+    first, second = edge_identity(STACK, None), edge_identity(STACK, SECOND)
     with linked(cloud_m, [(robot_a, "client"), (robot_b, edge_role(STACK, SECOND))], edge_certs) as (cloud, ends):
         wait_for(lambda: len(cloud.sessions) == 2 and all(e.connected.is_set() for e in ends), 15, "both links")
         procs.node(robot_b, "pub", "/b_steady", "--forever", "--rate", "40")

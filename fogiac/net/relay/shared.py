@@ -108,7 +108,10 @@ class SharedTopics:
 
     def __init__(self, node: RelayNode, *, depth: int) -> None:
         self.node, self.depth = node, depth
-        self.lock = threading.Lock()
+        self.lock = threading.Lock()  # the fans' and merges' members: held briefly, messages take it too
+        # One registration change at a time, start or stop included: a topic one session lets go of is
+        # withdrawn from the master before another session's registers it again (the node holds one each).
+        self._changing = threading.Lock()
         self._fans: dict[str, _Fan] = {}
         self._merges: dict[str, _Merge] = {}
 
@@ -121,6 +124,10 @@ class SharedTopics:
     def attach_source(self, source: _Source) -> None:
         """Join (or make and start) the topic's subscription; RelayError, as a subscription's start, if the
         master refuses it."""
+        with self._changing:
+            self._attach_source(source)
+
+    def _attach_source(self, source: _Source) -> None:
         with self.lock:
             fan = self._fans.get(source.topic)
             made = fan is None
@@ -142,6 +149,10 @@ class SharedTopics:
                 raise
 
     def detach_source(self, source: _Source) -> None:
+        with self._changing:
+            self._detach_source(source)
+
+    def _detach_source(self, source: _Source) -> None:
         with self.lock:
             fan = self._fans.get(source.topic)
             if fan is None or source not in fan.sources:
@@ -155,6 +166,10 @@ class SharedTopics:
 
     def attach_sink(self, topic: str, meta: TopicMeta) -> _Merge:
         """Join (or make and advertise) the topic's publisher; RelayError if the master refuses it."""
+        with self._changing:
+            return self._attach_sink(topic, meta)
+
+    def _attach_sink(self, topic: str, meta: TopicMeta) -> _Merge:
         with self.lock:
             merge = self._merges.get(topic)
             made = merge is None
@@ -168,11 +183,15 @@ class SharedTopics:
             try:
                 merge.pub.start()
             except BaseException:
-                self.detach_sink(merge, stop=False)
+                self._detach_sink(merge, stop=False)
                 raise
         return merge
 
-    def detach_sink(self, merge: _Merge, *, stop: bool = True) -> None:
+    def detach_sink(self, merge: _Merge) -> None:
+        with self._changing:
+            self._detach_sink(merge)
+
+    def _detach_sink(self, merge: _Merge, *, stop: bool = True) -> None:
         with self.lock:
             merge.users -= 1
             last = merge.users <= 0

@@ -1,4 +1,4 @@
-"""Certificates for the stack's mutual TLS: one CA, the Client VPN endpoint's, the edge's, one per host.
+"""Certificates for the stack's mutual TLS: one CA, the Client VPN endpoint's, one per edge, one per host.
 
 AWS Client VPN requires RSA 2048 keys, so everything here is RSA 2048 for one code path.
 The relay (edge and cloud ends) and the Client VPN endpoint trust the same CA. The operator's
@@ -6,12 +6,19 @@ machine keeps the CA key and the keys it uses itself (the VPN endpoint's, import
 the edge's client key); a host's key (its relay's, its Zenoh router's) is made on the host and
 only its CSR comes here to be signed (:func:`sign_csr`). Private keys are written 0600 and never
 printed; callers that put them into Pulumi mark them secret.
+
+Each edge has a client certificate of its own, whose name is its identity (the relay's cloud ends keep a
+session per identity): the edge named after the stack, the one today's manifests make (``edge:``), keeps the files
+it always had (``client.pem``/``.key``, ``client.<stack>.fogiac``); any other edge ``edge-<name>.pem``/``.key``
+for ``<name>.edge.<stack>.fogiac`` (:func:`load_or_create_edges`).
 """
 
 from __future__ import annotations
 
 import datetime as _dt
 import ipaddress
+import re
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -214,7 +221,25 @@ def _vpn_pair(ca: KeyPair, stack: str) -> KeyPair:
 
 
 def _client_pair(ca: KeyPair, stack: str) -> KeyPair:
-    return issue(ca, f"client.{stack}.fogiac", server=False)
+    return issue(ca, edge_identity(stack, None), server=False)
+
+
+_EDGE_NAME = re.compile(r"^[a-z0-9]([a-z0-9-]{0,61}[a-z0-9])?$")  # one DNS label: it goes into a certificate
+
+
+def edge_identity(stack: str, edge: str | None) -> str:
+    """The name in ``edge``'s client certificate, which cloud ends tell edges apart by: today's one edge
+    (None: the manifest's ``edge:`` block, named after the stack) keeps the name it always had."""
+    if edge is None:
+        return f"client.{stack}.fogiac"
+    if not _EDGE_NAME.match(edge):
+        raise CertError(f"edge {edge!r}: an edge's name must be one DNS label (a-z, 0-9, '-', up to 63)")
+    return f"{edge}.edge.{stack}.fogiac"
+
+
+def edge_role(stack: str, edge: str | None) -> str:
+    """The stem of ``edge``'s certificate files in the stack's certs folder (``ROLE.pem``, ``ROLE.key``)."""
+    return "client" if edge is None else f"edge-{edge}"
 
 
 def new_bundle(stack: str) -> Bundle:
@@ -276,6 +301,22 @@ def load_or_create_bundle(stack: str, directory: Path) -> Bundle:
     for name in _SHARED_SERVER:
         (directory / name).unlink(missing_ok=True)
     return bundle
+
+
+def load_or_create_edges(stack: str, directory: Path, edges: Iterable[str | None]) -> dict[str | None, KeyPair]:
+    """Each edge's client pair (name -> pair; :attr:`fogiac.plan.model.EdgeSpec.named`), issued by the stack's
+    CA on first use and kept. The stack's bundle is loaded (or made) first, so today's one edge (None) is
+    its ``client`` pair as before."""
+    bundle = load_or_create_bundle(stack, directory)
+    pairs: dict[str | None, KeyPair] = {}
+    for edge in edges:
+        role = edge_role(stack, edge)
+        pair = bundle.client if role == "client" else _load_pair(directory, role)
+        if pair is None:
+            pair = issue(bundle.ca, edge_identity(stack, edge), server=False)
+            save_pair(directory, role, pair)
+        pairs[edge] = pair
+    return pairs
 
 
 def write_relay_lab(stack: str, directory: Path) -> str:

@@ -74,6 +74,8 @@ def register(app: typer.Typer) -> None:
                                                    help="Name in the cloud's certificate (default: server.pem's)."),
              ros_host: str | None = _ROS_HOST, stats_file: Path | None = _STATS,
              queue_depth: int = _DEPTH, verbose: bool = _VERBOSE,
+             client: str = typer.Option("client", "--client",
+                                        help="This edge's pair under --certs (CLIENT.pem/.key): its identity."),
              name: str = typer.Option("/fogiac_relay_edge", "--name",
                                       help="The relay's ROS node name; one per relay on a master.")) -> None:
         """The edge end: dial the cloud end, keep the link up, relay topics both ways."""
@@ -83,7 +85,7 @@ def register(app: typer.Typer) -> None:
             connect=parse_hostport(connect),
             policy=policy_from_spec(topics, out_topics=out_topics, in_topics=in_topics),
             compression=default, topic_compression=tuple(sorted(per_topic.items())), server_name=server_name,
-            caller_id=name, **_common(master, certs, ros_host, stats_file, queue_depth),
+            client=client, caller_id=name, **_common(master, certs, ros_host, stats_file, queue_depth),
         )
         _run(EdgeRelay(config), verbose)
 

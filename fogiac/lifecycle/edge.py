@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from fogiac.certs import load_or_create_bundle
+from fogiac.certs import load_or_create_edges
 from fogiac.endpoint import Endpoint
 from fogiac.errors import ProvisionError
 from fogiac.net import middleware
@@ -63,7 +63,7 @@ def provision_and_connect(plan: Plan, *, access: Mapping[str, Any], connect: Map
     """
     state = StackState(plan.stack)
     folder, certs = state.ensure(), state.certs
-    load_or_create_bundle(plan.stack, certs)
+    load_or_create_edges(plan.stack, certs, [edge.named for edge in plan.edges])  # the CA's, and each edge's
     report = provision(plan, hosts=access, state_dir=folder, certs_dir=certs, progress=progress,
                        dialed=dialed_addresses(connect), ports=ports)
     relays = {o.host: connect[o.host] for o in report.hosts if o.ok and o.host in connect}
@@ -92,20 +92,24 @@ def connect_edge(plan: Plan, *, connect: Mapping[str, str], master: str, started
 
 
 def edge_name(plan: Plan) -> str:
-    """The identity of the stack's edge in the record: today's manifests have one, named after the stack."""
-    return plan.stack
+    """The identity of the edge ``edge_master`` names, the plan's first (today's manifests have one, named
+    after the stack)."""
+    return plan.edges[0].name
 
 
 def record_edge(plan: Plan, links: Mapping[str, Any]) -> None:
-    """Record the stack's edge (its master, its links host -> HOST:PORT, the nodes) in the record's list
-    of edges, replacing the entry of the same identity and keeping the others."""
-    name = edge_name(plan)
+    """Record the plan's edges in the record's list, each with its identity, its entry (the first edge's as
+    ``links`` says, which a ``--edge-master`` may have overridden; the others' their own), its links host ->
+    HOST:PORT and the nodes; an edge of the same identity is replaced, any other kept."""
+    mine = [{"name": edge.name, **links, **({} if i == 0 else {"edge_master": edge.entry})}
+            for i, edge in enumerate(plan.edges)]
+    names = {edge["name"] for edge in mine}
 
     def change(document: dict[str, Any]) -> None:
         edges = document.get(StackState.EDGES)
-        others = [e for e in edges if not (isinstance(e, Mapping) and e.get("name") == name)] \
+        others = [e for e in edges if not (isinstance(e, Mapping) and e.get("name") in names)] \
             if isinstance(edges, list) else []
-        document[StackState.EDGES] = [*others, {"name": name, **links}]
+        document[StackState.EDGES] = [*others, *mine]
 
     StackState(plan.stack).update(change)
 
@@ -154,6 +158,6 @@ def stop_edge(plan: Plan, *, keep_master: bool = False) -> None:
     """Stop this machine's edge processes of the stack: the links, and what stands in for the robot's
     graph (the demo's master) unless kept."""
     kept = middleware.deployment(plan.middleware).robot_side if keep_master else ()
-    names = [s for s in edge_services(plan) if s not in kept]
+    names = [s for s in edge_services(plan) if s.partition("@")[0] not in kept]  # every edge's ("NAME@edge")
     if names:
         supervise.stop_many(edge_dir(plan), names)

@@ -19,6 +19,7 @@ from fogiac.net import middleware
 from fogiac.plan.model import (
     BuildSpec,
     ConnectVia,
+    EdgeSpec,
     HostSpec,
     LaunchSpec,
     NodeSpec,
@@ -76,7 +77,8 @@ def compile_plan(manifest: Manifest, *, target: str | None = None, environment: 
         ros_distro=manifest.ros.distro,
         middleware=carrier.name,
         mode=placed.mode,
-        edge_master=carrier.edge_entry(manifest.edge),
+        # the manifest's edge: block, the one-robot shorthand: a list of one edge, named after the stack
+        edges=(EdgeSpec(name=stack, entry=carrier.edge_entry(manifest.edge), shorthand=True),),
         ssh_from=ssh_sources(manifest),
         network=placed.network,
         security_groups=placed.security_groups,

@@ -287,6 +287,22 @@ def _exposure(rules: Section, topics: Section) -> tuple[str, ...]:
     return tuple(actuation + lines)  # above everything else: a reviewer must not miss one
 
 
+def edge_list(doc: Mapping[str, Any]) -> list[Mapping[str, Any]]:
+    """A document's edges: its ``edges``, or the one edge named after the stack that ``edge_master`` describes."""
+    listed = doc.get("edges")
+    if isinstance(listed, list):
+        return listed
+    return [{"name": doc.get("stack"), "entry": doc.get("edge_master")}] if "edge_master" in doc else []
+
+
+def _edges(before: Mapping[str, Any], after: Mapping[str, Any]) -> tuple[tuple[str, Any, Any], ...]:
+    """``edges`` as a setting where either side lists them (else ``edge_master`` alone says any change)."""
+    if "edges" not in before and "edges" not in after or "edge_master" not in before:
+        return ()
+    old, new = edge_list(before), edge_list(after)
+    return (("edges", old, new),) if old != new else ()
+
+
 def diff_documents(before: Mapping[str, Any] | None, after: Mapping[str, Any], *,
                    against: str = "applied") -> PlanDiff:
     """Everything that differs from ``before`` to ``after``; ``before`` None means nothing exists."""
@@ -297,7 +313,7 @@ def diff_documents(before: Mapping[str, Any] | None, after: Mapping[str, Any], *
                      ("group", "direction", "protocol", "ports", "cidr"), compare=True)
     topics = _section(before.get("topics"), after.get("topics"), ("topic", "direction", "host"), compare=False)
     settings = tuple((name, before.get(name), after.get(name)) for name in SETTINGS
-                     if name in before and before.get(name) != after.get(name))
+                     if name in before and before.get(name) != after.get(name)) + _edges(before, after)
     return PlanDiff(
         against=against,
         resources=_resources(before.get("resources", []), after.get("resources", [])),

@@ -15,7 +15,9 @@ written before) is still read as the "before" side of a diff: its missing sectio
 Within version 2, later fogiacs added (each skipped in a diff when the "before" document lacks it, so
 an applied document of an earlier fogiac compares without a made-up change): ``pushed`` (every path
 ``up`` pushes, with its content digest), ``autostop``, ``relay`` (compression and queue size),
-``registries``, each host's ``ssh`` (user, key, port) and ``runtime``. A node's ``env`` shows values
+``registries``, each host's ``ssh`` (user, key, port) and ``runtime``, and ``edges`` (each edge's name and
+entry, absent while the plan has only the one edge named after the stack, whose entry is ``edge_master``).
+A node's ``env`` shows values
 known harmless as they are, any other as ``sha256:`` and 12 hex digits, and a named secret as
 ``[secret env:NAME]``: no value reaches a plan, the stack's record or a pull-request comment.
 """
@@ -130,6 +132,14 @@ def middleware_doc(plan: Plan) -> dict[str, Any]:
             "edge": carrier.edge_side, "cloud": carrier.cloud_side}
 
 
+def edges(plan: Plan) -> list[dict[str, str]] | None:
+    """Every edge with its identity and entry; None for the one edge of today's manifests (named after the
+    stack), which ``edge_master`` describes whole: such documents keep their bytes and digests."""
+    if len(plan.edges) == 1 and plan.is_default_edge(plan.edges[0]):
+        return None
+    return [{"name": edge.name, "entry": edge.entry} for edge in plan.edges]
+
+
 def document(plan: Plan, resources: Sequence[Mapping[str, Any]], *, manifest_path: str,
              manifest_sha256: str) -> dict[str, Any]:
     body = {
@@ -140,6 +150,7 @@ def document(plan: Plan, resources: Sequence[Mapping[str, Any]], *, manifest_pat
         "zone": plan.zone,
         "mode": plan.mode,
         "edge_master": plan.edge_master,
+        **({"edges": listed} if (listed := edges(plan)) is not None else {}),
         "middleware": middleware_doc(plan),
         "stacks": list(dict.fromkeys(str(r["stack"]) for r in resources)),  # in the order the target declares
         "resources": [dict(r) for r in resources],

@@ -39,6 +39,26 @@ def server_name(stack: str) -> str:
 
 
 @dataclass(frozen=True)
+class EdgeSpec:
+    """One robot's side of the stack: who it is, and where its ROS graph is reached.
+
+    ``name`` is the edge's identity: its client certificate (the relay's cloud ends and the Zenoh routers
+    tell edges apart by it), and its processes' and files' names on this machine. Today's manifests make one
+    edge from their ``edge:`` block, named after the stack (``shorthand``): its certificate, files and
+    processes keep the names they had before edges were a list, so a stack folder of then keeps working.
+    """
+
+    name: str
+    entry: str  # its ROS 1 master URI, or the edge Zenoh router's endpoint
+    shorthand: bool = False  # the manifest's one-robot ``edge:`` block made it (see above)
+
+    @property
+    def named(self) -> str | None:
+        """The name its certificate and files carry: None for the shorthand edge, which keeps those of before."""
+        return None if self.shorthand else self.name
+
+
+@dataclass(frozen=True)
 class Rule:
     """One security-group rule; ``cidr`` is a CIDR or the OPERATOR placeholder."""
 
@@ -259,7 +279,7 @@ class Plan:
     ros_distro: str
     middleware: str  # fogiac.net.middleware's name for what carries topics across (relay, zenoh)
     mode: NetworkMode
-    edge_master: str  # the robot side's entry: its ROS 1 master URI, or the edge Zenoh router's endpoint
+    edges: tuple[EdgeSpec, ...]  # the robots' sides, each with its identity; today's manifests make one
     ssh_from: tuple[str, ...]
     network: NetworkSpec | None
     security_groups: tuple[SecurityGroup, ...]
@@ -275,6 +295,29 @@ class Plan:
     notes: tuple[str, ...] = ()  # what placement decided that a reader should know (replicas' zones, ...)
     # Private registries the hosts log in to: (server, username, the password's secret reference)
     registries: tuple[tuple[str, str, str], ...] = ()
+
+    def __post_init__(self) -> None:
+        names = [edge.name for edge in self.edges]
+        if not names:
+            raise PlanError(f"stack {self.stack}: a plan needs at least one edge")
+        if len(set(names)) != len(names):
+            raise PlanError(f"stack {self.stack}: two edges named {next(n for n in names if names.count(n) > 1)!r}")
+
+    @property
+    def edge_master(self) -> str:
+        """The first edge's entry: the only one while manifests make one edge (``up --edge-master`` overrides it)."""
+        return self.edges[0].entry
+
+    def is_default_edge(self, edge: EdgeSpec) -> bool:
+        """Whether ``edge`` is the one today's manifests make (``edge:``, named after the stack): its certificate
+        and processes keep the file names they had before edges were a list, so a stack folder of then works."""
+        return edge.shorthand
+
+    def edges_at(self, entry: str | None = None) -> tuple[EdgeSpec, ...]:
+        """The edges, the first reached at ``entry`` when given (``up --edge-master``, a test's own master)."""
+        if entry is None or entry == self.edges[0].entry:
+            return self.edges
+        return (dataclasses.replace(self.edges[0], entry=entry),) + self.edges[1:]
 
     @property
     def hourly_usd(self) -> float:
@@ -320,6 +363,9 @@ class Plan:
             del out["registries"]
         if not self.middleware_settings:  # none: the same bytes (and digest) as before there could be any
             del out["middleware_settings"]
+        if len(self.edges) == 1 and self.edges[0].shorthand:
+            del out["edges"]  # the one edge of today's manifests: the same bytes (and digest) as before edges
+            out["edge_master"] = self.edge_master
         out["hourly_usd"] = self.hourly_usd
         return out
 

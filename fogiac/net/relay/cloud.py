@@ -1,8 +1,11 @@
-"""The cloud end: accepts the edge's TLS connection and sources what the edge asks for.
+"""The cloud end: accepts the edges' TLS connections and sources what each edge asks for.
 
-Only a connection that completes mutual TLS and opens with a HELLO becomes the session; a
-newer one replaces an older (the edge reconnected after a half-open link), and garbage on any
-connection closes only that connection. The edge may ask for (SUBSCRIBE) and send (OPEN) only
+Only a connection that completes mutual TLS and opens with a HELLO becomes a session. Each edge is
+known by its client certificate (its common name, else its first subjectAltName: :func:`peer_identity`),
+and the cloud end keeps one session per identity: edges of different identities are linked at once,
+each with its own topics and queues (their local registrations are shared: :mod:`.shared`), while a
+newer session of one identity replaces its older one (that edge reconnected after a half-open link).
+Garbage on any connection closes only that connection. The edge may ask for (SUBSCRIBE) and send (OPEN) only
 the topics this end's policy lets cross in that direction; anything else is refused and counted.
 At most ``max_handshakes`` connections are in TLS/HELLO at once, ``max_per_source`` of them from
 one address (each has a thread and a deadline: ``tls_timeout`` to send a first byte and finish
@@ -20,6 +23,7 @@ import socket
 import ssl
 import threading
 from dataclasses import dataclass, field
+from typing import Any
 
 from fogiac.net.relay import framing
 from fogiac.net.relay.config import CloudConfig
@@ -29,11 +33,25 @@ from fogiac.net.relay.framing import Frame, FrameError, Kind
 from fogiac.net.relay.graph import Direction, GraphState, may_cross
 from fogiac.net.relay.ratelog import RateLimitedLog
 from fogiac.net.relay.session import Session, read_frame, send_now
+from fogiac.net.relay.shared import SharedTopics
 from fogiac.net.relay.tls import server_context
 
 log = logging.getLogger(__name__)
 PROTOCOL_VERSION = 1
 HANDSHAKE_TIMEOUT = 10.0
+
+
+def peer_identity(sock: ssl.SSLSocket) -> str:
+    """The edge's identity: its certificate's common name, else its first subjectAltName (mutual TLS has
+    verified the certificate against the stack's CA by now)."""
+    cert: dict[str, Any] = dict(sock.getpeercert() or {})
+    for rdn in cert.get("subject", ()):
+        for key, value in rdn:
+            if key == "commonName" and value:
+                return str(value)
+    for _, value in cert.get("subjectAltName", ()):
+        return str(value)
+    return "?"
 
 
 @dataclass(eq=False)
@@ -54,6 +72,8 @@ class CloudRelay(RelayEnd):
         self._ctx = server_context(config.certs)
         self._listener: socket.socket | None = None
         self._swap = threading.Lock()
+        self.sessions: dict[str, Session] = {}  # edge identity -> its latest session (alive or ended)
+        self._topics: SharedTopics | None = None
         self._graph = GraphState()  # this master's graph as last reported to the edge
         self._pending: list[_Pending] = []  # oldest first
         self._slots = threading.Lock()
@@ -68,6 +88,8 @@ class CloudRelay(RelayEnd):
         return host, port
 
     def _start_link(self) -> None:
+        assert self.node is not None
+        self._topics = SharedTopics(self.node, depth=self.config.queue_depth)
         try:
             self._listener = socket.create_server(self.cloud_config.listen, backlog=16, reuse_port=False)
         except OSError as err:
@@ -169,27 +191,33 @@ class CloudRelay(RelayEnd):
             return None
         return sock
 
+    def _sessions(self) -> list[Session]:
+        with self._swap:
+            return list(self.sessions.values())
+
     def _run_session(self, sock: ssl.SSLSocket, peer: str) -> None:
+        identity = peer_identity(sock)
         with self._swap:
             if self._stopping.is_set():
                 sock.close()
                 return
-            old = self.session
+            old = self.sessions.get(identity)  # the same edge's earlier session; other edges' stay
             if old is not None and old.alive:
-                old.close(f"replaced by a new edge connection from {peer}")
+                old.close(f"replaced by a new connection of edge {identity} from {peer}")
             if old is not None:
                 old.closed.wait(10)
                 self.reconnects += 1
-            assert self.node is not None
+            assert self.node is not None and self._topics is not None
             session = Session(sock=sock, node=self.node, config=self.config, peer=f"edge {peer}",
-                              accepts=lambda topic: self._allowed(topic, "out"))
+                              accepts=lambda topic: self._allowed(topic, "out"),
+                              feed=self._topics.feed, outlet=self._topics.outlet)
             session.handlers[Kind.SUBSCRIBE] = lambda f: self._on_subscribe(session, f)
             session.handlers[Kind.UNSUBSCRIBE] = lambda f: self._on_unsubscribe(session, f)
-            self.session = session
-        log.info("edge connected from %s", peer)
+            self.sessions[identity] = self.session = session
+        log.info("edge %s connected from %s", identity, peer)
         threading.Thread(target=self._report_graph, args=(session,), name="relay-poll", daemon=True).start()
         session.run()
-        log.info("edge %s disconnected", peer)
+        log.info("edge %s (%s) disconnected", identity, peer)
 
     def _report_graph(self, session: Session) -> None:
         """Tell the edge about this master's graph whenever it changes (it decides routes)."""

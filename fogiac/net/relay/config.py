@@ -59,6 +59,7 @@ class EdgeConfig(EndConfig):
     compression: str = "none"
     topic_compression: tuple[tuple[str, str], ...] = ()
     server_name: str | None = None
+    client: str = "client"  # this edge's pair under certs (CLIENT.pem/.key): its certificate names the edge
     caller_id: str = "/fogiac_relay_edge"
     backoff_initial: float = 0.2
     backoff_max: float = 5.0

@@ -3,7 +3,9 @@
 The relay variant's answers to :class:`fogiac.net.middleware.Middleware`'s deploying half. Each
 host runs its own ``roscore`` (its nodes register there) and, once the nodes run, the relay's
 cloud end (plus the autostop watchdog, which reads that end's stats). On the edge, one supervised
-``fogiac relay edge`` per host joins the robot's master to that host's over mutual TLS.
+``fogiac relay edge`` per host and per edge (each robot's master, each with its own client certificate)
+joins the robot's master to that host's over mutual TLS. The edge named after the stack (today's manifests'
+only one) keeps the process and file names it always had; any other's carry ``@<edge>``.
 """
 
 from __future__ import annotations
@@ -16,13 +18,13 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import urlparse
 
-from fogiac.certs import load_bundle, relay_name
+from fogiac.certs import edge_role, load_bundle, relay_name
 from fogiac.errors import FogiacError
 from fogiac.hostmodel import NativeRos, Service, Where, autostop_service
 from fogiac.net import hostcert
 from fogiac.net.relay.services import CLOUD_END, master_service, node_env, relay_service, relay_stats
 from fogiac.net.replicas import groups_of, host_figures
-from fogiac.plan.model import HostSpec, Plan, Route
+from fogiac.plan.model import EdgeSpec, HostSpec, Plan, Route
 from fogiac.procs import poll
 from fogiac.provision import supervise
 from fogiac.provision.host import Host, q
@@ -59,8 +61,13 @@ def _master_up(uri: str, *, timeout: float) -> bool:
 EDGE_ROS_HOME = "ros"  # the edge master's ROS_HOME, in the edge folder
 
 
-def prepare_edge(uri: str, *, folder: Path, start: bool) -> None:
-    """The edge's ROS master must answer; for demos fogiac can run it (supervised, stopped by down)."""
+def edge_suffix(plan: Plan, edge: EdgeSpec) -> str:
+    """What an edge's processes and files carry after their names: nothing for the edge named after the stack."""
+    return "" if plan.is_default_edge(edge) else f"@{edge.name}"
+
+
+def prepare_edge(uri: str, *, folder: Path, start: bool, name: str = EDGE_MASTER) -> None:
+    """The edge's ROS master must answer; for demos fogiac can run it (supervised as ``name``, stopped by down)."""
     if _master_up(uri, timeout=0.5):
         return
     if not start:
@@ -68,7 +75,7 @@ def prepare_edge(uri: str, *, folder: Path, start: bool) -> None:
                           "or pass --start-edge-master to let fogiac run one")
     url = urlparse(uri)
     # its logs in the stack's edge folder (down removes it), not the operator's ~/.ros/log
-    home = folder / EDGE_ROS_HOME
+    home = folder / (EDGE_ROS_HOME + name.removeprefix(EDGE_MASTER))
     logs = [f"ROS_HOME={home}", f"ROS_LOG_DIR={home / 'log'}"]
     argv = ["env", *logs, "roscore", "-p", str(url.port)]
     if _loopback(url.hostname):
@@ -76,18 +83,18 @@ def prepare_edge(uri: str, *, folder: Path, start: bool) -> None:
         # rosout: roscpp's XML-RPC server binds every interface whatever ROS_IP says, and through it
         # anyone on the network could point rosout at a publisher of their own.
         argv = ["env", "-u", "ROS_HOSTNAME", *logs, "ROS_IP=127.0.0.1", "rosmaster", "--core", "-p", str(url.port)]
-    supervise.start(folder, EDGE_MASTER, argv)
+    supervise.start(folder, name, argv)
     if not _master_up(uri, timeout=30):
-        supervise.stop(folder, EDGE_MASTER)
-        raise FogiacError(f"the edge roscore did not come up at {uri}; see {folder / (EDGE_MASTER + '.log')}")
+        supervise.stop(folder, name)
+        raise FogiacError(f"the edge roscore did not come up at {uri}; see {folder / (name + '.log')}")
 
 
 def _loopback(host: str | None) -> bool:
     return host == "localhost" or (host or "").startswith("127.")
 
 
-def _stats(folder: Path, host: str) -> Path:
-    return folder / f"relay-edge-{host}.stats.json"
+def _stats(folder: Path, host: str, suffix: str = "") -> Path:
+    return folder / f"relay-edge-{host}{suffix}.stats.json"
 
 
 def host_credentials(host: Host, *, python: str, folder: str, certs_dir: Path, plan: Plan, spec: HostSpec) -> bool:
@@ -96,14 +103,23 @@ def host_credentials(host: Host, *, python: str, folder: str, certs_dir: Path, p
                             name=relay_name(plan.stack, spec.name))
 
 
-def edge_argv(route: Route, *, stack: str, connect: str, master: str, certs: Path, stats: Path) -> list[str]:
+def _client_argv(stack: str, edge: str | None) -> list[str]:
+    """``--client`` for an edge other than the one named after the stack (whose pair is ``client``)."""
+    role = edge_role(stack, edge)
+    return ["--client", role] if role != "client" else []
+
+
+def edge_argv(route: Route, *, stack: str, connect: str, master: str, certs: Path, stats: Path,
+              edge: str | None = None) -> list[str]:
     # One ROS name per relay: a master drops a node when another registers with its name, so
-    # the relays of several hosts (or several stacks) on one edge master would evict each other.
+    # the relays of several hosts (or several stacks, or edges) on one edge master would evict each other.
     # The server name is the host's own: another host's certificate (same CA) is refused.
-    name = "/fogiac_relay_edge_" + re.sub(r"[^A-Za-z0-9_]", "_", f"{stack}_{route.host}")
+    # ``edge``: whose certificate it shows (EdgeSpec.named; None: today's one edge, ``client``).
+    other = f"_{edge}" if edge is not None else ""
+    name = "/fogiac_relay_edge_" + re.sub(r"[^A-Za-z0-9_]", "_", f"{stack}_{route.host}{other}")
     argv = [sys.executable, "-m", "fogiac", "relay", "edge", "--connect", connect, "--master", master,
             "--certs", str(certs), "--stats-file", str(stats), "--queue-depth", str(route.queue_size),
-            "--name", name, "--server-name", relay_name(stack, route.host)]
+            "--name", name, "--server-name", relay_name(stack, route.host), *_client_argv(stack, edge)]
     argv += route.policy_argv()
     if _loopback(urlparse(master).hostname):  # its XML-RPC and TCPROS sockets on loopback beside the master
         argv += ["--ros-host", "127.0.0.1"]
@@ -115,8 +131,8 @@ def edge_argv(route: Route, *, stack: str, connect: str, master: str, certs: Pat
     return argv
 
 
-def _group_stats(folder: Path, group: str) -> Path:
-    return folder / f"relay-replicas-{group}.stats.json"
+def _group_stats(folder: Path, group: str, suffix: str = "") -> Path:
+    return folder / f"relay-replicas-{group}{suffix}.stats.json"
 
 
 def replica_groups(plan: Plan) -> dict[str, list[Route]]:
@@ -125,21 +141,23 @@ def replica_groups(plan: Plan) -> dict[str, list[Route]]:
 
 
 def replicas_argv(group: str, routes: list[Route], *, stack: str, connect: Mapping[str, str], master: str,
-                  certs: Path, folder: Path) -> list[str]:
+                  certs: Path, folder: Path, edge: str | None = None) -> list[str]:
     """One ``python -m fogiac.net.relay.replicas`` for a replicated node's copies that came up: one link
-    each, requests fanned out, first reply wins (``fogiac.net.relay.replicas``)."""
+    each, requests fanned out, first reply wins (``fogiac.net.relay.replicas``); ``edge`` as :func:`edge_argv`."""
     first = routes[0]
     replica = first.replica
     assert replica is not None
-    name = "/fogiac_relay_replicas_" + re.sub(r"[^A-Za-z0-9_]", "_", f"{stack}_{group}")
+    other = f"_{edge}" if edge is not None else ""
+    suffix = f"@{edge}" if other else ""
+    name = "/fogiac_relay_replicas_" + re.sub(r"[^A-Za-z0-9_]", "_", f"{stack}_{group}{other}")
     argv = [sys.executable, "-m", "fogiac.net.relay.replicas", "--group", group, "--master", master,
-            "--certs", str(certs), "--stats-file", str(_group_stats(folder, group)),
+            "--certs", str(certs), "--stats-file", str(_group_stats(folder, group, suffix)), *_client_argv(stack, edge),
             "--queue-depth", str(first.queue_size), "--name", name, "--match", replica.match,
             "--hedge", replica.hedge, "--hedge-delay", str(replica.hedge_delay_s)]
     for route in routes:
         assert route.replica is not None
         argv += ["--replica", ",".join([str(route.replica.index), route.host, connect[route.host],
-                                        relay_name(stack, route.host), str(_stats(folder, route.host))])]
+                                        relay_name(stack, route.host), str(_stats(folder, route.host, suffix))])]
     argv += first.policy_argv()
     if _loopback(urlparse(master).hostname):  # as edge_argv: its sockets on loopback beside the master
         argv += ["--ros-host", "127.0.0.1"]
@@ -152,37 +170,45 @@ def replicas_argv(group: str, routes: list[Route], *, stack: str, connect: Mappi
 
 
 def edge_up(plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path, folder: Path) -> list[str]:
+    """Every edge's relays (``entry``: where the first edge's master is, ``up --edge-master`` or the plan's)."""
     notes = []
-    for route in plan.routes:
-        if route.host in connect and route.replica is None:
-            supervise.start(folder, f"relay-edge-{route.host}", edge_argv(
-                route, stack=plan.stack, connect=connect[route.host], master=entry, certs=certs,
-                stats=_stats(folder, route.host)))
-    for group, routes in replica_groups(plan).items():
-        up = [r for r in routes if r.host in connect]
-        if len(up) < len(routes):
-            notes.append(f"node {group}: {len(up)} of {len(routes)} replicas up "
-                         f"(missing: {', '.join(r.host for r in routes if r.host not in connect)})")
-        if up:
-            supervise.start(folder, f"relay-replicas-{group}", replicas_argv(
-                group, up, stack=plan.stack, connect=connect, master=entry, certs=certs, folder=folder))
+    for edge in plan.edges_at(entry):
+        suffix = edge_suffix(plan, edge)
+        for route in plan.routes:
+            if route.host in connect and route.replica is None:
+                supervise.start(folder, f"relay-edge-{route.host}{suffix}", edge_argv(
+                    route, stack=plan.stack, connect=connect[route.host], master=edge.entry, certs=certs,
+                    stats=_stats(folder, route.host, suffix), edge=edge.named))
+        for group, routes in replica_groups(plan).items():
+            up = [r for r in routes if r.host in connect]
+            if len(up) < len(routes) and not suffix:  # said once, not per edge
+                notes.append(f"node {group}: {len(up)} of {len(routes)} replicas up "
+                             f"(missing: {', '.join(r.host for r in routes if r.host not in connect)})")
+            if up:
+                supervise.start(folder, f"relay-replicas-{group}{suffix}", replicas_argv(
+                    group, up, stack=plan.stack, connect=connect, master=edge.entry, certs=certs, folder=folder,
+                    edge=edge.named))
     return notes
 
 
-def replica_figures(folder: Path, plan: Plan | None) -> dict[str, dict[str, Any]]:
-    """host -> its replica's figures (answers won, latency, health) from its group's stats file."""
-    return host_figures(plan.routes if plan is not None else (), lambda g: read_json(_group_stats(folder, g)))
+def replica_figures(folder: Path, plan: Plan | None, suffix: str = "") -> dict[str, dict[str, Any]]:
+    """host -> its replica's figures (answers won, latency, health) from its group's stats file (one edge's)."""
+    return host_figures(plan.routes if plan is not None else (), lambda g: read_json(_group_stats(folder, g, suffix)))
 
 
 def edge_links(folder: Path, connect: Mapping[str, str], plan: Plan | None = None) -> list[dict[str, Any]]:
+    """Per edge and host, its link; an edge other than the one named after the stack says its name (``edge``)."""
     links = []
-    replicas = replica_figures(folder, plan)
-    for host, address in sorted(connect.items()):
-        stats = read_json(_stats(folder, host)) or {}
-        topics = [{**t, "direction": MANIFEST_DIRECTION.get(t.get("direction", "-"), "-")}
-                  for t in stats.get("topics", [])]
-        links.append({"host": host, "connect": address, **stats, "topics": topics,
-                      **({"replica": replicas[host]} if host in replicas else {})})
+    for edge in plan.edges if plan is not None else (None,):
+        suffix = edge_suffix(plan, edge) if plan is not None and edge is not None else ""
+        replicas = replica_figures(folder, plan, suffix)
+        for host, address in sorted(connect.items()):
+            stats = read_json(_stats(folder, host, suffix)) or {}
+            topics = [{**t, "direction": MANIFEST_DIRECTION.get(t.get("direction", "-"), "-")}
+                      for t in stats.get("topics", [])]
+            links.append({"host": host, "connect": address, **stats, "topics": topics,
+                          **({"edge": edge.name} if suffix and edge is not None else {}),
+                          **({"replica": replicas[host]} if host in replicas else {})})
     return links
 
 
@@ -227,7 +253,8 @@ class RelayDeployment:
         return host_credentials(host, python=python, folder=folder, certs_dir=certs_dir, plan=plan, spec=spec)
 
     def prepare_edge(self, plan: Plan, entry: str, *, folder: Path, start: bool) -> None:
-        prepare_edge(entry, folder=folder, start=start)
+        for edge in plan.edges_at(entry):  # each robot's master (``entry``: the first's)
+            prepare_edge(edge.entry, folder=folder, start=start, name=EDGE_MASTER + edge_suffix(plan, edge))
 
     def edge_up(self, plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path,
                 folder: Path) -> list[str]:

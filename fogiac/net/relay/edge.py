@@ -32,7 +32,7 @@ class EdgeRelay(RelayEnd):
     def __init__(self, config: EdgeConfig) -> None:
         super().__init__(config, config.caller_id)
         self.edge_config = config
-        self._ctx = client_context(config.certs)
+        self._ctx = client_context(config.certs, config.client)
         self._server_name = expected_server_name(config.certs, config.server_name)
         self._wake = threading.Event()
         self._cloud_graph = GraphState()

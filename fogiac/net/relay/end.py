@@ -48,9 +48,10 @@ class RelayEnd:
     def stop(self) -> None:
         self._stopping.set()
         self._stop_link()
-        session = self.session
-        if session is not None:
+        sessions = self._sessions()
+        for session in sessions:
             session.close("relay stopping")
+        for session in sessions:
             session.closed.wait(10)
         if self._monitor is not None:
             self._monitor.stop()
@@ -66,18 +67,24 @@ class RelayEnd:
     def __exit__(self, *exc: Any) -> None:
         self.stop()
 
-    def stats(self) -> RelayStats:
-        """Topics, latency, throughput and drops as of the last second."""
+    def _sessions(self) -> list[Session]:
+        """Every session this end holds: the edge's one link; the cloud end's one per edge identity."""
         session = self.session
-        live = session is not None and session.alive
-        rtt = session.clock.rtt_ns if live and session else None
+        return [session] if session is not None else []
+
+    def stats(self) -> RelayStats:
+        """Topics, latency, throughput and drops as of the last second, over every live session (the
+        clock figures are the latest session's)."""
+        live = [s for s in self._sessions() if s.alive]
+        latest = self.session if self.session in live else (live[-1] if live else None)
+        rtt = latest.clock.rtt_ns if latest is not None else None
         return RelayStats(
-            role=self.role, connected=live,
+            role=self.role, connected=bool(live),
             rtt_ms=None if rtt is None else round(rtt / 1e6, 3),
-            clock_offset_ms=round(session.clock.offset_ns / 1e6, 3) if live and session else 0.0,
-            reconnects=self.reconnects, refused=session.refused if live and session else 0,
-            topics=tuple(sorted((_with_peer_latency(c.snapshot(), session.peer_latency) for c in session.counters()),
-                                key=lambda t: (t.topic, t.direction))) if live and session else (),
+            clock_offset_ms=round(latest.clock.offset_ns / 1e6, 3) if latest is not None else 0.0,
+            reconnects=self.reconnects, refused=sum(s.refused for s in live),
+            topics=tuple(sorted((_with_peer_latency(c.snapshot(), s.peer_latency) for s in live for c in s.counters()),
+                                key=lambda t: (t.topic, t.direction))),
         )
 
     # --- for subclasses --------------------------------------------------------------------
@@ -111,8 +118,7 @@ class RelayEnd:
 
     def _stats_loop(self) -> None:
         while not self._stopping.wait(1.0):
-            session = self.session
-            if session is not None:
+            for session in self._sessions():
                 for counters in session.counters():
                     counters.tick()
             stats = self.stats()

@@ -398,6 +398,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="INDEX,HOST,ADDRESS[:PORT][,SERVER_NAME[,STATS_FILE]], one per replica")
     parser.add_argument("--master", default="http://127.0.0.1:11311/")
     parser.add_argument("--certs", type=Path, required=True)
+    parser.add_argument("--client", default="client", help="this edge's pair under --certs (CLIENT.pem/.key)")
     parser.add_argument("--ros-host", default=None)
     parser.add_argument("--stats-file", type=Path, default=None)
     parser.add_argument("--queue-depth", type=int, default=4)
@@ -419,7 +420,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                           queue_depth=args.queue_depth, connect=("", 0),
                           policy=policy_from_spec(args.topics, out_topics=args.out, in_topics=args.in_topics),
                           compression=default, topic_compression=tuple(sorted(per_topic.items())),
-                          caller_id=args.name)
+                          client=args.client, caller_id=args.name)
         group = ReplicaGroup(GroupConfig(
             edge=edge, group=args.group, replicas=tuple(parse_replica(r) for r in args.replica),
             match=args.match, hedge=args.hedge, hedge_delay_s=args.hedge_delay, stats_file=args.stats_file))

@@ -40,8 +40,9 @@ def server_context(certs: Path) -> ssl.SSLContext:
     return ctx
 
 
-def client_context(certs: Path) -> ssl.SSLContext:
-    ca, cert, key = _need(certs, "ca.pem", "client.pem", "client.key")
+def client_context(certs: Path, client: str = "client") -> ssl.SSLContext:
+    """The edge's side; ``client``: the stem of its pair's files (each edge has its own, which names it)."""
+    ca, cert, key = _need(certs, "ca.pem", f"{client}.pem", f"{client}.key")
     ctx = _base(ssl.PROTOCOL_TLS_CLIENT)
     ctx.check_hostname = True
     ctx.load_cert_chain(cert, key)

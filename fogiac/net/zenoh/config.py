@@ -109,9 +109,10 @@ def _rule(rule_id: str, flow: str, messages: list[str], keys: list[str]) -> dict
     return {"id": rule_id, "permission": "allow", "flows": [flow], "messages": messages, "key_exprs": keys}
 
 
-def access_control(route: Route, *, edge_name: str) -> dict[str, Any]:
+def access_control(route: Route, *, edge_name: str | Sequence[str]) -> dict[str, Any]:
     """Deny by default; the host's own nodes (TCP on loopback) may do anything among themselves. A replica's
-    host lets only its prefixed keys cross, so the edge's merge sees every copy of a reply, the robot none."""
+    host lets only its prefixed keys cross, so the edge's merge sees every copy of a reply, the robot none.
+    ``edge_name``: the common name of the edge routers' certificates (one per edge)."""
     rules = _local_rules()
     rules += _link_rules("edge", receive=list(route.to_cloud + route.listed), send=list(route.to_edge + route.listed),
                          keys=replica_keys_prefix(route))
@@ -122,7 +123,8 @@ def access_control(route: Route, *, edge_name: str) -> dict[str, Any]:
         "rules": rules,
         "subjects": [
             {"id": "host-nodes", "link_protocols": ["tcp"], "interfaces": ["lo"]},
-            {"id": "edge", "link_protocols": ["tls"], "cert_common_names": [edge_name]},
+            {"id": "edge", "link_protocols": ["tls"],
+             "cert_common_names": [edge_name] if isinstance(edge_name, str) else list(edge_name)},
         ],
         "policies": [
             {"id": "host-nodes", "rules": ["local-in", "local-out"], "subjects": ["host-nodes"]},
@@ -176,7 +178,7 @@ def _base(*, listen: Sequence[str], connect: Sequence[str], tls: dict[str, Any])
     }
 
 
-def cloud_router(route: Route, *, listen_host: str, tls: TlsFiles, edge_name: str,
+def cloud_router(route: Route, *, listen_host: str, tls: TlsFiles, edge_name: str | Sequence[str],
                  local_port: int = LOCAL_PORT) -> dict[str, Any]:
     """The router on ``route.host``: mutual TLS for the edge on ``listen_host``, loopback for its nodes."""
     config = _base(listen=(f"tls/{listen_host}:{route.port}", f"tcp/127.0.0.1:{local_port}"), connect=(),

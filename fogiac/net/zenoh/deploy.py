@@ -14,6 +14,9 @@ The Zenoh variant's answers to :class:`fogiac.net.middleware.Middleware`'s deplo
 - The edge router listens on loopback only (``edge.zenoh_router``) and dials every cloud router;
   the monitor publishes ``/fogros/latency`` and ``/fogros/throughput`` on it. ``up`` also writes
   the robot's own router's and zenoh-bridge-ros2dds's configs, pointing at that endpoint.
+- One edge router (with its monitor and configs) per edge of the plan, each with its own certificate and
+  Zenoh id; a cloud router accepts every edge's certificate. The edge named after the stack (today's
+  manifests' only one) keeps the names it always had; any other's processes and files carry ``@<edge>``.
 """
 
 from __future__ import annotations
@@ -35,7 +38,7 @@ from fogiac.net.zenoh import tls
 from fogiac.net.zenoh.config import TlsFiles, cloud_router, edge_router
 from fogiac.net.zenoh.middleware import ROUTER
 from fogiac.net.zenoh.replicas import SUPPORTED_MATCH, replica_prefix
-from fogiac.plan.model import HostSpec, Plan, Route
+from fogiac.plan.model import EdgeSpec, HostSpec, Plan, Route
 from fogiac.provision import supervise
 from fogiac.provision.host import Host, q
 from fogiac.render import render
@@ -58,9 +61,15 @@ def router_id(stack: str, host: str) -> str:
     return _zid(f"{stack}/{host}")
 
 
-def edge_router_id(stack: str) -> str:
-    """The edge router's fixed Zenoh id: a cloud router's stats count only it as "the edge connected"."""
-    return _zid(f"{stack}/edge-router")
+def edge_router_id(stack: str, edge: str | None = None) -> str:
+    """An edge router's fixed Zenoh id: a cloud router's stats count only the edges' as "the edge connected"
+    (None: the one edge of today's manifests, with the id it always had; else ``EdgeSpec.named``)."""
+    return _zid(f"{stack}/edge-router" if edge is None else f"{stack}/edge-router/{edge}")
+
+
+def edge_suffix(plan: Plan, edge: EdgeSpec) -> str:
+    """What an edge's processes and files carry after their names: nothing for the edge named after the stack."""
+    return "" if plan.is_default_edge(edge) else f"@{edge.name}"
 
 
 def local_endpoint(where: Where) -> str:
@@ -131,13 +140,14 @@ def host_services(plan: Plan, spec: HostSpec, where: Where, *, certs: Path) -> t
     files = TlsFiles(ca=f"{remote}/ca.pem", cert=f"{remote}/server.pem", key=f"{remote}/server.key")
     route = next(r for r in plan.routes if r.host == spec.name)
     listen = where.listen
-    config = cloud_router(route, listen_host=listen, tls=files, edge_name=tls.edge_name(plan.stack),
+    names = [tls.edge_name(plan.stack, e.named) for e in plan.edges]
+    config = cloud_router(route, listen_host=listen, tls=files, edge_name=names[0] if len(names) == 1 else names,
                           local_port=where.master_port)
     config["id"] = router_id(plan.stack, spec.name)
     config["listen"]["endpoints"][0] = f"tls/{listen}:{where.relay_port}"
     path, stats = f"{where.layout.env}/zenoh-router.json", router_stats(where)
     command = (f"{q(where.python)} -m fogiac.net.zenoh.router {q(path)} --stats-file {q(stats)} "
-               f"--edge-id {edge_router_id(plan.stack)}")
+               + " ".join(f"--edge-id {edge_router_id(plan.stack, e.named)}" for e in plan.edges))
     router = make_service(ROUTER, plan=plan, spec=spec, where=where, command=command, check="alive",
                               python_path=where.code_root, files=(
                                   (path, json.dumps(config, indent=1, sort_keys=True), 0o600),
@@ -161,8 +171,10 @@ def replica_service(plan: Plan, spec: HostSpec, where: Where, route: Route) -> S
                         python_path=where.code_root, after=ROUTER)
 
 
-def replica_merges(plan: Plan, *, entry: str, connect: Mapping[str, str], folder: Path) -> list[str]:
-    """One edge merge per replicated node whose replicas came up; notes for what is missing."""
+def replica_merges(plan: Plan, *, entry: str, connect: Mapping[str, str], folder: Path,
+                   suffix: str = "") -> list[str]:
+    """One edge merge per replicated node whose replicas came up; notes for what is missing. ``suffix``: the
+    edge's (:func:`edge_suffix`), for an edge other than the one named after the stack."""
     notes = []
     for group, routes in groups_of(plan.routes).items():
         up = [r for r in routes if r.host in connect]
@@ -178,19 +190,19 @@ def replica_merges(plan: Plan, *, entry: str, connect: Mapping[str, str], folder
                          f"not {first.match!r}")
         argv = [sys.executable, "-m", "fogiac.net.zenoh.replicas", "edge", entry, "--group", group,
                 "--hedge", first.hedge, "--hedge-delay", str(first.hedge_delay_s),
-                "--linked-file", str(folder / "zenoh-edge.stats.json"),
-                "--stats-file", str(_group_stats(folder, group))]
+                "--linked-file", str(folder / f"zenoh-edge{suffix}.stats.json"),
+                "--stats-file", str(_group_stats(folder, group, suffix))]
         for r in up:
             assert r.replica is not None
             argv += ["--replica", f"{r.replica.index},{r.host},{router_id(plan.stack, r.host)}"]
         argv += [a for t in sorted(set(up[0].to_cloud)) for a in ("--to-cloud", t)]
         argv += [a for t in sorted(set(up[0].to_edge)) for a in ("--to-edge", t)]
-        supervise.start(folder, f"zenoh-replicas-{group}", argv)
+        supervise.start(folder, f"zenoh-replicas-{group}{suffix}", argv)
     return notes
 
 
-def _group_stats(folder: Path, group: str) -> Path:
-    return folder / f"zenoh-replicas-{group}.stats.json"
+def _group_stats(folder: Path, group: str, suffix: str = "") -> Path:
+    return folder / f"zenoh-replicas-{group}{suffix}.stats.json"
 
 
 def router_stats(where: Where) -> str:
@@ -203,49 +215,66 @@ def _port(endpoint: str) -> int:
 
 
 def edge_up(plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path, folder: Path) -> list[str]:
+    """Every edge's router, monitor and configs (``entry``: the first edge's, ``up --edge-master`` or the plan's)."""
+    notes: list[str] = []
+    for edge in plan.edges_at(entry):
+        notes += _edge_up(plan, edge, connect=connect, certs=certs, folder=folder)
+    return notes
+
+
+def _edge_up(plan: Plan, edge: EdgeSpec, *, connect: Mapping[str, str], certs: Path, folder: Path) -> list[str]:
+    entry, suffix = edge.entry, edge_suffix(plan, edge)
+    role = "edge" + suffix.replace("@", "-")  # its pair's files: edge.pem, edge-<name>.pem
     ca = load_or_create_bundle(plan.stack, certs).ca
-    pair = _issued(certs, "edge", lambda: tls.edge_pair(ca, stack=plan.stack))
-    files = tls.write_files(folder / "zenoh", "edge", pair, ca)
+    pair = _issued(certs, role, lambda: tls.edge_pair(ca, stack=plan.stack, edge=edge.named))
+    files = tls.write_files(folder / "zenoh", role, pair, ca)
     cloud = [(e.host, e.port) for e in (Endpoint.parse(address) for _, address in sorted(connect.items()))]
     policy = [(tls.host_name(plan.stack, r.host), r) for r in plan.routes if r.host in connect]
     config = edge_router(cloud, tls=files, local_port=_port(entry), policy=policy)
-    config["id"] = edge_router_id(plan.stack)
-    router_file, stats = folder / "zenoh-edge.json", folder / "zenoh-edge.stats.json"
+    config["id"] = edge_router_id(plan.stack, edge.named)
+    router_file, stats = folder / f"zenoh-edge{suffix}.json", folder / f"zenoh-edge{suffix}.stats.json"
     router_file.write_text(json.dumps(config, indent=1, sort_keys=True))
-    supervise.start(folder, EDGE_ROUTER, [sys.executable, "-m", "fogiac.net.zenoh.router", str(router_file),
-                                          "--stats-file", str(stats)])
+    supervise.start(folder, EDGE_ROUTER + suffix, [sys.executable, "-m", "fogiac.net.zenoh.router", str(router_file),
+                                                   "--stats-file", str(stats)])
     routes = [r for r in plan.routes if r.host in connect]
     to_edge = sorted({t for r in routes for t in r.to_edge + r.listed})
     to_cloud = sorted({t for r in routes for t in r.to_cloud})
     monitor = [sys.executable, "-m", "fogiac.net.zenoh.monitor", entry, "--stats-file",
-               str(folder / "zenoh-monitor.stats.json")]
+               str(folder / f"zenoh-monitor{suffix}.stats.json")]
     monitor += [a for t in to_edge for a in ("--to-edge", t)] + [a for t in to_cloud for a in ("--to-cloud", t)]
-    supervise.start(folder, EDGE_MONITOR, monitor)
-    robot = folder / "robot-router.json5"
+    supervise.start(folder, EDGE_MONITOR + suffix, monitor)
+    robot = folder / f"robot-router{suffix}.json5"
     robot.write_text(json.dumps({"mode": "router", "connect": {"endpoints": [entry]}}, indent=1) + "\n")
-    bridge = folder / "zenoh-bridge-ros2dds.json5"
+    bridge = folder / f"zenoh-bridge-ros2dds{suffix}.json5"
     bridge.write_text(json.dumps({"mode": "client", "connect": {"endpoints": [entry]}, "plugins": {"ros2dds": {
         "allow": {"publishers": [f"{t}$" for t in to_cloud], "subscribers": [f"{t}$" for t in to_edge]}}}},
         indent=1) + "\n")
-    merges = replica_merges(plan, entry=entry, connect=connect, folder=folder)
-    return merges + [f"edge Zenoh router on {entry} (rmw_zenoh nodes on the robot connect there), dialing "
+    merges = replica_merges(plan, entry=entry, connect=connect, folder=folder, suffix=suffix)
+    whose = f"edge {edge.name}: " if suffix else ""
+    return merges + [f"{whose}edge Zenoh router on {entry} (rmw_zenoh nodes on the robot connect there), dialing "
             + ", ".join(f"tls/{a}" for a in sorted(connect.values())),
             f"robot router config (rmw_zenohd connecting to it): {robot}", BRIDGE_NOTE.format(path=bridge)]
 
 
 def edge_links(plan: Plan, *, folder: Path, connect: Mapping[str, str]) -> list[dict[str, Any]]:
-    linked = set((read_json(folder / "zenoh-edge.stats.json") or {}).get("routers", []))
-    figures = {t["topic"]: t for t in (read_json(folder / "zenoh-monitor.stats.json") or {}).get("topics", [])}
-    replicas = host_figures(plan.routes, lambda g: read_json(_group_stats(folder, g)))
+    """Per edge and host, its link; an edge other than the one named after the stack says its name (``edge``)."""
     links = []
-    for route in plan.routes:
-        if route.host not in connect:
-            continue
-        mine = [{**figures[t], "direction": "in" if t in route.to_cloud else "out"}
-                for t in sorted(set(route.to_cloud + route.to_edge + route.listed)) if t in figures]
-        links.append({"host": route.host, "connect": connect[route.host],
-                      "connected": router_id(plan.stack, route.host) in linked, "topics": mine,
-                      **({"replica": replicas[route.host]} if route.host in replicas else {})})
+    for edge in plan.edges:
+        suffix = edge_suffix(plan, edge)
+        linked = set((read_json(folder / f"zenoh-edge{suffix}.stats.json") or {}).get("routers", []))
+        figures = {t["topic"]: t
+                   for t in (read_json(folder / f"zenoh-monitor{suffix}.stats.json") or {}).get("topics", [])}
+        # host_figures calls it at once, while suffix is this edge's
+        replicas = host_figures(plan.routes, lambda g: read_json(_group_stats(folder, g, suffix)))  # noqa: B023
+        for route in plan.routes:
+            if route.host not in connect:
+                continue
+            mine = [{**figures[t], "direction": "in" if t in route.to_cloud else "out"}
+                    for t in sorted(set(route.to_cloud + route.to_edge + route.listed)) if t in figures]
+            links.append({"host": route.host, "connect": connect[route.host],
+                          "connected": router_id(plan.stack, route.host) in linked, "topics": mine,
+                          **({"edge": edge.name} if suffix else {}),
+                          **({"replica": replicas[route.host]} if route.host in replicas else {})})
     return links
 
 

@@ -31,12 +31,14 @@ def open_router(config: dict[str, Any]) -> Any:
         raise ZenohError(f"zenoh router: {err}") from None
 
 
-def serve(config_path: Path, *, stats: Path | None = None, edge_id: str | None = None) -> None:
+def serve(config_path: Path, *, stats: Path | None = None, edge_id: str | list[str] | None = None) -> None:
     """Route until told to stop; with ``stats``, write the ids of the routers linked to it every second
     and whether the edge's is one of them (``connected``, which autostop reads). With ``edge_id`` only
     that router counts: a zenohd or a bridge on the host linked to the loopback port is no edge.
-    Without it (the edge's own router), any linked router counts."""
+    Without it (the edge's own router), any linked router counts. Several ids: one edge router per edge,
+    any of them counts."""
     config = json.loads(config_path.read_text())
+    edges = [edge_id] if isinstance(edge_id, str) else list(edge_id or [])
     stop = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: stop.set())
@@ -46,7 +48,7 @@ def serve(config_path: Path, *, stats: Path | None = None, edge_id: str | None =
         while not stop.wait(STATS_PERIOD_S if stats is not None else None):
             if stats is not None:
                 routers = sorted(str(z) for z in session.info.routers_zid())
-                linked = edge_id in routers if edge_id is not None else bool(routers)
+                linked = bool(set(edges) & set(routers)) if edges else bool(routers)
                 write_json_atomic(stats, {"routers": routers, "connected": linked})
     finally:
         session.close()
@@ -56,7 +58,8 @@ if __name__ == "__main__":
     parser = argparse.ArgumentParser(prog="python -m fogiac.net.zenoh.router")
     parser.add_argument("config", type=Path)
     parser.add_argument("--stats-file", type=Path, help="write the linked routers' ids here every second")
-    parser.add_argument("--edge-id", help="the edge router's Zenoh id: only it counts as connected")
+    parser.add_argument("--edge-id", action="append",
+                        help="an edge router's Zenoh id (one per edge): only they count as connected")
     args = parser.parse_args()
     try:
         serve(args.config, stats=args.stats_file, edge_id=args.edge_id)

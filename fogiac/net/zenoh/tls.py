@@ -18,12 +18,14 @@ def host_name(stack: str, host: str) -> str:
     return f"{host}.router.{stack}.fogiac"
 
 
-def edge_name(stack: str) -> str:
-    return f"edge.router.{stack}.fogiac"
+def edge_name(stack: str, edge: str | None = None) -> str:
+    """The common name of ``edge``'s router certificate, its identity at the cloud routers (None: the one edge
+    of today's manifests, with the name it always had; else :attr:`fogiac.plan.model.EdgeSpec.named`)."""
+    return f"edge.router.{stack}.fogiac" if edge is None else f"{edge}.edge.router.{stack}.fogiac"
 
 
-def edge_pair(ca: KeyPair, *, stack: str) -> KeyPair:
-    return issue(ca, edge_name(stack), server=False)
+def edge_pair(ca: KeyPair, *, stack: str, edge: str | None = None) -> KeyPair:
+    return issue(ca, edge_name(stack, edge), server=False)
 
 
 def write_files(directory: Path, name: str, pair: KeyPair, ca: KeyPair) -> TlsFiles:

@@ -1,0 +1,201 @@
+"""The cloud end's local topics, shared by the sessions of every edge linked to it.
+
+A ROS node may register a topic once as a publisher and once as a subscriber, and the cloud end is
+one node however many edges are linked (one session per edge identity, :mod:`fogiac.net.relay.cloud`).
+So each topic the edges ask for has one subscription here, fanned out to every session that asked
+(each compresses and queues for its own link), and each topic the edges send has one publisher,
+which every session that opened it publishes through. The first session to need a topic registers
+it, the last to let go withdraws it: with one edge this is exactly the session's own registration.
+
+A session that joins a latched topic after its first message gets the last one, as a late ROS
+subscriber of a latched publisher would.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from typing import TYPE_CHECKING
+
+from fogiac.net.relay.framing import Payload
+from fogiac.net.relay.pubsub import LocalPublisher, LocalSubscription, TopicMeta
+
+if TYPE_CHECKING:
+    from fogiac.net.relay.node import RelayNode
+    from fogiac.net.relay.session import _Sink, _Source
+
+log = logging.getLogger(__name__)
+
+
+class _Fan:
+    """One topic sent to the edges: a single subscription, each message handed to every session's source."""
+
+    def __init__(self, topics: SharedTopics, topic: str) -> None:
+        self.topics, self.topic = topics, topic
+        self.sources: list[_Source] = []
+        self.meta: TopicMeta | None = None
+        self.latched: bytes | None = None
+        self.sub = LocalSubscription(topics.node, topic, on_meta=self._meta, on_message=self._message)
+
+    def _meta(self, meta: TopicMeta) -> None:
+        with self.topics.lock:
+            self.meta = meta
+            sources = list(self.sources)
+        for source in sources:
+            source._meta(meta)
+
+    def _message(self, data: Payload) -> None:
+        with self.topics.lock:
+            if self.meta is not None and self.meta.latching:
+                self.latched = bytes(data)
+            sources = list(self.sources)
+        for source in sources:
+            source._message(data)
+
+
+class _Feed:
+    """A session's source fed by its topic's fan."""
+
+    def __init__(self, topics: SharedTopics, source: _Source) -> None:
+        self.topics, self.source = topics, source
+
+    def start(self) -> None:
+        self.topics.attach_source(self.source)
+
+    def stop(self) -> None:
+        self.topics.detach_source(self.source)
+
+
+class _Merge:
+    """One topic the edges send: a single publisher, counted by the sessions' sinks that use it."""
+
+    def __init__(self, topics: SharedTopics, topic: str, meta: TopicMeta) -> None:
+        self.topic, self.users = topic, 0
+        self.pub = LocalPublisher(topics.node, topic, meta, depth=topics.depth)
+
+
+class _Outlet:
+    """A session's sink publishing through its topic's merge."""
+
+    def __init__(self, topics: SharedTopics, topic: str, meta: TopicMeta) -> None:
+        self.topics, self.topic, self.meta = topics, topic, meta
+        self._merge: _Merge | None = None
+
+    @property
+    def drops(self) -> int:
+        merge = self._merge
+        return merge.pub.drops if merge is not None else 0
+
+    def start(self) -> None:
+        self._merge = self.topics.attach_sink(self.topic, self.meta)
+
+    def stop(self) -> None:
+        merge, self._merge = self._merge, None
+        if merge is not None:
+            self.topics.detach_sink(merge)
+
+    def publish(self, data: Payload) -> None:
+        merge = self._merge
+        if merge is not None:
+            merge.pub.publish(data)
+
+
+class SharedTopics:
+    """The registrations of one cloud end's node, shared by its sessions (see the module docstring).
+
+    :meth:`feed` and :meth:`outlet` are what a :class:`~fogiac.net.relay.session.Session` takes as its
+    ``feed`` and ``outlet``."""
+
+    def __init__(self, node: RelayNode, *, depth: int) -> None:
+        self.node, self.depth = node, depth
+        self.lock = threading.Lock()  # the fans' and merges' members: held briefly, messages take it too
+        # One registration change at a time, start or stop included: a topic one session lets go of is
+        # withdrawn from the master before another session's registers it again (the node holds one each).
+        self._changing = threading.Lock()
+        self._fans: dict[str, _Fan] = {}
+        self._merges: dict[str, _Merge] = {}
+
+    def feed(self, source: _Source) -> _Feed:
+        return _Feed(self, source)
+
+    def outlet(self, sink: _Sink, meta: TopicMeta) -> _Outlet:
+        return _Outlet(self, sink.topic, meta)
+
+    def attach_source(self, source: _Source) -> None:
+        """Join (or make and start) the topic's subscription; RelayError, as a subscription's start, if the
+        master refuses it."""
+        with self._changing:
+            self._attach_source(source)
+
+    def _attach_source(self, source: _Source) -> None:
+        with self.lock:
+            fan = self._fans.get(source.topic)
+            made = fan is None
+            if fan is None:
+                fan = self._fans[source.topic] = _Fan(self, source.topic)
+            elif fan.meta is not None:  # known already: OPEN before the first DATA, and the latched message
+                source._meta(fan.meta)
+                if fan.latched is not None:
+                    source._message(fan.latched)
+            fan.sources.append(source)
+        if made:
+            try:
+                fan.sub.start()
+            except BaseException:
+                with self.lock:
+                    fan.sources.remove(source)
+                    if self._fans.get(source.topic) is fan:
+                        del self._fans[source.topic]
+                raise
+
+    def detach_source(self, source: _Source) -> None:
+        with self._changing:
+            self._detach_source(source)
+
+    def _detach_source(self, source: _Source) -> None:
+        with self.lock:
+            fan = self._fans.get(source.topic)
+            if fan is None or source not in fan.sources:
+                return
+            fan.sources.remove(source)
+            last = not fan.sources
+            if last:
+                del self._fans[source.topic]
+        if last:
+            fan.sub.stop()
+
+    def attach_sink(self, topic: str, meta: TopicMeta) -> _Merge:
+        """Join (or make and advertise) the topic's publisher; RelayError if the master refuses it."""
+        with self._changing:
+            return self._attach_sink(topic, meta)
+
+    def _attach_sink(self, topic: str, meta: TopicMeta) -> _Merge:
+        with self.lock:
+            merge = self._merges.get(topic)
+            made = merge is None
+            if merge is None:
+                merge = self._merges[topic] = _Merge(self, topic, meta)
+            elif merge.pub.meta.md5sum != meta.md5sum:
+                log.warning("two edges send %s, as %s and as %s: published as %s", topic, merge.pub.meta.type,
+                            meta.type, merge.pub.meta.type)
+            merge.users += 1
+        if made:
+            try:
+                merge.pub.start()
+            except BaseException:
+                self._detach_sink(merge, stop=False)
+                raise
+        return merge
+
+    def detach_sink(self, merge: _Merge) -> None:
+        with self._changing:
+            self._detach_sink(merge)
+
+    def _detach_sink(self, merge: _Merge, *, stop: bool = True) -> None:
+        with self.lock:
+            merge.users -= 1
+            last = merge.users <= 0
+            if last and self._merges.get(merge.topic) is merge:
+                del self._merges[merge.topic]
+        if last and stop:
+            merge.pub.stop()

@@ -245,9 +245,13 @@ def main() -> None:
                       f"{result[mode][2] / 1e6:8.1f} MB/s  ({result[mode][3]} msgs)", flush=True)
             d, r = result["direct"], result["relay"]
             rows.append((label, r[0] - d[0], r[1] - d[1], r[2] / d[2] if d[2] else 0.0, d, r))
-        print("\nsize     added median ms  added p99 ms  throughput relay/direct  (direct MB/s, relay MB/s)")
+        # CPU per MB per relay end beside the ratio: both come from this run, against direct ROS in it.
+        print("\nsize     added median ms  added p99 ms  throughput relay/direct  (direct MB/s, relay MB/s)"
+              "  relay CPU ms per MB: edge, cloud")
         for label, add_med, add_p99, ratio, d, r in rows:
-            print(f"{label:8} {add_med:15.3f} {add_p99:13.3f} {ratio:24.2f}  ({d[2] / 1e6:.1f}, {r[2] / 1e6:.1f})")
+            edge_ms, cloud_ms = cpu_ms_per_mb.get(label, (0.0, 0.0))
+            print(f"{label:8} {add_med:15.3f} {add_p99:13.3f} {ratio:24.2f}  ({d[2] / 1e6:.1f}, {r[2] / 1e6:.1f})"
+                  f"{'':>10}{edge_ms:.2f}, {cloud_ms:.2f}")
         print("relay CPU per MB carried in the throughput runs (user + system, all threads): "
               + ", ".join(f"{label} edge {e:.2f} ms, cloud {c:.2f} ms" for label, (e, c) in cpu_ms_per_mb.items()))
         # Busy CPUs are the limit when the machine is not idle during the throughput runs: then direct

@@ -19,25 +19,30 @@ from pathlib import Path
 
 
 class ClockSync:
-    """Offset of the peer's clock from ours (peer - local, ns) and the link's round trip."""
+    """Offset of the peer's clock from ours (peer - local, ns) and the link's round trip.
+
+    The best sample is found when one is added (once a ping), not when read: every message
+    that arrives reads the offset."""
 
     def __init__(self, window: int = 16) -> None:
         self._samples: deque[tuple[int, int]] = deque(maxlen=window)
+        self._best: tuple[int, int] | None = None
+        self.offset_ns = 0
 
     def add(self, t0: int, peer: int, t3: int) -> None:
         """``t0`` ping sent (local), ``peer`` pong stamped (peer), ``t3`` pong received (local)."""
         self._samples.append((t3 - t0, peer - (t0 + t3) // 2))
+        self._best = best = min(self._samples)
+        self.offset_ns = best[1]
 
     @property
     def rtt_ns(self) -> int | None:
-        return min(self._samples)[0] if self._samples else None
-
-    @property
-    def offset_ns(self) -> int:
-        return min(self._samples)[1] if self._samples else 0
+        best = self._best
+        return None if best is None else best[0]
 
     def reset(self) -> None:
         self._samples.clear()
+        self._best, self.offset_ns = None, 0
 
 
 @dataclass(frozen=True)

@@ -11,6 +11,7 @@ import time
 import xmlrpc.client
 from collections.abc import Iterator
 from contextlib import contextmanager
+from functools import cache
 from pathlib import Path
 
 from fogiac.procs import free_port
@@ -18,8 +19,13 @@ from fogiac.procs import free_port
 __all__ = ["free_port", "ros_missing", "roscore", "stop_group"]
 
 
+@cache
 def ros_missing(*modules: str) -> str | None:
-    """Why ROS tests cannot run here, or None: roscore and the given rospy modules must import."""
+    """Why ROS tests cannot run here, or None: roscore and the given rospy modules must import.
+
+    Cached: each probe starts a Python that imports rospy (about a second), and many test modules ask
+    at collection, in every pytest-xdist worker; the answer does not change within a run.
+    """
     if shutil.which("roscore") is None:
         return "roscore not installed (apt-get install ros-core)"
     wanted = ("rospy", "std_msgs.msg", *modules)

@@ -1,19 +1,21 @@
 """Shared fixtures: every test gets its own fogiac state directory.
 
-And the grouping that lets the suite run on several pytest-xdist workers (``.ci/test`` runs
-``-n 4 --dist loadgroup``): a test that shares an expensive setup runs on the worker that made it,
+And the scheduling that lets the suite run on several pytest-xdist workers (``.ci/test`` runs
+``-n 4 --dist loadscope``): tests that share an expensive setup run on the worker that made it,
 instead of every worker making its own copy.
 
-- Tests of one module that use a module- or class-scoped fixture of the tests' own (a deployed
-  stack, a lab of SSH hosts, two roscores) run together, so the module's setup happens once.
-- Tests that use one of ``SHARED_SETUPS`` (session fixtures that are slow to make or that stand for
-  one thing on the machine) run together: one LocalStack emulator, one rendering of each SLAM
-  sequence, one offline declaration of the stack plans.
+- A module's tests run on one worker (xdist's loadscope), so a module- or class-scoped fixture (a
+  deployed stack, a lab of SSH hosts, two roscores) is made once.
+- The folders in ``SHARED_FOLDERS`` run on one worker each, because their tests share a session
+  fixture that is slow to make or stands for one thing on the machine: one LocalStack emulator,
+  one rendering of each SLAM sequence, one offline declaration of the stack plans.
 
-Without xdist the marks do nothing. Nothing else needs grouping: namespace names and the SSH
-lab's addresses are unique per process (``tests/support/netns.py``, ``tests/provision/sshlab.py``),
-ports are free ones, and state, certificates and containers are named after per-test folders or
-stacks.
+(xdist's own ``xdist_group`` marks group nothing under pytest 9.2: xdist 3.8 renames
+``item._nodeid``, which pytest 9.2 no longer reads. Hence a scheduler that groups by node id.)
+
+Nothing else needs grouping: namespace names and the SSH lab's addresses are unique per process
+(``tests/support/netns.py``, ``tests/provision/sshlab.py``), ports are free ones, and state,
+certificates and containers are named after per-test folders or stacks.
 """
 
 from __future__ import annotations
@@ -24,13 +26,12 @@ import pytest
 
 REPO = Path(__file__).resolve().parent.parent
 EXAMPLES = REPO / "examples"
-TESTS = Path(__file__).resolve().parent
 
-# Session fixture -> the xdist group of every test that uses it (directly or through other fixtures).
-SHARED_SETUPS = {
-    "localstack": "localstack",  # one emulator (about 20 s to start, 700 MB) for every AWS test
-    "desk": "slam-sequences", "desk_full": "slam-sequences", "loop": "slam-sequences",  # rendered frames
-    "offline": "offline-plans",  # every example's stack program declared under Pulumi's mocks
+# Folder -> the one xdist scope of all its tests (the session fixture they share, in its conftest.py).
+SHARED_FOLDERS = {
+    "tests/targets/aws/": "localstack",  # one emulator (about 20 s to start, 700 MB) for every AWS test
+    "tests/workloads/slam/": "slam-sequences",  # desk, desk_full, loop: rendered frames (minutes of CPU)
+    "tests/stacks/": "offline-plans",  # every example's stack program declared under Pulumi's mocks
 }
 
 
@@ -41,29 +42,20 @@ def _state_dir(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.Mon
     return state
 
 
-def _group(item: pytest.Item) -> str | None:
-    """The xdist group ``item`` belongs to, or None when it may run on any worker."""
-    info = getattr(item, "_fixtureinfo", None)
-    if info is None:
+def scope_of(nodeid: str) -> str:
+    """The xdist scope of a test: its shared folder's name, else its module."""
+    module = nodeid.split("::", 1)[0]
+    return next((name for folder, name in SHARED_FOLDERS.items() if module.startswith(folder)), module)
+
+
+def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object | None:
+    """``--dist loadscope``, with the scopes of ``scope_of``; any other ``--dist`` as xdist has it."""
+    if config.getvalue("dist") != "loadscope":
         return None
-    shared = sorted({SHARED_SETUPS[name] for name in info.names_closure if name in SHARED_SETUPS})
-    if shared:
-        return "+".join(shared)
-    for name in info.names_closure:
-        for definition in info.name2fixturedefs.get(name, ()):
-            if definition.scope in ("module", "class") and _ours(definition.func):
-                return item.nodeid.split("::", 1)[0]
-    return None
+    from xdist.scheduler import LoadScopeScheduling
 
+    class _SharedSetupScheduling(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return scope_of(nodeid)
 
-def _ours(func: object) -> bool:
-    code = getattr(func, "__code__", None)
-    return code is not None and Path(code.co_filename).resolve().is_relative_to(TESTS)
-
-
-@pytest.hookimpl(tryfirst=True)  # before xdist's own hook reads the marks
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    for item in items:
-        group = _group(item)
-        if group is not None:
-            item.add_marker(pytest.mark.xdist_group(group))
+    return _SharedSetupScheduling(config, log)

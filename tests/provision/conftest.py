@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import shutil
 import sys
+from functools import cache
 from pathlib import Path
 
 import pytest
@@ -34,6 +35,7 @@ LAUNCH = """<launch>
 """
 
 
+@cache  # asked at collection by many modules, in every pytest-xdist worker; each probe starts a Python
 def ros_skip_reason() -> str | None:
     if shutil.which("roscore") is None or shutil.which("roslaunch") is None:
         return "needs Debian's ros-core (roscore, roslaunch)"

@@ -2,25 +2,27 @@
 
 Why: provisioning is SSH, files and processes; faking any of them would test the fake. Each
 "host" is a namespace joined to the root namespace by a veth pair (10.232.K.2, K unique per
-test process), running Debian's ``/usr/sbin/sshd -D`` with a generated ed25519 host key and
-one authorized key. Namespaces share the filesystem, so every host gets its own ``base_dir``.
-Used by the tests and by ``benchmarks/provision.py``; cleanup (sshd, every process started in
-a namespace, the namespaces) runs even when the caller fails.
+test process: see ``_octet_base``), running Debian's ``/usr/sbin/sshd -D`` with a generated
+ed25519 host key and one authorized key. Namespaces share the filesystem, so every host gets its
+own ``base_dir``. Used by the tests and by ``benchmarks/provision.py``; cleanup (sshd, every
+process started in a namespace, the namespaces) runs even when the caller fails.
 """
 
 from __future__ import annotations
 
+import fcntl
 import os
 import pwd
 import shutil
 import signal
 import socket
 import subprocess
+import tempfile
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator
+from typing import IO, Iterator
 
 from tests.support.netns import NetLab, Namespace, skip_reason
 
@@ -111,8 +113,34 @@ def _wait_port(address: str, port: int, timeout: float = 15.0) -> None:
     raise RuntimeError(f"sshd on {address}:{port} did not come up")
 
 
+_BLOCKS = 27  # blocks of nine /24s (one per host) in 10.232.0.0/16
+_claim: tuple[int, IO[str]] | None = None
+
+
 def _octet_base() -> int:
-    return (os.getpid() % 27) * 9
+    """The first third octet of this process's block of nine /24s in 10.232.0.0/16.
+
+    The gateway ends of the links sit in the root namespace, shared by every process on the machine,
+    so concurrent test processes (pytest-xdist workers, other checkouts' runs) must not take the same
+    block. Each process claims one with an exclusive lock on a file named after it, tried from the
+    block its pid picks; the lock is held until the process exits (the kernel drops it even on SIGKILL).
+    """
+    global _claim
+    if _claim is None:
+        start = os.getpid() % _BLOCKS
+        for step in range(_BLOCKS):
+            block = (start + step) % _BLOCKS
+            handle = open(Path(tempfile.gettempdir()) / f"fogiac-sshlab-block-{block}.lock", "w")
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                handle.close()
+                continue
+            _claim = (block * 9, handle)
+            break
+        else:
+            raise RuntimeError(f"all {_BLOCKS} address blocks of 10.232.0.0/16 are held by other test processes")
+    return _claim[0]
 
 
 def gateway(index: int = 0) -> str:

@@ -100,6 +100,10 @@ class CloudRelay(RelayEnd):
 
     def _stop_link(self) -> None:
         if self._listener is not None:
+            try:  # close() alone does not wake a thread blocked in accept(): stop() waited out its 5 s join
+                self._listener.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
             self._listener.close()
 
     def _accept_loop(self) -> None:

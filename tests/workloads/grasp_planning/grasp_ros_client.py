@@ -67,7 +67,15 @@ def main() -> None:
         if answer is None:
             print(json.dumps({"encoding": encoding, "error": "no grasp before the timeout"}), flush=True)
             continue
-        time.sleep(0.3)  # the quality and time messages follow the pose
+        # The quality and time messages follow the pose: wait for one of each per pose up to this answer.
+        with lock:
+            want = poses.index(answer) + 1
+        settle = time.monotonic() + 5
+        while time.monotonic() < settle:
+            with lock:
+                if len(quality) >= want and len(seconds) >= want:
+                    break
+            time.sleep(0.01)
         with lock:
             q, s = list(quality), list(seconds)
         p, o = answer.pose.position, answer.pose.orientation

@@ -65,6 +65,28 @@ def render(
     typer.echo(f"wrote {frames} frames to {out}")
 
 
+@app.command()
+def testset(
+    cache: Path = typer.Option(Path("/tmp/fogiac-slam-testset"), help="rendered sequences are kept here"),
+    only: str = typer.Option("", help="comma-separated sequence names (default: all)"),
+    mode: str = typer.Option("rgbd,mono", help="rgbd, mono or both"),
+    cores: int = typer.Option(0, help="CPUs to run on (0: all this process may use)"),
+    as_json: bool = typer.Option(False, "--json", help="one JSON line per run"),
+) -> None:
+    """The harder rendered test set: ATE after alignment and the aligned extent per axis against the truth."""
+    from workloads.slam.testset import SEQUENCES, run_testset  # noqa: PLC0415
+
+    names = [n for n in only.split(",") if n]
+    unknown = sorted(set(names) - {s[0] for s in SEQUENCES})
+    if unknown:
+        raise WorkloadError(f"unknown test sequence {unknown[0]!r}; valid: {', '.join(s[0] for s in SEQUENCES)}")
+    modes = tuple(m for m in mode.split(",") if m)
+    if not modes or set(modes) - {"rgbd", "mono"}:
+        raise WorkloadError(f"--mode {mode!r}: give rgbd, mono or rgbd,mono")
+    for row in run_testset(cache, names=names or None, modes=modes, cores=cores):
+        typer.echo(json.dumps(row.summary()) if as_json else row.line())
+
+
 @app.command(context_settings={"allow_extra_args": True, "ignore_unknown_options": True})
 def node() -> None:
     """Run the ROS node; ROS arguments (_param:=value, topic:=remapped) pass through to rospy."""

@@ -9,7 +9,12 @@ on one texture atlas). Sensor noise is added to both images, with depth noise gr
 square of the distance as in a structured-light sensor.
 
 Paths (``KINDS``): ``desk`` sways in front of one wall (fr1/desk-like); ``loop`` turns once
-around the room and comes back to its first view (loop closure has something to find).
+around the room and comes back to its first view (loop closure has something to find). The
+harder test set (``TEST_SET``) adds what those two never exercise: ``bigloop`` walks an ellipse
+1.9 x 1.5 m across, looking half ahead, half outwards (the shape a monocular map must keep);
+``forward`` walks 1.6 m straight at a wall (little parallax near the image centre); ``turn``
+swings the camera through 140 degrees about a small sway (rotation-heavy); ``wall`` is the desk
+sway in a room of low-texture faces (few, faint shapes: few features to track).
 """
 
 from __future__ import annotations
@@ -40,12 +45,20 @@ GRID = 6  # atlas tiles per row: 6 faces x (room + 5 boxes) = 36 tiles
 START_STAMP = 1000.0
 
 
-def _texture(rng: np.random.Generator) -> np.ndarray:
-    """Sharp-edged shapes at several sizes over fine noise: corners at every viewing distance."""
+SHAPES = 2500  # per face: a cluttered office
+SPARSE_SHAPES = 120  # per face of the low-texture room
+
+
+def _texture(rng: np.random.Generator, shapes: int = SHAPES) -> np.ndarray:
+    """Sharp-edged shapes at several sizes over fine noise: corners at every viewing distance.
+
+    Fewer ``shapes`` than the default also fade the noise and the shapes' contrast: a plain wall."""
+    sparse = shapes < SHAPES
     noise = rng.integers(0, 256, (TILE // 8, TILE // 8)).astype(np.uint8)
-    tile = cv2.resize(noise, (TILE, TILE), interpolation=cv2.INTER_CUBIC) // 2 + 64
-    for _ in range(2500):
-        colour = int(rng.integers(0, 256))
+    smooth = cv2.resize(noise, (TILE, TILE), interpolation=cv2.INTER_CUBIC)
+    tile = smooth // 16 + 120 if sparse else smooth // 2 + 64
+    for _ in range(shapes):
+        colour = int(rng.integers(80, 200)) if sparse else int(rng.integers(0, 256))
         x, y = (int(v) for v in rng.integers(0, TILE, 2))
         size = int(rng.integers(4, 48))
         shape = rng.integers(0, 3)
@@ -59,21 +72,21 @@ def _texture(rng: np.random.Generator) -> np.ndarray:
     return cv2.GaussianBlur(tile, (3, 3), 0.7)
 
 
-def _atlas(seed: int) -> np.ndarray:
+def _atlas(seed: int, shapes: int = SHAPES) -> np.ndarray:
     rng = np.random.default_rng(seed)
     atlas = np.zeros((GRID * TILE, GRID * TILE), np.uint8)
     for k in range(GRID * GRID):
         r, c = divmod(k, GRID)
-        atlas[r * TILE:(r + 1) * TILE, c * TILE:(c + 1) * TILE] = _texture(rng)
+        atlas[r * TILE:(r + 1) * TILE, c * TILE:(c + 1) * TILE] = _texture(rng, shapes)
     return atlas
 
 
 class Scene:
     """The room, its boxes and their texture atlas; :meth:`render` gives one frame."""
 
-    def __init__(self, intrinsics: Intrinsics, *, seed: int = 0) -> None:
+    def __init__(self, intrinsics: Intrinsics, *, seed: int = 0, shapes: int = SHAPES) -> None:
         self.intrinsics = intrinsics
-        self.atlas = _atlas(seed)
+        self.atlas = _atlas(seed, shapes)
         self.tints = np.random.default_rng(seed + 1).uniform(0.65, 1.0, (GRID * GRID, 3)).astype(np.float32)
         u, v = np.meshgrid(np.arange(intrinsics.width, dtype=np.float64),
                            np.arange(intrinsics.height, dtype=np.float64))
@@ -155,7 +168,42 @@ def loop_path(n: int) -> list[np.ndarray]:
     return poses
 
 
-KINDS: dict[str, Callable[[int], list[np.ndarray]]] = {"desk": desk_path, "loop": loop_path}
+def bigloop_path(n: int) -> list[np.ndarray]:
+    """An ellipse 1.9 x 1.5 m across (about 5.4 m walked), looking 35 degrees ahead of outwards."""
+    poses = []
+    for i in range(n):
+        a = 2 * math.pi * i / max(n - 1, 1)
+        eye = np.array([0.95 * math.sin(a), -0.1 + 0.04 * math.sin(3 * a), 0.75 * math.cos(a)])
+        poses.append(_look(eye, a + 0.6, -0.06 + 0.04 * math.sin(2 * a)))
+    return poses
+
+
+def forward_path(n: int) -> list[np.ndarray]:
+    """1.6 m straight towards the +z wall's boxes, with a slight hand-held sway."""
+    poses = []
+    for i in range(n):
+        s = i / max(n - 1, 1)
+        eye = np.array([0.08 * math.sin(3 * math.pi * s), -0.1 + 0.04 * math.sin(5 * math.pi * s), -1.2 + 1.6 * s])
+        poses.append(_look(eye, 0.1 * math.sin(2 * math.pi * s), -0.05))
+    return poses
+
+
+def turn_path(n: int) -> list[np.ndarray]:
+    """A 140-degree swing and back about a 0.3 m sway: mostly rotation, some parallax."""
+    poses = []
+    for i in range(n):
+        a = 2 * math.pi * i / max(n - 1, 1)
+        eye = np.array([0.15 * math.sin(a), -0.1, -0.3 + 0.15 * (1 - math.cos(a))])
+        poses.append(_look(eye, 1.22 * math.sin(a), -0.05 + 0.05 * math.sin(2 * a)))
+    return poses
+
+
+KINDS: dict[str, Callable[[int], list[np.ndarray]]] = {
+    "bigloop": bigloop_path, "desk": desk_path, "forward": forward_path, "loop": loop_path, "turn": turn_path,
+    "wall": desk_path,
+}
+LOW_TEXTURE = {"wall"}  # kinds rendered in the low-texture room
+TEST_SET = ("bigloop", "forward", "turn", "wall")  # the harder sequences (testset.py), beside desk and loop
 
 
 def render_sequence(out: Path, *, kind: str = "desk", frames: int = 150, rate_hz: float = 30.0, seed: int = 0,
@@ -164,7 +212,7 @@ def render_sequence(out: Path, *, kind: str = "desk", frames: int = 150, rate_hz
     if kind not in KINDS:
         raise WorkloadError(f"unknown sequence kind {kind!r}; valid: {', '.join(sorted(KINDS))}")
     intrinsics = intrinsics or Intrinsics.fr1()
-    scene = Scene(intrinsics, seed=seed)
+    scene = Scene(intrinsics, seed=seed, shapes=SPARSE_SHAPES if kind in LOW_TEXTURE else SHAPES)
     rng = np.random.default_rng(seed + 2)
     (out / "rgb").mkdir(parents=True, exist_ok=True)
     (out / "depth").mkdir(exist_ok=True)

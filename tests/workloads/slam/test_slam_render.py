@@ -30,5 +30,5 @@ def test_depth_is_consistent_across_views(kind: str) -> None:
 
 
 def test_unknown_kind_lists_the_valid_ones(tmp_path) -> None:
-    with pytest.raises(WorkloadError, match="unknown sequence kind 'spiral'; valid: desk, loop"):
+    with pytest.raises(WorkloadError, match="unknown sequence kind 'spiral'; valid: bigloop, desk, forward, loop, turn, wall"):
         render_sequence(tmp_path, kind="spiral")

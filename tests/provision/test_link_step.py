@@ -21,6 +21,7 @@ from fogiac.net.relay.deploy import RelayDeployment
 from fogiac.net.relay.middleware import RELAY
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.model import Plan
+from fogiac.provision.host import HostPorts
 from fogiac.provision.local import LocalAccess
 from fogiac.provision.probe import gather
 from fogiac.provision.runtimes.base import SKIPPED
@@ -43,12 +44,13 @@ def linkless() -> Iterator[str]:
 
 def _run(tmp_path: Path, plan: Plan) -> HostRun:
     spec = plan.hosts[0]
-    access = LocalAccess(sandbox=tmp_path / "host", master_port=1, relay_port=2)
+    access = LocalAccess(sandbox=tmp_path / "host")
     host = access.open(name=spec.name, known_hosts=tmp_path / "known_hosts", stack=plan.stack)
     host.connect()
     certs = tmp_path / "operator" / "certs"
     load_or_create_bundle(plan.stack, certs)
-    return HostRun(plan=plan, spec=spec, access=access, host=host, options=Options(certs_dir=certs))
+    return HostRun(plan=plan, spec=spec, access=access, host=host, options=Options(certs_dir=certs),
+                   ports=HostPorts(master_port=1, relay_port=2))
 
 
 def test_a_host_without_the_link_program_gets_the_scripts_only(tmp_path: Path, linkless: str) -> None:

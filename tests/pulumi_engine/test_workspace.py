@@ -17,7 +17,7 @@ from fogiac.pulumi_engine.errors import EngineError
 from fogiac.pulumi_engine import workspace
 from fogiac.state import stack_dir
 
-from .conftest import fake_pulumi
+from tests.support.pulumi import fake_pulumi
 
 
 def test_pin_matches_the_installed_sdk() -> None:

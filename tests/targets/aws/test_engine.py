@@ -19,20 +19,9 @@ from fogiac.pulumi_engine.workspace import PULUMI_CLI_VERSION, passphrase
 from fogiac.state import stack_dir
 from fogiac.targets.aws import engine
 from fogiac.targets.aws.errors import EngineError
+from tests.support.pulumi import fake_pulumi, no_pulumi
 
-
-def fake_pulumi(folder: Path, answer: str) -> Path:
-    folder.mkdir(parents=True, exist_ok=True)
-    script = folder / "pulumi"
-    script.write_text(f"#!/bin/sh\necho {answer}\n")
-    script.chmod(0o755)
-    return script
-
-
-@pytest.fixture
-def no_pulumi(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv("PATH", str(tmp_path / "empty-bin"))
-    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+__all__ = ["no_pulumi"]  # a fixture the tests below ask for
 
 
 def test_engine_without_cli_touches_no_state(no_pulumi: None, tmp_path: Path) -> None:

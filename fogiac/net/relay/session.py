@@ -80,7 +80,7 @@ class _Source:
     def __init__(self, session: Session, topic: str, compression: str, feed: SourceFeed | None = None) -> None:
         self.session, self.topic, self.id = session, topic, next(session._ids)
         self._codec = codec(compression)
-        self.counters = TopicCounters(topic, "out", compression)
+        self.counters = session.tally(topic, "out", compression)
         self._lock = threading.Lock()
         self._opened = False
         self.sub: Feed = feed(self) if feed is not None else \
@@ -118,7 +118,20 @@ class _Sink:
         self._codec = codec(compression)
         self.pub: Outlet = outlet(self, meta) if outlet is not None else \
             LocalPublisher(session.node, topic, meta, depth=session.config.queue_depth)
-        self.counters = TopicCounters(topic, "in", compression, more_drops=lambda: self.pub.drops)
+        self.counters = session.tally(topic, "in", compression)
+        if self.counters.more_drops is not None:  # the publisher this one replaces: its drops stay counted
+            self.counters.drops += self.counters.more_drops()
+        self.counters.more_drops = self._drops
+
+    def _drops(self) -> int:
+        return self.pub.drops
+
+    def retire(self) -> None:
+        """Stop publishing; the drops so far stay in the topic's totals."""
+        self.pub.stop()
+        if self.counters.more_drops == self._drops:
+            self.counters.drops += self.pub.drops
+            self.counters.more_drops = None
 
     def deliver(self, stamp: int, body: memoryview) -> None:
         data = self._codec.decompress(body)
@@ -141,7 +154,12 @@ class Session:
         self._ids = itertools.count(1)
         self._sources: dict[str, _Source] = {}
         self._sinks: dict[int, _Sink] = {}
+        # Every topic's totals for the life of the link, whether or not it is relayed now: a topic
+        # that stops and starts again (auto topics follow the graph) goes on counting, and status
+        # still counts a request whose publisher has already gone.
+        self._totals: dict[tuple[str, str], TopicCounters] = {}
         self._lock = threading.Lock()
+        self._totals_lock = threading.Lock()  # apart from _lock: a source is made while _lock is held
         self._send_lock = threading.Lock()  # whoever writes to the socket holds it
         self._closing = threading.Event()
         self.closed = threading.Event()
@@ -185,9 +203,18 @@ class Session:
             source.stop()
             log.info("stopped relaying %s", topic)
 
+    def tally(self, topic: str, direction: str, compression: str) -> TopicCounters:
+        """The running totals of ``topic`` one way on this link (kept when the topic stops)."""
+        with self._totals_lock:
+            counters = self._totals.get((topic, direction))
+            if counters is None:
+                counters = self._totals[(topic, direction)] = TopicCounters(topic, direction, compression)
+            counters.compression = compression
+            return counters
+
     def counters(self) -> list[TopicCounters]:
-        with self._lock:
-            return [s.counters for s in self._sources.values()] + [s.counters for s in self._sinks.values()]
+        with self._totals_lock:
+            return list(self._totals.values())
 
     @property
     def alive(self) -> bool:
@@ -340,7 +367,7 @@ class Session:
             stale = [i for i, s in self._sinks.items() if s.topic == topic]
             old = [self._sinks.pop(i) for i in stale]
         for s in old:
-            s.pub.stop()
+            s.retire()
         try:
             sink.pub.start()
         except RelayError as err:
@@ -359,7 +386,7 @@ class Session:
         with self._lock:
             sink = self._sinks.pop(frame.topic, None)
         if sink is not None:
-            sink.pub.stop()
+            sink.retire()
             log.info("peer stopped sending %s", sink.topic)
 
     def _on_data(self, frame: Frame) -> None:

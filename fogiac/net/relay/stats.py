@@ -83,10 +83,9 @@ class RelayStats:
 class TopicCounters:
     """Running totals of one topic on one end; ``tick`` turns them into per-second rates."""
 
-    def __init__(self, topic: str, direction: str, compression: str,
-                 more_drops: Callable[[], int] | None = None) -> None:
+    def __init__(self, topic: str, direction: str, compression: str) -> None:
         self.topic, self.direction, self.compression = topic, direction, compression
-        self._more_drops = more_drops  # drops counted elsewhere (a slow local subscriber)
+        self.more_drops: Callable[[], int] | None = None  # drops counted elsewhere (a slow local subscriber)
         self.msgs = self.bytes = self.drops = 0
         self._latencies: deque[int] = deque(maxlen=1000)
         self._last = (time.monotonic(), 0, 0)
@@ -119,7 +118,7 @@ class TopicCounters:
     def snapshot(self) -> TopicStats:
         return TopicStats(
             self.topic, self.direction, round(self._rates[0], 3), round(self._rates[1], 1),
-            self.msgs, self.bytes, self.drops + (self._more_drops() if self._more_drops else 0),
+            self.msgs, self.bytes, self.drops + (self.more_drops() if self.more_drops else 0),
             None if self._lat[0] is None else round(self._lat[0], 3),
             None if self._lat[1] is None else round(self._lat[1], 3),
             self.compression,

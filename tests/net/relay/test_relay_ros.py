@@ -75,8 +75,16 @@ def test_auto_discovery_adds_and_removes_topics(masters: tuple[Master, Master], 
         procs.kill(sub)
         wait_for(lambda: not cloud_m.publishers("/disc"), 10, "the cloud registration to go")
         wait_for(lambda: "/fogiac_relay_edge" not in edge_m.subscribers("/disc"), 10, "the edge registration to go")
+        # The route went, its totals stay: status still counts what crossed (a request whose client
+        # has already gone, for one), on both ends.
+        (sent,) = edge.stats().topics
+        (got,) = cloud.stats().topics
+        assert (sent.topic, sent.direction, got.topic, got.direction) == ("/disc", "out", "/disc", "in")
+        assert sent.msgs >= 5 and got.msgs >= 5, (sent, got)
         sub2 = procs.node(cloud_m, "sub", "/disc", "--count", "3")
         wait_for(lambda: len(sub2.data()) >= 3, 20, "relaying to resume for a new subscriber")
+        (again,) = edge.stats().topics  # one line for the topic, counting on from where it stopped
+        assert again.msgs >= sent.msgs + 3, (sent, again)
         procs.kill(pub)
         wait_for(lambda: not cloud_m.publishers("/disc"), 10, "the route to go with the publisher")
 

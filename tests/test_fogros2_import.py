@@ -223,8 +223,11 @@ def generate_launch_description():
 '''
 
 
-def test_the_current_style_imports_with_the_helpers_as_fogiac_choices(tmp_path: Path) -> None:
+def test_the_current_style_imports_with_the_helpers_as_fogiac_choices(tmp_path: Path,
+                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
     from fogiac.plan.compile import compile_plan
+
+    monkeypatch.setenv("TZ", "UTC")  # the region is the listed one nearest this machine's time zone; UTC places none
 
     converted = import_launch(write(tmp_path, CURRENT, "current.launch.py"))
     manifest = converted.manifest

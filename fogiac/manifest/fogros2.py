@@ -224,6 +224,8 @@ class _Reader:
             value = self.own_call(node, quiet=quiet)
             if value is None:
                 return None  # said where the call is
+        elif isinstance(node, ast.Name) and self.values.get(node.id) is _FAILED:
+            return None  # said where the name was bound
         else:
             value = self.values.get(node.id) if isinstance(node, ast.Name) else getattr(node, "value", None)
             value = value if isinstance(node, (ast.Name, ast.Constant)) else None
@@ -298,8 +300,12 @@ class _Reader:
         target, call = stmt.targets[0], stmt.value
         assert isinstance(call, ast.Call)
         arg = call.args[0] if len(call.args) == 1 else None
-        listed = self.literal(arg, quiet=True) if arg else None
         names = [t.id for t in target.elts if isinstance(t, ast.Name)] if isinstance(target, ast.Tuple) else []
+        own = isinstance(arg, ast.Call) and isinstance(arg.func, ast.Name) and arg.func.id in self.functions
+        listed = self.literal(arg, quiet=not own) if arg else None
+        if own and listed is None:  # said at the call; what the names would hold is unknown, not wrong again
+            self.values.update(dict.fromkeys(names, _FAILED))
+            return None
         if not isinstance(listed, (dict, list, tuple)) or not listed or len(names) != 2 \
                 or not all(isinstance(r, str) for r in listed):
             return self.problem(stmt, "find_nearest_region_and_ami needs a list or dict of regions (a literal, a "

@@ -52,7 +52,7 @@ def dump(header: Sequence[str], data: dict[str, Any]) -> str:
     """The manifest's text: the header as comment lines, then the data (launch-file strings quoted)."""
     lines = [comment(line if line.startswith("#") else f"# {line}") for line in header]
     body = yaml.dump(data, Dumper=_Dumper, sort_keys=False, allow_unicode=False, width=4096)
-    return "\n".join(lines) + "\n" + body
+    return "".join(f"{line}\n" for line in lines) + body
 
 
 _PROBLEM = re.compile(r"^\x00:\d+: ", re.S)  # parse_manifest's "SOURCE:LINE: " under the source below

@@ -16,10 +16,13 @@ from pathlib import Path
 
 import pytest
 import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from fogiac.cli import app
 from fogiac.errors import ManifestError
+from fogiac.manifest.fogros_yaml import FromLaunch, dump
 from fogiac.manifest.importers import load_any
 
 BREAKS = {"lf": "\n", "cr": "\r", "crlf": "\r\n", "nel": "\x85", "ls": "\u2028", "ps": "\u2029", "vt": "\x0b",
@@ -151,3 +154,17 @@ def test_problems_name_the_launch_file_and_node_line_not_a_file_never_written(tm
     result = CliRunner().invoke(app, ["import", str(launch_py), "--out", str(out)])
     assert result.exit_code == 1 and not out.exists()
     assert result.output.startswith(f"{launch_py}:9: imported as nodes[1].image: "), result.output
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.text(), max_size=4), st.dictionaries(st.text(), st.text(), max_size=4), st.lists(st.text()))
+def test_whatever_the_strings_the_text_reads_back_as_written(header: list[str], env: dict[str, str],
+                                                             words: list[str]) -> None:
+    """The writer both importers use: any header lines stay that many comment lines, and any strings
+    (keys too) read back as the same strings, under the same keys, and nothing else."""
+    data = {"name": "n", "nodes": [{"env": {FromLaunch(k): FromLaunch(v) for k, v in env.items()},
+                                    "command": [FromLaunch(w) for w in words]}]}
+    text = dump([f"#   - {line}" for line in header], data)
+    lines = text.split("\n")
+    assert all(line.startswith("#   - ") for line in lines[:len(header)]) and lines[len(header)] == "name: n"
+    assert yaml.safe_load(text) == {"name": "n", "nodes": [{"env": env, "command": words}]}

@@ -62,8 +62,8 @@ CLOUD_WORDS = re.compile(r"\baws\b|amazon|cloudwatch|\bvpcs?\b|vpc_|vpc[A-Z]|cli
 # its subnet sets (250); fogiac's own numbers may sit on other lines.
 TAG_LINE, TAG_LIMIT, NODE_CAP = re.compile(r"tag", re.I), re.compile(r"^(50|128|256)$"), re.compile(r"^25[01]$")
 # Importers of another tool's files, which are AWS-only by that tool's design (FogROS, FogROS2): they
-# read and name its AWS calls, regions and images.
-CLOUD_IMPORTERS = ("fogiac.manifest.fogros", "fogiac.manifest.fogros2")
+# read and name its AWS calls, regions and images (fogros2_nearest: where the regions FogROS2 lists are).
+CLOUD_IMPORTERS = ("fogiac.manifest.fogros", "fogiac.manifest.fogros2", "fogiac.manifest.fogros2_nearest")
 # What errors.py may not name: a middleware (relay, Zenoh), a VPN, a cloud, an engine.
 PLUGIN_WORDS = re.compile(r"relay|zenoh|vpn|aws|amazon|pulumi|engine|boto", re.I)
 ERROR_FOLDERS = ("fogiac.net", "fogiac.targets", "fogiac.pulumi_engine")  # where plug-ins keep their own errors

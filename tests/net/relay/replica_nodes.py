@@ -8,7 +8,7 @@ and stamp and ``frame_id`` NAME, after W ms of CPU work (a busy loop, so a CPU q
 slows it; ``--name ip``: this host's global IPv4 address, for replicas that run one command on
 several hosts; ``--pad``: that many random characters after a ``|`` in ``frame_id``, a reply big enough
 for a slow link to delay). ``robot`` waits until someone subscribes to REQ and publishes to REPLY, sends N requests
-(seq i, stamp base+i s), and prints one JSON line per reply it gets: {"i", "from", "ms"} (ms: from
+(seq i, stamp base+i s; ``--zero-stamp``: stamp 0), and prints one JSON line per reply it gets: {"i", "from", "ms"} (ms: from
 its send to the reply's arrival), then ``done``.
 """
 
@@ -40,6 +40,7 @@ def main() -> None:
     parser.add_argument("--rate", type=float, default=20.0)
     parser.add_argument("--base", type=int, default=1000, help="robot: request i is stamped base + i seconds")
     parser.add_argument("--wait", type=float, default=10.0, help="robot: how long to wait for the last replies")
+    parser.add_argument("--zero-stamp", action="store_true", help="robot: every request stamped 0, told apart by seq")
     args = parser.parse_args()
 
     import rospy
@@ -69,7 +70,7 @@ def main() -> None:
 
     def got(reply: Header) -> None:
         now = time.perf_counter()
-        i = reply.stamp.secs - args.base
+        i = reply.seq if args.zero_stamp else reply.stamp.secs - args.base
         with lock:
             t0 = sent.get(i)
         ms = None if t0 is None else round((now - t0) * 1e3, 3)
@@ -84,7 +85,8 @@ def main() -> None:
     for i in range(args.count):
         with lock:
             sent[i] = time.perf_counter()
-        pub.publish(Header(seq=i, stamp=rospy.Time(args.base + i, 0), frame_id="robot"))
+        stamp = rospy.Time(0, 0) if args.zero_stamp else rospy.Time(args.base + i, 0)
+        pub.publish(Header(seq=i, stamp=stamp, frame_id="robot"))
         time.sleep(1.0 / args.rate)
     time.sleep(args.wait)
     print("done", flush=True)

@@ -188,20 +188,42 @@ def test_delayed_hedge_asks_the_second_replica_only_when_the_first_is_late(
 def test_a_field_other_than_the_stamp_matches_replies(three_masters: tuple[Master, Master, Master],
                                                       certs: Path, procs: Procs, tmp_path: Path) -> None:
     """``match: seq`` (std_msgs/Header's first field) keys replies by the field's raw bytes, found
-    with the message definition the publisher sends."""
+    with the message definition the publisher sends; a field the replies do not copy from their request
+    (``frame_id``: each replica writes its own name there) matches no request, and nothing passes."""
     edge, m0, m1 = three_masters
     req, rep = "/seq/request", "/seq/reply"
     _, a0 = cloud_end(procs, m0, certs, req, rep)
     _, a1 = cloud_end(procs, m1, certs, req, rep)
     node(procs, m0, "echo", req, rep, "--name", "r0")
     node(procs, m1, "echo", req, rep, "--name", "r1")
-    with group(edge, certs, [a0, a1], req, rep, tmp_path, match="frame_id") as g:
+    with group(edge, certs, [a0, a1], req, rep, tmp_path, match="seq") as g:
         got = run_robot(procs, edge, req, rep, 10)
         stats = g.stats()
-    # Every reply's frame_id names its replica, so keyed by frame_id each replica's first reply wins and
-    # the rest are dropped as duplicates: the key really is the field asked for.
-    assert sorted(r["from"] for r in got) == ["r0", "r1"]
-    assert stats["delivered"] == 2 and stats["duplicates_dropped"] == 18 and stats["unmatched"] == 0
+    assert sorted(r["i"] for r in got) == list(range(10))
+    assert stats["delivered"] == 10 and stats["duplicates_dropped"] == 10 and stats["unmatched"] == 0
+    with group(edge, certs, [a0, a1], req, rep, tmp_path, match="frame_id") as g:
+        got = run_robot(procs, edge, req, rep, 5, base=2000)
+        stats = g.stats()
+    # Issue 35 (2): a reply whose key names no request was delivered (here: each replica's first one).
+    assert got == [] and stats["delivered"] == 0 and stats["unsolicited"] == 10
+
+
+def test_requests_with_a_zero_stamp_are_each_answered_once(three_masters: tuple[Master, Master, Master],
+                                                           certs: Path, procs: Procs, tmp_path: Path) -> None:
+    """Issue 35 (8): five requests stamped 0 got one answer on ROS 1 (the others' replies were taken for
+    copies of the first): each is answered once, never merged, whichever replica is first."""
+    edge, m0, m1 = three_masters
+    req, rep = "/zero/request", "/zero/reply"
+    _, a0 = cloud_end(procs, m0, certs, req, rep)
+    _, a1 = cloud_end(procs, m1, certs, req, rep)
+    node(procs, m0, "echo", req, rep, "--name", "r0")
+    node(procs, m1, "echo", req, rep, "--name", "r1")
+    with group(edge, certs, [a0, a1], req, rep, tmp_path) as g:
+        robot = node(procs, edge, "robot", req, rep, "--count", "5", "--wait", "3", "--zero-stamp")
+        wait_for(lambda: "done" in robot.lines, 120, "the robot's run")
+        stats = g.stats()
+    assert sorted(r["i"] for r in replies(robot)) == list(range(5))
+    assert stats["delivered"] == 5 and stats["duplicates_dropped"] == 5
 
 
 def replica_route(host: str, index: int, req: str, rep: str) -> Route:

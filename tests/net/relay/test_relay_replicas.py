@@ -226,6 +226,50 @@ def test_requests_with_a_zero_stamp_are_each_answered_once(three_masters: tuple[
     assert stats["delivered"] == 5 and stats["duplicates_dropped"] == 5
 
 
+# A Header whose definition puts a self-referential type, then an array of a bad size, before seq.
+HOSTILE = {"cycle": "Loop x\\nuint32 seq\\ntime stamp\\nstring frame_id\\n=====\\nMSG: std_msgs/Loop\\nLoop y\\n",
+           "size": "float64[x] junk\\nuint32 seq\\ntime stamp\\nstring frame_id\\n"}
+
+
+@pytest.mark.parametrize("hostile", sorted(HOSTILE))
+def test_a_hostile_definition_refuses_only_that_replica(three_masters: tuple[Master, Master, Master],
+                                                        certs: Path, procs: Procs, tmp_path: Path, hostile: str,
+                                                        caplog: pytest.LogCaptureFixture) -> None:
+    """Issue 35 (3): the first link's definition keyed every replica's replies, and a hostile one raised
+    RecursionError or ValueError in the link that opened it. Each link now has its own reader: the hostile
+    replica's replies are refused with a logged line, the healthy one answers every request."""
+    edge, m0, m1 = three_masters
+    req, rep = f"/hostile_{hostile}/request", f"/hostile_{hostile}/reply"
+    _, a0 = cloud_end(procs, m0, certs, req, rep)
+    _, a1 = cloud_end(procs, m1, certs, req, rep)
+    node(procs, m0, "echo", req, rep, "--name", "r0", "--definition", HOSTILE[hostile])
+    node(procs, m1, "echo", req, rep, "--name", "r1")
+    with group(edge, certs, [a0, a1], req, rep, tmp_path, match="seq") as g:
+        got = run_robot(procs, edge, req, rep, 10)
+        stats = g.stats()
+        assert all(link.linked for link in g.links) and g.links[0].reconnects == 0  # the link itself stays
+    assert sorted(r["i"] for r in got) == list(range(10)) and {r["from"] for r in got} == {"r1"}
+    assert stats["replicas"][0]["won"] == 0 and stats["replicas"][1]["won"] == 10
+    refused = [r.getMessage() for r in caplog.records if "its replies there are refused" in r.getMessage()]
+    assert refused and all(m.startswith(f"replica 1 of echo: {rep}: its message definition") for m in refused)
+
+
+def test_replies_of_another_type_than_the_stated_one_are_refused(three_masters: tuple[Master, Master, Master],
+                                                                 certs: Path, procs: Procs, tmp_path: Path) -> None:
+    """The manifest's message_types is what a reply's type is checked against (a replica's word is not)."""
+    edge, m0, m1 = three_masters
+    req, rep = "/stated/request", "/stated/reply"
+    _, a0 = cloud_end(procs, m0, certs, req, rep)
+    _, a1 = cloud_end(procs, m1, certs, req, rep)
+    node(procs, m0, "echo", req, rep, "--name", "r0")
+    node(procs, m1, "echo", req, rep, "--name", "r1")
+    with group(edge, certs, [a0, a1], req, rep, tmp_path, types=((rep, "std_msgs/msg/Header"),)) as g:
+        assert len(run_robot(procs, edge, req, rep, 3)) == 3  # the stated type, in ROS 2 spelling
+    with group(edge, certs, [a0, a1], req, rep, tmp_path, types=((rep, "geometry_msgs/PoseStamped"),)) as g:
+        wait_for(lambda: g.merge(rep).refused == {0, 1}, 20, "both replicas' replies refused")
+        assert g.merge(rep).pub is None and "/fogiac_relay_replicas_test" not in edge.publishers(rep)
+
+
 def replica_route(host: str, index: int, req: str, rep: str) -> Route:
     return Route(host=host, connect_via="loopback", port=0, auto=False, to_cloud=(req,), to_edge=(rep,), listed=(),
                  compression=(), queue_size=100, replica=Replica(group="echo", index=index, count=2,

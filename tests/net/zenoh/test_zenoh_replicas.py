@@ -111,7 +111,9 @@ def test_every_request_answered_once_while_a_replica_dies(tmp_path: Path) -> Non
 
             robot.declare_subscriber("*/plan_rep/*/*", received)
             # until the path is up, a probe request (stamp 0) is answered
-            assert poll(lambda: robot.put(REQ_KEY, header(0, "robot")) or (got or None), timeout=30, interval=0.5)
+            probes: list[None] = []  # each stamped 0: each is a request of its own, answered once if it got through
+            assert poll(lambda: probes.append(robot.put(REQ_KEY, header(0, "robot"))) or (got or None), timeout=30,
+                        interval=0.5)
             time.sleep(1.0)  # late probe replies arrive before the counted run
             with lock:
                 got.clear()
@@ -176,7 +178,9 @@ def test_the_deployed_merge_answers_once_and_its_figures_reach_status(tmp_path: 
             got: list[int] = []
             robot.declare_subscriber("*/plan_rep/*/*", lambda s: got.append(
                 struct.unpack_from("<i", s.payload.to_bytes(), 4)[0]))
-            assert poll(lambda: robot.put(REQ_KEY, header(0, "robot")) or (got or None), timeout=30, interval=0.5)
+            probes: list[None] = []  # each stamped 0: each is a request of its own, answered once if it got through
+            assert poll(lambda: probes.append(robot.put(REQ_KEY, header(0, "robot"))) or (got or None), timeout=30,
+                        interval=0.5)
             time.sleep(1.0)
             got.clear()
             for sec in range(1, 31):
@@ -195,6 +199,17 @@ def test_the_deployed_merge_answers_once_and_its_figures_reach_status(tmp_path: 
             for s in opened:
                 s.close()
     assert sorted(got) == list(range(1, 31))
-    assert found is not None and found["r0"]["won"] + found["r1"]["won"] == 31
+    assert found is not None and 31 <= found["r0"]["won"] + found["r1"]["won"] <= 30 + len(probes)
     assert {f["health"] for f in found.values()} == {"ok"}
-    assert min(f["answers"] for f in found.values()) >= 31  # both answered every request (the probe maybe twice)
+    assert min(f["answers"] for f in found.values()) >= 30  # both answered every request (and the probes they got)
+
+
+def test_a_match_the_zenoh_merge_cannot_read_starts_no_merge(tmp_path: Path) -> None:
+    """Issue 35 (8): a reply_match other than header.stamp was merged by bytes 4..12 whatever it said (a CDR
+    request_id gave 1 answer of 5). validate refuses it; a plan made otherwise gets a note and no merge."""
+    routes = tuple(dataclasses.replace(replica_route(f"r{i}", i, 1), replica=Replica("planner", i, 2, "request_id"))
+                   for i in range(2))
+    plan = dataclasses.replace(compile_plan(load_manifest(EXAMPLES / "ros2-zenoh.yaml")), routes=routes)
+    notes = replica_merges(plan, entry="tcp/127.0.0.1:1", connect={"r0": "a:1", "r1": "b:1"}, folder=tmp_path)
+    assert notes == ["node planner: not merged: over Zenoh replies are matched by header.stamp only, not 'request_id'"]
+    assert list(tmp_path.iterdir()) == []

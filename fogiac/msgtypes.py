@@ -406,12 +406,50 @@ def _resolve(kind: str, package: str, known: list[str]) -> str:
     return same if same in known else next((k for k in known if k.endswith("/" + kind)), same)
 
 
+def _fields(text: str) -> tuple[Field, ...]:
+    """``"float64 x, float64 y"`` -> its fields (a ``[]`` after a type: a variable-length array of it)."""
+    out = []
+    for part in text.split(","):
+        kind, name = part.split()
+        out.append(Field(name, kind.removesuffix("[]"), -1 if kind.endswith("[]") else None))
+    return tuple(out)
+
+
+# Common types known field by field in both generations, so that validate can say a stated type lacks the
+# reply_match field (std_msgs/Float64 has no ``id``) rather than let it pass unchecked.
+_COMMON = {
+    **{f"std_msgs/{name}": _fields(f"{kind} data") for name, kind in (
+        ("Bool", "bool"), ("Byte", "byte"), ("Char", "char"), ("Float32", "float32"), ("Float64", "float64"),
+        ("Int8", "int8"), ("Int16", "int16"), ("Int32", "int32"), ("Int64", "int64"), ("UInt8", "uint8"),
+        ("UInt16", "uint16"), ("UInt32", "uint32"), ("UInt64", "uint64"), ("String", "string"))},
+    "std_msgs/Empty": (),
+    "std_msgs/ColorRGBA": _fields("float32 r, float32 g, float32 b, float32 a"),
+    "geometry_msgs/Point": _fields("float64 x, float64 y, float64 z"),
+    "geometry_msgs/Point32": _fields("float32 x, float32 y, float32 z"),
+    "geometry_msgs/Vector3": _fields("float64 x, float64 y, float64 z"),
+    "geometry_msgs/Quaternion": _fields("float64 x, float64 y, float64 z, float64 w"),
+    "geometry_msgs/Pose2D": _fields("float64 x, float64 y, float64 theta"),
+    "geometry_msgs/Pose": _fields("geometry_msgs/Point position, geometry_msgs/Quaternion orientation"),
+    "geometry_msgs/Twist": _fields("geometry_msgs/Vector3 linear, geometry_msgs/Vector3 angular"),
+    "geometry_msgs/Accel": _fields("geometry_msgs/Vector3 linear, geometry_msgs/Vector3 angular"),
+    "geometry_msgs/Wrench": _fields("geometry_msgs/Vector3 force, geometry_msgs/Vector3 torque"),
+    "geometry_msgs/Transform": _fields("geometry_msgs/Vector3 translation, geometry_msgs/Quaternion rotation"),
+    "geometry_msgs/PoseArray": _fields(f"{HEADER} header, geometry_msgs/Pose[] poses"),
+    "geometry_msgs/PoseStamped": _fields(f"{HEADER} header, geometry_msgs/Pose pose"),
+    "geometry_msgs/PointStamped": _fields(f"{HEADER} header, geometry_msgs/Point point"),
+    "geometry_msgs/Vector3Stamped": _fields(f"{HEADER} header, geometry_msgs/Vector3 vector"),
+    "geometry_msgs/TwistStamped": _fields(f"{HEADER} header, geometry_msgs/Twist twist"),
+    "nav_msgs/Path": _fields(f"{HEADER} header, geometry_msgs/PoseStamped[] poses"),
+}
+
 ROS1 = TypeStore("ROS 1 serialization", sizes=_ROS1_SIZES, start=0, aligned=False, types={
     HEADER: (Field("seq", "uint32", None), Field("stamp", "time", None), Field("frame_id", "string", None)),
+    **_COMMON,
 })
 CDR = TypeStore("CDR", sizes=_CDR_SIZES, start=4, aligned=True, types={
     HEADER: (Field("stamp", "builtin_interfaces/Time", None), Field("frame_id", "string", None)),
     "builtin_interfaces/Time": (Field("sec", "int32", None), Field("nanosec", "uint32", None)),
+    **_COMMON,
 })
 
 

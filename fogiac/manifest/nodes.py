@@ -176,14 +176,16 @@ class Node(_Model):
     )
     gpu: bool = Field(default=False, description="The node needs a GPU.")
     topics: Literal["auto"] | TopicLists = Field(default="auto", description="Topics relayed for this node.")
-    disk_gb: int = Field(default=30, strict=True, ge=8, le=16384, description="Root volume size in GiB (gp3, encrypted).")
+    disk_gb: int = Field(default=30, strict=True, ge=8, le=16384,
+                         description="Root volume size in GiB (gp3, encrypted).")
     spot: bool = Field(default=False, description="Use a spot instance.")
     env: dict[str, EnvValue] = Field(
         default_factory=dict, description="Environment variables for the node; a secret as {secret: env:NAME} "
         "or {secret: file:PATH}, read at `up` and never shown or recorded.")
     host: str | None = Field(default=None, description="For the hosts target: which cloud.hosts entry runs it.")
-    replicas: int = Field(default=1, strict=True, ge=1, le=MAX_REPLICAS, description="Copies of the node, each on a host of its "
-                          "own (aws: in different zones): the robot gets the first reply to each request.")
+    replicas: int = Field(default=1, strict=True, ge=1, le=MAX_REPLICAS,
+                          description="Copies of the node, each on a host of its own (aws: in different zones): "
+                          "the robot gets the first reply to each request.")
     reply_match: str = Field(default=DEFAULT_MATCH, description="With replicas: the reply field that names its "
                              "request (a reply copies it from the request); header.stamp needs a std_msgs/Header.")
     hedge: Literal["all"] | Hedge = Field(default="all", description="With replicas: send each request to all at "

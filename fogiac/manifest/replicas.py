@@ -33,8 +33,9 @@ class MatchUnchecked(UserWarning):
 class Hedge(_Model):
     """Ask the first replica, and the others only when it has not answered within ``delay_ms``."""
 
-    delay_ms: int = Field(strict=True, ge=1, le=60_000, description="How long the first replica has before the others are "
-                          "asked too, in milliseconds (the 'hedged request': less bandwidth than asking all).")
+    delay_ms: int = Field(strict=True, ge=1, le=60_000,
+                          description="How long the first replica has before the others are asked too, in "
+                          "milliseconds (the 'hedged request': less bandwidth than asking all).")
 
 
 def check_type(name: str) -> str:

@@ -238,12 +238,14 @@ def groups_of(routes: Sequence[Any]) -> dict[str, list[Any]]:
 
 def host_figures(routes: Sequence[Any],
                  written: Callable[[str], Mapping[str, Any] | None]) -> dict[str, dict[str, Any]]:
-    """host -> its replica's figures for ``fogiac status``, from each group's stats (``written(group)``)."""
+    """host -> its replica's figures for ``fogiac status``, from each group's stats (``written(group)``);
+    ``number`` is the replica as shown (1 of 2, on ``<node>-r1``), ``index`` the plan's (from 0)."""
     out: dict[str, dict[str, Any]] = {}
     for group, members in groups_of(routes).items():
         doc = written(group) or {}
         by_host = {r.get("host"): r for r in doc.get("replicas", [])}
         for route in members:
-            out[route.host] = {"group": group, "index": route.replica.index, "count": route.replica.count,
+            out[route.host] = {"group": group, "index": route.replica.index, "number": route.replica.index + 1,
+                               "count": route.replica.count,
                                "hedge": route.replica.hedge, "health": "unknown", **by_host.get(route.host, {})}
     return out

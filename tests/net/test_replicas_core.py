@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from fogiac.net.replicas import Merge
+from fogiac.net.replicas import Merge, host_figures
+from fogiac.plan.cost import replica_words
 
 
 def test_all_asks_every_live_replica_and_publishes_each_key_once_per_topic() -> None:
@@ -135,3 +136,23 @@ def test_a_keyed_reply_answers_a_request_that_had_no_key() -> None:
     m.request("/q", None, None, [0, 1], now=0.0)
     assert m.reply("/r", 0, b"anything", now=0.1) is True
     assert m.reply("/r", 1, b"other", now=0.2) is False and m.reply("/r", 0, b"more", now=0.3) is False
+
+
+def test_replicas_are_counted_from_1_wherever_they_are_shown() -> None:
+    """Issue 35 (23): status said "0/2", "1/2" and "replica 1 of planner on planner-r2" beside hosts named r1
+    and r2 and the plan's "replica 1 of 2"."""
+    from fogiac.lifecycle.report import replicas_lines
+    from fogiac.plan.model import Replica, Route
+
+    routes = [Route(host=f"planner-r{i + 1}", connect_via="loopback", port=0, auto=False, to_cloud=("/q",),
+                    to_edge=("/r",), listed=(), compression=(), queue_size=2,
+                    replica=Replica("planner", i, 2, "header.stamp")) for i in range(2)]
+    stats = Merge([(0, "planner-r1"), (1, "planner-r2")], silent_after=1.0)
+    stats.request("/q", b"k", None, [0, 1], now=0.0)
+    stats.reply("/r", 0, b"k", now=0.1)
+    figures = host_figures(routes, lambda group: stats.stats({0, 1}, now=5.0))
+    assert [figures[h]["number"] for h in ("planner-r1", "planner-r2")] == [1, 2]
+    lines = replicas_lines([{"host": h, "replica": f} for h, f in figures.items()])
+    assert list(lines[0].columns[1].cells) == ["1/2", "2/2"]
+    assert lines[1:] == ["replica 2 of planner on planner-r2 stopped answering (last answer never)"]
+    assert replica_words(routes[1].replica) == "replica 2 of 2"

@@ -252,7 +252,8 @@ class _Link(EdgeRelay):
 
     def _session(self, sock: ssl.SSLSocket) -> Session:
         group, index = self.group, self.index
-        return Session(sock=sock, node=self.node, config=self.config, peer=f"replica {index}",  # type: ignore[arg-type]
+        return Session(sock=sock, node=self.node, config=self.config,  # type: ignore[arg-type]
+                       peer=f"replica {index + 1} of {group.config.group}",
                        accepts=self._asked.__contains__,
                        feed=lambda source: _Feed(group.fan(source.topic), index, source),
                        outlet=lambda sink, meta: _Outlet(group.merge(sink.topic), index, meta))
@@ -403,8 +404,8 @@ class ReplicaGroup:
             doc = self.stats()
             for r in doc["replicas"]:
                 if r["health"] == "silent" and r["index"] not in said:
-                    log.warning("replica %d on %s stopped answering (%d requests, last answer %s s ago)",
-                                r["index"], r["host"], r["sent"], r["last_answer_s"])
+                    log.warning("replica %d of %s on %s stopped answering (%d requests, last answer %s s ago)",
+                                r["index"] + 1, self.config.group, r["host"], r["sent"], r["last_answer_s"])
                     said.add(r["index"])
                 elif r["health"] == "ok":
                     said.discard(r["index"])

@@ -314,7 +314,7 @@ def test_edge_up_starts_one_merge_per_group_and_status_names_a_dead_replica(
         wait_for(lambda: figures()["r0"]["health"] == "down", 30, "replica 0 reported down")
         lines = replicas_lines(edge_links(folder, connect, plan))
         assert [line for line in lines if isinstance(line, str)] == [
-            "replica 0 of echo on r0 is not linked (host or its relay down)"]
+            "replica 1 of echo on r0 is not linked (host or its relay down)"]  # counted from 1 (issue 35, 23)
         table = lines[0]
         assert table.row_count == 2 and list(table.columns[2].cells) == ["r0", "r1"]
     finally:

@@ -19,7 +19,7 @@ import pytest
 
 from fogiac.hostmodel import Layout, Where
 from fogiac.manifest.schema import load_manifest
-from fogiac.net.zenoh.config import access_control, edge_access_control
+from fogiac.net.zenoh.config import access_control, edge_access_control, replica_keys_prefix
 from fogiac.net.zenoh.deploy import edge_links, replica_merges, replica_service
 from fogiac.net.zenoh.errors import ZenohError
 from fogiac.net.zenoh.replicas import CloudPrefix, EdgeMerge, replica_prefix
@@ -57,14 +57,15 @@ def replica_route(host: str, index: int, port: int) -> Route:
 
 
 def test_a_replica_only_lets_its_prefixed_keys_cross() -> None:
-    rt = replica_route("r1", 1, 7448)
+    rt = replica_route("r1", 1, 7448)  # the second replica: numbered 2 on the wire, as shown (issue 35, 23)
+    assert replica_keys_prefix(rt) == replica_prefix("planner", 1) + "/" == "fogiac/replica/planner/2/"
     rules = {r["id"]: r["key_exprs"] for r in access_control(rt, edge_name="edge")["rules"]}
-    assert rules["edge-data-in"] == rules["edge-interest-out"] == ["fogiac/replica/planner/1/*/plan_req/*/*"]
-    assert rules["edge-data-out"] == rules["edge-interest-in"] == ["fogiac/replica/planner/1/*/plan_rep/*/*"]
+    assert rules["edge-data-in"] == rules["edge-interest-out"] == ["fogiac/replica/planner/2/*/plan_req/*/*"]
+    assert rules["edge-data-out"] == rules["edge-interest-in"] == ["fogiac/replica/planner/2/*/plan_rep/*/*"]
     # the edge router's mirror image: from that host only its prefixed replies, to it only its prefixed requests
     edge = {r["id"]: r["key_exprs"] for r in edge_access_control([("r1-cert", rt)])["rules"]}
-    assert edge["cloud0-data-in"] == ["fogiac/replica/planner/1/*/plan_rep/*/*"]
-    assert edge["cloud0-data-out"] == ["fogiac/replica/planner/1/*/plan_req/*/*"]
+    assert edge["cloud0-data-in"] == ["fogiac/replica/planner/2/*/plan_rep/*/*"]
+    assert edge["cloud0-data-out"] == ["fogiac/replica/planner/2/*/plan_req/*/*"]
 
 
 def test_a_topic_renamed_both_ways_is_refused_before_it_loops() -> None:

@@ -124,7 +124,8 @@ def _download(reqs: tuple[str, ...], *, version: str, machine: str, into: Path) 
     # here, on the operator's machine, with the operator's rights.
     target = ["--only-binary=:all:"] + ([] if same else [
         "--implementation", "cp", "--python-version", version,
-        *(a for tag in ("manylinux2014", "manylinux_2_28", "manylinux_2_17", "linux") for a in ("--platform", f"{tag}_{machine}"))])
+        *(a for tag in ("manylinux2014", "manylinux_2_28", "manylinux_2_17", "linux")
+          for a in ("--platform", f"{tag}_{machine}"))])
     tmp = into.with_name(into.name + ".part")
     shutil.rmtree(tmp, ignore_errors=True)
     done = subprocess.run([sys.executable, "-m", "pip", "download", "--disable-pip-version-check", "-q",

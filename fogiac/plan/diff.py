@@ -118,11 +118,22 @@ class PlanDiff:
     def expected_after(self) -> float:
         return self.cost_after if self.spot_after is None else self.spot_after
 
+    def counts(self) -> tuple[int, int, int]:
+        """(to add, to change, to destroy): the resources, a replacement once to add and once to destroy.
+
+        A target that declares no resources on either side (local sandboxes, machines that exist) deploys
+        hosts, not resources: its hosts are counted instead, or a changed machine on ``local`` showed
+        ``~ planner machine: ...`` above "Plan: 0 to add, 0 to change, 0 to destroy."
+        """
+        if not self.resources:
+            return len(self.hosts.added), len(self.hosts.changed), len(self.hosts.removed)
+        replaced = self.count("replace")
+        return self.count("create") + replaced, self.count("update"), self.count("delete") + replaced
+
     def summary(self) -> str:
-        """Terraform's line: a replacement counts once to add and once to destroy; then the drift, if any."""
-        add = self.count("create") + self.count("replace")
-        destroy = self.count("delete") + self.count("replace")
-        line = f"Plan: {add} to add, {self.count('update')} to change, {destroy} to destroy."
+        """Terraform's line (:meth:`counts`); then the drift, if any."""
+        add, change, destroy = self.counts()
+        line = f"Plan: {add} to add, {change} to change, {destroy} to destroy."
         if self.drift:
             counts = [f"{n} {status}" for status in ("changed", "deleted", "added")
                       if (n := sum(1 for d in self.drift if d.status == status))]
@@ -137,8 +148,7 @@ class PlanDiff:
 
         return {
             "against": self.against, "empty": self.empty, "summary": self.summary(),
-            "add": self.count("create") + self.count("replace"), "change": self.count("update"),
-            "destroy": self.count("delete") + self.count("replace"),
+            **dict(zip(("add", "change", "destroy"), self.counts(), strict=True)),
             "hosts": section(self.hosts), "nodes": section(self.nodes), "topics": section(self.topics),
             "security_rules": section(self.security_rules), "pushed": section(self.pushed),
             "settings": [{"name": k, "before": b, "after": a} for k, b, a in self.settings],

@@ -101,8 +101,12 @@ def test_first_day_from_init_to_down(tmp_path: Path, _state_dir: Path) -> None:
                                                     "fogiac plan fogiac.yaml\n"]
     assert said["fogiac validate"] == ["fogiac.yaml: valid (1 node, 1 host, target aws)\n"]
     assert "no cloud resources (target local)" in said["fogiac plan --target local"][0]
-    assert re.search(r"planner: relay 127\.0\.0\.1:\d+ <-> edge " + re.escape(edge), said[
-        "fogiac up --target local --yes --start-edge-master"][0])
+    first_up = said["fogiac up --target local --yes --start-edge-master"][0]
+    assert re.search(r"planner: relay 127\.0\.0\.1:\d+ <-> edge " + re.escape(edge), first_up)
+    # issue 35 item 17: each step as it starts and ends (stderr), never half a minute of silence
+    for step in (r"edge: robot's ROS master ok", r"planner: runtime (changed|ok)", r"planner: services (changed|ok)",
+                 r"planner: health ok"):
+        assert re.search(rf"^{step} \(\d+\.\ds\)$", first_up, re.M), first_up
     assert re.search(r"planner .* running", said["fogiac status"][0])
     assert said["fogiac logs planner"][0].strip()
     ls = said["fogiac ls"][0]

@@ -73,13 +73,21 @@ def _one_line_each() -> Iterator[None]:
 
 
 class _Progress:
-    """A live table of resources being changed, each with its own timer."""
+    """A live table of resources being changed, each with its own timer.
+
+    ``up``'s own steps (the robot's master, each host's provisioning steps: ``op`` ``check`` and
+    ``provision``) join the table on a terminal; into a pipe or a log, where a live table only appears
+    once it is over, each is one line on stderr as it starts and as it ends, so ``up`` is never silent.
+    """
+
+    STEPS = ("check", "provision")  # the lifecycle's events, beside a cloud engine's resources
 
     def __init__(self) -> None:
         self.timers = Timers(clock=time.monotonic)
         self.clock = time.monotonic
-        self.live = Live(get_renderable=self._table, console=console(stderr=True), refresh_per_second=2,
-                         transient=False)
+        err = console(stderr=True)
+        self.lines = not err.is_terminal
+        self.live = Live(get_renderable=self._table, console=err, refresh_per_second=2, transient=False)
 
     def _table(self) -> Any:
         out = table(None, "", "resource", "type", "time")
@@ -90,8 +98,24 @@ class _Progress:
             out.add_row(mark, f"{row.op} {row.name}", row.type, f"{row.elapsed(now):5.0f}s")
         return out
 
+    def _line(self, event: Progress) -> None:
+        """One step as a line: ``planner: runtime …`` when it starts, ``planner: runtime changed (2.8s)``
+        when it ends (the step names and states of the provisioning report ``up`` ends with)."""
+        self.timers(event)
+        row = self.timers.rows.get(event.key)
+        what = f"{visible(event.name)}: {visible(event.type)}"
+        if event.phase == "start":
+            detail = f" {visible(event.message)}" if event.op == "check" and event.message else ""
+            typer.echo(f"{what}{detail} …", err=True)
+        elif event.phase in ("done", "failed") and row is not None:
+            said = "failed" if event.phase == "failed" else event.message if event.op == "provision" else "ok"
+            typer.echo(f"{what} {visible(said)} ({row.elapsed(self.clock()):.1f}s)", err=True)
+
     def __call__(self, event: Progress) -> None:
         """The lifecycle's on_event: the display starts with the first event, after any question."""
+        if self.lines and event.op in self.STEPS:
+            self._line(event)
+            return
         if not self.live.is_started:
             self.live.start()
         self.timers(event)

@@ -31,7 +31,7 @@ from fogiac.plan.cost import MONTH, per_month
 from fogiac.plan.guard import up_summary
 from fogiac.plan.model import Plan
 from fogiac.plan.review import visible, visible_doc
-from fogiac.plan.saved import check_saved_plan
+from fogiac.plan.saved import check_applies, check_saved_plan
 from fogiac.provision import secrets
 from fogiac.provision.report import report_table
 from fogiac.tables import console, table
@@ -118,8 +118,13 @@ def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str |
     plan = compile_deployed(manifest, env, target, force=force, has_force=True, creating=True)
     chosen = targets.get(plan.target)
     need_yes(yes, "apply")
-    if plan_file is not None:
-        check_saved_plan(plan_file, manifest=manifest, stack=plan.stack, target=plan.target)
+    show = _show
+    if plan_file is not None:  # exactly what was reviewed, or nothing: checked now, and again under the lock
+        reviewed = check_saved_plan(plan_file, manifest=manifest, stack=plan.stack, target=plan.target, plan=plan)
+
+        def show(doc: Mapping[str, Any], summary: tuple[str, ...] | None, saved: Path = plan_file) -> None:
+            check_applies(saved, reviewed, doc)
+            _show(doc, summary)
     found = placeholders.found(plan)
     if found and not force:  # copied from the documentation: nothing of the user's would run, or be reachable
         raise FogiacError("; ".join(found) + "; up refuses documentation placeholders (pass --force to deploy anyway)")
@@ -128,7 +133,7 @@ def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str |
     try:
         with _one_line_each(), _Progress() as progress:
             result = sequence.up(chosen, plan, UpOptions(
-                manifest_path=manifest, yes=yes, ssh_from=ssh_from, show=_show,
+                manifest_path=manifest, yes=yes, ssh_from=ssh_from, show=show,
                 confirm=lambda q: typer.confirm(q, default=False), announce=lambda line: typer.echo(line, err=True),
                 on_event=progress, start_edge_master=start_edge_master, edge_master=edge_master,
                 infra_only=infra_only))

@@ -33,6 +33,7 @@ from fogiac.manifest.clouds import catalogue_digest
 from fogiac.plan.document import FORMAT_VERSION
 from fogiac.plan.model import Plan
 from fogiac.plan.pushed import pushed
+from fogiac.plan.review import visible
 from fogiac.state import StackState
 
 SAVED = "saved"  # the document's section that binds it: record, catalogue, and its own digest
@@ -93,19 +94,19 @@ def check_saved_plan(path: Path, *, manifest: Path, stack: str, target: str,
         raise PlanError(f"saved plan {path} was edited after `fogiac plan --out` wrote it (its content no longer "
                         f"matches its digest); {AGAIN}")
     if doc.get("fogiac_version") != __version__:
-        raise PlanError(f"saved plan {path} was made by fogiac {doc.get('fogiac_version')}, this is {__version__}; "
-                        f"{AGAIN}")
+        raise PlanError(f"saved plan {path} was made by fogiac {_said(doc.get('fogiac_version'))}, "
+                        f"this is {__version__}; {AGAIN}")
     if doc.get("stack") != stack or doc.get("target") != target:
-        raise PlanError(f"saved plan {path} is for stack {doc.get('stack')} on {doc.get('target')}, "
+        raise PlanError(f"saved plan {path} is for stack {_said(doc.get('stack'))} on {_said(doc.get('target'))}, "
                         f"not {stack} on {target}; pass the same --env and --target")
     if plan is not None and doc.get("environment") != plan.environment:
-        raise PlanError(f"saved plan {path} is for environment {doc.get('environment')}, not {plan.environment}; "
-                        f"pass the same --env")
+        raise PlanError(f"saved plan {path} is for environment {_said(doc.get('environment'))}, "
+                        f"not {plan.environment}; pass the same --env")
     recorded = (doc.get("manifest") or {}).get("sha256")
     actual = manifest_sha256(manifest)
     if recorded != actual:
         raise PlanError(f"saved plan {path} was made from another version of {manifest} "
-                        f"(sha256 {str(recorded)[:12]} there, {actual[:12]} now); {AGAIN}")
+                        f"(sha256 {_short(recorded)} there, {actual[:12]} now); {AGAIN}")
     if plan is None:
         return doc
     assert isinstance(saved, dict)
@@ -156,8 +157,13 @@ def _same_record(path: Path, was: Any, stack: str) -> None:
 def _version(record: Any) -> str:
     if not isinstance(record, dict):
         return "no record (nothing deployed)"
-    return f"serial {record.get('serial')} (lineage {str(record.get('lineage'))[:8]})"
+    return f"serial {_said(record.get('serial'))} (lineage {_said(str(record.get('lineage'))[:8])})"
 
 
 def _short(digest: Any) -> str:
-    return str(digest)[:12]
+    return _said(str(digest)[:12])
+
+
+def _said(value: Any) -> str:
+    """A value read from the plan file, as a message may show it: no control or bidirectional character."""
+    return visible(str(value))

@@ -34,6 +34,7 @@ import hmac
 import json
 import os
 import re
+from collections.abc import Callable
 from pathlib import PurePosixPath
 from typing import Any, Protocol
 
@@ -132,12 +133,13 @@ class KmsSealer:
         return _encrypt(KMS, header, bytes(made["Plaintext"]), name, data)
 
     def open(self, name: str, blob: bytes) -> bytes:
-        return open_blob(name, blob, kms=self._kms)
+        return open_blob(name, blob, kms=lambda key: self.client())  # one client for every object it opens
 
 
-def open_blob(name: str, blob: bytes, *, kms: Any | None = None) -> bytes:
+def open_blob(name: str, blob: bytes, *, kms: Callable[[str], Any] | None = None) -> bytes:
     """The content of a sealed object stored as ``name``, by whichever provider sealed it; StateError (one
-    line naming the object and the key needed) when it cannot be opened."""
+    line naming the object and the key needed) when it cannot be opened. ``kms``: the KMS client for the key
+    a blob names (default: boto3's, made for it)."""
     provider, header, first, rest = _parse(name, blob)
     if provider == PASSPHRASE:
         try:
@@ -160,7 +162,7 @@ def open_blob(name: str, blob: bytes, *, kms: Any | None = None) -> bytes:
             wrapped = base64.b64decode(data_key, validate=True)
         except ValueError:
             raise _altered(name) from None
-        client = kms if kms is not None else _kms_client(key_id)
+        client = (kms or _kms_client)(key_id)
         key = bytes(_kms_call(key_id, name, lambda: client.decrypt(
             CiphertextBlob=wrapped, KeyId=key_id, EncryptionContext={_CONTEXT: name}))["Plaintext"])
     try:

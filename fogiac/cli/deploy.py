@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import time
 from collections import Counter
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -59,6 +59,16 @@ def _show(doc: Mapping[str, Any], summary: tuple[str, ...] | None) -> None:
     if spot is not None:
         out.print(f"with spot: about ${spot:.4f} per hour (the catalogue's spot estimate of "
                   f"{doc['cost']['spot_prices']['as_of']}; never more than on-demand)")
+
+
+def _reviewed(path: Path, reviewed: Mapping[str, Any]) -> Callable[[Mapping[str, Any], tuple[str, ...] | None], None]:
+    """``_show``, after checking (under the stack's lock, where the lifecycle shows it) that the document
+    about to be applied is the saved plan's and that nobody applied since it was made."""
+    def show(doc: Mapping[str, Any], summary: tuple[str, ...] | None) -> None:
+        check_applies(path, reviewed, doc)
+        _show(doc, summary)
+
+    return show
 
 
 @contextmanager
@@ -118,13 +128,10 @@ def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str |
     plan = compile_deployed(manifest, env, target, force=force, has_force=True, creating=True)
     chosen = targets.get(plan.target)
     need_yes(yes, "apply")
-    show = _show
+    show: Callable[[Mapping[str, Any], tuple[str, ...] | None], None] = _show
     if plan_file is not None:  # exactly what was reviewed, or nothing: checked now, and again under the lock
-        reviewed = check_saved_plan(plan_file, manifest=manifest, stack=plan.stack, target=plan.target, plan=plan)
-
-        def show(doc: Mapping[str, Any], summary: tuple[str, ...] | None, saved: Path = plan_file) -> None:
-            check_applies(saved, reviewed, doc)
-            _show(doc, summary)
+        show = _reviewed(plan_file, check_saved_plan(plan_file, manifest=manifest, stack=plan.stack,
+                                                     target=plan.target, plan=plan))
     found = placeholders.found(plan)
     if found and not force:  # copied from the documentation: nothing of the user's would run, or be reachable
         raise FogiacError("; ".join(found) + "; up refuses documentation placeholders (pass --force to deploy anyway)")

@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import time
 from collections import Counter
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -31,7 +31,7 @@ from fogiac.plan.cost import MONTH, per_month
 from fogiac.plan.guard import up_summary
 from fogiac.plan.model import Plan
 from fogiac.plan.review import visible, visible_doc
-from fogiac.plan.saved import check_saved_plan
+from fogiac.plan.saved import check_applies, check_saved_plan
 from fogiac.provision import secrets
 from fogiac.provision.report import report_table
 from fogiac.tables import console, table
@@ -59,6 +59,16 @@ def _show(doc: Mapping[str, Any], summary: tuple[str, ...] | None) -> None:
     if spot is not None:
         out.print(f"with spot: about ${spot:.4f} per hour (the catalogue's spot estimate of "
                   f"{doc['cost']['spot_prices']['as_of']}; never more than on-demand)")
+
+
+def _reviewed(path: Path, reviewed: Mapping[str, Any]) -> Callable[[Mapping[str, Any], tuple[str, ...] | None], None]:
+    """``_show``, after checking (under the stack's lock, where the lifecycle shows it) that the document
+    about to be applied is the saved plan's and that nobody applied since it was made."""
+    def show(doc: Mapping[str, Any], summary: tuple[str, ...] | None) -> None:
+        check_applies(path, reviewed, doc)
+        _show(doc, summary)
+
+    return show
 
 
 @contextmanager
@@ -142,8 +152,10 @@ def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str |
     plan = compile_deployed(manifest, env, target, force=force, has_force=True, creating=True)
     chosen = targets.get(plan.target)
     need_yes(yes, "apply")
-    if plan_file is not None:
-        check_saved_plan(plan_file, manifest=manifest, stack=plan.stack, target=plan.target)
+    show: Callable[[Mapping[str, Any], tuple[str, ...] | None], None] = _show
+    if plan_file is not None:  # exactly what was reviewed, or nothing: checked now, and again under the lock
+        show = _reviewed(plan_file, check_saved_plan(plan_file, manifest=manifest, stack=plan.stack,
+                                                     target=plan.target, plan=plan))
     found = placeholders.found(plan)
     if found and not force:  # copied from the documentation: nothing of the user's would run, or be reachable
         raise FogiacError("; ".join(found) + "; up refuses documentation placeholders (pass --force to deploy anyway)")
@@ -152,7 +164,7 @@ def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str |
     try:
         with _one_line_each(), _Progress() as progress:
             result = sequence.up(chosen, plan, UpOptions(
-                manifest_path=manifest, yes=yes, ssh_from=ssh_from, show=_show,
+                manifest_path=manifest, yes=yes, ssh_from=ssh_from, show=show,
                 confirm=lambda q: typer.confirm(q, default=False), announce=lambda line: typer.echo(line, err=True),
                 on_event=progress, start_edge_master=start_edge_master, edge_master=edge_master,
                 infra_only=infra_only))

@@ -22,7 +22,7 @@ from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_deployed, compile_
 from fogiac.errors import FogiacError, StateError
 from fogiac.manifest.clouds import prices as price_source
 from fogiac.manifest.revision import load_revision
-from fogiac.plan import drift, placeholders, review
+from fogiac.plan import drift, placeholders, review, saved
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.cost import MONTH, menu_line, per_month, saving_pct
 from fogiac.plan.diff import annotate, autostop_words, diff_documents, with_drift
@@ -184,6 +184,8 @@ def plan(
         # a value fogiac never writes (a number where a name goes, a host row without its name): one line
         raise StateError(f"{deployment.applied_where(compiled.stack)}: not a plan document fogiac applied "
                          f"({type(err).__name__}: {err}); the next `fogiac up` writes it again, or remove it") from None
+    if out is not None:  # a saved plan binds what up must find unchanged to apply it (fogiac.plan.saved)
+        doc = saved.bind(doc, plan=compiled)
     if out is not None and str(out) == "-":  # the document on stdout, instead of the table
         as_json = True
     elif out is not None:

@@ -14,6 +14,7 @@ no network, no boto3.
 from __future__ import annotations
 
 import gzip
+import hashlib
 import json
 import math
 import re
@@ -338,6 +339,13 @@ def read(path: str | Path) -> Catalogue:
     if data[:2] == b"\x1f\x8b":
         data = gzip.decompress(data)
     return Catalogue(json.loads(data), path=str(path))
+
+
+def digest(path: str | None = None) -> str:
+    """The sha256 of the catalogue file :func:`load` reads for ``path``: a saved plan binds the catalogue its
+    machines were chosen and priced from, so a refreshed one is not applied unreviewed."""
+    data = Path(path).read_bytes() if path is not None else resources.files("fogiac").joinpath(SHIPPED).read_bytes()
+    return hashlib.sha256(data).hexdigest()
 
 
 @cache

@@ -9,6 +9,7 @@ in place of the shipped one. The aws target contributes these commands (plug-in 
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 from typing import Any
 
@@ -71,13 +72,13 @@ def commands() -> typer.Typer:
             raise typer.BadParameter(f"{arch!r} is not x86_64 or arm64", param_hint="--arch")
         chosen: Arch | None = "arm64" if arch == "arm64" else ("x86_64" if arch else None)
         _searchable(CLOUD.catalogue, region)
-        asked = {"region": region, "gpu": True if gpu == "any" else gpu, "arch": chosen, "vcpus": vcpus,
-                 "memory": memory, "spot": spot}
-        found = CLOUD.catalogue.search(**asked)
+        asked = functools.partial(CLOUD.catalogue.search, region=region, gpu=True if gpu == "any" else gpu,
+                                  arch=chosen, vcpus=vcpus, memory=memory, spot=spot)
+        found = asked()
         unpriced = not found and not any(CLOUD.catalogue.price(t, region) for t in CLOUD.catalogue.types
                                          if CLOUD.catalogue.offered(t, region))
         if unpriced:  # a region with no price source: its types, with their cost shown as unknown
-            found = CLOUD.catalogue.search(**asked, priced_only=False)
+            found = asked(priced_only=False)
         out = table(f"EC2 in {region}: {len(found)} types" + (", prices unknown" if unpriced else ""), "type", "vCPU",
                     "GiB", "arch", "GPU", "$/hour", "spot $/hour", "price as of")
         for offer in found[:limit]:

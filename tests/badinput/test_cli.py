@@ -78,3 +78,13 @@ def test_preflight_refuses_a_wide_ssh_from(given: str) -> None:
     with pytest.raises(PreflightError, match=rf"^ssh_from: {given} cover \d+ addresses, more than a /8"):
         operator_cidrs(plan, override=given)
     assert operator_cidrs(plan, override="10.0.0.0/8") == ("10.0.0.0/8",)
+
+
+@pytest.mark.parametrize("verb", [[], ["update"]])
+def test_catalog_refuses_a_misspelt_region_with_did_you_mean(verb: list[str], state: Path) -> None:
+    """Issue 35 item 22: ``catalog --region eu-centrl-1`` printed "0 types" and exited 0."""
+    result = runner.invoke(app, ["catalog", *verb, "--region", "eu-centrl-1"])
+    assert result.exit_code == 1, result.output
+    assert result.output.strip().splitlines() == [
+        "error: --region 'eu-centrl-1' is not an AWS region; did you mean 'eu-central-1'?"]
+    assert not state.exists()

@@ -235,6 +235,14 @@ class StackState:
                 shutil.rmtree(path) if path.is_dir() and not path.is_symlink() else path.unlink()
         write_atomic(self.folder / MOVED, dumps(note), mode=0o600)
 
+    def clear_moved(self) -> None:
+        """Forget the note that the state went elsewhere (``fogiac state migrate`` brings it back here)."""
+        shared = getattr(self.store, "clear_moved", None)
+        if shared is not None:
+            shared(self.stack)
+        else:
+            (self.folder / MOVED).unlink(missing_ok=True)
+
     def lock_holder(self) -> dict[str, Any] | None:
         """Who holds the stack's lock now (``{}``: unreadable), or None; read without taking it."""
         reader = getattr(self.store, "lock_holder", None)

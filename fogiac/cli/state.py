@@ -109,6 +109,7 @@ def migrate(stack: str, *, to: str, source_url: str | None) -> str:
     with ExitStack() as held:
         held.enter_context(_locked(src, "state migrate"))
         held.enter_context(_locked(dst, "state migrate"))
+        dst.clear_moved()  # coming back: the note that it left goes (a failure below leaves no record there)
         snap = src.snapshot()
         if snap.document is None:
             raise StateError(f"stack {stack!r}: no record in {source.where(stack)} to migrate")
@@ -116,7 +117,8 @@ def migrate(stack: str, *, to: str, source_url: str | None) -> str:
             raise StateError(f"stack {stack!r} already has a record in {dest.where(stack)}; "
                              "nothing was moved (remove one of them first)")
         files = src.copy_files(dst.ensure())
-        dest.put(stack, snap.document, expected=None)  # the lock's release pushes a shared store's files
+        # the lock's release pushes a shared store's files
+        dest.put(stack, {**snap.document, "written_by": _me()}, expected=None)
         note = {"moved_to": dest.where(stack).rsplit("/", 2)[0] if not to_folder else "folder",
                 "by": _me(), "at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
         if to_folder:

@@ -419,6 +419,9 @@ class S3Store:
             self._delete(self.where(stack), self.key(stack, FILES + rel))
         self._index_path(stack).unlink(missing_ok=True)
 
+    def clear_moved(self, stack: str) -> None:
+        self._delete(self.where(stack), self.key(stack, MOVED))
+
     def mark_moved(self, stack: str, to: str, by: str) -> None:
         self._put(self.where(stack), self.key(stack, MOVED),
                   dumps({"moved_to": to, "by": by, "at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}))

@@ -78,3 +78,19 @@ def test_preflight_refuses_a_wide_ssh_from(given: str) -> None:
     with pytest.raises(PreflightError, match=rf"^ssh_from: {given} cover \d+ addresses, more than a /8"):
         operator_cidrs(plan, override=given)
     assert operator_cidrs(plan, override="10.0.0.0/8") == ("10.0.0.0/8",)
+
+
+@pytest.mark.parametrize(("url", "said"), [
+    ("ftp://host/x", "error: state url 'ftp://host/x': no state store for ftp:// (known: s3://)"),
+    ("bucket/prefix", "error: state url 'bucket/prefix': expected s3://BUCKET/PREFIX (or unset for the stack folder)"),
+    ("s3://b/../x", "error: state url 's3://b/../x': expected s3://BUCKET/PREFIX"),
+])
+def test_a_bad_state_url_is_one_line_and_nothing_is_written(url: str, said: str, state: Path,
+                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("FOGIAC_STATE_URL", url)
+    for argv in (["status", str(EXAMPLES / "minimal.yaml")], ["ls"], ["state", "ls"],
+                 ["state", "unlock", "minimal-dev", "--yes"]):
+        result = runner.invoke(app, argv)
+        assert result.exit_code == 1, (argv, result.output)
+        assert result.output.strip().splitlines() == [said], (argv, result.output)
+    assert not state.exists()

@@ -179,3 +179,14 @@ def test_a_record_moved_away_says_where_it_went(bucket: str, tmp_path: Path) -> 
         store.get("gone-dev")
     record = json.loads(_objects(bucket)["lab/gone-dev/moved.json"])
     assert record["by"] == "alice@lab-1"
+
+
+def test_pulumi_state_follows_the_store(bucket: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    from fogiac.pulumi_engine.workspace import workspace_env
+
+    monkeypatch.setenv("PULUMI_CONFIG_PASSPHRASE", "test")
+    monkeypatch.delenv("FOGIAC_STATE_URL", raising=False)
+    assert workspace_env("demo-dev")["PULUMI_BACKEND_URL"].startswith("file://")
+    monkeypatch.setenv("FOGIAC_STATE_URL", f"s3://{bucket}/team")
+    assert workspace_env("demo-dev")["PULUMI_BACKEND_URL"] == f"s3://{bucket}/team"
+    assert not StackState("demo-dev").target_file("pulumi").exists(), "a folder backend was made beside it"

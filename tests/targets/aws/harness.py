@@ -22,10 +22,10 @@ from typing import Any
 import pulumi
 from botocore.exceptions import ClientError
 
-from fogiac.certs import Bundle
-from fogiac.plan.model import Plan
-from fogiac.pulumi_engine.offline import run_program
 from fogiac.targets.aws.api import error_code
+from fogiac.certs import Bundle
+from fogiac.pulumi_engine.offline import run_program
+from fogiac.plan.model import Plan
 from stacks import PROJECT
 
 _SECRET_SIG = "4dabf18193072939515e22adb298388d"

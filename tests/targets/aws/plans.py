@@ -5,8 +5,8 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from fogiac.manifest.schema import load_manifest
 from fogiac.plan.compile import compile_plan
+from fogiac.manifest.schema import load_manifest
 from fogiac.plan.model import Plan
 
 

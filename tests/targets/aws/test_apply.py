@@ -12,10 +12,10 @@ from typing import Any
 
 import pytest
 
-from fogiac.certs import new_bundle
-from fogiac.plan.model import OPERATOR, Plan
 from fogiac.targets.aws.api import preflight, status
 from fogiac.targets.aws.sweep import sweep
+from fogiac.certs import new_bundle
+from fogiac.plan.model import OPERATOR, Plan
 
 from .conftest import NEWEST_UBUNTU, REGION
 from .harness import CLIENT_VPN, Harness, InjectedFailure

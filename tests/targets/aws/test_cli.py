@@ -15,12 +15,12 @@ from typing import Any
 import pytest
 from typer.testing import CliRunner
 
-from fogiac.cli import app
-from fogiac.errors import PreflightError
 from fogiac.lifecycle import sequence
-from fogiac.pulumi_engine.workspace import PULUMI_CLI_VERSION
+from fogiac.cli import app
 from fogiac.targets import get as target
 from fogiac.targets.base import UpOptions
+from fogiac.pulumi_engine.workspace import PULUMI_CLI_VERSION
+from fogiac.errors import PreflightError
 
 from .plans import make_plan, with_region, write_manifest
 from .test_sweep import leak

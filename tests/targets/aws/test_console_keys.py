@@ -6,8 +6,8 @@ from typing import Any
 
 import pytest
 
-from fogiac.errors import CloudError
 from fogiac.targets.aws.api import host_fingerprints, parse_host_fingerprints
+from fogiac.errors import CloudError
 from stacks.compute import HOST_KEYS_BEGIN, HOST_KEYS_END
 
 CONSOLE = f"""\

@@ -21,9 +21,9 @@ from typer.testing import CliRunner
 from fogiac import deployment
 from fogiac.certs import new_bundle
 from fogiac.cli import app
+from fogiac.state import read_json, stack_dir, write_json_atomic
 from fogiac.pulumi_engine.engine import LayerResult
 from fogiac.pulumi_engine.workspace import PULUMI_CLI_VERSION
-from fogiac.state import read_json, stack_dir, write_json_atomic
 from fogiac.targets.aws.engine import LAYERS, OUTPUTS_FILE, SSH_KEY_FILE, Engine
 from fogiac.targets.aws.errors import EngineError
 

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
-from fogiac.errors import CredentialsError, PreflightError
 from fogiac.targets.aws.api import preflight, resolve_image
 from fogiac.targets.aws.placement import UBUNTU
+from fogiac.errors import CredentialsError, PreflightError
 
 from .conftest import NEWEST_UBUNTU
 from .plans import make_plan, with_region

@@ -18,8 +18,8 @@ import pytest
 from typer.testing import CliRunner
 
 from fogiac.cli import app
-from fogiac.state import stack_dir
 from fogiac.targets.aws.catalog import catalog, spot_price
+from fogiac.state import stack_dir
 from fogiac.targets.aws.engine import OUTPUTS_FILE
 from fogiac.targets.aws.spot import ON_DEMAND, no_capacity
 

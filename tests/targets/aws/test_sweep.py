@@ -6,11 +6,11 @@ from typing import Any
 
 import pytest
 
+from fogiac.targets.aws.sweep import sweep
 from fogiac.certs import new_bundle
 from fogiac.errors import CloudError
-from fogiac.targets.aws.sweep import sweep
 
-from .conftest import NEWEST_UBUNTU
+from .conftest import NEWEST_UBUNTU, REGION
 
 pytestmark = pytest.mark.localstack
 

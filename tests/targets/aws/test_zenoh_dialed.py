@@ -18,9 +18,9 @@ import pytest
 from cryptography import x509
 
 from fogiac.certs import load_or_create_bundle
-from fogiac.lifecycle.edge import dialed_addresses
 from fogiac.manifest.schema import load_manifest
 from fogiac.net.zenoh import tls
+from fogiac.lifecycle.edge import dialed_addresses
 from fogiac.plan.compile import compile_plan
 from fogiac.provision.local import LocalAccess
 from fogiac.provision.steps import HostRun, Options

@@ -16,8 +16,8 @@ import subprocess
 import time
 import urllib.request
 from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
+from pathlib import Path
 
 import pytest
 

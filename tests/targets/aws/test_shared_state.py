@@ -15,6 +15,7 @@ sshd (``tests/provision/sshlab.py``), and ``up`` provisions it over SSH as on a 
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import pty
@@ -62,6 +63,7 @@ class Operator:
     def env(self, *, shared: bool = True) -> dict[str, str]:
         env = {k: v for k, v in os.environ.items() if k not in ("FOGIAC_STATE_URL", "FOGIAC_STATE_DIR")}
         env.update(HOME=str(self.home), FOGIAC_STATE_DIR=str(self.state), COLUMNS="250",
+                   FOGIAC_STATE_PASSPHRASE="the lab's passphrase",  # seals the stack's files (fogiac.sealed)
                    PYTHONPATH=os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")])))
         if shared:
             env["FOGIAC_STATE_URL"] = self.url
@@ -165,7 +167,10 @@ def test_two_members_share_a_stack_through_the_bucket(team: tuple[Operator, Oper
     assert code == 0 and f"to {a.url}/{stack}/record.json" in out, out
     code, out = a.run("status", str(a.manifest), shared=False)
     assert code == 1 and f"its state moved to {a.url}" in out and "FOGIAC_STATE_URL" in out, out
-    assert any(key.endswith("/files/certs/ca.key") for key in _objects(a.url)), "the stack's files stayed behind"
+    objects = _objects(a.url)
+    assert any(key.endswith("/files/certs/ca.key") for key in objects), "the stack's files stayed behind"
+    if importlib.util.find_spec("fogiac.sealed") is not None:  # the sealer is wired: no key leaves in the clear
+        assert [k for k, body in objects.items() if b"PRIVATE KEY" in body or b"OPENSSH" in body] == []
 
     code, said = _status(b)
     assert code == 0 and isinstance(said, dict) and said["deployed"] and not said["partial"], said

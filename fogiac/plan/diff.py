@@ -224,8 +224,10 @@ def _resources(before: Sequence[Mapping[str, Any]], after: Sequence[Mapping[str,
 
 
 def _section(before: Sequence[Mapping[str, Any]] | None, after: Sequence[Mapping[str, Any]] | None,
-             key: tuple[str, ...], *, compare: bool) -> Section:
-    """Rows keyed by ``key``; with ``compare``, rows on both sides report changed fields."""
+             key: tuple[str, ...], *, compare: bool, content: str | None = None) -> Section:
+    """Rows keyed by ``key``; with ``compare``, rows on both sides report changed fields. ``content``: the field
+    that digests what a row pushes: equal on both sides, the row's local path is no change (the same bytes
+    reach the hosts from another member's checkout of the lab's repository, as a shared state store has it)."""
     if before is None or after is None:  # a version 1 document lacks this section: nothing to compare
         return Section()
 
@@ -237,8 +239,9 @@ def _section(before: Sequence[Mapping[str, Any]] | None, after: Sequence[Mapping
     if compare:
         for name in (n for n in new if n in old):
             # a field the older document did not have yet is not a change (an applied plan of an older fogiac)
+            same = content is not None and old[name].get(content) == new[name].get(content)
             fields = tuple((f, old[name].get(f), new[name].get(f)) for f in new[name]
-                           if f in old[name] and old[name].get(f) != new[name].get(f))
+                           if f in old[name] and old[name].get(f) != new[name].get(f) and not (same and f == "path"))
             if fields:
                 changed.append(RowChange(name, fields))
     return Section(added=tuple(r for n, r in new.items() if n not in old),
@@ -335,7 +338,7 @@ def diff_documents(before: Mapping[str, Any] | None, after: Mapping[str, Any], *
         exposure=_exposure(rules, topics),
         spot_before=_spot_hourly(before), spot_after=_spot_hourly(after),
         # an applied document recorded before pushed paths were listed: nothing to compare them with
-        pushed=_section(before.get("pushed"), after.get("pushed"), ("node", "what"), compare=True)
+        pushed=_section(before.get("pushed"), after.get("pushed"), ("node", "what"), compare=True, content="sha256")
         if "pushed" in before else Section(),
         cost_risk=_cost_risk(before.get("autostop"), after.get("autostop")) if "autostop" in before else (),
         autostop=after.get("autostop"), autostop_known="autostop" in after,

@@ -74,7 +74,7 @@ def localstack(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     env = {k: v for k, v in os.environ.items() if not k.startswith(("AWS_", "LOCALSTACK_"))}
     env.update(GATEWAY_LISTEN=f"127.0.0.1:{port}", MOTO_AMIS_PATH=str(amis), SKIP_SSL_CERT_DOWNLOAD="1",
                DISABLE_EVENTS="1", LOCALSTACK_TELEMETRY="0", DISABLE_CORS_CHECKS="1",
-               SERVICES="ec2,sts,acm,logs,iam,kms", FILESYSTEM_ROOT=str(work / "fs"))
+               SERVICES="ec2,sts,acm,logs,iam,s3,kms", FILESYSTEM_ROOT=str(work / "fs"))
     log = (work / "localstack.log").open("wb")
     proc = subprocess.Popen([str(VENV_PYTHON), str(Path(__file__).with_name("localstack_main.py"))], cwd=work, env=env,
                             stdout=log, stderr=subprocess.STDOUT, start_new_session=True)

@@ -82,16 +82,26 @@ def stack_label(doc: Mapping[str, Any]) -> str:
     return f"{doc['stack']} (--env {env})" if env else str(doc["stack"])
 
 
+LOCAL_NOTE = ("local: each host is a sandbox folder on this machine with its own ROS master; its nodes share this "
+              "machine's CPUs, GPUs and memory. The machine and its vCPUs below are what the same manifest asks "
+              "for on aws, not limits here; a sandbox costs nothing.")
+
+
 def render(doc: Mapping[str, Any]) -> None:
     doc = review.visible_doc(doc)  # no value reaches the terminal with a control or bidi character in it
     out = console()
     where = f", region {doc['region']}, mode {doc['mode']}" if doc["resources"] else ""
     out.print(f"[bold]fogiac plan[/] {stack_label(doc)}: target {doc['target']}{where}")
     carrier = doc["middleware"]
+    sandboxes = doc["target"] == "local"  # a sandbox here: ports chosen at up, its size not its own
+    port = "a free port per sandbox, chosen at the first up (up and status show it)" if sandboxes \
+        else f"port {carrier['port']}"
     out.print(f"ROS {carrier['ros_distro']} via {escape(carrier['label'])}\n  edge: {escape(carrier['edge'])}\n"
-              f"  each host: {escape(carrier['cloud'])}, port {carrier['port']}", highlight=False)
+              f"  each host: {escape(carrier['cloud'])}, {port}", highlight=False)
     if not doc["resources"]:
         out.print(f"no cloud resources (target {doc['target']})")
+    if sandboxes:
+        out.print(LOCAL_NOTE, highlight=False)
     for stack in doc["stacks"]:
         rows = [r for r in doc["resources"] if r["stack"] == stack]
         out.print(f"\n[bold]{stack} stack: {len(rows)} to create[/]")

@@ -260,7 +260,8 @@ def sweep(manifest: Path = MANIFEST, env: str = ENV, target: str | None = TARGET
 
 def doctor(manifest: Path = MANIFEST, env: str = ENV, target: str | None = TARGET,
            ssh_from: str | None = typer.Option(None, "--ssh-from", help="Your CIDR for ssh_from: auto.")) -> None:
-    """Run every check `up` makes, create nothing, say what would fail."""
+    """Check what the target needs before up (aws: CLI, credentials, policy, zone, quotas; local: ROS 1 and what
+    each workload node imports), create nothing, say what would fail."""
     plan = compile_for(manifest, env, target)
     results = targets.get(plan.target).doctor(plan, ssh_from=ssh_from)
     for check in results:

@@ -108,7 +108,8 @@ class _Progress:
             detail = f" {visible(event.message)}" if event.op == "check" and event.message else ""
             typer.echo(f"{what}{detail} …", err=True)
         elif event.phase in ("done", "failed") and row is not None:
-            said = "failed" if event.phase == "failed" else event.message if event.op == "provision" else "ok"
+            failed = "interrupted" if event.message == "interrupted" else "failed"
+            said = failed if event.phase == "failed" else event.message if event.op == "provision" else "ok"
             typer.echo(f"{what} {visible(said)} ({row.elapsed(self.clock()):.1f}s)", err=True)
 
     def __call__(self, event: Progress) -> None:

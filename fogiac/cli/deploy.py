@@ -118,7 +118,8 @@ class _Progress:
             detail = f" {visible(event.message)}" if event.op == "check" and event.message else ""
             typer.echo(f"{what}{detail} …", err=True)
         elif event.phase in ("done", "failed") and row is not None:
-            said = "failed" if event.phase == "failed" else event.message if event.op == "provision" else "ok"
+            failed = "interrupted" if event.message == "interrupted" else "failed"
+            said = failed if event.phase == "failed" else event.message if event.op == "provision" else "ok"
             typer.echo(f"{what} {visible(said)} ({row.elapsed(self.clock()):.1f}s)", err=True)
 
     def __call__(self, event: Progress) -> None:
@@ -272,7 +273,8 @@ def sweep(manifest: Path = MANIFEST, env: str = ENV, target: str | None = TARGET
 
 def doctor(manifest: Path = MANIFEST, env: str = ENV, target: str | None = TARGET,
            ssh_from: str | None = typer.Option(None, "--ssh-from", help="Your CIDR for ssh_from: auto.")) -> None:
-    """Run every check `up` makes, create nothing, say what would fail."""
+    """Check what the target needs before up (aws: CLI, credentials, policy, zone, quotas; local: ROS 1 and what
+    each workload node imports), create nothing, say what would fail."""
     plan = compile_for(manifest, env, target)
     results = targets.get(plan.target).doctor(plan, ssh_from=ssh_from)
     for check in results:

@@ -99,9 +99,10 @@ def _step(on_event: OnEvent | None, name: str, kind: str, detail: str) -> Iterat
         on_event(Progress(phase="start", key=key, name=name, type=kind, op="check", message=detail))
     try:
         yield
-    except BaseException:
+    except BaseException as err:
         if on_event is not None:
-            on_event(Progress(phase="failed", key=key, name=name, type=kind, op="check", message=detail))
+            said = "interrupted" if isinstance(err, KeyboardInterrupt) else detail
+            on_event(Progress(phase="failed", key=key, name=name, type=kind, op="check", message=said))
         raise
     if on_event is not None:
         on_event(Progress(phase="done", key=key, name=name, type=kind, op="check", message=detail))

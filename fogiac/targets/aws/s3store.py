@@ -7,7 +7,7 @@ Layout under ``s3://BUCKET/PREFIX/``::
                               refused, never overwrites (S3's writes are whole: a kill -9 leaves old or new)
     <stack>/lock.json         who holds the stack: created with If-None-Match: *, dropped with If-Match
     <stack>/files/<path>      the stack folder's other files (certificates, keys, known hosts, a target's
-                              own), each sealed (:mod:`fogiac.sealed`'s interface) before it leaves
+                              own), each sealed by :mod:`fogiac.sealed` before it leaves
     <stack>/moved.json        the stack's state went back to a member's folder (``fogiac state migrate``)
     .pulumi/                  the Pulumi engine's backend (``s3://BUCKET/PREFIX``: Pulumi writes ``.pulumi/``)
 
@@ -27,17 +27,17 @@ boto3 is imported when a store is made: the first day on the folder store loads 
 from __future__ import annotations
 
 import hashlib
-import importlib
 import json
 import os
 import stat
 import time
 from collections.abc import Iterator, Mapping
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 from urllib.parse import urlsplit
 
 from fogiac.errors import CredentialsError, StateError
+from fogiac.sealed import Sealer, sealer_for
 from fogiac.store import LOCK, RECORD, Snapshot, StaleRecord, check_name, dumps, state_root, write_atomic
 from fogiac.targets.aws.sdk import need
 
@@ -47,39 +47,6 @@ INDEX = ".index"  # beside the cached stacks: what each stack's last sync saw (n
 _CONFLICT = {"PreconditionFailed", "ConditionalRequestConflict", "412", "409"}
 _MISSING = {"NoSuchKey", "404", "NotFound"}
 _DENIED = {"AccessDenied", "InvalidAccessKeyId", "SignatureDoesNotMatch", "ExpiredToken", "403"}
-
-
-class Sealer(Protocol):
-    """What each file passes through on its way to the bucket and back (``fogiac.sealed``'s interface)."""
-
-    def seal(self, name: str, data: bytes) -> bytes: ...
-
-    def open(self, name: str, blob: bytes) -> bytes: ...
-
-
-class PlainSealer:
-    """The stand-in until :mod:`fogiac.sealed` is installed: bytes as they are (no ``kms_key`` configured).
-
-    Only a bucket whose own encryption (SSE) and policy keep the keys private should hold them so."""
-
-    def seal(self, name: str, data: bytes) -> bytes:
-        return data
-
-    def open(self, name: str, blob: bytes) -> bytes:
-        return blob
-
-
-def sealer_for(kms_key: str | None) -> Sealer:
-    """:func:`fogiac.sealed.sealer_for` when that module is there, else :class:`PlainSealer` (no key only)."""
-    try:
-        sealed = importlib.import_module("fogiac.sealed")
-    except ImportError:
-        if kms_key:
-            raise StateError(f"state kms_key {kms_key!r} is set but this fogiac cannot encrypt with it "
-                             "(fogiac.sealed is missing); upgrade fogiac") from None
-        return PlainSealer()
-    made: Sealer = sealed.sealer_for(kms_key)
-    return made
 
 
 def parse_url(url: str) -> tuple[str, str]:

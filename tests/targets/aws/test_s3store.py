@@ -19,13 +19,14 @@ import pytest
 from fogiac.errors import LockHeld, StateError
 from fogiac.state import StackState, default_store
 from fogiac.store import FolderStore, StaleRecord, open_store
-from fogiac.targets.aws.s3store import PlainSealer, S3Store
+from fogiac.sealed import sealer_for
+from fogiac.targets.aws.s3store import S3Store
 
 pytestmark = pytest.mark.localstack
 
 
 class Reversed:
-    """A stand-in sealer that visibly changes the bytes (the real one is fogiac.sealed's)."""
+    """A sealer whose output is readable in a test (where the bytes went); the real one is fogiac.sealed's."""
 
     def seal(self, name: str, data: bytes) -> bytes:
         return b"SEALED:" + name.encode() + b":" + data[::-1]
@@ -34,6 +35,11 @@ class Reversed:
         head = b"SEALED:" + name.encode() + b":"
         assert blob.startswith(head), "opened with another file's name"
         return blob[len(head):][::-1]
+
+
+@pytest.fixture(autouse=True)
+def _passphrase(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("FOGIAC_STATE_PASSPHRASE", "the lab's passphrase")  # fogiac.sealed's, without kms_key
 
 
 @pytest.fixture
@@ -55,7 +61,7 @@ def _objects(bucket: str) -> dict[str, bytes]:
 
 
 def _member(bucket: str, root: Path, sealer: Any = None) -> S3Store:
-    return S3Store(f"s3://{bucket}/lab", cache=root, sealer=sealer or PlainSealer())
+    return S3Store(f"s3://{bucket}/lab", cache=root, sealer=sealer or sealer_for(None))
 
 
 def test_a_stale_put_is_refused_and_creation_happens_once(bucket: str, tmp_path: Path) -> None:

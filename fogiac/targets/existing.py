@@ -34,6 +34,7 @@ from fogiac.plan.model import HostSpec, Plan
 from fogiac.provision import HostAccess, HostPorts, idle, planned_ports, recorded_access
 from fogiac.state import StackState
 from fogiac.tables import table
+from fogiac.termtext import clean
 
 
 class ExistingMachines:
@@ -150,10 +151,14 @@ class ExistingMachines:
                       "host", "machine", "address", "uptime", "cost so far", "node", "state", "restarts")
         for host in doc["hosts"]:
             for node in host["nodes"]:
-                state = "-" if "running" not in node else "running" if node["running"] else "stopped"
+                state = "-" if "running" not in node else "crash-looping" if node.get("crash_looping") else \
+                    "running" if node["running"] else "stopped"
                 nodes.add_row(host["host"], host["machine"], host["address"], duration(host["uptime_s"]),
                               f"${host['cost_usd']:.2f}", node["node"], state, str(node.get("restarts", "-")))
         out.append(nodes)
+        out += [f"{host['host']}: node {node['node']} is crash-looping; its last line: "
+                f"{clean(node.get('last_line', ''))}" for host in doc["hosts"] for node in host["nodes"]
+                if node.get("crash_looping")]
         out += [f"{host['host']}: {autostop_line(host['autostop'])}" for host in doc["hosts"] if host.get("autostop")]
         warning = (doc.get("cost") or {}).get("warning")
         return out + ([f"warning: {warning}"] if warning else [])

@@ -34,6 +34,7 @@ from fogiac.plan.model import HostSpec, Plan
 from fogiac.provision import HostAccess, HostPorts, idle, planned_ports, recorded_access
 from fogiac.state import StackState
 from fogiac.tables import printable, table, usd
+from fogiac.termtext import clean
 
 
 class ExistingMachines:
@@ -150,11 +151,15 @@ class ExistingMachines:
                       "host", "machine", "address", "uptime", "cost so far", "node", "state", "restarts")
         for host in doc["hosts"]:
             for node in host["nodes"]:
-                state = "-" if "running" not in node else "running" if node["running"] else "stopped"
+                state = "-" if "running" not in node else "crash-looping" if node.get("crash_looping") else \
+                    "running" if node["running"] else "stopped"
                 nodes.add_row(*map(printable, (host["host"], host["machine"], host["address"],
                                                duration(host["uptime_s"]), usd(host["cost_usd"]) or "unknown",
                                                node["node"], state, node.get("restarts", "-"))))
         out.append(nodes)
+        out += [printable(f"{host['host']}: node {node['node']} is crash-looping; its last line: "
+                          f"{clean(node.get('last_line', ''))}") for host in doc["hosts"] for node in host["nodes"]
+                if node.get("crash_looping")]
         out += [printable(f"{host['host']}: {autostop_line(host['autostop'])}")
                 for host in doc["hosts"] if host.get("autostop")]
         warning = (doc.get("cost") or {}).get("warning")

@@ -73,6 +73,16 @@ def write_atomic(path: Path, data: bytes, *, mode: int) -> None:
         raise
 
 
+def make_private(path: Path) -> Path:
+    """``path`` as a folder only its owner may enter (0700, also when it was there already); one line if not."""
+    try:
+        path.mkdir(parents=True, exist_ok=True, mode=0o700)
+        os.chmod(path, 0o700)
+    except OSError as err:
+        raise StateError(f"cannot use state directory {path}: {err.strerror}") from None
+    return path
+
+
 def dumps(data: Any) -> bytes:
     """State as fogiac writes it: JSON, sorted, indented, one trailing newline."""
     return (json.dumps(data, indent=2, sort_keys=True) + "\n").encode()
@@ -163,13 +173,7 @@ class FolderStore:
 
     def folder(self, stack: str, *, create: bool = False) -> Path:
         path = self.root / check_name(stack)
-        if create:
-            try:
-                path.mkdir(parents=True, exist_ok=True, mode=0o700)
-                os.chmod(path, 0o700)
-            except OSError as err:
-                raise StateError(f"cannot use state directory {path}: {err.strerror}") from None
-        return path
+        return make_private(path) if create else path
 
     def where(self, stack: str, name: str = RECORD) -> str:
         return str(self.folder(stack) / name)

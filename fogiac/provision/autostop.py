@@ -5,7 +5,8 @@ as one more supervised service beside the middleware's cloud side and judges "id
 what fogiac already knows, the stats file that side writes every second (the relay's cloud end,
 the Zenoh router): no edge connected (``connected``) and no message crossing (the ``msgs`` of its
 ``topics`` did not move, where it counts them). A host with no stats file yet counts as idle
-from the watchdog's start, so a host whose edge never came stops too. A stats file not rewritten
+from the watchdog's start, so a host whose edge never came stops too, though never before
+``START_GRACE_S`` after that start (the ``up`` that started it is still bringing its edge in). A stats file not rewritten
 for ``STATS_STALE_S`` (its writer stopped, hung or was SIGSTOPped) says nothing either: its last
 ``connected: true`` must not keep the host up (the operator's side judges it the same way).
 
@@ -33,6 +34,7 @@ STATE_FILE = "autostop.json"
 SERVICE = "autostop"
 _POLL_S = 1.0
 STATS_STALE_S = 30.0  # stats are written every second; older than this, their writer no longer runs
+START_GRACE_S = 60.0  # a (re)started host waits at least this long for its edge's first link
 
 
 @dataclass(frozen=True)
@@ -57,11 +59,20 @@ class Activity:
 
 
 class IdleClock:
-    """Pure: feeds on activity snapshots and says since when the host has been idle."""
+    """Pure: feeds on activity snapshots and says since when the host has been idle.
 
-    def __init__(self, idle_s: float, now: float) -> None:
+    ``grace_s`` is the least time a host gets, from the clock's start, before it is judged idle while
+    nothing has linked yet: its services were just (re)started by ``fogiac up``, whose edge end dials
+    in moments later (seconds on a loaded machine), and a short ``idle_s`` must not stop the host under
+    that ``up``. Once anything was active, ``idle_s`` alone counts.
+    """
+
+    def __init__(self, idle_s: float, now: float, *, grace_s: float = 0.0) -> None:
         self.idle_s = idle_s
         self.last_active = now
+        self._started = now
+        self._grace_s = grace_s
+        self._active_once = False
         self._msgs: int | None = None
 
     def observe(self, seen: Activity | None, now: float) -> None:
@@ -69,13 +80,20 @@ class IdleClock:
         moved = msgs is not None and self._msgs is not None and msgs != self._msgs
         if (seen is not None and seen.connected) or moved:
             self.last_active = now
+            self._active_once = True
         self._msgs = msgs
 
     def idle_since(self, now: float) -> float | None:
         return self.last_active if now > self.last_active else None
 
+    def stops_at(self) -> float:
+        """When the host stops if nothing happens before then."""
+        if self._active_once:
+            return self.last_active + self.idle_s
+        return self._started + max(self.idle_s, self._grace_s)
+
     def due(self, now: float) -> bool:
-        return now - self.last_active >= self.idle_s
+        return now >= self.stops_at()
 
 
 def read_activity(path: Path, *, stale_s: float = STATS_STALE_S,
@@ -136,7 +154,7 @@ def watch(*, stats_file: Path, run_dir: Path, idle_s: float, action: str, power:
           stale_s: float = STATS_STALE_S) -> IdleState:
     """Poll until idle for ``idle_s``, record it, then stop the way ``power`` says."""
     stop = POWER[power]
-    idle = IdleClock(idle_s, clock())
+    idle = IdleClock(idle_s, clock(), grace_s=START_GRACE_S)
     while True:
         now = clock()
         idle.observe(read_activity(stats_file, stale_s=stale_s, clock=clock), now)
@@ -145,7 +163,7 @@ def watch(*, stats_file: Path, run_dir: Path, idle_s: float, action: str, power:
             state = IdleState(idle_since=since, stops_at=now, stopped_at=now, action=action)
             stop(run_dir, state)
             return state
-        _write_state(run_dir, IdleState(idle_since=since, stops_at=idle.last_active + idle_s, action=action))
+        _write_state(run_dir, IdleState(idle_since=since, stops_at=idle.stops_at(), action=action))
         sleep(_POLL_S)
 
 

@@ -58,6 +58,20 @@ def test_a_host_whose_edge_never_came_is_idle_from_the_start() -> None:
     assert clock.due(105)
 
 
+def test_a_restarted_host_waits_its_grace_for_the_edge_then_idle_s_alone_counts() -> None:
+    """CI regression: ``up`` restarted a sandbox with a 3 s autostop and its edge end took longer than 3 s
+    to dial in on a loaded machine; the watchdog stopped every service under that ``up``."""
+    clock = IdleClock(idle_s=3, now=0, grace_s=60)
+    clock.observe(stats(connected=False), now=5)
+    assert not clock.due(5) and clock.stops_at() == 60 and clock.idle_since(5) == 0
+    clock.observe(stats(connected=True), now=8)  # the edge linked: from now on idle_s alone
+    clock.observe(stats(connected=False), now=9)
+    assert clock.stops_at() == 11 and not clock.due(10.9) and clock.due(11)
+    unlinked = IdleClock(idle_s=3, now=0, grace_s=60)  # an edge that never came: stopped after the grace
+    unlinked.observe(None, now=59)
+    assert not unlinked.due(59) and unlinked.due(60)
+
+
 def test_status_line_says_what_happened() -> None:
     assert autostop_line({"idle_since": None, "stops_at": None, "stopped_at": None, "action": "stop"}) == \
         "in use (autostop stop after idle)"

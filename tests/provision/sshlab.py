@@ -10,6 +10,7 @@ process started in a namespace, the namespaces) runs even when the caller fails.
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import os
 import pwd
@@ -47,6 +48,14 @@ class LabHost:
     ns: Namespace
     host_key_pub: Path
     base_dir: Path
+
+
+def kill_host(host: LabHost) -> None:
+    """Every process of the host's namespace but sshd (the machine died; the lab's login stays for teardown)."""
+    for pid in host.ns.pids():
+        with contextlib.suppress(OSError):
+            if Path(f"/proc/{pid}/comm").read_text().strip() != "sshd":
+                os.kill(pid, signal.SIGKILL)
 
 
 def keygen(path: Path) -> Path:

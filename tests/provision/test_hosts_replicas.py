@@ -8,11 +8,8 @@ Run under ``flock /tmp/fogiac-netns.lock``.
 
 from __future__ import annotations
 
-import contextlib
 import json
-import os
 import shutil
-import signal
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -25,7 +22,7 @@ from fogiac.plan.compile import compile_plan
 from fogiac.provision import provision, teardown
 from fogiac.targets.hosts.target import HOSTS
 from tests.provision.conftest import make_workspace, ros_skip_reason
-from tests.provision.sshlab import lab_skip_reason, ssh_lab
+from tests.provision.sshlab import kill_host, lab_skip_reason, ssh_lab
 from tests.support.procs import alive, started_pids
 
 
@@ -65,12 +62,9 @@ def test_two_replicas_on_two_lab_hosts_and_a_dead_one_comes_back(tmp_path: Path)
             before = _states(runs[healthy])
             assert "node-talker" in before and alive(before["node-talker"][0])
 
-            pids = [pid for pid in started_pids(Path(access[doomed].base_dir)) if alive(pid)]
-            assert pids
-            for pid in pids:  # the replica's machine dies: all of fogiac there, and its disk
-                with contextlib.suppress(ProcessLookupError):  # a child may go with its supervisor
-                    os.kill(pid, signal.SIGKILL)
-            shutil.rmtree(access[doomed].base_dir)
+            assert [pid for pid in started_pids(Path(access[doomed].base_dir)) if alive(pid)]
+            kill_host(by_name[doomed])  # the replica's machine dies: every process there (roscore's rosmaster
+            shutil.rmtree(access[doomed].base_dir)  # too, which outlived its killed parents before), and its disk
 
             again = provision(plan, hosts=access, state_dir=state, certs_dir=certs, health_timeout=30)
             assert again.ok, [h.error for h in again.hosts]

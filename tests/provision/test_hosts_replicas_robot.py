@@ -18,8 +18,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import os
-import signal
 import sys
 from collections import Counter
 from collections.abc import Iterator
@@ -38,7 +36,7 @@ from fogiac.state import StackState
 from fogiac.targets.hosts.target import HOSTS
 from tests.net.relay.relay_support import Master, Proc, Procs, wait_for
 from tests.provision.conftest import ros_skip_reason
-from tests.provision.sshlab import LabHost, lab_skip_reason, ssh_lab
+from tests.provision.sshlab import LabHost, kill_host, lab_skip_reason, ssh_lab
 
 NODES = Path(__file__).parents[1] / "net" / "relay" / "replica_nodes.py"
 REQ, REP = "/echo/request", "/echo/reply"
@@ -102,14 +100,6 @@ def veth(host: LabHost) -> str:
     """The host's side of its link (the namespace's one interface besides lo)."""
     out = host.ns.ip("-o", "link").stdout
     return next(line.split(":")[1].strip().split("@")[0] for line in out.splitlines() if ": lo:" not in line)
-
-
-def kill_host(host: LabHost) -> None:
-    """Every process of the host's namespace but sshd (the machine died; the lab's login stays for teardown)."""
-    for pid in host.ns.pids():
-        with contextlib.suppress(OSError):
-            if Path(f"/proc/{pid}/comm").read_text().strip() != "sshd":
-                os.kill(pid, signal.SIGKILL)
 
 
 @pytest.mark.parametrize("how", ["killed", "cut"])

@@ -6,9 +6,10 @@ what fogiac already knows, the stats file that side writes every second (the rel
 the Zenoh router): no edge connected (``connected``) and no message crossing (the ``msgs`` of its
 ``topics`` did not move, where it counts them). A host with no stats file yet counts as idle
 from the watchdog's start, so a host whose edge never came stops too, though never before
-``START_GRACE_S`` after that start (the ``up`` that started it is still bringing its edge in). A stats file not rewritten
-for ``STATS_STALE_S`` (its writer stopped, hung or was SIGSTOPped) says nothing either: its last
-``connected: true`` must not keep the host up (the operator's side judges it the same way).
+``START_GRACE_S`` after that start (the ``up`` that started it is still bringing its edge in).
+A stats file not rewritten for ``STATS_STALE_S`` (its writer stopped, hung or was SIGSTOPped)
+says nothing either: its last ``connected: true`` must not keep the host up (the operator's
+side judges it the same way).
 
 How it stops is the target's choice (``--power``): ``machine`` powers the host off (on EC2 the
 instance's shutdown behaviour, stop or terminate, is set by the compute stack); ``services``

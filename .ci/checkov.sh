@@ -16,7 +16,7 @@ if [[ -x "$venv/bin/checkov" && -f "$stamp" && "$(cat "$stamp")" == "$want" ]]; 
 fi
 "$python" -m venv "$venv"
 "$venv/bin/python" -m pip install --quiet --upgrade pip
-"$venv/bin/python" -m pip install --quiet "${pins[@]}"
+"$venv/bin/python" -m pip install --quiet --no-compile "${pins[@]}"
 "$venv/bin/checkov" --version
 printf '%s\n' "${pins[@]}" > "$stamp"
 echo "checkov venv ready: $venv"

@@ -23,7 +23,7 @@ if [[ -x "$venv/bin/python" && -f "$stamp" && "$(cat "$stamp")" == "$want" ]]; t
 fi
 "$python" -m venv "$venv"
 "$venv/bin/python" -m pip install --quiet --upgrade pip
-"$venv/bin/python" -m pip install --quiet "${pins[@]}"
+"$venv/bin/python" -m pip install --quiet --no-compile "${pins[@]}"
 "$venv/bin/python" -c "import localstack.runtime.main"
 printf '%s\n' "${pins[@]}" > "$stamp"
 echo "localstack venv ready: $venv"

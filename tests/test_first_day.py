@@ -18,6 +18,7 @@ import pytest
 
 from fogiac.procs import free_port
 from tests.conftest import REPO
+from tests.support.first_day import install_lines, wanted, wheelhouse
 from tests.support.procs import alive_pids
 
 pytestmark = [pytest.mark.ros,
@@ -149,42 +150,6 @@ def test_first_day_from_init_to_down(tmp_path: Path, _state_dir: Path) -> None:
 
 # -- the same day in an environment made as the page says (issue 35: not the CI's full install) ----------------
 
-WHEELS = Path(os.environ.get("FOGIAC_FIRST_DAY_WHEELS", "/var/cache/fogiac-ci/first-day-wheels"))
-LAB_WHEELS = Path("/var/cache/fogiac-ci/lab-wheels")  # .ci/lab-wheels.sh: fogiac's and the workloads' wheels
-
-
-def install_lines() -> list[str]:
-    """The page's install block (between its ``install:begin`` and ``install:end`` markers)."""
-    text = GETTING_STARTED.read_text()
-    block = text[text.index("<!-- install:begin -->"):text.index("<!-- install:end -->")]
-    return [line for line in re.findall(r"^```bash\n(.*?)^```", block, flags=re.M | re.S)[0].splitlines() if line]
-
-
-def _declared(extras: tuple[str, ...]) -> list[str]:
-    """fogiac's requirements with ``extras``, from pyproject.toml (no build of fogiac needed to list them)."""
-    import tomllib  # noqa: PLC0415 - this test alone reads the project file
-
-    project = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]
-    return [*project["dependencies"], *(r for extra in extras for r in project["optional-dependencies"][extra])]
-
-
-def _wheelhouse(wanted: list[str]) -> Path:
-    """Every wheel the page's install needs, downloaded once (PyPI, and the lab's wheels already here) and kept
-    by the list's digest, so each later run installs with no network at all."""
-    import hashlib  # noqa: PLC0415
-
-    digest = hashlib.sha256("\n".join(wanted).encode()).hexdigest()
-    stamp = WHEELS / ".stamp"
-    if stamp.is_file() and stamp.read_text() == digest:
-        return WHEELS
-    WHEELS.mkdir(parents=True, exist_ok=True)
-    links = ["--find-links", str(LAB_WHEELS)] if LAB_WHEELS.is_dir() else []
-    subprocess.run([sys.executable, "-m", "pip", "download", "-q", "--only-binary=:all:", "-d", str(WHEELS), *links,
-                    *wanted], check=True, timeout=1500)
-    stamp.write_text(digest)
-    return WHEELS
-
-
 @pytest.mark.fresh_venv
 @pytest.mark.timeout(2400)
 def test_first_day_in_an_environment_made_as_the_page_says(tmp_path: Path, _state_dir: Path) -> None:
@@ -199,7 +164,7 @@ def test_first_day_in_an_environment_made_as_the_page_says(tmp_path: Path, _stat
     from fogiac.provision import workload  # noqa: PLC0415
 
     assert planner[:2] == ["pip", "install"] and planner[2:] == workload.recipe("motion_planning").requirements()
-    wheels = _wheelhouse([*_declared(("aws", "ssh")), *planner[2:], "setuptools>=68", "wheel"])
+    wheels = wheelhouse(wanted())
     offline = ["--no-index", "--find-links", str(wheels)]
     venv = tmp_path / ".venv"
     subprocess.run(["/usr/bin/python3", "-m", "venv", "--system-site-packages", str(venv)], check=True)

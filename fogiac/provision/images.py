@@ -70,13 +70,39 @@ def workload_context(node: NodeSpec, *, flavour: str, into: Path) -> Recipe:
     container = workload.recipe(name)
     overrides = container.FLAVOURS.get(flavour, {})
     ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "tests")
-    shutil.copytree(package_dir("fogiac"), into / "fogiac", ignore=ignore)
+    dockerfile = container.dockerfile(**overrides)
+    fogiac = package_dir("fogiac")
+    for part in fogiac_copied(dockerfile):  # only what the recipe takes: the digest then moves with that alone
+        if part == "":
+            shutil.copytree(fogiac, into / "fogiac", ignore=ignore)
+        else:
+            (into / "fogiac" / part).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(fogiac / part, into / "fogiac" / part)
     workloads = package_dir("workloads")
     (into / "workloads").mkdir()
     shutil.copy2(workloads / "__init__.py", into / "workloads" / "__init__.py")
     shutil.copytree(workloads / name, into / "workloads" / name, ignore=ignore)
-    (into / "Dockerfile").write_text(container.dockerfile(**overrides))
+    (into / "Dockerfile").write_text(dockerfile)
     return Recipe(node=node.name, repo=workload_repo(name), context=into, dockerfile="Dockerfile")
+
+
+def fogiac_copied(dockerfile: str) -> list[str]:
+    """The parts of fogiac a workload recipe's ``COPY`` lines take, relative to the package ("" for all of it).
+
+    Why: the image's tag is a digest of its whole build context, so a context holding all of fogiac would
+    rebuild a recipe that takes two of its files (the grasp planner's, SLAM's) on every upgrade of fogiac,
+    and push the whole package to each host for nothing."""
+    parts: list[str] = []
+    for line in dockerfile.splitlines():
+        words = line.split()
+        if len(words) < 3 or words[0].upper() != "COPY":
+            continue
+        for source in words[1:-1]:
+            if source.rstrip("/") == "fogiac":
+                return [""]
+            if source.startswith("fogiac/"):
+                parts.append(source.removeprefix("fogiac/"))
+    return parts
 
 
 def launch_context(node: NodeSpec, *, plan: Plan, into: Path, base: str = "") -> Recipe:

@@ -53,6 +53,17 @@ def cloud_end(procs: Procs, master: Master, certs: Path, req: str, rep: str) -> 
     return proc, ("127.0.0.1", port)
 
 
+def two_replicas(procs: Procs, m0: Master, m1: Master, certs: Path, req: str, rep: str, *,
+                 r0_args: tuple[str, ...] = ()) -> tuple[tuple[Proc, Proc], tuple[tuple[str, int], tuple[str, int]]]:
+    """Each replica's host (masters ``m0``, ``m1``): its cloud end and its echo node, named r0 and r1.
+    Returns the two cloud ends and the addresses the edge dials."""
+    c0, a0 = cloud_end(procs, m0, certs, req, rep)
+    c1, a1 = cloud_end(procs, m1, certs, req, rep)
+    node(procs, m0, "echo", req, rep, "--name", "r0", *r0_args)
+    node(procs, m1, "echo", req, rep, "--name", "r1")
+    return (c0, c1), (a0, a1)
+
+
 def node(procs: Procs, master: Master, *args: str) -> Proc:
     proc = procs.spawn([sys.executable, str(NODES), *args], master.env)
     wait_for(lambda: "ready" in proc.lines or proc.popen.poll() is not None, 30, f"replica node {args}")
@@ -94,10 +105,7 @@ def test_every_request_answered_once_while_a_replica_is_killed(three_masters: tu
                                                                certs: Path, procs: Procs, tmp_path: Path) -> None:
     edge, m0, m1 = three_masters
     req, rep = "/kill/request", "/kill/reply"
-    c0, a0 = cloud_end(procs, m0, certs, req, rep)
-    c1, a1 = cloud_end(procs, m1, certs, req, rep)
-    node(procs, m0, "echo", req, rep, "--name", "r0")
-    node(procs, m1, "echo", req, rep, "--name", "r1")
+    (c0, c1), (a0, a1) = two_replicas(procs, m0, m1, certs, req, rep)
     with group(edge, certs, [a0, a1], req, rep, tmp_path) as g:
         got = run_robot(procs, edge, req, rep, 90, during=lambda: procs.kill(c0, signal.SIGKILL))
         stats = g.stats()
@@ -116,10 +124,7 @@ def test_a_stopped_replica_leaves_the_healthy_one_winning(three_masters: tuple[M
                                                           certs: Path, procs: Procs, tmp_path: Path) -> None:
     edge, m0, m1 = three_masters
     req, rep = "/stall/request", "/stall/reply"
-    c0, a0 = cloud_end(procs, m0, certs, req, rep)
-    c1, a1 = cloud_end(procs, m1, certs, req, rep)
-    node(procs, m0, "echo", req, rep, "--name", "r0")
-    node(procs, m1, "echo", req, rep, "--name", "r1")
+    (c0, c1), (a0, a1) = two_replicas(procs, m0, m1, certs, req, rep)
     with group(edge, certs, [a0, a1], req, rep, tmp_path, silent_after=1.0) as g:
         os.killpg(c0.popen.pid, signal.SIGSTOP)  # replica 0's link stalls: bytes go in, nothing comes out
         try:
@@ -139,10 +144,7 @@ def test_a_replica_behind_a_slow_link_leaves_the_healthy_one_winning(three_maste
     (a slow link): the robot gets each reply once, from replica 1, and replica 0's copies are dropped as late."""
     edge, m0, m1 = three_masters
     req, rep = "/slow/request", "/slow/reply"
-    _, a0 = cloud_end(procs, m0, certs, req, rep)
-    _, a1 = cloud_end(procs, m1, certs, req, rep)
-    node(procs, m0, "echo", req, rep, "--name", "r0")
-    node(procs, m1, "echo", req, rep, "--name", "r1")
+    _, (a0, a1) = two_replicas(procs, m0, m1, certs, req, rep)
     proxy = DelayProxy(a0, 0.4)
     try:
         with group(edge, certs, [("127.0.0.1", proxy.port), a1], req, rep, tmp_path) as g:
@@ -163,10 +165,7 @@ def test_delayed_hedge_asks_the_second_replica_only_when_the_first_is_late(
         three_masters: tuple[Master, Master, Master], certs: Path, procs: Procs, tmp_path: Path) -> None:
     edge, m0, m1 = three_masters
     req, rep = "/hedge/request", "/hedge/reply"
-    c0, a0 = cloud_end(procs, m0, certs, req, rep)
-    c1, a1 = cloud_end(procs, m1, certs, req, rep)
-    node(procs, m0, "echo", req, rep, "--name", "r0")
-    node(procs, m1, "echo", req, rep, "--name", "r1")
+    (c0, c1), (a0, a1) = two_replicas(procs, m0, m1, certs, req, rep)
     with group(edge, certs, [a0, a1], req, rep, tmp_path, hedge="delayed", hedge_delay_s=2.0) as g:
         healthy = run_robot(procs, edge, req, rep, 20)
         before = g.stats()
@@ -192,10 +191,7 @@ def test_a_field_other_than_the_stamp_matches_replies(three_masters: tuple[Maste
     (``frame_id``: each replica writes its own name there) matches no request, and nothing passes."""
     edge, m0, m1 = three_masters
     req, rep = "/seq/request", "/seq/reply"
-    _, a0 = cloud_end(procs, m0, certs, req, rep)
-    _, a1 = cloud_end(procs, m1, certs, req, rep)
-    node(procs, m0, "echo", req, rep, "--name", "r0")
-    node(procs, m1, "echo", req, rep, "--name", "r1")
+    _, (a0, a1) = two_replicas(procs, m0, m1, certs, req, rep)
     with group(edge, certs, [a0, a1], req, rep, tmp_path, match="seq") as g:
         got = run_robot(procs, edge, req, rep, 10)
         stats = g.stats()
@@ -214,10 +210,7 @@ def test_requests_with_a_zero_stamp_are_each_answered_once(three_masters: tuple[
     copies of the first): each is answered once, never merged, whichever replica is first."""
     edge, m0, m1 = three_masters
     req, rep = "/zero/request", "/zero/reply"
-    _, a0 = cloud_end(procs, m0, certs, req, rep)
-    _, a1 = cloud_end(procs, m1, certs, req, rep)
-    node(procs, m0, "echo", req, rep, "--name", "r0")
-    node(procs, m1, "echo", req, rep, "--name", "r1")
+    _, (a0, a1) = two_replicas(procs, m0, m1, certs, req, rep)
     with group(edge, certs, [a0, a1], req, rep, tmp_path) as g:
         robot = node(procs, edge, "robot", req, rep, "--count", "5", "--wait", "3", "--zero-stamp")
         wait_for(lambda: "done" in robot.lines, 120, "the robot's run")
@@ -240,10 +233,7 @@ def test_a_hostile_definition_refuses_only_that_replica(three_masters: tuple[Mas
     replica's replies are refused with a logged line, the healthy one answers every request."""
     edge, m0, m1 = three_masters
     req, rep = f"/hostile_{hostile}/request", f"/hostile_{hostile}/reply"
-    _, a0 = cloud_end(procs, m0, certs, req, rep)
-    _, a1 = cloud_end(procs, m1, certs, req, rep)
-    node(procs, m0, "echo", req, rep, "--name", "r0", "--definition", HOSTILE[hostile])
-    node(procs, m1, "echo", req, rep, "--name", "r1")
+    _, (a0, a1) = two_replicas(procs, m0, m1, certs, req, rep, r0_args=("--definition", HOSTILE[hostile]))
     with group(edge, certs, [a0, a1], req, rep, tmp_path, match="seq") as g:
         got = run_robot(procs, edge, req, rep, 10)
         stats = g.stats()
@@ -259,10 +249,7 @@ def test_replies_of_another_type_than_the_stated_one_are_refused(three_masters: 
     """The manifest's message_types is what a reply's type is checked against (a replica's word is not)."""
     edge, m0, m1 = three_masters
     req, rep = "/stated/request", "/stated/reply"
-    _, a0 = cloud_end(procs, m0, certs, req, rep)
-    _, a1 = cloud_end(procs, m1, certs, req, rep)
-    node(procs, m0, "echo", req, rep, "--name", "r0")
-    node(procs, m1, "echo", req, rep, "--name", "r1")
+    _, (a0, a1) = two_replicas(procs, m0, m1, certs, req, rep)
     with group(edge, certs, [a0, a1], req, rep, tmp_path, types=((rep, "std_msgs/msg/Header"),)) as g:
         assert len(run_robot(procs, edge, req, rep, 3)) == 3  # the stated type, in ROS 2 spelling
     with group(edge, certs, [a0, a1], req, rep, tmp_path, types=((rep, "geometry_msgs/PoseStamped"),)) as g:

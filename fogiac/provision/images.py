@@ -6,9 +6,13 @@ file of the context, the base image's id), so an unchanged node builds nothing a
 file rebuilds that node's image only, as ``docker compose build`` would.
 
 A lab's hosts often reach no public index: their admins point pip at a mirror in the login
-environment (``PIP_INDEX_URL`` and friends). The build's pip steps see the same settings as build
-arguments, so an image installs from the mirror the host's own pip uses. They are not part of the
-digest: a mirror serves the same pins.
+environment (``PIP_INDEX_URL`` and friends). The build's pip steps read the same settings from a
+pip config file mounted as a build secret (``--secret id=pip.conf``), so an image installs from
+the mirror the host's own pip uses. A secret, not build arguments: an argument's value is kept in
+the image's history (a mirror URL's credentials with it) and is part of every layer's cache key
+(a moved mirror reinstalls torch). They are not part of the digest either: a mirror serves the
+same pins. Users' own ``build:`` Dockerfiles get the same secret, and, as before, the settings as
+build arguments for the ``ARG`` lines they may declare.
 """
 
 from __future__ import annotations
@@ -29,8 +33,11 @@ from fogiac.render import render
 from fogiac.resources import package_dir
 
 _BUILD_LOG_LINES = ("STEP ", "#")  # podman/buildah prints "STEP 3/7: RUN ...", BuildKit "#5 [3/7] RUN ..."
-# The host's pip settings a build passes on; the shipped recipes declare each as an ARG.
-PIP_SETTINGS = ("PIP_INDEX_URL", "PIP_EXTRA_INDEX_URL", "PIP_FIND_LINKS", "PIP_NO_INDEX", "PIP_TRUSTED_HOST")
+# The host's pip settings a build passes on, and their names in a pip config file.
+PIP_CONFIG_KEYS = {"PIP_INDEX_URL": "index-url", "PIP_EXTRA_INDEX_URL": "extra-index-url",
+                   "PIP_FIND_LINKS": "find-links", "PIP_NO_INDEX": "no-index", "PIP_TRUSTED_HOST": "trusted-host"}
+PIP_SETTINGS = tuple(PIP_CONFIG_KEYS)
+PIP_SECRET = "pip.conf"  # the build secret's id; the shipped recipes' pip steps mount it (RUN --mount=type=secret)
 
 
 @dataclass(frozen=True)
@@ -123,20 +130,39 @@ def user_context(node: NodeSpec, *, stack: str) -> Recipe:
                   dockerfile=node.build.dockerfile)
 
 
+def pip_config(settings: Mapping[str, str]) -> str:
+    """The host's pip settings as a pip config file (what pip itself reads from ``PIP_CONFIG_FILE``).
+    A value with a line break is left out: it could not be one setting's value."""
+    lines = [f"{PIP_CONFIG_KEYS[key]} = {value}" for key, value in sorted(settings.items())
+             if key in PIP_CONFIG_KEYS and "\n" not in value and "\r" not in value]
+    return "\n".join(["[global]", *lines]) + "\n"
+
+
 def build(host: Host, recipe: Recipe, *, engine: str, base_id: str, dest: str, tmp_dir: str, log: str,
-          build_args: Mapping[str, str] | None = None) -> Built:
+          pip: Mapping[str, str] | None = None, user: bool = False) -> Built:
     """Push the context, then build it unless an image tagged with its digest is there already.
 
-    ``build_args``: ``--build-arg`` values (the host's pip settings); they do not change the digest.
+    ``pip``: the host's pip settings, given to the build as the ``pip.conf`` secret (and, for a user's own
+    Dockerfile, ``user``, as build arguments too); they do not change the digest.
     """
     pushed = push_tree(host, recipe.context, dest, tmp_dir=tmp_dir)
     digest = hashlib.sha256(f"{pushed.digest}\n{recipe.dockerfile}\n{base_id}\n".encode()).hexdigest()
     tag = f"{recipe.repo}:{digest[:16]}"
     if host.run(f"{engine} image inspect {q(tag)} >/dev/null 2>&1", check=False).ok:
         return Built(node=recipe.node, tag=tag, built=False)
-    args = "".join(f" --build-arg {q(f'{key}={value}')}" for key, value in sorted((build_args or {}).items()))
-    done = host.run(f"{engine} build --network host{args} -t {q(tag)} -f {q(dest + '/' + recipe.dockerfile)} {q(dest)} "
-                    f">{q(log)} 2>&1", check=False, timeout=3600)
+    args, secret = "", ""
+    if pip:
+        secret = f"{tmp_dir}/{recipe.node}.{PIP_SECRET}"
+        host.put(pip_config(pip).encode(), secret, mode=0o600)
+        args = f" --secret id={PIP_SECRET},src={q(secret)}"
+        if user:
+            args += "".join(f" --build-arg {q(f'{key}={value}')}" for key, value in sorted(pip.items()))
+    try:
+        done = host.run(f"{engine} build --network host{args} -t {q(tag)} -f {q(dest + '/' + recipe.dockerfile)} "
+                        f"{q(dest)} >{q(log)} 2>&1", check=False, timeout=3600)
+    finally:
+        if secret:
+            host.run(f"rm -f {q(secret)}", check=False)
     if not done.ok:
         step = last_step(host.run(f"tail -n 400 {q(log)}", check=False).stdout)
         raise ProvisionError(f"{host.name}: node {recipe.node}: image build failed at {step}; log: {log}")

@@ -117,6 +117,9 @@ def _edited_workloads(into: Path) -> Path:
     return into
 
 
+KEEP = "localhost/fogiac-test-keep/grasp_planning:shipped"
+
+
 def test_grasp_example_in_containers_on_two_lab_hosts_builds_once_and_rebuilds_one_image(
         tmp_path: Path, _state_dir: Path) -> None:
     edge_port, mirror_port = free_port(), free_port()
@@ -124,7 +127,7 @@ def test_grasp_example_in_containers_on_two_lab_hosts_builds_once_and_rebuilds_o
     env = {"PIP_NO_INDEX": "1", "PIP_FIND_LINKS": f"http://{address}:{mirror_port}/", "PIP_TRUSTED_HOST": address}
     runner = CliRunner()
     grasp, word = f"fogiac-{STACK}-grasp", f"fogiac-{STACK}-word"
-    rebuilt = ""
+    image = rebuilt = ""
     with ssh_lab(tmp_path / "lab", 2, env=env) as (hosts, key), _mirror(address, mirror_port):
         manifest = _manifest(tmp_path, hosts=[(h.name, h.address) for h in hosts], key=key, edge_port=edge_port)
         try:
@@ -132,6 +135,12 @@ def test_grasp_example_in_containers_on_two_lab_hosts_builds_once_and_rebuilds_o
             assert up.exit_code == 0, up.output
             image = _inspect(grasp, ".ImageName")
             assert image.startswith("localhost/fogiac/grasp_planning:"), image
+            history = subprocess.run(["podman", "history", "--no-trunc", "--format", "{{.CreatedBy}}", image],
+                                     capture_output=True, text=True, check=True).stdout
+            assert "PIP_FIND_LINKS" not in history and address not in history, "the mirror is in the image history"
+            # The edit below makes fogiac replace this image (older digests go); a second name keeps it, so the
+            # next run finds it (its digest follows the workload's files only) and skips torch's install.
+            subprocess.run(["podman", "tag", image, KEEP], check=True, capture_output=True)
             answer = ask_grasp(edge_port, cwd=tmp_path)
             assert "error" not in answer and 0.0 <= answer["quality"] <= 1.0, answer
             assert _echo(edge_port, "/word").startswith('data: "from the second host"')
@@ -165,6 +174,9 @@ def test_grasp_example_in_containers_on_two_lab_hosts_builds_once_and_rebuilds_o
             down = runner.invoke(app, ["down", str(manifest), "--yes"])
             if rebuilt:  # the edited image is this run's alone; the shipped one stays for the next run
                 subprocess.run(["podman", "rmi", rebuilt], capture_output=True)
+            if image and subprocess.run(["podman", "image", "exists", KEEP]).returncode == 0:
+                subprocess.run(["podman", "tag", KEEP, image], capture_output=True)
+                subprocess.run(["podman", "rmi", KEEP], capture_output=True)  # the second name only
     assert down.exit_code == 0, down.output
     listed = subprocess.run(["podman", "ps", "-aq", "--filter", f"label=fogiac.stack={STACK}"], capture_output=True,
                             text=True, check=True).stdout

@@ -1,4 +1,5 @@
-"""A workload image's build context holds what its recipe copies and nothing more (real files, no engine).
+"""A workload image's build context holds what its recipe copies and nothing more, and the host's pip settings reach a
+build as a config file (real files, no engine).
 
 The image's tag is a digest of its context: a context holding all of fogiac made the grasp planner's and
 SLAM's images (which take two of its files) rebuild on every change anywhere in fogiac."""
@@ -41,3 +42,10 @@ def test_copy_lines_name_the_parts_taken() -> None:
         "__init__.py", "errors.py"]
     assert images.fogiac_copied("FROM x\nCOPY fogiac/ fogiac/\n") == [""]
     assert images.fogiac_copied("FROM x\nCOPY workloads/ workloads/\n") == []
+
+
+def test_the_hosts_pip_settings_become_a_pip_config_file_and_nothing_else() -> None:
+    conf = images.pip_config({"PIP_INDEX_URL": "https://u:t@mirror.lab/simple", "PIP_NO_INDEX": "1",
+                              "PIP_TRUSTED_HOST": "a.lab b.lab", "PIP_EXTRA_INDEX_URL": "x\n[global]\nproxy = evil",
+                              "HOME": "/root"})
+    assert conf == "[global]\nindex-url = https://u:t@mirror.lab/simple\nno-index = 1\ntrusted-host = a.lab b.lab\n"

@@ -151,7 +151,8 @@ class ContainerRuntime:
                     recipe = images.user_context(node, stack=run.plan.stack)
                 done = images.build(host, recipe, engine=engine, base_id=base_id, dest=f"{layout.build}/{node.name}",
                                     tmp_dir=layout.tmp, log=f"{layout.build}/{node.name}.log",
-                                    build_args=run.facts.pip if run.facts is not None else None)
+                                    pip=run.facts.pip if run.facts is not None else None,
+                                    user=node.build is not None)
                 run.images[node.name] = done.tag
                 if done.built:
                     built.append(f"{node.name} ({done.tag})")

@@ -110,17 +110,25 @@ def migrate(stack: str, *, to: str, source_url: str | None) -> str:
         held.enter_context(_locked(src, "state migrate"))
         held.enter_context(_locked(dst, "state migrate"))
         dst.clear_moved()  # coming back: the note that it left goes (a failure below leaves no record there)
-        snap = src.snapshot()
-        if snap.document is None:
-            raise StateError(f"stack {stack!r}: no record in {source.where(stack)} to migrate")
-        if dst.snapshot().document is not None:
+        there = dst.snapshot().document
+        try:
+            document = src.snapshot().document
+        except StateError as err:  # the source says it moved: a migrate killed once it had written both ends
+            if there is None or "its state moved" not in str(err):
+                raise
+            document = None
+        else:  # a bucket notes the move before it drops the record: a record missing from it was never moved here
+            if document is None and (there is None or to_folder):
+                raise StateError(f"stack {stack!r}: no record in {source.where(stack)} to migrate")
+        if document is not None and there is not None and not _same(document, there):
             raise StateError(f"stack {stack!r} already has a record in {dest.where(stack)}; "
                              "nothing was moved (remove one of them first)")
-        files = src.copy_files(dst.ensure())
-        # the lock's release pushes a shared store's files
-        dest.put(stack, {**snap.document, "written_by": _me()}, expected=None)
-        note = {"moved_to": dest.where(stack).rsplit("/", 2)[0] if not to_folder else "folder",
-                "by": _me(), "at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+        # A record already there and equal to the source's (or the source's gone) is a migrate killed half-way:
+        # this one finishes it. The lock's release pushes a shared store's files.
+        files = src.copy_files(dst.ensure()) if document is not None else 0
+        if there is None and document is not None:
+            dest.put(stack, {**document, "written_by": _me()}, expected=None)
+        note = {"by": _me(), "at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
         if to_folder:
             note["moved_to"] = f"the folder {dst.folder} on {_me()}"
             forget = getattr(source, "forget_files", None)
@@ -135,6 +143,11 @@ def migrate(stack: str, *, to: str, source_url: str | None) -> str:
             src.leave_for(note)
     return (f"moved stack {stack!r} ({files} file(s) beside its record) from {source.where(stack)} to "
             f"{dest.where(stack)}")
+
+
+def _same(one: dict[str, Any], other: dict[str, Any]) -> bool:
+    """The same record but for who wrote it (``migrate`` stamps the copy with the member who moved it)."""
+    return {k: v for k, v in one.items() if k != "written_by"} == {k: v for k, v in other.items() if k != "written_by"}
 
 
 def register(app: typer.Typer) -> None:

@@ -38,7 +38,18 @@ from urllib.parse import urlsplit
 
 from fogiac.errors import CredentialsError, StateError
 from fogiac.sealed import Sealer, sealer_for
-from fogiac.store import LOCK, RECORD, Snapshot, StaleRecord, check_name, dumps, make_private, state_root, write_atomic
+from fogiac.store import (
+    LOCK,
+    RECORD,
+    Snapshot,
+    StaleRecord,
+    check_name,
+    dumps,
+    make_private,
+    state_root,
+    write_atomic,
+    wrote,
+)
 from fogiac.targets.aws.sdk import need
 
 FILES = "files/"
@@ -230,6 +241,7 @@ class S3Store:
         if etag is None:
             raise StaleRecord(f"{where}: the stack's record changed since it was read (another fogiac wrote it); "
                               "nothing was written, run the command again")
+        wrote()
         self._delete(where, self.key(stack, MOVED))
         if stack in self._held:
             self.push(stack)
@@ -237,6 +249,7 @@ class S3Store:
 
     def delete(self, stack: str) -> None:
         self._delete(self.where(stack), self.key(stack, RECORD))
+        wrote()
 
     def list(self) -> list[str]:
         """The stacks with a folder in the bucket, sorted (Pulumi's ``.pulumi/`` is no stack)."""
@@ -255,6 +268,7 @@ class S3Store:
             found = self.lock_holder(stack)
             return found if found is not None else {}
         self._held[stack] = etag
+        wrote()
         try:
             self.pull(stack)  # what the last holder left, now that nobody else writes
         except BaseException:
@@ -283,6 +297,7 @@ class S3Store:
         finally:
             self._held.pop(stack, None)
             self._delete(self.where(stack, LOCK), self.key(stack, LOCK), IfMatch=etag)
+            wrote()
 
     def break_lock(self, stack: str, holder: Mapping[str, Any]) -> None:
         """Remove the lock while it still names ``holder`` (one taken since by another stays)."""

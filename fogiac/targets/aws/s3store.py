@@ -26,6 +26,7 @@ boto3 is imported when a store is made: the first day on the folder store loads 
 
 from __future__ import annotations
 
+import gzip
 import hashlib
 import json
 import os
@@ -136,6 +137,23 @@ class S3Store:
     def backend_url(self) -> str:
         """The Pulumi engine's backend: the same bucket and prefix (Pulumi keeps its own ``.pulumi/`` there)."""
         return self.url
+
+    def pulumi_checkpoints(self) -> Iterator[tuple[str, Any]]:
+        """Every Pulumi stack checkpoint in the store's backend (``<prefix>/.pulumi/stacks/``), parsed: the state
+        of every member's stacks, not only what this machine applied (a gzipped one is opened; garbage skipped)."""
+        base = "/".join(p for p in (self.prefix, ".pulumi", "stacks") if p) + "/"
+        for entry in self._keys(self.url, base):
+            key = str(entry.get("Key", ""))
+            if not key.endswith((".json", ".json.gz")):
+                continue
+            found = self._get(self.url, key)
+            if found is None:
+                continue
+            raw = found[0]
+            try:
+                yield key, json.loads(gzip.decompress(raw) if key.endswith(".gz") else raw)
+            except (OSError, ValueError):
+                continue
 
     def _call(self, what: str, op: str, **kwargs: Any) -> Any:
         """One S3 request; a credential or access failure is one line naming the bucket and what was asked."""

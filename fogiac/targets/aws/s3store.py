@@ -32,7 +32,7 @@ import json
 import os
 import stat
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
@@ -154,6 +154,27 @@ class S3Store:
                 yield key, json.loads(gzip.decompress(raw) if key.endswith(".gz") else raw)
             except (OSError, ValueError):
                 continue
+
+    def _backend_key(self, rel: str) -> str:
+        return "/".join(p for p in (self.prefix, ".pulumi", rel) if p)
+
+    def backend_files(self, select: Callable[[str], bool]) -> dict[str, bytes]:
+        """The Pulumi backend's files (path under ``.pulumi/`` -> content) that ``select`` picks."""
+        base = self._backend_key("")
+        out: dict[str, bytes] = {}
+        for entry in self._keys(self.url, base.rstrip("/") + "/"):
+            rel = str(entry.get("Key", ""))[len(base.rstrip("/")) + 1:]
+            if rel and "Key" in entry and select(rel) and (found := self._get(self.url, entry["Key"])) is not None:
+                out[rel] = found[0]
+        return out
+
+    def put_backend(self, rel: str, data: bytes, *, if_absent: bool = False) -> None:
+        """One file of a Pulumi backend tree into the store's (``state migrate`` from a stack folder)."""
+        self._put(self.url, self._backend_key(rel), data, **({"IfNoneMatch": "*"} if if_absent else {}))
+
+    def forget_backend(self, rels: Iterable[str]) -> None:
+        for rel in rels:
+            self._delete(self.url, self._backend_key(rel))
 
     def _call(self, what: str, op: str, **kwargs: Any) -> Any:
         """One S3 request; a credential or access failure is one line naming the bucket and what was asked."""

@@ -19,8 +19,8 @@ from typing import Any
 import pytest
 
 from fogiac.cli.state import migrate
-from fogiac.state import StackState
 from fogiac.pulumi_engine.workspace import BACKEND_DIR, workspace_env
+from fogiac.state import StackState
 from fogiac.targets.aws.engine import known_ids
 from stacks import LAYERS, PROJECT
 

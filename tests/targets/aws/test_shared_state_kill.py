@@ -10,6 +10,7 @@ reported naming the dead process, ``fogiac state unlock`` breaks it, and the com
 
 from __future__ import annotations
 
+import copy
 import json
 import os
 import signal
@@ -72,6 +73,12 @@ class Member:
                 proc.wait()
         return proc.returncode, out, proc.pid
 
+    def other(self, state: Path) -> Member:
+        """Another operator of the same stack: their own state folder, the same manifest and store."""
+        twin = copy.copy(self)
+        twin.state = state
+        return twin
+
     def record(self, url: str | None) -> dict[str, Any] | None:
         """The record ``fogiac state show`` reads in the store (None: it has none, or says it moved)."""
         code, out, _ = self.run("state", "show", self.stack, url=url)
@@ -112,11 +119,13 @@ def bucket(aws_env: str) -> str:
 
 
 def _killed_then_finished(member: Member, argv: list[str], stores: list[str | None], *,
-                          serial: int | None = None, removes: bool = False) -> int:
+                          serial: int | None = None, removes: bool = False, reader: Member | None = None) -> int:
     """Kill ``argv`` after each of its store writes in turn (each run starting from what the last kill left),
     checking what each kill leaves in ``stores`` (None: the folder), until a run finishes by itself; how many
     kill points there were. ``serial``: the record's before the command (None: it has none yet); ``removes``: the
-    command may remove the record (``down``)."""
+    command may remove the record (``down``); ``reader``: the operator who reads the record and its status and
+    breaks the lock after each kill (default: ``member``)."""
+    reader = reader or member
     operation = "state migrate" if argv[0] == "state" else argv[0]
     unlocked = False  # the last kill came after the command dropped its lock: its last write
     for point in range(1, MOST_WRITES + 1):
@@ -125,12 +134,15 @@ def _killed_then_finished(member: Member, argv: list[str], stores: list[str | No
             assert code == 0, f"{argv} after {point - 1} kill(s): {out}"
             return point - 1
         assert not unlocked, f"{argv} wrote to the store after dropping its lock (killed at write {point})"
-        records = [r for r in (member.record(url) for url in stores) if r is not None]
+        records = [r for r in (reader.record(url) for url in stores) if r is not None]
         assert records or removes or serial is None, f"no record anywhere after a kill at write {point} of {argv}"
         for record in records:  # the version before the command or one it wrote, whole: never an older one
             assert serial is None or record["serial"] >= serial, (point, record["serial"], serial)
             serial = record["serial"]
-        holders = [h for h in (member.unlock(url) for url in stores) if h is not None]
+        if argv[0] != "state":  # status reads what the kill left (a migrate's: the store it reads says where)
+            code, out, _ = reader.run("status", "fogiac.yaml", "--json")
+            assert code == 0 and "deployed" in json.loads(out[out.index("{"):]), out
+        holders = [h for h in (reader.unlock(url) for url in stores) if h is not None]
         unlocked = not holders
         for holder in holders:  # the lock names the dead process and what it was doing
             assert holder.startswith(f"{operation} by ") and f"(pid {pid}" in holder, holder
@@ -149,12 +161,15 @@ def test_up_and_down_killed_at_each_store_write_leave_a_record_a_rerun_completes
         store: str, robot: str, tmp_path: Path, request: pytest.FixtureRequest) -> None:
     url = request.getfixturevalue("bucket") if store == "s3" else None
     member = Member(tmp_path, url, robot)
+    # with a shared store another operator reads, unlocks and runs the command again
+    other = member.other(tmp_path / "other-state") if url else member
     try:
-        points = _killed_then_finished(member, ["up", "fogiac.yaml", "--yes"], [url])
+        points = _killed_then_finished(member, ["up", "fogiac.yaml", "--yes"], [url], reader=other)
         assert points >= 3, points  # the lock, the record (begun, applied, ...), the lock dropped
-        assert _deployed(member)
-        serial = (member.record(url) or {}).get("serial")
-        points = _killed_then_finished(member, ["down", "fogiac.yaml", "--yes"], [url], serial=serial, removes=True)
+        assert _deployed(other)
+        serial = (other.record(url) or {}).get("serial")
+        points = _killed_then_finished(other, ["down", "fogiac.yaml", "--yes"], [url], serial=serial, removes=True,
+                                       reader=member)
         assert points >= 2, points
         assert not _deployed(member)
     finally:

@@ -24,6 +24,7 @@ import fcntl
 import hashlib
 import json
 import os
+import signal
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,12 +35,31 @@ from fogiac.errors import StateError
 
 STATE_URL = "FOGIAC_STATE_URL"  # where a lab's shared records live (s3://BUCKET/PREFIX); unset: the folder
 STORES = "fogiac.stores"  # URL scheme -> a StateStore class with from_url(url, kms_key=...)
+# Test-only: ``N`` makes the process SIGKILL itself right after its Nth write to a store (record put, lock
+# taken, record or lock removed), so a test can show that a ``kill -9`` at each such point leaves a record
+# that parses and a lock that names its dead holder. Unset (always, outside tests): nothing happens.
+TEST_KILL_AFTER_WRITES = "FOGIAC_TEST_SIGKILL_AFTER_STORE_WRITE"
 MOVED = "moved.json"  # in a stack folder whose state `fogiac state migrate` sent elsewhere
 RECORD = "record.json"
 LOCK = "lock.json"
 # The files a stack's record was split into before it was one document: section -> file name.
 LEGACY_FILES: Mapping[str, str] = {"deployment": "stack.json", "applied": "applied.json",
                                    "edges": "deployment.json", "hosts": "provision.json"}
+
+
+_writes = 0
+
+
+def wrote() -> None:
+    """Count one write a store made; with ``$FOGIAC_TEST_SIGKILL_AFTER_STORE_WRITE`` set to this count,
+    SIGKILL this process (tests of ``kill -9`` at each write; inert unless that variable is set)."""
+    global _writes
+    after = os.environ.get(TEST_KILL_AFTER_WRITES)
+    if not after:
+        return
+    _writes += 1
+    if str(_writes) == after.strip():
+        os.kill(os.getpid(), signal.SIGKILL)
 
 
 def state_root() -> Path:
@@ -252,6 +272,7 @@ class FolderStore:
             (folder / MOVED).unlink(missing_ok=True)  # migrated back here
             for name in LEGACY_FILES.values():  # migrated (or left by a crash right after migrating)
                 (folder / name).unlink(missing_ok=True)
+        wrote()
         return "sha256:" + _digest(data)
 
     def delete(self, stack: str) -> None:
@@ -261,6 +282,7 @@ class FolderStore:
         with self._exclusive(folder):
             for name in (RECORD, *LEGACY_FILES.values()):
                 (folder / name).unlink(missing_ok=True)
+        wrote()
 
     def list(self) -> list[str]:
         """The stacks that have a folder, sorted (reads the root, creates nothing)."""
@@ -284,11 +306,13 @@ class FolderStore:
             return found if isinstance(found, dict) else {}
         with os.fdopen(fd, "w") as fh:
             json.dump(dict(holder), fh)
+        wrote()
         return None
 
     def release(self, stack: str, holder: Mapping[str, Any]) -> None:
         """Drop the lock ``holder`` took (on this machine nobody else can have taken over a live holder's)."""
         (self.folder(stack) / LOCK).unlink(missing_ok=True)
+        wrote()
 
     def break_lock(self, stack: str, holder: Mapping[str, Any]) -> None:
         """Remove the lock if it still names ``holder`` (one that took it over meanwhile keeps it)."""

@@ -23,6 +23,7 @@ import typer
 from fogiac import deployment
 from fogiac.cli._common import need_yes
 from fogiac.errors import FogiacError, StateError
+from fogiac.pulumi_engine.workspace import BACKEND_DIR, of_stack
 from fogiac.state import StackState, held_by, write_atomic
 from fogiac.store import STATE_URL, FolderStore, StateStore, check_name, dumps, open_store
 from fogiac.tables import console, table
@@ -110,17 +111,26 @@ def migrate(stack: str, *, to: str, source_url: str | None) -> str:
         held.enter_context(_locked(src, "state migrate"))
         held.enter_context(_locked(dst, "state migrate"))
         dst.clear_moved()  # coming back: the note that it left goes (a failure below leaves no record there)
-        snap = src.snapshot()
-        if snap.document is None:
-            raise StateError(f"stack {stack!r}: no record in {source.where(stack)} to migrate")
-        if dst.snapshot().document is not None:
+        there = dst.snapshot().document
+        try:
+            document = src.snapshot().document
+        except StateError as err:  # the source says it moved: a migrate killed once it had written both ends
+            if there is None or "its state moved" not in str(err):
+                raise
+            document = None
+        else:  # a bucket notes the move before it drops the record: a record missing from it was never moved here
+            if document is None and (there is None or to_folder):
+                raise StateError(f"stack {stack!r}: no record in {source.where(stack)} to migrate")
+        if document is not None and there is not None and not _same(document, there):
             raise StateError(f"stack {stack!r} already has a record in {dest.where(stack)}; "
                              "nothing was moved (remove one of them first)")
-        files = src.copy_files(dst.ensure())
-        # the lock's release pushes a shared store's files
-        dest.put(stack, {**snap.document, "written_by": _me()}, expected=None)
-        note = {"moved_to": dest.where(stack).rsplit("/", 2)[0] if not to_folder else "folder",
-                "by": _me(), "at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+        # A record already there and equal to the source's (or the source's gone) is a migrate killed half-way:
+        # this one finishes it. The lock's release pushes a shared store's files.
+        files = src.copy_files(dst.ensure()) if document is not None else 0
+        if there is None and document is not None:
+            dest.put(stack, {**document, "written_by": _me()}, expected=None)
+        moved = _move_backend(stack, source, dest, dst.folder, to_folder=to_folder)
+        note = {"by": _me(), "at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
         if to_folder:
             note["moved_to"] = f"the folder {dst.folder} on {_me()}"
             forget = getattr(source, "forget_files", None)
@@ -128,6 +138,7 @@ def migrate(stack: str, *, to: str, source_url: str | None) -> str:
                 forget(stack)
             source.mark_moved(stack, note["moved_to"], _me())  # type: ignore[attr-defined]
             source.delete(stack)
+            source.forget_backend(moved)  # type: ignore[attr-defined]
             shutil.rmtree(src.folder, ignore_errors=True)
         else:
             note["moved_to"] = to.rstrip("/")
@@ -135,6 +146,35 @@ def migrate(stack: str, *, to: str, source_url: str | None) -> str:
             src.leave_for(note)
     return (f"moved stack {stack!r} ({files} file(s) beside its record) from {source.where(stack)} to "
             f"{dest.where(stack)}")
+
+
+def _move_backend(stack: str, source: StateStore, dest: StateStore, folder: Path, *, to_folder: bool) -> list[str]:
+    """Copy the stack's Pulumi state (a cloud target's file backend) to where the engine looks for it once the
+    record moved: the stack folder's ``pulumi/.pulumi/`` tree into the bucket's ``.pulumi/`` (the engine's
+    ``s3://`` backend, the same prefix), or the stack's own files of the bucket's tree into the folder.
+    Returns what the source may drop once the record is written (for the bucket: after the copy is whole)."""
+    if to_folder:
+        files = source.backend_files(lambda rel: of_stack(stack, rel) or rel == "meta.yaml")  # type: ignore[attr-defined]
+        tree = folder / BACKEND_DIR / ".pulumi"
+        for rel, data in sorted(files.items()):
+            target = tree.joinpath(*rel.split("/"))
+            target.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
+            write_atomic(target, data, mode=0o600)
+        return [rel for rel in files if rel != "meta.yaml"]  # the bucket's meta stays: other stacks use it
+    tree = source.folder(stack) / BACKEND_DIR / ".pulumi"
+    put = getattr(dest, "put_backend", None)
+    if put is None or not tree.is_dir():
+        return []
+    for path in sorted(p for p in tree.rglob("*") if p.is_file() and not p.is_symlink()):
+        rel = path.relative_to(tree).as_posix()
+        if rel.split("/")[0] != "locks":  # a dead update's lock stays behind: Pulumi's own lock is per machine
+            put(rel, path.read_bytes(), if_absent=rel == "meta.yaml")  # a bucket in use keeps its own meta
+    return []
+
+
+def _same(one: dict[str, Any], other: dict[str, Any]) -> bool:
+    """The same record but for who wrote it (``migrate`` stamps the copy with the member who moved it)."""
+    return {k: v for k, v in one.items() if k != "written_by"} == {k: v for k, v in other.items() if k != "written_by"}
 
 
 def register(app: typer.Typer) -> None:

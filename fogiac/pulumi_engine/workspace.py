@@ -38,6 +38,14 @@ def backend_dir(stack: str, *, create: bool = True) -> Path:
     return StackState(stack).target_file(BACKEND_DIR, create=create)
 
 
+def of_stack(stack: str, rel: str) -> bool:
+    """Whether ``rel`` (a path under a backend's ``.pulumi/``) is fogiac stack ``stack``'s: a Pulumi stack
+    ``<stack>-<layer>``'s checkpoint, history or backup (a shared bucket's backend holds every stack's)."""
+    pattern = re.compile(re.escape(stack) + r"-[A-Za-z0-9_]+(\..*)?")
+    parts = rel.split("/")
+    return parts[0] != "locks" and any(pattern.fullmatch(part) for part in parts[1:])
+
+
 def shared_backend(stack: str) -> str | None:
     """The backend URL of a shared state store (``s3://BUCKET/PREFIX``: Pulumi keeps ``.pulumi/`` there, beside
     the stacks' records), so every member and CI preview against what is deployed; None: the stack folder's."""

@@ -51,7 +51,11 @@ def ssh_public_key(stack: str) -> str:
 
 
 def known_ids(stack: str) -> frozenset[str]:
-    """Every cloud id fogiac's state knows for ``stack`` (outputs and Pulumi checkpoints)."""
+    """Every cloud id fogiac's state knows for ``stack`` (outputs and Pulumi checkpoints).
+
+    With a shared store the checkpoints are read from its bucket, every stack's: Pulumi keeps them there,
+    not on this machine, so a second member's preflight must not take the first member's resources for
+    strangers (and tell them to sweep what another member runs)."""
     ids: set[str] = set()
     state = StackState(stack)
 
@@ -66,6 +70,10 @@ def known_ids(stack: str) -> frozenset[str]:
                 walk(item)
 
     walk(read_json(state.target_file(OUTPUTS_FILE)))
+    shared = getattr(state.store, "pulumi_checkpoints", None)
+    if shared is not None:  # the lab's bucket: every member's stacks, wherever they were applied from
+        for _, checkpoint in shared():
+            walk(checkpoint)
     for checkpoint in backend_dir(stack, create=False).glob(".pulumi/stacks/**/*.json") if state.exists() else ():
         walk(read_json(checkpoint))
     return frozenset(ids)

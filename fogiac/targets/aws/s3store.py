@@ -26,19 +26,31 @@ boto3 is imported when a store is made: the first day on the folder store loads 
 
 from __future__ import annotations
 
+import gzip
 import hashlib
 import json
 import os
 import stat
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
 
 from fogiac.errors import CredentialsError, StateError
 from fogiac.sealed import Sealer, sealer_for
-from fogiac.store import LOCK, RECORD, Snapshot, StaleRecord, check_name, dumps, make_private, state_root, write_atomic
+from fogiac.store import (
+    LOCK,
+    RECORD,
+    Snapshot,
+    StaleRecord,
+    check_name,
+    dumps,
+    make_private,
+    state_root,
+    write_atomic,
+    wrote,
+)
 from fogiac.targets.aws.sdk import need
 
 FILES = "files/"
@@ -125,6 +137,44 @@ class S3Store:
     def backend_url(self) -> str:
         """The Pulumi engine's backend: the same bucket and prefix (Pulumi keeps its own ``.pulumi/`` there)."""
         return self.url
+
+    def pulumi_checkpoints(self) -> Iterator[tuple[str, Any]]:
+        """Every Pulumi stack checkpoint in the store's backend (``<prefix>/.pulumi/stacks/``), parsed: the state
+        of every member's stacks, not only what this machine applied (a gzipped one is opened; garbage skipped)."""
+        base = "/".join(p for p in (self.prefix, ".pulumi", "stacks") if p) + "/"
+        for entry in self._keys(self.url, base):
+            key = str(entry.get("Key", ""))
+            if not key.endswith((".json", ".json.gz")):
+                continue
+            found = self._get(self.url, key)
+            if found is None:
+                continue
+            raw = found[0]
+            try:
+                yield key, json.loads(gzip.decompress(raw) if key.endswith(".gz") else raw)
+            except (OSError, ValueError):
+                continue
+
+    def _backend_key(self, rel: str) -> str:
+        return "/".join(p for p in (self.prefix, ".pulumi", rel) if p)
+
+    def backend_files(self, select: Callable[[str], bool]) -> dict[str, bytes]:
+        """The Pulumi backend's files (path under ``.pulumi/`` -> content) that ``select`` picks."""
+        base = self._backend_key("")
+        out: dict[str, bytes] = {}
+        for entry in self._keys(self.url, base.rstrip("/") + "/"):
+            rel = str(entry.get("Key", ""))[len(base.rstrip("/")) + 1:]
+            if rel and "Key" in entry and select(rel) and (found := self._get(self.url, entry["Key"])) is not None:
+                out[rel] = found[0]
+        return out
+
+    def put_backend(self, rel: str, data: bytes, *, if_absent: bool = False) -> None:
+        """One file of a Pulumi backend tree into the store's (``state migrate`` from a stack folder)."""
+        self._put(self.url, self._backend_key(rel), data, **({"IfNoneMatch": "*"} if if_absent else {}))
+
+    def forget_backend(self, rels: Iterable[str]) -> None:
+        for rel in rels:
+            self._delete(self.url, self._backend_key(rel))
 
     def _call(self, what: str, op: str, **kwargs: Any) -> Any:
         """One S3 request; a credential or access failure is one line naming the bucket and what was asked."""
@@ -230,6 +280,7 @@ class S3Store:
         if etag is None:
             raise StaleRecord(f"{where}: the stack's record changed since it was read (another fogiac wrote it); "
                               "nothing was written, run the command again")
+        wrote()
         self._delete(where, self.key(stack, MOVED))
         if stack in self._held:
             self.push(stack)
@@ -237,6 +288,7 @@ class S3Store:
 
     def delete(self, stack: str) -> None:
         self._delete(self.where(stack), self.key(stack, RECORD))
+        wrote()
 
     def list(self) -> list[str]:
         """The stacks with a folder in the bucket, sorted (Pulumi's ``.pulumi/`` is no stack)."""
@@ -255,6 +307,7 @@ class S3Store:
             found = self.lock_holder(stack)
             return found if found is not None else {}
         self._held[stack] = etag
+        wrote()
         try:
             self.pull(stack)  # what the last holder left, now that nobody else writes
         except BaseException:
@@ -283,6 +336,7 @@ class S3Store:
         finally:
             self._held.pop(stack, None)
             self._delete(self.where(stack, LOCK), self.key(stack, LOCK), IfMatch=etag)
+            wrote()
 
     def break_lock(self, stack: str, holder: Mapping[str, Any]) -> None:
         """Remove the lock while it still names ``holder`` (one taken since by another stays)."""

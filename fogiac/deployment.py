@@ -207,7 +207,9 @@ def choose_target(stack: str, manifest: Path, requested: str | None, *, force_hi
     if not record.exists:
         return requested if creating or requested else record.target
     mine = manifest_id(manifest)
-    if record.manifest != mine and not force:
+    # a shared store's record names the path on the member's machine that wrote it: each member's checkout
+    # of the lab's manifest sits elsewhere (the stack's name already says which manifest and environment)
+    if record.manifest != mine and not force and StackState(stack).store.reclaims_dead_holders:
         hint = " (or pass --force to take it over)" if force_hint else ""
         raise FogiacError(f"stack {stack!r} was made by {shown(record.manifest)}, not {shown(mine)}; use that file, "
                           f"or give this one another name: or --env{hint}")

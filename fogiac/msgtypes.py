@@ -69,6 +69,16 @@ class UnknownType(MatchError):
     """The store does not know enough of the type to say: the path may be right (validation lets it pass)."""
 
 
+class DefinitionError(MatchError):
+    """A ROS 1 ``message_definition`` fogiac will not read keys with: malformed, self-referential, nested too
+    deep or too big. It comes from a publisher (a replica's, over its link): refuse it, never trust it."""
+
+
+MAX_DEFINITION = 1 << 20  # characters of a message_definition (the largest common ones are ~100 KB)
+MAX_DEPTH = 32  # message types nested in one another (a walker's recursion follows this)
+MAX_ARRAY = 1 << 32  # a fixed array's length, as a uint32 count could say
+
+
 @dataclass(frozen=True)
 class Field:
     name: str
@@ -113,12 +123,49 @@ class TypeStore:
         self.start = start  # bytes before the message's first field (CDR's encapsulation header)
         self.aligned = aligned  # fields padded to their own size, counted from ``start``
         self.types = dict(types)
+        # per base type, computed once: a nested type's figures would otherwise be walked once per path to it
+        # (2^depth times for types that hold two of the next)
+        self._least: dict[str, int] = {}
+        self._fixed: dict[str, int | None] = {}
+        self._aligns: dict[str, int] = {}
 
     def with_definition(self, text: str, type_name: str) -> TypeStore:
         """This store plus the types a ROS 1 ``message_definition`` declares (the main type first, then each
-        ``MSG: pkg/Type`` section, as a publisher sends it in its TCPROS header)."""
-        return TypeStore(self.name, sizes=self.sizes, start=self.start, aligned=self.aligned,
-                         types={**self.types, **parse_definition(text, type_name)})
+        ``MSG: pkg/Type`` section, as a publisher sends it in its TCPROS header). :class:`DefinitionError`
+        when the definition is malformed, a type contains itself, or types nest deeper than ``MAX_DEPTH``:
+        every walk over the result then ends (no recursion without bound, no loop a count in the data sets)."""
+        store = TypeStore(self.name, sizes=self.sizes, start=self.start, aligned=self.aligned,
+                          types={**self.types, **parse_definition(text, type_name)})
+        store._check_nesting()
+        return store
+
+    def _check_nesting(self) -> None:
+        """No type contains itself, through any chain of fields; none nests deeper than ``MAX_DEPTH``."""
+        depth: dict[str, int] = {}
+
+        def visit(base: str, path: tuple[str, ...]) -> int:
+            if base in path:
+                raise DefinitionError(f"message type {base} contains itself ({' -> '.join(path + (base,))})")
+            if len(path) > MAX_DEPTH:
+                raise DefinitionError(f"message types nest deeper than {MAX_DEPTH} ({path[0]} ...)")
+            if base not in depth:
+                depth[base] = 1 + max((visit(f.base, path + (base,)) for f in self.types.get(base, ())
+                                       if f.base in self.types), default=0)
+            return depth[base]
+
+        for name in self.types:
+            visit(name, ())
+
+    def min_size(self, base: str) -> int:
+        """The fewest bytes a value of ``base`` takes in this store's serialization (an unknown type: 0)."""
+        if base in self.sizes:
+            return self.sizes[base]
+        if base == "string":
+            return 4
+        if base not in self._least:
+            self._least[base] = sum(4 if f.array == -1 else self.min_size(f.base) * (1 if f.array is None else f.array)
+                                    for f in self.types.get(base, ()))
+        return self._least[base]
 
     def fields(self, type_name: str) -> tuple[tuple[Field, ...], bool]:
         """The type's fields as far as known, and whether that is all of them: a type known only to begin
@@ -195,7 +242,11 @@ class TypeStore:
         if f.base in self.sizes:
             return min(self.sizes[f.base], 8)
         fields = self.types.get(f.base)
-        return max((self._alignment(g) for g in fields), default=1) if fields else 8
+        if not fields:
+            return 8
+        if f.base not in self._aligns:
+            self._aligns[f.base] = max((self._alignment(g) for g in fields), default=1)
+        return self._aligns[f.base]
 
     def _align(self, offset: int, alignment: int) -> int:
         """``offset`` (from the payload's start) padded to ``alignment``, counted from the first field."""
@@ -217,10 +268,12 @@ class TypeStore:
     def _struct_size(self, base: str) -> int | None:
         if base not in self.types:
             return None  # not known (or known only to begin with a Header)
-        offset: int | None = self.start
-        for f in self.types[base]:
-            offset = self._after(f, offset)
-        return None if offset is None else offset - self.start
+        if base not in self._fixed:
+            offset: int | None = self.start
+            for f in self.types[base]:
+                offset = self._after(f, offset)
+            self._fixed[base] = None if offset is None else offset - self.start
+        return self._fixed[base]
 
     def _after(self, f: Field, offset: int | None) -> int | None:
         """The offset just past field ``f`` starting at ``offset`` (None: not fixed)."""
@@ -245,8 +298,13 @@ class _Walker:
             return off + sizes[base]
         if base == "string":
             return off + 4 + _U32.unpack_from(data, off)[0]
+        fixed = self.store._struct_size(base) if not self.store.aligned else None
+        if fixed is not None:  # no need to walk what has one size
+            return off + fixed
         for f in self.store.fields(base)[0]:
             off = self.skip_field(f, data, off)
+            if off > len(data):
+                raise _TooShort
         return off
 
     def skip_field(self, f: Field, data: Payload, off: int) -> int:
@@ -258,8 +316,15 @@ class _Walker:
             off += 4
         if f.base in self.store.sizes:
             return off + count * self.store.sizes[f.base]
+        least = self.store.min_size(f.base)
+        if least == 0:  # a type of nothing (no fields, or only empty arrays) takes no bytes however many
+            return off
+        if off + count * least > len(data):  # a count no message this long could hold: no key, and no loop
+            raise _TooShort
         for _ in range(count):
             off = self.skip(f.base, data, off)
+            if off > len(data):
+                raise _TooShort
         return off
 
     def key(self, base: str, chain: list[Field], data: Payload) -> Key | None:
@@ -274,9 +339,13 @@ class _Walker:
                     end = self.skip_field(target, data, off)
                     return bytes(data[off:end]) if end <= len(data) else None
                 base = target.base
-        except struct.error:
+        except (struct.error, _TooShort):
             return None
         return None
+
+
+class _TooShort(Exception):
+    """The message ends before the field (or its data says it holds more than it can)."""
 
 
 _ROS1_SIZES = {"bool": 1, "int8": 1, "uint8": 1, "byte": 1, "char": 1, "int16": 2, "uint16": 2,
@@ -288,7 +357,11 @@ _CDR_SIZES = {k: v for k, v in _ROS1_SIZES.items() if k not in ("time", "duratio
 
 def parse_definition(text: str, type_name: str) -> dict[str, tuple[Field, ...]]:
     """Message type -> its fields, from a ROS 1 ``message_definition`` (the main type first, then each
-    ``MSG: pkg/Type`` section); constants and comments are not fields."""
+    ``MSG: pkg/Type`` section); constants and comments are not fields. :class:`DefinitionError` for text
+    that is too big or a field that is not ``TYPE NAME`` with a valid array size."""
+    if len(text) > MAX_DEFINITION:
+        raise DefinitionError(f"the message definition of {type_name} is {len(text)} characters, over "
+                              f"{MAX_DEFINITION}")
     sections: list[tuple[str, list[str]]] = [(type_name, [])]
     for line in text.splitlines():
         if line.startswith("MSG: "):
@@ -310,8 +383,13 @@ def parse_definition(text: str, type_name: str) -> dict[str, tuple[Field, ...]]:
             kind, field_name = parts[0], parts[1]
             array: int | None = None
             if kind.endswith("]"):
-                kind, size = kind[:-1].split("[", 1)
+                kind, _, size = kind[:-1].partition("[")
+                if size and not (size.isascii() and size.isdigit() and int(size) < MAX_ARRAY):
+                    raise DefinitionError(f"{name}: field {field_name!r} has array size {size[:20]!r}, not a "
+                                          f"count below {MAX_ARRAY}")
                 array = int(size) if size else -1
+            if not kind or "[" in kind or "]" in kind:
+                raise DefinitionError(f"{name}: field {field_name!r} has no type fogiac can read ({kind[:40]!r})")
             fields.append(Field(field_name, _resolve(kind, package, names), array))
         out[name] = tuple(fields)
     return out
@@ -328,12 +406,50 @@ def _resolve(kind: str, package: str, known: list[str]) -> str:
     return same if same in known else next((k for k in known if k.endswith("/" + kind)), same)
 
 
+def _fields(text: str) -> tuple[Field, ...]:
+    """``"float64 x, float64 y"`` -> its fields (a ``[]`` after a type: a variable-length array of it)."""
+    out = []
+    for part in text.split(","):
+        kind, name = part.split()
+        out.append(Field(name, kind.removesuffix("[]"), -1 if kind.endswith("[]") else None))
+    return tuple(out)
+
+
+# Common types known field by field in both generations, so that validate can say a stated type lacks the
+# reply_match field (std_msgs/Float64 has no ``id``) rather than let it pass unchecked.
+_COMMON = {
+    **{f"std_msgs/{name}": _fields(f"{kind} data") for name, kind in (
+        ("Bool", "bool"), ("Byte", "byte"), ("Char", "char"), ("Float32", "float32"), ("Float64", "float64"),
+        ("Int8", "int8"), ("Int16", "int16"), ("Int32", "int32"), ("Int64", "int64"), ("UInt8", "uint8"),
+        ("UInt16", "uint16"), ("UInt32", "uint32"), ("UInt64", "uint64"), ("String", "string"))},
+    "std_msgs/Empty": (),
+    "std_msgs/ColorRGBA": _fields("float32 r, float32 g, float32 b, float32 a"),
+    "geometry_msgs/Point": _fields("float64 x, float64 y, float64 z"),
+    "geometry_msgs/Point32": _fields("float32 x, float32 y, float32 z"),
+    "geometry_msgs/Vector3": _fields("float64 x, float64 y, float64 z"),
+    "geometry_msgs/Quaternion": _fields("float64 x, float64 y, float64 z, float64 w"),
+    "geometry_msgs/Pose2D": _fields("float64 x, float64 y, float64 theta"),
+    "geometry_msgs/Pose": _fields("geometry_msgs/Point position, geometry_msgs/Quaternion orientation"),
+    "geometry_msgs/Twist": _fields("geometry_msgs/Vector3 linear, geometry_msgs/Vector3 angular"),
+    "geometry_msgs/Accel": _fields("geometry_msgs/Vector3 linear, geometry_msgs/Vector3 angular"),
+    "geometry_msgs/Wrench": _fields("geometry_msgs/Vector3 force, geometry_msgs/Vector3 torque"),
+    "geometry_msgs/Transform": _fields("geometry_msgs/Vector3 translation, geometry_msgs/Quaternion rotation"),
+    "geometry_msgs/PoseArray": _fields(f"{HEADER} header, geometry_msgs/Pose[] poses"),
+    "geometry_msgs/PoseStamped": _fields(f"{HEADER} header, geometry_msgs/Pose pose"),
+    "geometry_msgs/PointStamped": _fields(f"{HEADER} header, geometry_msgs/Point point"),
+    "geometry_msgs/Vector3Stamped": _fields(f"{HEADER} header, geometry_msgs/Vector3 vector"),
+    "geometry_msgs/TwistStamped": _fields(f"{HEADER} header, geometry_msgs/Twist twist"),
+    "nav_msgs/Path": _fields(f"{HEADER} header, geometry_msgs/PoseStamped[] poses"),
+}
+
 ROS1 = TypeStore("ROS 1 serialization", sizes=_ROS1_SIZES, start=0, aligned=False, types={
     HEADER: (Field("seq", "uint32", None), Field("stamp", "time", None), Field("frame_id", "string", None)),
+    **_COMMON,
 })
 CDR = TypeStore("CDR", sizes=_CDR_SIZES, start=4, aligned=True, types={
     HEADER: (Field("stamp", "builtin_interfaces/Time", None), Field("frame_id", "string", None)),
     "builtin_interfaces/Time": (Field("sec", "int32", None), Field("nanosec", "uint32", None)),
+    **_COMMON,
 })
 
 

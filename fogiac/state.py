@@ -32,9 +32,11 @@ Nothing outside this module and the store builds a path inside a stack's folder 
 
 from __future__ import annotations
 
+import getpass
 import os
 import shutil
 import socket
+import sys
 import time
 import uuid
 from collections.abc import Callable, Iterator
@@ -48,6 +50,7 @@ from fogiac.procs import same_process, start_time
 from fogiac.store import (
     LEGACY_FILES,
     LOCK,
+    MOVED,
     RECORD,
     FolderStore,
     Snapshot,
@@ -55,6 +58,7 @@ from fogiac.store import (
     StateStore,
     check_name,
     dumps,
+    open_store,
     read_json,
     state_root,
     write_atomic,
@@ -68,12 +72,14 @@ FORMAT_VERSION = 1  # of the record document; a newer one is refused, never half
 
 
 def default_store() -> StateStore:
-    return FolderStore()
+    """The store records live in now: ``$FOGIAC_STATE_URL`` or the manifest's ``state:`` block, else the
+    stack folder (see :func:`fogiac.store.open_store`)."""
+    return open_store()
 
 
 def stack_dir(stack: str, *, create: bool = True) -> Path:
     """The folder for one stack (``<name>-<environment>``), 0700; never a path outside the root."""
-    return FolderStore().folder(stack, create=create)
+    return default_store().folder(stack, create=create)
 
 
 def stack_names() -> list[str]:
@@ -139,7 +145,11 @@ class StackState:
 
     @classmethod
     def at(cls, folder: Path) -> StackState:
-        """The stack whose folder is ``folder`` (provisioning is handed a folder, in tests any folder)."""
+        """The stack whose folder is ``folder`` (provisioning is handed a folder, in tests any folder): the
+        configured store's when that is its folder (a shared store's files are worked on in a local one)."""
+        store = default_store()
+        if not isinstance(store, FolderStore) and store.folder(folder.name) == folder:
+            return cls(folder.name, store=store)
         return cls(folder.name, store=FolderStore(folder.parent))
 
     def __repr__(self) -> str:
@@ -198,6 +208,56 @@ class StackState:
         self.store.delete(self.stack)
         shutil.rmtree(self.folder, ignore_errors=True)
 
+    def files(self) -> dict[str, Path]:
+        """The files beside the record by path in the folder (not the record, lock, a moved note or scratch)."""
+        out: dict[str, Path] = {}
+        if not self.folder.is_dir():
+            return out
+        for path in sorted(self.folder.rglob("*")):
+            rel = path.relative_to(self.folder)
+            if path.is_file() and not path.is_symlink() and not any(p.startswith(".") for p in rel.parts) \
+                    and rel.as_posix() not in (RECORD, LOCK, MOVED, *LEGACY_FILES.values()):
+                out[rel.as_posix()] = path
+        return out
+
+    def copy_files(self, into: Path) -> int:
+        """The files beside the record, copied under ``into`` (0600, folders 0700); how many."""
+        for rel, path in self.files().items():
+            target = into.joinpath(*rel.split("/"))
+            target.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
+            write_atomic(target, path.read_bytes(), mode=(path.stat().st_mode & 0o700) | 0o600)
+        return len(self.files())
+
+    def leave_for(self, note: dict[str, Any]) -> None:
+        """The stack's state went elsewhere (``fogiac state migrate``): its files go, a note says where."""
+        for path in sorted(self.folder.iterdir()) if self.folder.is_dir() else ():
+            if path.name != LOCK:
+                shutil.rmtree(path) if path.is_dir() and not path.is_symlink() else path.unlink()
+        write_atomic(self.folder / MOVED, dumps(note), mode=0o600)
+
+    def clear_moved(self) -> None:
+        """Forget the note that the state went elsewhere (``fogiac state migrate`` brings it back here)."""
+        shared = getattr(self.store, "clear_moved", None)
+        if shared is not None:
+            shared(self.stack)
+        else:
+            (self.folder / MOVED).unlink(missing_ok=True)
+
+    def lock_holder(self) -> dict[str, Any] | None:
+        """Who holds the stack's lock now (``{}``: unreadable), or None; read without taking it."""
+        reader = getattr(self.store, "lock_holder", None)
+        if reader is not None:
+            found: dict[str, Any] | None = reader(self.stack)
+            return found
+        path = self.folder / LOCK
+        if not path.exists():
+            return None
+        try:
+            data = read_json(path)
+        except StateError:
+            return {}
+        return data if isinstance(data, dict) else {}
+
     # -- the record ------------------------------------------------------------------------------------
 
     def where(self, section: str | None = None) -> str:
@@ -249,6 +309,8 @@ class StackState:
         document.update(format_version=FORMAT_VERSION, stack=self.stack,
                         lineage=str(document.get("lineage") or uuid.uuid4()),
                         serial=int(document.get("serial") or 0) + 1, written_at=_now())
+        if not self.store.reclaims_dead_holders:  # a shared store: which member wrote it
+            document["written_by"] = f"{_user()}@{socket.gethostname()}"
         self.store.put(self.stack, document, expected=snap.version)
         return document
 
@@ -284,10 +346,15 @@ class StackState:
         """
         me = {"pid": os.getpid(), "started": start_time(os.getpid()), "host": socket.gethostname(),
               "operation": operation, "since": _now()}
+        if not self.store.reclaims_dead_holders:  # a shared store: say who, from where, doing what
+            me.update(user=_user(), cwd=os.getcwd(), command=" ".join(["fogiac", *sys.argv[1:]])[:300])
         holder = self.store.acquire(self.stack, me)
         if holder is not None and self.store.reclaims_dead_holders and _gone(holder, host=str(me["host"])):
             self.store.break_lock(self.stack, holder)
             holder = self.store.acquire(self.stack, me)  # another may have taken it meanwhile: named below
+        if holder is not None and not self.store.reclaims_dead_holders:
+            raise LockHeld(f"stack {self.stack!r} is locked: {held_by(holder)}; wait for it, or if that process is "
+                           f"gone, `fogiac state unlock {self.stack}` breaks the lock") from None
         if holder is not None:
             said = {k: _said(holder.get(k, "?")) for k in ("operation", "pid", "host", "since")}
             raise LockHeld(
@@ -305,6 +372,23 @@ def _gone(holder: dict[str, Any], *, host: str) -> bool:
     pid, started = holder.get("pid"), holder.get("started")
     return holder.get("host") == host and isinstance(pid, int) and not isinstance(pid, bool) and pid > 0 \
         and not same_process(pid, started if isinstance(started, str) else None)
+
+
+def _user() -> str:
+    try:
+        return getpass.getuser()
+    except (KeyError, OSError):
+        return str(os.getuid())
+
+
+def held_by(holder: dict[str, Any]) -> str:
+    """A lock's holder in one line: who (user@host), which command, since when, where (pid, folder)."""
+    if not holder:
+        return "by an unreadable lock"
+    said = {k: _said(holder.get(k, "?")) for k in ("user", "host", "operation", "since", "pid", "cwd", "command")}
+    who = f"{said['user']}@{said['host']}" if "user" in holder else said["host"]
+    return (f"{said['operation']} by {who} since {said['since']} (pid {said['pid']}"
+            + (f", in {said['cwd']}: {said['command']}" if "command" in holder else "") + ")")
 
 
 def _said(value: object) -> str:

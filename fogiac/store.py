@@ -29,8 +29,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
+from fogiac import registry
 from fogiac.errors import StateError
 
+STATE_URL = "FOGIAC_STATE_URL"  # where a lab's shared records live (s3://BUCKET/PREFIX); unset: the folder
+STORES = "fogiac.stores"  # URL scheme -> a StateStore class with from_url(url, kms_key=...)
+MOVED = "moved.json"  # in a stack folder whose state `fogiac state migrate` sent elsewhere
 RECORD = "record.json"
 LOCK = "lock.json"
 # The files a stack's record was split into before it was one document: section -> file name.
@@ -67,6 +71,16 @@ def write_atomic(path: Path, data: bytes, *, mode: int) -> None:
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+def make_private(path: Path) -> Path:
+    """``path`` as a folder only its owner may enter (0700, also when it was there already); one line if not."""
+    try:
+        path.mkdir(parents=True, exist_ok=True, mode=0o700)
+        os.chmod(path, 0o700)
+    except OSError as err:
+        raise StateError(f"cannot use state directory {path}: {err.strerror}") from None
+    return path
 
 
 def dumps(data: Any) -> bytes:
@@ -159,13 +173,7 @@ class FolderStore:
 
     def folder(self, stack: str, *, create: bool = False) -> Path:
         path = self.root / check_name(stack)
-        if create:
-            try:
-                path.mkdir(parents=True, exist_ok=True, mode=0o700)
-                os.chmod(path, 0o700)
-            except OSError as err:
-                raise StateError(f"cannot use state directory {path}: {err.strerror}") from None
-        return path
+        return make_private(path) if create else path
 
     def where(self, stack: str, name: str = RECORD) -> str:
         return str(self.folder(stack) / name)
@@ -216,7 +224,10 @@ class FolderStore:
         return document, "legacy:" + _digest(*raws), origin
 
     def get(self, stack: str) -> Snapshot:
-        document, version, origin = self._read(self.folder(stack))
+        folder = self.folder(stack)
+        document, version, origin = self._read(folder)
+        if document is None and (folder / MOVED).exists():
+            raise StateError(moved_line(stack, folder / MOVED))
         return Snapshot(document, version, origin)
 
     @contextlib.contextmanager
@@ -238,6 +249,7 @@ class FolderStore:
                 raise StaleRecord(f"{folder / RECORD}: the stack's record changed since it was read "
                                   "(another fogiac wrote it); nothing was written, run the command again")
             write_atomic(folder / RECORD, data, mode=0o600)
+            (folder / MOVED).unlink(missing_ok=True)  # migrated back here
             for name in LEGACY_FILES.values():  # migrated (or left by a crash right after migrating)
                 (folder / name).unlink(missing_ok=True)
         return "sha256:" + _digest(data)
@@ -287,3 +299,58 @@ class FolderStore:
             return
         if found == dict(holder):
             path.unlink(missing_ok=True)
+
+
+def moved_line(stack: str, note_file: Path) -> str:
+    """The one line a stack folder says once ``fogiac state migrate`` sent its state elsewhere."""
+    try:
+        note = json.loads(note_file.read_text())
+    except (OSError, ValueError):
+        note = {}
+    to = str(note.get("moved_to", "?")) if isinstance(note, dict) else "?"
+    return (f"stack {stack!r}: its state moved to {to} (fogiac state migrate); "
+            f"set {STATE_URL}={to} to use it there")
+
+
+# -- which store ---------------------------------------------------------------------------------------
+
+_manifest_state: dict[str, str | None] = {}  # the loaded manifest's `state:` block, when it has one
+_opened: dict[tuple[str, ...], StateStore] = {}
+
+
+def configure(url: str | None, kms_key: str | None = None) -> None:
+    """The manifest's ``state: {url, kms_key}`` (the CLI calls this once it loaded the manifest);
+    ``$FOGIAC_STATE_URL`` still wins. ``url=None`` forgets it."""
+    _manifest_state.clear()
+    if url:
+        _manifest_state.update(url=url, kms_key=kms_key)
+
+
+def configured_url() -> str | None:
+    """Where records live, as configured now: the environment, else the manifest; None: the folder."""
+    return os.environ.get(STATE_URL) or _manifest_state.get("url") or None
+
+
+def open_store(url: str | None = None, *, kms_key: str | None = None) -> StateStore:
+    """The store for ``url`` (default: :func:`configured_url`): the stack folder when none is set, else the
+    store its scheme's ``fogiac.stores`` entry point names (``s3://``: the aws target's), one per process
+    and configuration (a store keeps its client and what it pulled)."""
+    env_url = os.environ.get(STATE_URL)
+    if url is None:
+        url = configured_url()
+        if kms_key is None:
+            kms_key = os.environ.get("FOGIAC_STATE_KMS_KEY") or (
+                _manifest_state.get("kms_key") if not env_url else None)
+    if not url or url == "folder":
+        return FolderStore()
+    scheme, sep, _ = url.partition("://")
+    if not sep or not scheme:
+        raise StateError(f"state url {url!r}: expected s3://BUCKET/PREFIX (or unset for the stack folder)")
+    key = (url, kms_key or "", str(state_root()), *(os.environ.get(v, "") for v in (
+        "AWS_ENDPOINT_URL", "AWS_PROFILE", "AWS_ACCESS_KEY_ID", "AWS_DEFAULT_REGION", "AWS_REGION")))
+    if key not in _opened:
+        if not registry.known(STORES, scheme):
+            known = ", ".join(f"{name}://" for name in registry.names(STORES)) or "none"
+            raise StateError(f"state url {url!r}: no state store for {scheme}:// (known: {known})")
+        _opened[key] = registry.load(STORES, scheme).from_url(url, kms_key=kms_key)
+    return _opened[key]

@@ -7,10 +7,13 @@ values they hold: an instance id or an address prints whole.
 
 from __future__ import annotations
 
+import math
+import re
 import sys
-from typing import TextIO
+from typing import Any, TextIO
 
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 PIPE_WIDTH = 10_000  # wide enough that no table of fogiac's is ever fitted into it
@@ -29,3 +32,21 @@ def table(title: str | None, *columns: str) -> Table:
     for column in columns:
         out.add_column(column, overflow="fold")
     return out
+
+
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
+
+
+def printable(value: Any) -> str:
+    """A value read from a file (a stack record, a host's answer) as one inert line for a table cell:
+    control characters (ESC starting a terminal sequence, newlines) shown as ``\\xNN``, rich markup
+    shown as text. A record is not trusted to be what fogiac wrote."""
+    text = _CONTROL.sub(lambda m: f"\\x{ord(m.group()):02x}", str(value))
+    return escape(text)
+
+
+def usd(value: Any, *, digits: int = 2) -> str | None:
+    """``$1.23`` for a finite amount at least 0; None for anything else (NaN, infinite, negative, not a number)."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) or value < 0:
+        return None
+    return f"${value:.{digits}f}"

@@ -38,6 +38,15 @@ def log_group(name: str, logical: str, group: str, *, tags: Mapping[str, str],
                                    opts=opts)
 
 
+BOUNDARY_POLICY = "fogiac-boundary"  # the permissions boundary every role fogiac makes carries (iam-boundary.json)
+
+
+def boundary_arn(account: str) -> str:
+    """The account's ``fogiac-boundary`` policy: the shipped IAM policy lets fogiac create a role only with it,
+    so no role fogiac makes can hold more than writing the stack's logs, whatever its inline policy says."""
+    return f"arn:aws:iam::{account}:policy/{BOUNDARY_POLICY}"
+
+
 def flow_logs_role_name(stack: str) -> str:
     return f"fogiac-{stack}-flow-logs"[:64]
 
@@ -133,6 +142,8 @@ class Network(pulumi.ComponentResource):
             name=flow_logs_role_name(name),
             path=f"/fogiac/{name}/",
             assume_role_policy=_assume_role("vpc-flow-logs.amazonaws.com"),
+            permissions_boundary=aws.get_caller_identity_output(opts=pulumi.InvokeOutputOptions(parent=self))
+            .account_id.apply(boundary_arn),
             tags=tagged(args.tags, f"{name}-flow-logs"),
             opts=child,
         )

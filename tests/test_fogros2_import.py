@@ -223,8 +223,11 @@ def generate_launch_description():
 '''
 
 
-def test_the_current_style_imports_with_the_helpers_as_fogiac_choices(tmp_path: Path) -> None:
+def test_the_current_style_imports_with_the_helpers_as_fogiac_choices(tmp_path: Path,
+                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
     from fogiac.plan.compile import compile_plan
+
+    monkeypatch.setenv("TZ", "UTC")  # the region is the listed one nearest this machine's time zone; UTC places none
 
     converted = import_launch(write(tmp_path, CURRENT, "current.launch.py"))
     manifest = converted.manifest
@@ -255,3 +258,19 @@ def test_other_fogros2_clouds_are_refused_in_one_line(tmp_path: Path) -> None:
     assert info.value.problems == [
         f"{path}:{line}: FogROS2's GCP machines are not imported: fogiac runs on AWS (AWSCloudInstance, target aws) "
         "or on machines you have (target hosts)"]
+
+
+def test_an_imported_manifest_with_empty_topic_lists_validates_with_a_warning(tmp_path: Path) -> None:
+    """Issue 35 item 24: the empty lists an import writes validated without a word; each such node is said."""
+    out = tmp_path / "fogiac.yaml"
+    result = CliRunner().invoke(app, ["import", str(write(tmp_path, TALKER, "talker.aws.launch.py")), "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    result = CliRunner().invoke(app, ["validate", str(out)])
+    assert result.exit_code == 0, result.output
+    assert result.output.splitlines() == [
+        f"{out}: valid (1 node, 1 host, target aws)",
+        "warning: node talker: topics in and out are both empty, so nothing crosses between it and the robot; list "
+        "the topics it reads from the robot (in) and sends back (out)"]
+    out.write_text(out.read_text().replace("    out: []", "    out: [/chatter]"))
+    result = CliRunner().invoke(app, ["validate", str(out)])
+    assert (result.exit_code, result.output.strip()) == (0, f"{out}: valid (1 node, 1 host, target aws)")

@@ -17,7 +17,9 @@ entry point anywhere else is a plain import in disguise and counts as one.
 - no import cycle spans two folders;
 - only ``fogiac/targets/aws/`` (and ``stacks/``) touch boto3, botocore, pulumi, pulumi_aws or ``stacks``,
   except that the provider-neutral engine ``fogiac/pulumi_engine/`` imports ``pulumi`` (and nothing else
-  of these); no code line outside ``targets/aws/`` names Client VPN, EC2 or the instance catalogue
+  of these), and the shared state's modules (``fogiac/sealed.py``: secrets sealed under a KMS key) import
+  and name boto3 and botocore, whichever target the stack runs on; no code line outside ``targets/aws/``
+  names Client VPN, EC2 or the instance catalogue
   (comments and docstrings may);
 - the neutral core (manifest, plan, lifecycle, provision, cli) names no cloud in code: no AWS name
   (aws, VPC, its ranges, flow logs, Amazon Time Sync), no region default, no tag limit or subnet-derived
@@ -41,6 +43,8 @@ import tomllib
 
 REPO = Path(__file__).resolve().parents[1]
 CLOUD = ("boto3", "botocore", "pulumi", "pulumi_aws", "stacks")
+# Where a stack's state is kept with a team: its KMS key belongs to the state, not to a target.
+SHARED_STATE = ("fogiac.sealed",)
 ENGINE = "fogiac.pulumi_engine"  # the one Pulumi engine: pulumi, and no cloud's SDK or program
 TARGET_NAMES = ("aws", "hosts", "local")
 MIDDLEWARES = ("fogiac.net.relay", "fogiac.net.zenoh")
@@ -62,8 +66,8 @@ CLOUD_WORDS = re.compile(r"\baws\b|amazon|cloudwatch|\bvpcs?\b|vpc_|vpc[A-Z]|cli
 # its subnet sets (250); fogiac's own numbers may sit on other lines.
 TAG_LINE, TAG_LIMIT, NODE_CAP = re.compile(r"tag", re.I), re.compile(r"^(50|128|256)$"), re.compile(r"^25[01]$")
 # Importers of another tool's files, which are AWS-only by that tool's design (FogROS, FogROS2): they
-# read and name its AWS calls, regions and images.
-CLOUD_IMPORTERS = ("fogiac.manifest.fogros", "fogiac.manifest.fogros2")
+# read and name its AWS calls, regions and images (fogros2_nearest: where the regions FogROS2 lists are).
+CLOUD_IMPORTERS = ("fogiac.manifest.fogros", "fogiac.manifest.fogros2", "fogiac.manifest.fogros2_nearest")
 # What errors.py may not name: a middleware (relay, Zenoh), a VPN, a cloud, an engine.
 PLUGIN_WORDS = re.compile(r"relay|zenoh|vpn|aws|amazon|pulumi|engine|boto", re.I)
 ERROR_FOLDERS = ("fogiac.net", "fogiac.targets", "fogiac.pulumi_engine")  # where plug-ins keep their own errors
@@ -192,8 +196,10 @@ def test_no_import_cycle_spans_two_folders() -> None:
 
 
 def _may_import(module: str, top: str) -> bool:
-    """Whether ``module`` may import the cloud package ``top``: the aws target all of them, the engine pulumi."""
-    return _under(module, ("fogiac.targets.aws",)) or (_under(module, (ENGINE,)) and top == "pulumi")
+    """Whether ``module`` may import the cloud package ``top``: the aws target all of them, the engine pulumi,
+    the shared state's own modules (secrets sealed under a KMS key) boto3 and botocore, whatever the target."""
+    return (_under(module, ("fogiac.targets.aws",)) or (_under(module, (ENGINE,)) and top == "pulumi")
+            or (_under(module, SHARED_STATE) and top in ("boto3", "botocore")))
 
 
 def test_only_the_aws_target_touches_cloud_sdks_and_stacks() -> None:
@@ -230,7 +236,7 @@ def _code_lines(path: Path) -> list[tuple[int, str]]:
 
 def test_no_code_line_outside_the_aws_target_names_aws() -> None:
     offenders = sorted({f"{path.relative_to(REPO)}:{line}" for m, path in MODULES.items()
-                        if not _under(m, ("fogiac.targets.aws",))
+                        if not _under(m, ("fogiac.targets.aws", *SHARED_STATE))
                         for line, text in _code_lines(path) if AWS_WORDS.search(text)})
     assert offenders == []
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import typer
 
-from fogiac import deployment
+from fogiac import deployment, store
 from fogiac.errors import FogiacError, ManifestError
 from fogiac.manifest.fogros import load_any
 from fogiac.manifest.schema import Manifest
@@ -31,7 +31,9 @@ def load(manifest: Path) -> Manifest:
     if not manifest.exists():
         init = "fogiac init" if manifest == Path("fogiac.yaml") else f"fogiac init {manifest}"
         raise ManifestError([f"{manifest}: no such file; `{init}` writes a starter manifest"])
-    return load_any(manifest)
+    loaded = load_any(manifest)
+    store.configure(loaded.state.url if loaded.state else None, loaded.state.kms_key if loaded.state else None)
+    return loaded
 
 
 def compile_for(manifest: Path, env: str = "dev", target: str | None = None) -> Plan:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import time
 from collections import Counter
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -31,7 +31,7 @@ from fogiac.plan.cost import MONTH, per_month
 from fogiac.plan.guard import up_summary
 from fogiac.plan.model import Plan
 from fogiac.plan.review import visible, visible_doc
-from fogiac.plan.saved import check_saved_plan
+from fogiac.plan.saved import check_applies, check_saved_plan
 from fogiac.provision import secrets
 from fogiac.provision.report import report_table
 from fogiac.tables import console, table
@@ -61,6 +61,16 @@ def _show(doc: Mapping[str, Any], summary: tuple[str, ...] | None) -> None:
                   f"{doc['cost']['spot_prices']['as_of']}; never more than on-demand)")
 
 
+def _reviewed(path: Path, reviewed: Mapping[str, Any]) -> Callable[[Mapping[str, Any], tuple[str, ...] | None], None]:
+    """``_show``, after checking (under the stack's lock, where the lifecycle shows it) that the document
+    about to be applied is the saved plan's and that nobody applied since it was made."""
+    def show(doc: Mapping[str, Any], summary: tuple[str, ...] | None) -> None:
+        check_applies(path, reviewed, doc)
+        _show(doc, summary)
+
+    return show
+
+
 @contextmanager
 def _one_line_each() -> Iterator[None]:
     """Preflight reports every problem at once: print each as its own ``error:`` line."""
@@ -73,13 +83,21 @@ def _one_line_each() -> Iterator[None]:
 
 
 class _Progress:
-    """A live table of resources being changed, each with its own timer."""
+    """A live table of resources being changed, each with its own timer.
+
+    ``up``'s own steps (the robot's master, each host's provisioning steps: ``op`` ``check`` and
+    ``provision``) join the table on a terminal; into a pipe or a log, where a live table only appears
+    once it is over, each is one line on stderr as it starts and as it ends, so ``up`` is never silent.
+    """
+
+    STEPS = ("check", "provision")  # the lifecycle's events, beside a cloud engine's resources
 
     def __init__(self) -> None:
         self.timers = Timers(clock=time.monotonic)
         self.clock = time.monotonic
-        self.live = Live(get_renderable=self._table, console=console(stderr=True), refresh_per_second=2,
-                         transient=False)
+        err = console(stderr=True)
+        self.lines = not err.is_terminal
+        self.live = Live(get_renderable=self._table, console=err, refresh_per_second=2, transient=False)
 
     def _table(self) -> Any:
         out = table(None, "", "resource", "type", "time")
@@ -90,8 +108,25 @@ class _Progress:
             out.add_row(mark, f"{row.op} {row.name}", row.type, f"{row.elapsed(now):5.0f}s")
         return out
 
+    def _line(self, event: Progress) -> None:
+        """One step as a line: ``planner: runtime …`` when it starts, ``planner: runtime changed (2.8s)``
+        when it ends (the step names and states of the provisioning report ``up`` ends with)."""
+        self.timers(event)
+        row = self.timers.rows.get(event.key)
+        what = f"{visible(event.name)}: {visible(event.type)}"
+        if event.phase == "start":
+            detail = f" {visible(event.message)}" if event.op == "check" and event.message else ""
+            typer.echo(f"{what}{detail} …", err=True)
+        elif event.phase in ("done", "failed") and row is not None:
+            failed = "interrupted" if event.message == "interrupted" else "failed"
+            said = failed if event.phase == "failed" else event.message if event.op == "provision" else "ok"
+            typer.echo(f"{what} {visible(said)} ({row.elapsed(self.clock()):.1f}s)", err=True)
+
     def __call__(self, event: Progress) -> None:
         """The lifecycle's on_event: the display starts with the first event, after any question."""
+        if self.lines and event.op in self.STEPS:
+            self._line(event)
+            return
         if not self.live.is_started:
             self.live.start()
         self.timers(event)
@@ -118,8 +153,10 @@ def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str |
     plan = compile_deployed(manifest, env, target, force=force, has_force=True, creating=True)
     chosen = targets.get(plan.target)
     need_yes(yes, "apply")
-    if plan_file is not None:
-        check_saved_plan(plan_file, manifest=manifest, stack=plan.stack, target=plan.target)
+    show: Callable[[Mapping[str, Any], tuple[str, ...] | None], None] = _show
+    if plan_file is not None:  # exactly what was reviewed, or nothing: checked now, and again under the lock
+        show = _reviewed(plan_file, check_saved_plan(plan_file, manifest=manifest, stack=plan.stack,
+                                                     target=plan.target, plan=plan))
     found = placeholders.found(plan)
     if found and not force:  # copied from the documentation: nothing of the user's would run, or be reachable
         raise FogiacError("; ".join(found) + "; up refuses documentation placeholders (pass --force to deploy anyway)")
@@ -128,7 +165,7 @@ def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str |
     try:
         with _one_line_each(), _Progress() as progress:
             result = sequence.up(chosen, plan, UpOptions(
-                manifest_path=manifest, yes=yes, ssh_from=ssh_from, show=_show,
+                manifest_path=manifest, yes=yes, ssh_from=ssh_from, show=show,
                 confirm=lambda q: typer.confirm(q, default=False), announce=lambda line: typer.echo(line, err=True),
                 on_event=progress, start_edge_master=start_edge_master, edge_master=edge_master,
                 infra_only=infra_only))
@@ -236,7 +273,8 @@ def sweep(manifest: Path = MANIFEST, env: str = ENV, target: str | None = TARGET
 
 def doctor(manifest: Path = MANIFEST, env: str = ENV, target: str | None = TARGET,
            ssh_from: str | None = typer.Option(None, "--ssh-from", help="Your CIDR for ssh_from: auto.")) -> None:
-    """Run every check `up` makes, create nothing, say what would fail."""
+    """Check what the target needs before up (aws: CLI, credentials, policy, zone, quotas; local: ROS 1 and what
+    each workload node imports), create nothing, say what would fail."""
     plan = compile_for(manifest, env, target)
     results = targets.get(plan.target).doctor(plan, ssh_from=ssh_from)
     for check in results:

@@ -7,6 +7,7 @@ from pathlib import Path
 import typer
 
 from fogiac.errors import FogiacError
+from fogiac.manifest.fogros_yaml import comment
 from fogiac.manifest.importers import import_file as convert
 from fogiac.state import write_text_atomic
 
@@ -21,10 +22,12 @@ def import_launch(
         raise FogiacError(f"{out} exists; pass --force to overwrite it")
     manifest, text, notes = convert(launch, out=out)
     write_text_atomic(out, text)
-    typer.echo(f"wrote {out}: {len(manifest.nodes)} cloud node(s) from {launch}")
+    # A file name may hold an escape or a line break too: each line printed is one line, with no escapes.
+    shown, launch_shown = comment(str(out)), comment(str(launch))
+    typer.echo(f"wrote {shown}: {len(manifest.nodes)} cloud node(s) from {launch_shown}")
     for note in notes:
-        typer.echo(f"inferred {note}")
-    typer.echo(f"next: fogiac validate {out} && fogiac plan {out}")
+        typer.echo(f"inferred {comment(note)}")
+    typer.echo(f"next: fogiac validate {shown} && fogiac plan {shown}")
 
 
 def register(app: typer.Typer) -> None:

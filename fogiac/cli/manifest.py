@@ -10,6 +10,7 @@ import typer
 from fogiac.cli._common import MANIFEST, TARGET, load
 from fogiac.errors import FogiacError
 from fogiac.manifest.clouds import prices as price_source
+from fogiac.manifest.crossing import unlisted
 from fogiac.manifest.schema import json_schema, parse_manifest
 from fogiac.net import middleware
 from fogiac.plan import placeholders
@@ -31,6 +32,8 @@ def validate(
         f"{len(plan.hosts)} host{'s' if len(plan.hosts) != 1 else ''}, target {plan.target})"
     )
     for line in placeholders.found(plan):  # valid, but copied from the documentation: `up` refuses it
+        typer.echo(f"warning: {line}", err=True)
+    for line in unlisted(loaded):  # valid, but nothing crosses (an imported FogROS2 node's empty lists)
         typer.echo(f"warning: {line}", err=True)
 
 

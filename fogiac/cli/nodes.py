@@ -8,8 +8,10 @@ target (``aws``, ``hosts``, ``local``).
 from __future__ import annotations
 
 import os
+import selectors
 import shlex
 import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +30,7 @@ from fogiac.provision.report import report_table
 from fogiac.provision.services import Layout
 from fogiac.state import StackState, stack_lock
 from fogiac.tables import console
+from fogiac.termtext import TerminalFilter, clean
 
 
 def _host_of(node: str, manifest: Path, env: str) -> tuple[str, Any, str, Path, Plan]:
@@ -49,10 +52,30 @@ def _host_of(node: str, manifest: Path, env: str) -> tuple[str, Any, str, Path, 
                          f"run `fogiac up {manifest}` first")
 
 
+def _pump(child: subprocess.Popen[bytes]) -> None:
+    """Copy the child's stdout and stderr to ours as they come, each through its own terminal filter."""
+    assert child.stdout is not None and child.stderr is not None
+    ours = {child.stdout.fileno(): (sys.stdout, TerminalFilter()),
+            child.stderr.fileno(): (sys.stderr, TerminalFilter())}
+    with selectors.DefaultSelector() as selector:
+        for fd in ours:
+            selector.register(fd, selectors.EVENT_READ)
+        while selector.get_map():
+            for key, _ in selector.select():
+                data = os.read(key.fd, 65536)
+                out, screen = ours[key.fd]
+                if not data:
+                    selector.unregister(key.fd)
+                out.write(screen.feed_bytes(data, final=not data))
+                out.flush()
+
+
 def _follow(argv: list[str]) -> None:
-    """Run the follow command until it ends or Ctrl-C (which ends it quietly, exit 0)."""
-    child = subprocess.Popen(argv)
+    """Run the follow command until it ends or Ctrl-C (which ends it quietly, exit 0); what it prints
+    reaches the terminal without escape sequences (a node's output is not the operator's to trust)."""
+    child = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
+        _pump(child)
         code = child.wait()
     except KeyboardInterrupt:
         child.terminate()
@@ -104,7 +127,8 @@ def register(app: typer.Typer) -> None:
              lines: int = typer.Option(100, "--lines", "-n", help="How many lines."),
              follow: bool = typer.Option(False, "--follow", "-f",
                                          help="Keep printing what the node writes until Ctrl-C.")) -> None:
-        """Print the last lines a node wrote on its host (--follow: and what it writes next)."""
+        """Print the last lines a node wrote on its host (--follow: and what it writes next), as plain text: a
+        node's escape sequences never reach your terminal."""
         name, access, base, state, plan = _host_of(node, manifest, env)
         host = access.open(name=name, known_hosts=StackState.at(state).known_hosts, stack=plan.stack)
         try:
@@ -115,7 +139,7 @@ def register(app: typer.Typer) -> None:
                 host.close()
                 _follow(access.follow_argv(command, known_hosts=StackState(plan.stack).known_hosts))
                 return
-            text = host.run(command, check=False).stdout
+            text = clean(host.run(command, check=False).stdout)
             typer.echo(text, nl=False)
             if not text.strip():  # a node still loading has nothing to show yet; say so rather than print nothing
                 typer.echo(f"(node {node} on {name} has written nothing yet)", err=True)

@@ -20,9 +20,10 @@ from rich.markup import escape
 from fogiac import deployment, registry, targets
 from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_deployed, compile_for
 from fogiac.errors import FogiacError, StateError
+from fogiac.manifest import clouds
 from fogiac.manifest.clouds import prices as price_source
 from fogiac.manifest.revision import load_revision
-from fogiac.plan import drift, placeholders, review
+from fogiac.plan import drift, placeholders, review, saved
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.cost import MONTH, menu_line, per_month, saving_pct
 from fogiac.plan.diff import annotate, autostop_words, diff_documents, with_drift
@@ -82,16 +83,26 @@ def stack_label(doc: Mapping[str, Any]) -> str:
     return f"{doc['stack']} (--env {env})" if env else str(doc["stack"])
 
 
+def _variant_says(target: str, name: str) -> str | None:
+    """An optional word of the target's ``cloud:`` variant for the plan (a sandbox's note, its ports)."""
+    said = getattr(clouds.variant(target), name, None) if clouds.known(target) else None
+    return said if isinstance(said, str) else None
+
+
 def render(doc: Mapping[str, Any]) -> None:
     doc = review.visible_doc(doc)  # no value reaches the terminal with a control or bidi character in it
     out = console()
     where = f", region {doc['region']}, mode {doc['mode']}" if doc["resources"] else ""
     out.print(f"[bold]fogiac plan[/] {stack_label(doc)}: target {doc['target']}{where}")
     carrier = doc["middleware"]
+    port = _variant_says(doc["target"], "host_ports") or f"port {carrier['port']}"
     out.print(f"ROS {carrier['ros_distro']} via {escape(carrier['label'])}\n  edge: {escape(carrier['edge'])}\n"
-              f"  each host: {escape(carrier['cloud'])}, port {carrier['port']}", highlight=False)
+              f"  each host: {escape(carrier['cloud'])}, {port}", highlight=False)
     if not doc["resources"]:
         out.print(f"no cloud resources (target {doc['target']})")
+    note = _variant_says(doc["target"], "plan_note")
+    if note:
+        out.print(note, highlight=False)
     for stack in doc["stacks"]:
         rows = [r for r in doc["resources"] if r["stack"] == stack]
         out.print(f"\n[bold]{stack} stack: {len(rows)} to create[/]")
@@ -184,6 +195,8 @@ def plan(
         # a value fogiac never writes (a number where a name goes, a host row without its name): one line
         raise StateError(f"{deployment.applied_where(compiled.stack)}: not a plan document fogiac applied "
                          f"({type(err).__name__}: {err}); the next `fogiac up` writes it again, or remove it") from None
+    if out is not None:  # a saved plan binds what up must find unchanged to apply it (fogiac.plan.saved)
+        doc = saved.bind(doc, plan=compiled)
     if out is not None and str(out) == "-":  # the document on stdout, instead of the table
         as_json = True
     elif out is not None:

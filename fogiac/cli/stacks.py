@@ -20,7 +20,7 @@ from fogiac.manifest.fogros import load_any
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.guard import duration
 from fogiac.state import StackState, stack_names, state_root
-from fogiac.tables import console, table
+from fogiac.tables import console, printable, table, usd
 
 STATES = {deployment.COMPLETE: "up", deployment.PARTIAL: "partial", deployment.REMOVED: "removed"}
 
@@ -50,6 +50,17 @@ def _autostop_and_env(record: deployment.Deployment, applied: dict[str, Any] | N
     return f"{plan.autostop.action} after {duration(plan.autostop.idle_s)} idle", env
 
 
+def _so_far(applied: dict[str, Any] | None, hours: float) -> str:
+    """The cost so far from the applied plan's hourly cost; a record's value that is not an amount (NaN,
+    a string, negative) is "unknown", never printed raw or trusted in arithmetic."""
+    cost = applied.get("cost") if applied else None
+    if not isinstance(cost, dict) or "hourly_usd" not in cost:
+        return "—"
+    hourly = cost["hourly_usd"]
+    rate, total = usd(hourly, digits=4), usd(hourly * hours) if usd(hourly) else None
+    return f"at most {total} ({rate}/h)" if rate and total else "unknown"
+
+
 def rows(*, everything: bool = False, now: float | None = None) -> list[dict[str, str]]:
     """One row per stack with a deployment record (``everything``: also those ``down`` removed)."""
     now = time.time() if now is None else now
@@ -64,9 +75,7 @@ def rows(*, everything: bool = False, now: float | None = None) -> list[dict[str
         applied = StackState(stack).get(StackState.APPLIED)
         applied = applied if isinstance(applied, dict) else None
         autostop, env = _autostop_and_env(record, applied)
-        hourly = float(applied["cost"]["hourly_usd"]) if applied and "cost" in applied else None
-        hours = max(0.0, now - record.since_epoch) / 3600
-        so_far = "—" if hourly is None or not record.exists else f"at most ${hourly * hours:.2f} (${hourly:.4f}/h)"
+        so_far = "—" if not record.exists else _so_far(applied, max(0.0, now - record.since_epoch) / 3600)
         out.append({"stack": stack, "env": env, "target": record.target,
                     "state": STATES.get(record.state, record.state), "since": record.since,
                     "cost so far": so_far, "autostop": autostop, "manifest": record.manifest})
@@ -86,7 +95,7 @@ def register(app: typer.Typer) -> None:
             ["manifest"] if manifests else [])
         out = table(None, *columns)
         for row in found:
-            out.add_row(*(row[c] for c in columns))
+            out.add_row(*(printable(row[c]) for c in columns))  # a record's text never drives the terminal
         screen = console()
         screen.print(out)
         screen.print("cost so far: the applied plan's hourly cost since the first up, an upper bound; "

@@ -61,7 +61,7 @@ def replicas_lines(links: list[Mapping[str, Any]]) -> list[Any]:
 
     for host, r in sorted(rows, key=lambda row: (row[1].get("group", ""), row[1].get("index", 0))):
         age = r.get("last_answer_s")
-        shown.add_row(r.get("group", "-"), f"{r.get('index', '-')}/{r.get('count', '-')}", host,
+        shown.add_row(r.get("group", "-"), f"{_number(r)}/{r.get('count', '-')}", host,
                       r.get("health", "unknown"), str(r.get("won", 0)), str(r.get("answers", 0)),
                       f"{ms(r.get('latency_ms'))} / {ms(r.get('latency_p95_ms'))}",
                       "-" if age is None else f"{age:g} s ago")
@@ -69,11 +69,19 @@ def replicas_lines(links: list[Mapping[str, Any]]) -> list[Any]:
     for host, r in rows:
         if r.get("health") == "silent":
             age = r.get("last_answer_s")
-            out.append(f"replica {r.get('index')} of {r.get('group')} on {host} stopped answering "
+            out.append(f"replica {_number(r)} of {r.get('group')} on {host} stopped answering "
                        f"(last answer {'never' if age is None else f'{age:g} s ago'})")
         elif r.get("health") == "down":
-            out.append(f"replica {r.get('index')} of {r.get('group')} on {host} is not linked (host or its relay down)")
+            out.append(f"replica {_number(r)} of {r.get('group')} on {host} is not linked (host or its relay down)")
     return out
+
+
+def _number(r: Mapping[str, Any]) -> str:
+    """A replica as people count it: 1 of 2 on ``<node>-r1`` (``index`` counts from 0, as the plan does)."""
+    number, index = r.get("number"), r.get("index")
+    if isinstance(number, int):
+        return str(number)
+    return str(index + 1) if isinstance(index, int) and not isinstance(index, bool) else "-"
 
 
 def duration(seconds: float) -> str:

@@ -14,7 +14,8 @@ from __future__ import annotations
 import dataclasses
 import shutil
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from typing import Any
 
 from fogiac import deployment
@@ -39,6 +40,7 @@ from fogiac.lifecycle.edge import (
     running_edge,
     stop_edge,
 )
+from fogiac.lifecycle.events import OnEvent, Phase, Progress
 from fogiac.net import middleware
 from fogiac.plan.document import plan_document
 from fogiac.plan.model import Plan
@@ -66,7 +68,8 @@ def up(target: Target, plan: Plan, opts: UpOptions) -> UpResult:
         before = deployment.read(plan.stack)
         deployment.begin(prepared.plan, opts.manifest_path)  # before anything exists, so down always finds it
         if not infra_only:  # before anything is made: the robot's side must be there to connect
-            _edge_or_undo(prepared.plan, master, start=opts.start_edge_master, before=before, existed=existed)
+            with _step(opts.on_event, "edge", "robot's ROS master", master):
+                _edge_or_undo(prepared.plan, master, start=opts.start_edge_master, before=before, existed=existed)
         created = target.create(prepared.plan, prepared, announce=opts.announce, on_event=opts.on_event)
         plan = created.plan
         report, relays = None, {}
@@ -74,7 +77,8 @@ def up(target: Target, plan: Plan, opts: UpOptions) -> UpResult:
             reach = target.reach(plan, created, announce=opts.announce)
             if Feature.PROVISIONS in target.features:
                 done = provision_and_connect(plan, access=reach.access, connect=reach.connect, master=master,
-                                             started_edge_master=opts.start_edge_master, ports=reach.ports)
+                                             started_edge_master=opts.start_edge_master, ports=reach.ports,
+                                             progress=_provision_steps(opts.on_event))
             else:  # the platform runs the nodes and their end of the link: the target answered the links
                 done = connect_edge(plan, connect=reach.connect, master=master,
                                     started_edge_master=opts.start_edge_master)
@@ -85,6 +89,37 @@ def up(target: Target, plan: Plan, opts: UpOptions) -> UpResult:
         applied = StackState(plan.stack).where()
     return UpResult(outputs=created.outputs or {"relays": relays}, applied=applied, report=report, relays=relays,
                     edge_master=master, plan=plan, machines=created.machines)
+
+
+@contextmanager
+def _step(on_event: OnEvent | None, name: str, kind: str, detail: str) -> Iterator[None]:
+    """One step of ``up`` outside any host's provisioning, shown as it starts and ends."""
+    key = f"{kind}:{name}"
+    if on_event is not None:
+        on_event(Progress(phase="start", key=key, name=name, type=kind, op="check", message=detail))
+    try:
+        yield
+    except BaseException as err:
+        if on_event is not None:
+            said = "interrupted" if isinstance(err, KeyboardInterrupt) else detail
+            on_event(Progress(phase="failed", key=key, name=name, type=kind, op="check", message=said))
+        raise
+    if on_event is not None:
+        on_event(Progress(phase="done", key=key, name=name, type=kind, op="check", message=detail))
+
+
+def _provision_steps(on_event: OnEvent | None) -> Callable[[str, str, str], None] | None:
+    """Provisioning's per-step callback as progress events: each host's steps (``runtime``, ``services``,
+    ``link``: the names the provisioning report and ``status`` use) as they start and end, so ``up``
+    is never silent while a host is set up."""
+    if on_event is None:
+        return None
+
+    def progress(host: str, step: str, status: str) -> None:
+        phase: Phase = "start" if status == "running" else "failed" if status == "failed" else "done"
+        on_event(Progress(phase=phase, key=f"provision:{host}:{step}", name=host, type=step, op="provision",
+                          message=status))
+    return progress
 
 
 def _edge_or_undo(plan: Plan, master: str, *, start: bool, before: deployment.Deployment | None,

@@ -49,9 +49,9 @@ class HostMachine(_Model):
     name: DnsName = Field(description="Short DNS-safe name for the machine.")
     address: Annotated[str, AfterValidator(_address)] = Field(description="IP address or DNS name reachable over SSH.")
     user: Annotated[str, AfterValidator(_user)] = Field(default="ubuntu", description="SSH user.")
-    port: int = Field(default=22, ge=1, le=65535, description="SSH port.")
+    port: int = Field(default=22, strict=True, ge=1, le=65535, description="SSH port.")
     key: PlainPath = Field(description="Private key file for SSH, relative to the manifest.")
-    gpus: int = Field(default=0, ge=0, description="GPUs the machine has.")
+    gpus: int = Field(default=0, strict=True, ge=0, description="GPUs the machine has.")
 
 
 class Autostop(_Model):
@@ -204,7 +204,8 @@ class Relay(_Model):
     compression: Compression | dict[Topic, Compression] = Field(
         default="none", description="One algorithm for all topics, or per topic."
     )
-    queue_size: int = Field(default=2, ge=1, le=1000, description="Per-topic queue; the oldest message is dropped.")
+    queue_size: int = Field(default=2, strict=True, ge=1, le=1000,
+                            description="Per-topic queue; the oldest message is dropped.")
 
     @field_validator("topics")
     @classmethod

@@ -47,9 +47,10 @@ NO_LIMITS = Limits()
 class CloudVariant(Protocol):
     """What a target answers about its part of the manifest's ``cloud:`` block.
 
-    Optional attributes, read where present: ``limits`` (:class:`Limits`) and ``network`` (the model
+    Optional attributes, read where present: ``limits`` (:class:`Limits`), ``network`` (the model
     of the ``network:`` block with the variant's own keys, a subclass of
-    :class:`~fogiac.manifest.network.NetworkBlock`, asked of the default variant).
+    :class:`~fogiac.manifest.network.NetworkBlock`, asked of the default variant) and
+    ``catalogue_sha256()`` (the digest of the machine catalogue it reads, which a saved plan binds).
     """
 
     @property
@@ -107,6 +108,13 @@ def prices(target: str | None = None) -> PriceSource:
     """Where ``target``'s prices come from; a target without a ``cloud:`` variant of its own (one
     registered in code only) prices its machines in the default's terms, as it sized them."""
     return variant(target if known(target) else None).prices()
+
+
+def catalogue_digest(target: str | None = None) -> str | None:
+    """The digest of the machine catalogue ``target`` chooses and prices machines from (as :func:`prices`, the
+    default's for a target without a variant of its own); None for a variant that keeps none."""
+    found = getattr(variant(target if known(target) else None), "catalogue_sha256", None)
+    return str(found()) if callable(found) else None
 
 
 def limits(provider: str | None = None) -> Limits:

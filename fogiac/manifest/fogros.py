@@ -4,7 +4,8 @@ FogROS marks a cloud node as ``<node pkg="fogros" type="fogros_launch.py">`` wit
 keys ``instance_type``, ``launch_file`` and ``env_script``, or ``type="fogros_docker.py"`` with
 ``docker_image`` and ``machine_type``. Every other node stays on the robot. The result is
 validated by :func:`fogiac.manifest.schema.parse_manifest` before anything is written, so a launch file
-fogiac cannot express gives error lines and no file.
+fogiac cannot express gives error lines and no file. What the launch file says reaches the manifest
+only as quoted strings and one-line comments (:mod:`fogiac.manifest.fogros_yaml`).
 """
 
 from __future__ import annotations
@@ -21,8 +22,9 @@ import yaml
 from fogiac.errors import ManifestError
 from fogiac.manifest import importers
 from fogiac.manifest.clouds import variant
+from fogiac.manifest.fogros_yaml import FromLaunch, comment, dump, validate
 from fogiac.manifest.importers import Converted
-from fogiac.manifest.schema import Manifest, parse_manifest
+from fogiac.manifest.schema import Manifest
 from fogiac.manifest.source import read_source
 
 _FIND = re.compile(r"\$\(find ([A-Za-z0-9_]+)\)")
@@ -75,7 +77,8 @@ def _params(node: _Element, source: str) -> dict[str, object]:
             try:
                 loaded = yaml.safe_load(child.text)
             except yaml.YAMLError as err:
-                raise ManifestError([f"{source}:{child.line}: invalid YAML in <rosparam>: {err}"]) from None
+                why = getattr(err, "problem", None) or str(err).splitlines()[0]  # PyYAML's own text spans lines
+                raise ManifestError([f"{source}:{child.line}: invalid YAML in <rosparam>: {comment(why)}"]) from None
             if isinstance(loaded, dict):
                 params.update(loaded)
         elif child.tag == "param" and "name" in child.attrib:
@@ -125,6 +128,7 @@ class Imported:
     local_nodes: tuple[str, ...]
     base: Path
     notes: tuple[str, ...] = ()  # what the import decided that the launch file did not say
+    node_lines: tuple[int, ...] = ()  # each node's line in the launch file, for problems found validating
 
 
 def _infer_gpu(nodes: list[dict]) -> list[str]:
@@ -146,6 +150,7 @@ def convert(path: Path) -> Imported:
     root = _parse_xml(text, source)
     base = path.resolve().parent
     nodes: list[dict] = []
+    lines: list[int] = []
     local: list[str] = []
     problems: list[str] = []
     for element in root.children:
@@ -167,16 +172,18 @@ def convert(path: Path) -> Imported:
             if launch is None:
                 continue
             if params.get("env_script"):
-                launch["env_script"] = str(params["env_script"])
-            nodes.append({"name": _dns(name), "machine": str(params["instance_type"]), "launch": launch})
+                launch["env_script"] = FromLaunch(params["env_script"])
+            nodes.append({"name": FromLaunch(_dns(name)), "machine": FromLaunch(params["instance_type"]),
+                          "launch": launch})
+            lines.append(element.line)
         elif kind == "fogros_docker.py":
             missing = [k for k in ("docker_image", "machine_type") if not params.get(k)]
             if missing:
                 problems.append(f"{where}: fogros_docker.py needs rosparam {', '.join(repr(k) for k in missing)}")
                 continue
-            nodes.append(
-                {"name": _dns(name), "machine": str(params["machine_type"]), "image": str(params["docker_image"])}
-            )
+            nodes.append({"name": FromLaunch(_dns(name)), "machine": FromLaunch(params["machine_type"]),
+                          "image": FromLaunch(params["docker_image"])})
+            lines.append(element.line)
         else:
             problems.append(
                 f"{where}: unknown FogROS node type {kind!r}; valid: 'fogros_launch.py', 'fogros_docker.py'"
@@ -186,8 +193,8 @@ def convert(path: Path) -> Imported:
     if not nodes:
         raise ManifestError([f"{source}:{root.line}: no FogROS cloud nodes (pkg=\"fogros\") in this launch file"])
     notes = _infer_gpu(nodes)
-    data = {"name": _dns(path.stem), "cloud": {"provider": "aws", "region": "us-west-2"}, "nodes": nodes}
-    return Imported(data=data, local_nodes=tuple(local), base=base, notes=tuple(notes))
+    data = {"name": FromLaunch(_dns(path.stem)), "cloud": {"provider": "aws", "region": "us-west-2"}, "nodes": nodes}
+    return Imported(data=data, local_nodes=tuple(local), base=base, notes=tuple(notes), node_lines=tuple(lines))
 
 
 def _launch_spec(launch_file: str, base: Path, where: str, problems: list[str]) -> dict | None:
@@ -201,27 +208,29 @@ def _launch_spec(launch_file: str, base: Path, where: str, problems: list[str]) 
     else:
         file_path = (base / launch_file).resolve()
     if not file_path.is_file():
-        problems.append(f"{where}: launch_file {launch_file!r} does not exist (looked for {file_path})")
+        problems.append(f"{where}: launch_file {launch_file!r} does not exist (looked for {comment(str(file_path))})")
         return None
     found = _package_of(file_path)
     if found is None:
-        problems.append(f"{where}: {file_path} is not inside a ROS package (no package.xml above it)")
+        problems.append(f"{where}: {comment(str(file_path))} is not inside a ROS package (no package.xml above it)")
         return None
     package, package_dir = found
     workspace = package_dir.parent.parent if package_dir.parent.name == "src" else package_dir.parent
-    return {"package": package, "file": file_path.name, "workspace": _relative(workspace, base)}
+    return {"package": FromLaunch(package), "file": FromLaunch(file_path.name),
+            "workspace": FromLaunch(_relative(workspace, base))}
 
 
-def _relative(path: Path, base: Path) -> str:
+def _relative(path: Path, base: Path) -> FromLaunch:
     """Relative to the manifest's folder, so the manifest can be checked in beside the workspace."""
-    return os.path.relpath(path, base)
+    return FromLaunch(os.path.relpath(path, base))
 
 
 def to_yaml(imported: Imported, *, source: Path) -> str:
+    """The manifest's text; each header line is one comment line whatever the launch file's names hold."""
     header = [f"# Imported from {source.name} by `fogiac import`.", "# Kept on the robot (not deployed by fogiac):"]
     header += [f"#   - {n}" for n in imported.local_nodes] or ["#   (none)"]
     header += [f"# Inferred: {note}" for note in imported.notes]
-    return "\n".join(header) + "\n" + yaml.safe_dump(imported.data, sort_keys=False)
+    return dump(header, imported.data)
 
 
 def import_launch(path: Path, *, out: Path | None = None) -> Converted:
@@ -243,7 +252,8 @@ def import_launch(path: Path, *, out: Path | None = None) -> Converted:
         imported = dataclasses.replace(imported, notes=imported.notes + (
             f"workspace {outside[0]} is outside the manifest's folder: allow_paths_outside: true",))
     text = to_yaml(imported, source=path)
-    return Converted(parse_manifest(text, source=str(out or path), base=base), text, imported.notes)
+    manifest = validate(text, launch=path, base=base, node_lines=imported.node_lines)
+    return Converted(manifest, text, tuple(comment(note) for note in imported.notes))
 
 
 def load_any(path: str | Path) -> Manifest:

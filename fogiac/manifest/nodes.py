@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Annotated, Literal
 from pydantic import (
     Discriminator,
     Field,
+    StrictInt,
     Tag,
     ValidationError,
     ValidationInfo,
@@ -97,7 +98,7 @@ class Machine(_Model):
 
     type: str | None = Field(default=None, description="A type from the target's catalogue; or leave it out.")
     gpu: bool | str | None = Field(default=None, description="true (any GPU) or a model such as T4, A10G, V100.")
-    vcpus: int | str | None = Field(default=None, description="vCPUs: a number (at least) or a bound like '>=8'.")
+    vcpus: StrictInt | str | None = Field(default=None, description="vCPUs: a number (at least) or a bound like '>=8'.")
     memory_gib: float | str | None = Field(default=None, description="Memory in GiB: a number (at least) or '>=16'.")
     arch: Literal["x86_64", "arm64"] | None = Field(default=None, description="CPU architecture (arm64: Graviton).")
     gpu_memory_gib: float | str | None = Field(default=None,
@@ -175,14 +176,16 @@ class Node(_Model):
     )
     gpu: bool = Field(default=False, description="The node needs a GPU.")
     topics: Literal["auto"] | TopicLists = Field(default="auto", description="Topics relayed for this node.")
-    disk_gb: int = Field(default=30, ge=8, le=16384, description="Root volume size in GiB (gp3, encrypted).")
+    disk_gb: int = Field(default=30, strict=True, ge=8, le=16384,
+                         description="Root volume size in GiB (gp3, encrypted).")
     spot: bool = Field(default=False, description="Use a spot instance.")
     env: dict[str, EnvValue] = Field(
         default_factory=dict, description="Environment variables for the node; a secret as {secret: env:NAME} "
         "or {secret: file:PATH}, read at `up` and never shown or recorded.")
     host: str | None = Field(default=None, description="For the hosts target: which cloud.hosts entry runs it.")
-    replicas: int = Field(default=1, ge=1, le=MAX_REPLICAS, description="Copies of the node, each on a host of its "
-                          "own (aws: in different zones): the robot gets the first reply to each request.")
+    replicas: int = Field(default=1, strict=True, ge=1, le=MAX_REPLICAS,
+                          description="Copies of the node, each on a host of its own (aws: in different zones): "
+                          "the robot gets the first reply to each request.")
     reply_match: str = Field(default=DEFAULT_MATCH, description="With replicas: the reply field that names its "
                              "request (a reply copies it from the request); header.stamp needs a std_msgs/Header.")
     hedge: Literal["all"] | Hedge = Field(default="all", description="With replicas: send each request to all at "

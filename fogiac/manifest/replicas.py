@@ -33,8 +33,9 @@ class MatchUnchecked(UserWarning):
 class Hedge(_Model):
     """Ask the first replica, and the others only when it has not answered within ``delay_ms``."""
 
-    delay_ms: int = Field(ge=1, le=60_000, description="How long the first replica has before the others are "
-                          "asked too, in milliseconds (the 'hedged request': less bandwidth than asking all).")
+    delay_ms: int = Field(strict=True, ge=1, le=60_000,
+                          description="How long the first replica has before the others are asked too, in "
+                          "milliseconds (the 'hedged request': less bandwidth than asking all).")
 
 
 def check_type(name: str) -> str:
@@ -50,11 +51,8 @@ def check_match(value: str) -> str:
 
 
 def match_problems(outputs: tuple[str, ...], types: dict[str, str], match: str) -> list[tuple[str, str]]:
-    """(problem, field) for each out topic whose stated type cannot carry ``match`` (a ``header.*`` path:
-    any other field is of the node's own choosing, its type's business); a type the store does not know
-    passes."""
-    if not match.startswith("header."):
-        return []
+    """(problem, field) for each out topic whose stated type cannot carry ``match`` (a ``header.*`` path, or
+    any other field of a type the store knows field by field); a type the store does not know passes."""
     problems = []
     for topic in outputs:
         if topic not in types:

@@ -38,6 +38,15 @@ FOGIAC_TAGS = 4  # the tags fogiac sets on every resource: fogiac:stack, fogiac:
 RESERVED_TAGS = ("fogiac:",)  # fogiac's own tag prefix; the cloud's variant names its own (Limits.reserved)
 
 
+class State(_Model):
+    """Where this manifest's stack records are kept when a lab shares them (``fogiac state``)."""
+
+    url: str = Field(pattern=r"^s3://[a-z0-9][a-z0-9.-]{1,61}[a-z0-9](/[^?#]*)?$",
+                     description="The shared state store, s3://BUCKET/PREFIX; FOGIAC_STATE_URL wins over it.")
+    kms_key: str | None = Field(default=None, description="The KMS key (id, ARN or alias) that encrypts the "
+                                "stack's keys and certificates in the store.")
+
+
 class Manifest(_Model):
     """A fogiac deployment: which ROS nodes run off the robot, where, over which network."""
 
@@ -51,6 +60,8 @@ class Manifest(_Model):
     nodes: tuple[Node, ...] = Field(min_length=1, description="The nodes that run off the robot.")
     relay: Relay = Field(default_factory=Relay, description="How topics cross between edge and cloud.")
     tags: dict[str, str] = Field(default_factory=dict, description="Extra tags on every cloud resource.")
+    state: State | None = Field(default=None, description="Share the stack's records with the lab: where, "
+                                "and the key that encrypts its secrets (default: the local state folder).")
     allow_paths_outside: bool = Field(
         default=False, description="Let a workspace, env_script, requirements or build context resolve outside "
         "the manifest's folder (through ../ or a symbolic link): up pushes it to the hosts.")

@@ -124,7 +124,8 @@ def _replicas(manifest: Manifest, placed: Placement) -> dict[str, Replica]:
         for index, host in enumerate(hosts):
             found[host] = Replica(group=node.name, index=index, count=node.replicas, match=node.reply_match,
                                   hedge="all" if hedge == "all" else "delayed",
-                                  hedge_delay_s=0.0 if hedge == "all" else hedge.delay_ms / 1000)
+                                  hedge_delay_s=0.0 if hedge == "all" else hedge.delay_ms / 1000,
+                                  types=tuple(sorted(node.message_types.items())))
     return found
 
 

@@ -118,11 +118,22 @@ class PlanDiff:
     def expected_after(self) -> float:
         return self.cost_after if self.spot_after is None else self.spot_after
 
+    def counts(self) -> tuple[int, int, int]:
+        """(to add, to change, to destroy): the resources, a replacement once to add and once to destroy.
+
+        A target that declares no resources on either side (local sandboxes, machines that exist) deploys
+        hosts, not resources: its hosts are counted instead, or a changed machine on ``local`` showed
+        ``~ planner machine: ...`` above "Plan: 0 to add, 0 to change, 0 to destroy."
+        """
+        if not self.resources:
+            return len(self.hosts.added), len(self.hosts.changed), len(self.hosts.removed)
+        replaced = self.count("replace")
+        return self.count("create") + replaced, self.count("update"), self.count("delete") + replaced
+
     def summary(self) -> str:
-        """Terraform's line: a replacement counts once to add and once to destroy; then the drift, if any."""
-        add = self.count("create") + self.count("replace")
-        destroy = self.count("delete") + self.count("replace")
-        line = f"Plan: {add} to add, {self.count('update')} to change, {destroy} to destroy."
+        """Terraform's line (:meth:`counts`); then the drift, if any."""
+        add, change, destroy = self.counts()
+        line = f"Plan: {add} to add, {change} to change, {destroy} to destroy."
         if self.drift:
             counts = [f"{n} {status}" for status in ("changed", "deleted", "added")
                       if (n := sum(1 for d in self.drift if d.status == status))]
@@ -137,8 +148,7 @@ class PlanDiff:
 
         return {
             "against": self.against, "empty": self.empty, "summary": self.summary(),
-            "add": self.count("create") + self.count("replace"), "change": self.count("update"),
-            "destroy": self.count("delete") + self.count("replace"),
+            **dict(zip(("add", "change", "destroy"), self.counts(), strict=True)),
             "hosts": section(self.hosts), "nodes": section(self.nodes), "topics": section(self.topics),
             "security_rules": section(self.security_rules), "pushed": section(self.pushed),
             "settings": [{"name": k, "before": b, "after": a} for k, b, a in self.settings],
@@ -214,8 +224,10 @@ def _resources(before: Sequence[Mapping[str, Any]], after: Sequence[Mapping[str,
 
 
 def _section(before: Sequence[Mapping[str, Any]] | None, after: Sequence[Mapping[str, Any]] | None,
-             key: tuple[str, ...], *, compare: bool) -> Section:
-    """Rows keyed by ``key``; with ``compare``, rows on both sides report changed fields."""
+             key: tuple[str, ...], *, compare: bool, content: str | None = None) -> Section:
+    """Rows keyed by ``key``; with ``compare``, rows on both sides report changed fields. ``content``: the field
+    that digests what a row pushes: equal on both sides, the row's local path is no change (the same bytes
+    reach the hosts from another member's checkout of the lab's repository, as a shared state store has it)."""
     if before is None or after is None:  # a version 1 document lacks this section: nothing to compare
         return Section()
 
@@ -227,8 +239,9 @@ def _section(before: Sequence[Mapping[str, Any]] | None, after: Sequence[Mapping
     if compare:
         for name in (n for n in new if n in old):
             # a field the older document did not have yet is not a change (an applied plan of an older fogiac)
+            same = content is not None and old[name].get(content) == new[name].get(content)
             fields = tuple((f, old[name].get(f), new[name].get(f)) for f in new[name]
-                           if f in old[name] and old[name].get(f) != new[name].get(f))
+                           if f in old[name] and old[name].get(f) != new[name].get(f) and not (same and f == "path"))
             if fields:
                 changed.append(RowChange(name, fields))
     return Section(added=tuple(r for n, r in new.items() if n not in old),
@@ -325,7 +338,7 @@ def diff_documents(before: Mapping[str, Any] | None, after: Mapping[str, Any], *
         exposure=_exposure(rules, topics),
         spot_before=_spot_hourly(before), spot_after=_spot_hourly(after),
         # an applied document recorded before pushed paths were listed: nothing to compare them with
-        pushed=_section(before.get("pushed"), after.get("pushed"), ("node", "what"), compare=True)
+        pushed=_section(before.get("pushed"), after.get("pushed"), ("node", "what"), compare=True, content="sha256")
         if "pushed" in before else Section(),
         cost_risk=_cost_risk(before.get("autostop"), after.get("autostop")) if "autostop" in before else (),
         autostop=after.get("autostop"), autostop_known="autostop" in after,

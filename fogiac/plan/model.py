@@ -206,6 +206,7 @@ class Replica:
     match: str  # how a reply names its request: "header.stamp" (a std_msgs/Header's stamp, the default) or a field
     hedge: HedgeMode = "all"
     hedge_delay_s: float = 0.0  # "delayed": how long the first replica has before the others are asked too
+    types: tuple[tuple[str, str], ...] = ()  # (topic, message type) as message_types states: replies checked with it
 
 
 @dataclass(frozen=True)
@@ -360,6 +361,8 @@ class Plan:
         for route in out["relay"]:
             if route["replica"] is None:  # unreplicated: the same bytes (and digest) as before replicas existed
                 del route["replica"]
+            elif not route["replica"]["types"]:  # no stated types: the same bytes as before they were carried
+                del route["replica"]["types"]
         for host in out["hosts"]:
             if host["zone"] is None:  # absent unless set: existing plans keep their bytes (and digests)
                 del host["zone"]

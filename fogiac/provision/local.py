@@ -76,14 +76,29 @@ class LocalAccess:
         shutil.rmtree(self.sandbox, ignore_errors=True)
 
 
-# The operator's credentials stay out of the sandbox: its services (and what they log: roslaunch writes its
-# whole environment to its log) never see a variable whose name says it holds a secret, a named secret's
-# source (`{secret: env:NAME}`) included. A node gets its own secrets from its 0600 file.
+# A sandbox is handed an allowlisted environment, not the operator's: its services (and what they log: roslaunch
+# writes its environment to its log) see only what running ROS, Python, pip and a container engine needs. A
+# variable holding a secret's value (`{secret: env:NAME}`) has any name, so only an allowlist keeps it out; a
+# node gets its own secrets from its 0600 file. Names that say they hold a credential are dropped even when
+# allowlisted (a `PIP_PASSWORD`, a `ROS_AUTH_TOKEN`).
+_ALLOWED = frozenset((
+    "PATH", "HOME", "USER", "LOGNAME", "SHELL", "LANG", "LANGUAGE", "TZ", "TMPDIR", "TERM",
+    "PYTHONPATH", "PYTHONHOME", "PYTHONDONTWRITEBYTECODE", "PYTHONUNBUFFERED", "VIRTUAL_ENV",
+    "LD_LIBRARY_PATH", "CMAKE_PREFIX_PATH", "AMENT_PREFIX_PATH", "COLCON_PREFIX_PATH", "PKG_CONFIG_PATH",
+    "SSL_CERT_FILE", "SSL_CERT_DIR", "REQUESTS_CA_BUNDLE", "CURL_CA_BUNDLE",
+    "HTTP_PROXY", "HTTPS_PROXY", "NO_PROXY", "http_proxy", "https_proxy", "no_proxy",
+    "XDG_RUNTIME_DIR", "DBUS_SESSION_BUS_ADDRESS", "DOCKER_HOST", "CONTAINER_HOST",
+))
+_ALLOWED_PREFIXES = ("LC_", "ROS_", "RMW_", "PIP_", "CONTAINERS_")
 _CREDENTIAL = re.compile(r"TOKEN|SECRET|PASSW|PASSPHRASE|CREDENTIAL|ACCESS_KEY|PRIVATE_KEY|API_KEY|AUTH", re.I)
+# What a sandbox's services write (roslaunch's logs, which hold their environment; a node's own files) is
+# the operator's alone, as a host's files are its service user's.
+SANDBOX_UMASK = 0o077
 
 
 def sandbox_env() -> dict[str, str]:
-    return {k: v for k, v in os.environ.items() if not _CREDENTIAL.search(k)}
+    return {k: v for k, v in os.environ.items()
+            if (k in _ALLOWED or k.startswith(_ALLOWED_PREFIXES)) and not _CREDENTIAL.search(k)}
 
 
 class LocalHost:
@@ -104,7 +119,7 @@ class LocalHost:
         try:
             done = subprocess.run(
                 ["bash", "-c", command], cwd=self.base, capture_output=True, text=True,
-                timeout=timeout, stdin=subprocess.DEVNULL, env=sandbox_env(),
+                timeout=timeout, stdin=subprocess.DEVNULL, env=sandbox_env(), umask=SANDBOX_UMASK,
             )
         except subprocess.TimeoutExpired:
             raise ProvisionError(f"{self.name}: `{command[:60]}` timed out after {timeout}s") from None

@@ -9,12 +9,27 @@ the host. :func:`problems` runs before ``up`` creates anything, so a missing sec
 from __future__ import annotations
 
 import os
+import stat
+import warnings
 from pathlib import Path
 
 from fogiac.errors import ProvisionError
 from fogiac.plan.model import NodeSpec, Plan
 
 MAX_BYTES = 64 * 1024  # a token or a password, not a file of its own
+
+
+class SecretExposed(UserWarning):
+    """A ``file:`` secret others on this machine can read: used, and said in one line, as ssh says of a key
+    (once per file and run: the warning is raised at one place, so Python shows each message once)."""
+
+
+def _exposed(ref: str, path: Path) -> None:
+    """Warn when ``path`` grants group or other users any access (ssh's test for a private key file)."""
+    mode = stat.S_IMODE(path.stat().st_mode)
+    if mode & 0o077:
+        warnings.warn(SecretExposed(f"secret {ref}: other users can read it (mode {mode:04o}); "
+                                    f"keep it to yourself: chmod 600 {path}"), stacklevel=2)
 
 
 def read(ref: str) -> str:
@@ -31,6 +46,7 @@ def read(ref: str) -> str:
                 raise ProvisionError(f"secret {ref}: not a regular file")
             if path.stat().st_size > MAX_BYTES:
                 raise ProvisionError(f"secret {ref}: larger than {MAX_BYTES} bytes")
+            _exposed(ref, path)
             value = path.read_text()
         except (OSError, UnicodeDecodeError) as err:
             raise ProvisionError(f"secret {ref}: cannot be read ({getattr(err, 'strerror', None) or err})") from None

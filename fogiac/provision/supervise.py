@@ -68,6 +68,16 @@ def _start_time(pid: int) -> str | None:
         return None
 
 
+def _age(pid: int) -> float | None:
+    """Seconds since ``pid`` started (its start time against the machine's uptime), or None when gone."""
+    started = _start_time(pid)
+    try:
+        uptime = float(Path("/proc/uptime").read_text().split()[0])
+        return max(0.0, uptime - int(started or "") / os.sysconf("SC_CLK_TCK"))
+    except (OSError, ValueError, IndexError):
+        return None
+
+
 def _write_pid(path: Path, pid: int) -> None:
     path.write_text(f"{pid} {_start_time(pid)}\n")
 
@@ -275,8 +285,13 @@ def status(run_dir: Path, name: str) -> dict:
     pid = _read_pid(files.pid)
     child = _read_pid(files.child) if pid is not None else None
     # "running" means supervised: between a crash and its restart the child is briefly absent.
-    return {"name": name, "running": pid is not None, "pid": pid, "child": child,
-            "restarts": state.get("restarts", 0)}
+    out = {"name": name, "running": pid is not None, "pid": pid, "child": child, "restarts": state.get("restarts", 0)}
+    # Crash-looping: restarted, and the program now is not running or has not yet run as long as a good run
+    # (the backoff's reset); a supervisor that restarts its child forever still reads "running" above.
+    age = _age(child) if child is not None else None
+    if pid is not None and out["restarts"] and (age is None or age < _GOOD_RUN):
+        out.update(crash_looping=True, last_line=_last_line(files.log))
+    return out
 
 
 def _registered_pids(master: str) -> dict[str, int]:
@@ -300,37 +315,56 @@ def _registered_pids(master: str) -> dict[str, int]:
     return out
 
 
+# A service is healthy once its process has stayed up this long, the same process throughout: a program
+# that exits at once is restarted by its supervisor (or systemd) and must not pass on a lucky moment.
+STAYED_UP_S = 2.0
+# fogiac's own ROS nodes (the relay's ends, the replicas' merge): never a container node's registration.
+_OWN_NODES = "/fogiac_"
+
+
 def health(run_dir: Path, name: str, *, check: str, master: str, timeout: float,
-           pid: int | None = None) -> tuple[bool, str]:
-    """Wait until the service is alive and registered with its master.
+           pid: int | None = None, stayed_up: float = STAYED_UP_S) -> tuple[bool, str]:
+    """Wait until the service is alive, has stayed up ``stayed_up`` seconds, and is registered with its master.
 
     ``master``: the master answers; ``node``: a process of the service's tree is a registered
-    node; ``any``: some node is registered (containers: their processes are not our children);
-    ``alive``: the process runs. ``pid`` names the process when systemd, not us, runs it.
+    node; ``any``: some node other than fogiac's own is registered (containers: their processes are not
+    our children); ``alive``: the process runs. ``pid`` names the process when systemd, not us, runs it.
     """
     deadline = time.monotonic() + timeout
     why = "not checked"
     while True:
         child = (pid if pid and pid_alive(pid) else None) if pid is not None else status(run_dir, name)["child"]
-        if child is None:
+        age = _age(child) if child is not None else None
+        if child is None or age is None:
             why = "process not running"
-        elif check == "alive":
-            return True, f"pid {child}"
         else:
-            try:
-                pids = _registered_pids(master)
-            except (OSError, ValueError, _xmlrpc_error()) as err:
-                why = f"ROS master {master} not answering ({err})"
-            else:
-                if check == "master":
-                    return True, f"master up, pid {child}"
-                mine = sorted(n for n, p in pids.items() if check == "any" or _in_tree(p, child))
-                if mine:
-                    return True, "registered " + ",".join(mine)
-                why = f"no node of pid {child} registered with {master}"
+            ok, why = _registered(check, child, master)
+            if ok and age >= stayed_up:
+                return True, why
+            if ok:
+                why = f"pid {child} up {age:.1f}s of the {stayed_up:g}s it must stay up"
         if time.monotonic() >= deadline:
             return False, f"{why}; log: {_last_line(_Files(run_dir, name).log)}"
         time.sleep(0.2)
+
+
+def _registered(check: str, child: int, master: str) -> tuple[bool, str]:
+    """(whether the check holds for ``child`` now, what was seen)."""
+    if check == "alive":
+        return True, f"pid {child}"
+    try:
+        pids = _registered_pids(master)
+    except (OSError, ValueError, _xmlrpc_error()) as err:
+        return False, f"ROS master {master} not answering ({err})"
+    if check == "master":
+        return True, f"master up, pid {child}"
+    mine = sorted(n for n, p in pids.items()
+                  if (check == "any" and not n.startswith(_OWN_NODES)) or (check != "any" and _in_tree(p, child)))
+    if mine:
+        return True, "registered " + ",".join(mine)
+    if check == "any":
+        return False, f"no node but fogiac's own registered with {master}"
+    return False, f"no node of pid {child} registered with {master}"
 
 
 def _xmlrpc_error() -> type[Exception]:
@@ -340,9 +374,12 @@ def _xmlrpc_error() -> type[Exception]:
 
 
 def _last_line(path: Path) -> str:
+    """The program's last line (the supervisor's own notes skipped), from the log's last 64 KiB only."""
     try:
-        lines = [ln for ln in path.read_text(errors="replace").splitlines()
-                 if ln.strip() and not ln.startswith("[fogiac-supervise ")]
+        with open(path, "rb") as log:
+            log.seek(max(0, log.seek(0, os.SEEK_END) - 65536))
+            text = log.read().decode(errors="replace")
+        lines = [ln for ln in text.splitlines() if ln.strip() and not ln.startswith("[fogiac-supervise ")]
     except OSError:
         return "(no log)"
     return lines[-1].strip()[:200] if lines else "(empty)"

@@ -120,9 +120,12 @@ def carrying() -> bool:
 def _download(reqs: tuple[str, ...], *, version: str, machine: str, into: Path) -> None:
     """``pip download`` of ``reqs`` and their dependencies as wheels for ``version`` on ``machine``."""
     same = version == f"{sys.version_info[0]}.{sys.version_info[1]}" and machine == platform.machine()
-    target = [] if same else ["--only-binary=:all:", "--implementation", "cp", "--python-version", version,
-                              *(a for tag in ("manylinux2014", "manylinux_2_28", "manylinux_2_17", "linux")
-                                for a in ("--platform", f"{tag}_{machine}"))]
+    # Wheels only, for this Python too: a source distribution's build (setup.py, a build backend) would run
+    # here, on the operator's machine, with the operator's rights.
+    target = ["--only-binary=:all:"] + ([] if same else [
+        "--implementation", "cp", "--python-version", version,
+        *(a for tag in ("manylinux2014", "manylinux_2_28", "manylinux_2_17", "linux")
+          for a in ("--platform", f"{tag}_{machine}"))])
     tmp = into.with_name(into.name + ".part")
     shutil.rmtree(tmp, ignore_errors=True)
     done = subprocess.run([sys.executable, "-m", "pip", "download", "--disable-pip-version-check", "-q",

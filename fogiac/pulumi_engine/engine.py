@@ -19,7 +19,7 @@ from fogiac.pulumi_engine import offline
 from fogiac.pulumi_engine.errors import EngineError
 from fogiac.pulumi_engine.events import translated
 from fogiac.pulumi_engine.project import Program, Programs, Project
-from fogiac.pulumi_engine.workspace import backend_dir, need, pulumi_cli, workspace_env
+from fogiac.pulumi_engine.workspace import backend_dir, need, pulumi_cli, shared_backend, workspace_env
 
 # Before a layer's preview: why it cannot be previewed yet (the earlier layers' outputs it needs are
 # not there), or None to preview it.
@@ -67,7 +67,7 @@ class Engine:
         """The layer's stack if it was ever created (destroy and refresh skip the others)."""
         auto = need("pulumi.automation")
 
-        if not backend_dir(self.project.stack, create=False).exists():
+        if shared_backend(self.project.stack) is None and not backend_dir(self.project.stack, create=False).exists():
             return None  # never applied: no state to open (and none to create)
         try:
             return auto.select_stack(stack_name=self.project.layer_stack(layer), project_name=self.project.name,

@@ -1,8 +1,10 @@
 """Where the engine keeps a stack's Pulumi state: a file backend in the stack's folder, secrets under a
 passphrase, and the pinned Pulumi CLI that does the work.
 
-State stays on the user's disk (``<stack folder>/pulumi``), secrets are encrypted with a passphrase
-(``$PULUMI_CONFIG_PASSPHRASE``, else a generated 0600 file), so no Pulumi account is needed.
+State stays on the user's disk (``<stack folder>/pulumi``), or in the shared state store when one is
+configured (``FOGIAC_STATE_URL``, the manifest's ``state:``: the same ``s3://`` bucket and prefix);
+secrets are encrypted with a passphrase (``$PULUMI_CONFIG_PASSPHRASE``, else a generated 0600 file, which
+a shared store keeps among the stack's files), so no Pulumi account is needed.
 """
 
 from __future__ import annotations
@@ -34,6 +36,13 @@ def need(module: str) -> ModuleType:
 
 def backend_dir(stack: str, *, create: bool = True) -> Path:
     return StackState(stack).target_file(BACKEND_DIR, create=create)
+
+
+def shared_backend(stack: str) -> str | None:
+    """The backend URL of a shared state store (``s3://BUCKET/PREFIX``: Pulumi keeps ``.pulumi/`` there, beside
+    the stacks' records), so every member and CI preview against what is deployed; None: the stack folder's."""
+    url = getattr(StackState(stack).store, "backend_url", None)
+    return url if isinstance(url, str) and url else None
 
 
 def pulumi_cli() -> Path:
@@ -71,11 +80,14 @@ def passphrase(stack: str) -> str:
 
 
 def workspace_env(stack: str) -> dict[str, str]:
-    """What the Pulumi CLI needs: the file backend, the passphrase, no update nagging."""
-    backend = backend_dir(stack)
-    backend.mkdir(mode=0o700, exist_ok=True)
+    """What the Pulumi CLI needs: the backend (the shared store's, else a folder), the passphrase, no update nagging."""
+    url = shared_backend(stack)
+    if url is None:
+        backend = backend_dir(stack)
+        backend.mkdir(mode=0o700, exist_ok=True)
+        url = backend.as_uri()
     return {
-        "PULUMI_BACKEND_URL": backend.as_uri(),
+        "PULUMI_BACKEND_URL": url,
         "PULUMI_CONFIG_PASSPHRASE": passphrase(stack),
         "PULUMI_SKIP_UPDATE_CHECK": "true",
         "PULUMI_AUTOMATION_API_SKIP_VERSION_CHECK": "false",

@@ -33,7 +33,8 @@ from fogiac.plan import guard
 from fogiac.plan.model import HostSpec, Plan
 from fogiac.provision import HostAccess, HostPorts, idle, planned_ports, recorded_access
 from fogiac.state import StackState
-from fogiac.tables import table
+from fogiac.tables import printable, table, usd
+from fogiac.termtext import clean
 
 
 class ExistingMachines:
@@ -146,15 +147,21 @@ class ExistingMachines:
         if doc.get("partial"):
             out.append(f"{doc['stack']}: partial: the last up did not finish; `fogiac up` completes it, "
                        "`fogiac down` removes what it started")
-        nodes = table(f"{doc['stack']} ({doc['target']}), edge {doc.get('edge_master')}",
+        nodes = table(printable(f"{doc['stack']} ({doc['target']}), edge {doc.get('edge_master')}"),
                       "host", "machine", "address", "uptime", "cost so far", "node", "state", "restarts")
         for host in doc["hosts"]:
             for node in host["nodes"]:
-                state = "-" if "running" not in node else "running" if node["running"] else "stopped"
-                nodes.add_row(host["host"], host["machine"], host["address"], duration(host["uptime_s"]),
-                              f"${host['cost_usd']:.2f}", node["node"], state, str(node.get("restarts", "-")))
+                state = "-" if "running" not in node else "crash-looping" if node.get("crash_looping") else \
+                    "running" if node["running"] else "stopped"
+                nodes.add_row(*map(printable, (host["host"], host["machine"], host["address"],
+                                               duration(host["uptime_s"]), usd(host["cost_usd"]) or "unknown",
+                                               node["node"], state, node.get("restarts", "-"))))
         out.append(nodes)
-        out += [f"{host['host']}: {autostop_line(host['autostop'])}" for host in doc["hosts"] if host.get("autostop")]
+        out += [printable(f"{host['host']}: node {node['node']} is crash-looping; its last line: "
+                          f"{clean(node.get('last_line', ''))}") for host in doc["hosts"] for node in host["nodes"]
+                if node.get("crash_looping")]
+        out += [printable(f"{host['host']}: {autostop_line(host['autostop'])}")
+                for host in doc["hosts"] if host.get("autostop")]
         warning = (doc.get("cost") or {}).get("warning")
         return out + ([f"warning: {warning}"] if warning else [])
 

@@ -78,3 +78,29 @@ def test_preflight_refuses_a_wide_ssh_from(given: str) -> None:
     with pytest.raises(PreflightError, match=rf"^ssh_from: {given} cover \d+ addresses, more than a /8"):
         operator_cidrs(plan, override=given)
     assert operator_cidrs(plan, override="10.0.0.0/8") == ("10.0.0.0/8",)
+
+
+@pytest.mark.parametrize("verb", [[], ["update"]])
+def test_catalog_refuses_a_misspelt_region_with_did_you_mean(verb: list[str], state: Path) -> None:
+    """Issue 35 item 22: ``catalog --region eu-centrl-1`` printed "0 types" and exited 0."""
+    result = runner.invoke(app, ["catalog", *verb, "--region", "eu-centrl-1"])
+    assert result.exit_code == 1, result.output
+    assert result.output.strip().splitlines() == [
+        "error: --region 'eu-centrl-1' is not an AWS region; did you mean 'eu-central-1'?"]
+    assert not state.exists()
+
+
+@pytest.mark.parametrize(("url", "said"), [
+    ("ftp://host/x", "error: state url 'ftp://host/x': no state store for ftp:// (known: s3://)"),
+    ("bucket/prefix", "error: state url 'bucket/prefix': expected s3://BUCKET/PREFIX (or unset for the stack folder)"),
+    ("s3://b/../x", "error: state url 's3://b/../x': expected s3://BUCKET/PREFIX"),
+])
+def test_a_bad_state_url_is_one_line_and_nothing_is_written(url: str, said: str, state: Path,
+                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("FOGIAC_STATE_URL", url)
+    for argv in (["status", str(EXAMPLES / "minimal.yaml")], ["ls"], ["state", "ls"],
+                 ["state", "unlock", "minimal-dev", "--yes"]):
+        result = runner.invoke(app, argv)
+        assert result.exit_code == 1, (argv, result.output)
+        assert result.output.strip().splitlines() == [said], (argv, result.output)
+    assert not state.exists()

@@ -217,3 +217,27 @@ def test_markdown_comment_shows_wider_egress_and_flow_logs_turned_off(tmp_path: 
             "(TCP 8883 to the internet (updates, images and packages))") in result.output.splitlines()
     assert "**Plan: 1 to add, 0 to change, 4 to destroy.**  " in result.output.splitlines()
     assert "- aws:ec2/flowLog:FlowLog review-dev-flow-log" in result.output.splitlines()
+
+
+LOCAL = "name: sandboxed\ncloud: {provider: local}\nnodes:\n  - {name: planner, machine: c5.4xlarge, command: [planner]}\n"
+LOCAL_PAIRS = {  # issue 35 item 19: a target without resources counts its hosts
+    "machine changed": (LOCAL.replace("c5.4xlarge", "c5.9xlarge"), "Plan: 0 to add, 1 to change, 0 to destroy.",
+                        (0, 1, 0)),
+    "host added": (LOCAL + "  - {name: grasp, machine: t3.small, command: [grasp]}\n",
+                   "Plan: 1 to add, 0 to change, 0 to destroy.", (1, 0, 0)),
+    "topic added": (LOCAL.replace("command: [planner]", "command: [planner], topics: {in: [/goal]}"),
+                    "Plan: 0 to add, 0 to change, 0 to destroy.", (0, 0, 0)),  # the same host: nothing to count
+}
+
+
+@pytest.mark.parametrize("case", LOCAL_PAIRS, ids=list(LOCAL_PAIRS))
+def test_a_local_plan_counts_its_changed_hosts(case: str, tmp_path: Path) -> None:
+    head, summary, counts = LOCAL_PAIRS[case]
+    (tmp_path / "base.yaml").write_text(LOCAL)
+    (tmp_path / "head.yaml").write_text(head)
+    argv = ["plan", str(tmp_path / "head.yaml"), "--against", str(tmp_path / "base.yaml")]
+    result = runner.invoke(app, [*argv, "--detailed-exitcode"])
+    assert result.exit_code == 2, result.output
+    assert result.output.splitlines()[-1] == summary
+    changes = json.loads(runner.invoke(app, [*argv, "--json"]).output)["changes"]
+    assert (changes["summary"], changes["add"], changes["change"], changes["destroy"]) == (summary, *counts)

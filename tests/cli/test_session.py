@@ -220,8 +220,11 @@ def test_2_ctrl_c_during_up_says_what_is_left_and_down_removes_it(tmp_path: Path
         if up.poll() is None:
             up.kill()
     assert up.returncode == 130, stdout + stderr
-    lines = stderr.splitlines()
-    assert lines[0] == "interrupted: up of motion-planning-dev stopped part-way; this is what it left:", stderr
+    # up's step lines (issue 35 item 17) come first, the last saying where the Ctrl-C fell; then what was left
+    first = stderr.splitlines().index("interrupted: up of motion-planning-dev stopped part-way; this is what it left:")
+    steps, lines = stderr.splitlines()[:first], stderr.splitlines()[first:]
+    assert steps and all(re.fullmatch(r"[\w-]+: [\w' -]+( \S+)? (…|\S+ \(\d+\.\ds\))", line) for line in steps), stderr
+    assert steps[-1].endswith("…") or " interrupted (" in steps[-1], stderr
     assert any("edge-master (pid" in line for line in lines), stderr
     assert lines[-1] == f"`fogiac down {m}` removes it; `fogiac up {m}` completes it", stderr
     assert "Traceback" not in stderr

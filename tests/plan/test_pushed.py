@@ -125,3 +125,19 @@ def test_an_applied_document_of_an_older_fogiac_compares_without_a_spurious_chan
     older["nodes"][0]["env"] = {"TOKEN": "abc"}
     diff = diff_documents(older, now)
     assert diff.empty, diff
+
+
+def test_the_same_content_from_another_checkout_is_no_change() -> None:
+    """A lab member's checkout of the same workspace sits at another path (a shared state store): the hosts
+    get the same bytes, so the plan shows no change; a changed digest still shows, path and all."""
+    from fogiac.plan.diff import diff_documents
+
+    def document(path: str, digest: str) -> dict[str, object]:
+        return {"resources": [], "hosts": [], "nodes": [], "topics": [], "security_rules": [], "cost": {},
+                "pushed": [{"node": "talker", "what": "workspace", "path": path, "sha256": digest}]}
+
+    moved = diff_documents(document("/home/alice/lab/ws", "abc"), document("/home/bob/lab/ws", "abc"))
+    assert moved.pushed.changed == ()
+    edited = diff_documents(document("/home/alice/lab/ws", "abc"), document("/home/bob/lab/ws", "def"))
+    (change,) = edited.pushed.changed
+    assert {field for field, _, _ in change.fields} == {"path", "sha256"}

@@ -13,6 +13,7 @@ from fogiac.errors import ManifestError, PlanError
 from fogiac.manifest.replicas import MatchUnchecked
 from fogiac.manifest.schema import load_manifest, parse_manifest
 from fogiac.msgtypes import has_header
+from fogiac.net.relay.deploy import replicas_argv
 from fogiac.plan import cost, diagram
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.document import document
@@ -125,8 +126,13 @@ def test_local_gives_each_replica_a_sandbox_and_a_route_with_its_replica() -> No
     assert [h.name for h in plan.hosts] == ["planner-r1", "planner-r2", "solo"]
     assert [h.nodes for h in plan.hosts] == [("planner",), ("planner",), ("solo",)]
     routes = {r.host: r for r in plan.routes}
-    assert routes["planner-r1"].replica == Replica("planner", 0, 2, "header.stamp", "delayed", 0.04)
-    assert routes["planner-r2"].replica == Replica("planner", 1, 2, "header.stamp", "delayed", 0.04)
+    stated = (("/plan/path", "geometry_msgs/PoseArray"),)  # the relay checks replies' types with them
+    assert routes["planner-r1"].replica == Replica("planner", 0, 2, "header.stamp", "delayed", 0.04, stated)
+    assert routes["planner-r2"].replica == Replica("planner", 1, 2, "header.stamp", "delayed", 0.04, stated)
+    argv = replicas_argv("planner", [routes["planner-r1"], routes["planner-r2"]], stack="rep",
+                         connect={"planner-r1": "127.0.0.1:1", "planner-r2": "127.0.0.1:2"},
+                         master="http://127.0.0.1:11311", certs=Path("c"), folder=Path("f"))
+    assert argv[argv.index("--type") + 1] == "/plan/path=geometry_msgs/PoseArray"
     assert routes["planner-r2"].to_cloud == ("/plan/request",) and routes["planner-r2"].to_edge == ("/plan/path",)
     assert routes["solo"].replica is None
     doc = plan.to_dict()

@@ -7,6 +7,9 @@ from __future__ import annotations
 import json
 import os
 import stat
+import subprocess
+import sys
+import warnings
 from pathlib import Path
 
 import pytest
@@ -130,3 +133,37 @@ def test_a_secret_file_with_two_lines_is_refused_without_its_value(tmp_path: Pat
         secrets.resolve(plan.node("planner"))
     assert "line" not in str(err.value).replace("line break", "")
     assert stat.S_IMODE(0o600) == 0o600
+
+
+def test_a_secret_file_others_can_read_is_used_with_a_warning(tmp_path: Path) -> None:
+    """Issue 35 item 14: a world-readable ``file:`` secret was accepted silently; ssh warns of such a key."""
+    (tmp_path / "db.pass").write_text("pa55\n")
+    (tmp_path / "db.pass").chmod(0o644)
+    plan = _plan(tmp_path, NAMED.replace("{secret: env:REVIEW_TOKEN}", "plain"))
+    path = (tmp_path / "db.pass").resolve()
+    with pytest.warns(secrets.SecretExposed) as said:
+        assert dict(secrets.resolve(plan.node("planner"))) == {"DB_PASSWORD": "pa55"}
+    assert [str(w.message) for w in said] == [
+        f"secret file:{path}: other users can read it (mode 0644); keep it to yourself: chmod 600 {path}"]
+    (tmp_path / "db.pass").chmod(0o600)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert dict(secrets.resolve(plan.node("planner"))) == {"DB_PASSWORD": "pa55"}
+
+
+def test_up_says_so_in_one_line_before_anything_else(tmp_path: Path) -> None:
+    """Through ``fogiac up`` as the operator runs it: the warning line, then (a missing secret here stops
+    up before anything is created) the error line; the file's content never shown."""
+    (tmp_path / "db.pass").write_text("pa55-value\n")
+    (tmp_path / "db.pass").chmod(0o604)
+    (tmp_path / "m.yaml").write_text(NAMED.replace("provider: aws, region: us-west-2", "provider: local").replace(
+        "network: {mode: vpn, vpc_cidr: 10.10.0.0/16, ssh_from: [10.1.2.3/32]}\n", ""))
+    env = {k: v for k, v in os.environ.items() if k != "REVIEW_TOKEN"}
+    env["FOGIAC_STATE_DIR"] = str(tmp_path / "state")
+    done = subprocess.run([sys.executable, "-m", "fogiac", "up", "m.yaml", "--yes"], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=300)
+    path = (tmp_path / "db.pass").resolve()
+    assert done.returncode == 1, done.stdout + done.stderr
+    assert f"warning: secret file:{path}: other users can read it (mode 0604); keep it to yourself: chmod 600 " \
+           f"{path}" in done.stderr.splitlines()
+    assert "pa55-value" not in done.stdout + done.stderr and "Traceback" not in done.stderr

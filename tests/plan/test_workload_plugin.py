@@ -15,18 +15,9 @@ from fogiac.manifest.schema import load_manifest
 from fogiac.plan.compile import compile_plan
 from fogiac.provision import venv, workload
 from tests.plugins.install import installed
-from tests.plugins.tally import ENTRY_POINTS
+from tests.plugins.tally import ENTRY_POINTS, MANIFEST
 
 runner = CliRunner()
-MANIFEST = """\
-name: counting
-cloud: {provider: local}
-nodes:
-  - name: counter
-    machine: t3.micro
-    workload: tally
-    topics: {in: [/items], out: [/count]}
-"""
 
 
 @pytest.fixture

@@ -8,7 +8,9 @@ the wheels once into a cache named by their digest, they are pushed once, and th
 
 from __future__ import annotations
 
+import platform
 import shutil
+import sys
 from pathlib import Path
 
 import pytest
@@ -58,3 +60,37 @@ def test_carried_wheels_install_offline_and_travel_once(tmp_path: Path, monkeypa
     sent = host.bytes_sent
     again = venv.carry_wheels(host, ("iniconfig",), python=PYTHON, root=f"{host.base}/venv")
     assert again.endswith(cached.name) and host.bytes_sent == sent  # on the host already: nothing pushed
+
+
+def _sdist_that_runs_code(folder: Path, marker: Path) -> None:
+    """A source-only release whose build backend leaves ``marker`` when pip asks it anything."""
+    import io  # noqa: PLC0415
+    import tarfile  # noqa: PLC0415
+
+    backend = (f"import pathlib\npathlib.Path({str(marker)!r}).write_text('built on the operator machine')\n"
+               "def get_requires_for_build_wheel(config_settings=None):\n    return []\n"
+               "def prepare_metadata_for_build_wheel(d, config_settings=None):\n    raise SystemExit(1)\n")
+    files = {"pyproject.toml": '[build-system]\nrequires = []\nbuild-backend = "backend"\nbackend-path = ["."]\n',
+             "backend.py": backend, "PKG-INFO": "Metadata-Version: 2.1\nName: sdistonly\nVersion: 1.0\n"}
+    folder.mkdir()
+    with tarfile.open(folder / "sdistonly-1.0.tar.gz", "w:gz") as tar:
+        for name, text in files.items():
+            info = tarfile.TarInfo(f"sdistonly-1.0/{name}")
+            info.size = len(text.encode())
+            tar.addfile(info, io.BytesIO(text.encode()))
+
+
+def test_carrying_never_builds_a_source_release_here(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue 35 item 9: for the host's own Python too, pip downloads wheels only; a package released as
+    source alone is refused on the operator's machine before its build code runs."""
+    marker = tmp_path / "ran"
+    _sdist_that_runs_code(tmp_path / "links", marker)
+    for key, value in {"PIP_CONFIG_FILE": "/dev/null", "PIP_NO_INDEX": "1", "PIP_EXTRA_INDEX_URL": "",
+                       "PIP_FIND_LINKS": str(tmp_path / "links")}.items():
+        monkeypatch.setenv(key, value)
+    here = f"{sys.version_info[0]}.{sys.version_info[1]}"
+    with pytest.raises(ProvisionError, match=r"^carrying wheels \(FOGIAC_CARRY_WHEELS=1\): pip download on this "
+                                             r"machine failed: .*sdistonly"):
+        venv._download(("sdistonly",), version=here, machine=platform.machine(), into=tmp_path / "wheels")
+    assert not marker.exists()
+    assert not (tmp_path / "wheels").exists()

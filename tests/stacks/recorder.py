@@ -35,6 +35,9 @@ class Recorder(pulumi.runtime.Mocks):
     def call(self, args: pulumi.runtime.MockCallArgs) -> dict:  # type: ignore[override]
         with self._lock:
             self.calls.append((args.token, args.args))
+        if args.token == "aws:index/getCallerIdentity:getCallerIdentity":
+            return {"id": "123456789012", "accountId": "123456789012", "arn": "arn:aws:iam::123456789012:user/ci",
+                    "userId": "AIDA"}
         return {"id": f"ami-{len(self.calls)}"}
 
     stack_outputs: dict[str, Any] = {}

@@ -138,5 +138,7 @@ def test_flow_logs_are_opt_in(offline: dict[str, OfflinePlan]) -> None:
     assert flow.inputs["logDestination"] == "<flows-dev-flow-logs.arn>"
     assert flow.inputs["iamRoleArn"] == "<flows-dev-flow-logs-role.arn>"
     assert role.inputs["path"] == "/fogiac/flows-dev/"
+    # Issue 35 item 4: the shipped IAM policy creates a role only with the account's fogiac-boundary on it
+    assert role.inputs["permissionsBoundary"] == "arn:aws:iam::<account>:policy/fogiac-boundary"
     assert "vpc-flow-logs.amazonaws.com" in role.inputs["assumeRolePolicy"]
     assert '"Resource": ["<flows-dev-flow-logs.arn>", "<flows-dev-flow-logs.arn>:*"]' in policy.inputs["policy"]

@@ -50,6 +50,14 @@ def test_plan_diffs_against_the_deployed_stack(tmp_path: Path, _state_dir: Path,
                 "there moves the robot") in lines
         assert "+ /cmd_vel (cloud -> robot, host planner)" in lines
         assert lines[-1] == "Plan: 0 to add, 0 to change, 0 to destroy."  # the local target creates no resources
+
+        # issue 35 item 19: a changed machine is a changed host, and the summary counts it
+        manifest.write_text(text.replace("machine: c5.24xlarge", "machine: c5.18xlarge"))
+        moved = runner.invoke(app, plan)
+        assert moved.exit_code == 2, moved.output
+        lines = [line.strip() for line in moved.output.splitlines()]
+        assert "~ planner" in lines and "machine: c5.24xlarge -> c5.18xlarge" in lines
+        assert lines[-1] == "Plan: 0 to add, 1 to change, 0 to destroy."
     finally:
         down = runner.invoke(app, ["down", str(manifest), "--target", "local", "--yes"])
     assert down.exit_code == 0, down.output

@@ -201,8 +201,10 @@ def test_targets_without_a_cloud_say_so_in_one_line(verb: str, target: str, tmp_
 def test_doctor_on_local_checks_this_machine_in_lines_not_a_traceback(tmp_path: Path) -> None:
     code, out = run("doctor", str(EXAMPLES / "motion-planning.yaml"), "--target", "local")
     lines = out.splitlines()
+    # roscore, rospy, then what each workload node needs (issue 35 item 16: the planner's requirements)
     assert [line.split(":")[0] for line in lines] == [f"{'ok  ' if shutil.which('roscore') else 'FAIL'} roscore",
-                                                       lines[1].split(":")[0]]
+                                                       lines[1].split(":")[0], lines[2].split(":")[0]]
+    assert lines[2].split(":")[0].endswith(" workload motion_planning (node planner)"), lines
     assert "Traceback" not in out and "boto" not in out
     assert code == (0 if all(line.startswith("ok") for line in lines) else 1)
 

@@ -10,6 +10,7 @@ import argparse
 import json
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 from fogiac.errors import FogiacError
 from workloads.motion_planning import load_problem, solve
@@ -40,8 +41,10 @@ def _node(args: argparse.Namespace) -> int:
 
 
 def _client(args: argparse.Namespace) -> int:
+    from workloads.master import use  # noqa: PLC0415 (before rospy reads ROS_MASTER_URI)
     from workloads.motion_planning.client import main  # noqa: PLC0415 (rospy, see above)
 
+    use(args.master, args.manifest, timeout=args.master_timeout)
     return main(args.names, timeout=args.timeout, as_json=args.json)
 
 
@@ -67,6 +70,10 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("names", nargs="*", help="problem names (default: every shipped problem)")
     c.add_argument("--timeout", type=float, default=120.0, help="seconds to wait for each path")
     c.add_argument("--json", action="store_true", help="print the timings and paths as one JSON array (for machines)")
+    c.add_argument("--master", default=None,
+                   help="the robot's ROS master (default: ./fogiac.yaml's edge.ros_master, else ROS_MASTER_URI)")
+    c.add_argument("--manifest", type=Path, default=None, help="read edge.ros_master from this manifest")
+    c.add_argument("--master-timeout", type=float, default=10.0, help="seconds to wait for the master to answer")
     c.set_defaults(run=_client)
     return parser
 

@@ -1,9 +1,15 @@
 """Monocular mode: two-view initialisation and new points by triangulation between keyframes.
 
-Without depth the map starts from two frames far enough apart: the essential matrix (five-point
-RANSAC) and its decomposition give the second camera's motion up to scale, the matches are
-triangulated, and the map's scale is set so that the median depth is 1 (as ORB-SLAM2 does).
-The trajectory is therefore evaluated up to scale (Sim(3) alignment).
+Without depth the map starts from two frames far enough apart. Two models compete, as in
+ORB-SLAM: a homography (right for a planar scene or little parallax, where the essential matrix
+is ill-conditioned and its decomposition picks a wrong motion) and the essential matrix (five-point
+RANSAC). Each is scored by its matches' symmetric transfer (homography) or epipolar (essential)
+errors under a chi-square cut, ``S = sum(th - d^2)`` over inliers; the homography is used when
+``S_H / (S_H + S_F) > 0.45``. Its decomposition's up to four motions are told apart by the points
+each triangulates in front of both cameras, and a start whose best motion is not clearly better
+than its second, or that triangulates too few points or with too little parallax, is refused: a
+weak start's map is wrong in shape and nothing later repairs it. The map's scale is set so that
+the median depth is 1 (as ORB-SLAM2 does); the trajectory is evaluated up to scale (Sim(3)).
 """
 
 from __future__ import annotations
@@ -19,6 +25,11 @@ from workloads.slam.mapdata import Keyframe, Map
 MIN_MATCHES = 100
 MIN_POINTS = 80
 MIN_PARALLAX_DEG = 1.0
+MIN_MEDIAN_PARALLAX_DEG = 2.0  # a start whose points' median parallax is lower is refused
+MIN_GOOD_SHARE = 0.5  # of the chosen model's inliers that must triangulate well
+HOMOGRAPHY_RATIO = 0.45  # R_H above which the homography is used (ORB-SLAM's threshold)
+CHI2_SCORE = 5.991  # chi-square, 2 dof, 95%: the score's cut (1 px sigma)
+CHI2_EPIPOLAR = 3.841  # chi-square, 1 dof, 95%: a point-to-line distance's inlier cut
 MAX_WAIT_FRAMES = 30  # a reference frame older than this is replaced
 
 
@@ -55,6 +66,92 @@ def _triangulate(k: np.ndarray, pose_a: np.ndarray, pose_b: np.ndarray, uv_a: np
     return points, good
 
 
+def homography_score(h: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[float, np.ndarray]:
+    """(score, inlier mask) of ``b ~ H a``: transfer errors both ways, each direction cut at CHI2_SCORE."""
+    def transfer(m: np.ndarray, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+        p = np.column_stack([src, np.ones(len(src))]) @ m.T
+        w = np.where(np.abs(p[:, 2]) > 1e-12, p[:, 2], 1e-12)
+        return ((p[:, :2] / w[:, None] - dst) ** 2).sum(axis=1)
+
+    try:
+        h_inv = np.linalg.inv(h)
+    except np.linalg.LinAlgError:
+        return 0.0, np.zeros(len(a), bool)
+    d_b, d_a = transfer(h, a, b), transfer(h_inv, b, a)
+    inl = (d_b < CHI2_SCORE) & (d_a < CHI2_SCORE)
+    score = np.where(d_b < CHI2_SCORE, CHI2_SCORE - d_b, 0.0) + np.where(d_a < CHI2_SCORE, CHI2_SCORE - d_a, 0.0)
+    return float(score[inl].sum()), inl
+
+
+def epipolar_score(f_mat: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[float, np.ndarray]:
+    """(score, inlier mask) of the fundamental matrix: point-to-epipolar-line distances both ways."""
+    ha, hb = np.column_stack([a, np.ones(len(a))]), np.column_stack([b, np.ones(len(b))])
+    line_b, line_a = ha @ f_mat.T, hb @ f_mat  # lines in b from a's points, in a from b's
+    num = (hb * line_b).sum(axis=1) ** 2
+    d_b = num / np.maximum(line_b[:, 0] ** 2 + line_b[:, 1] ** 2, 1e-12)
+    d_a = num / np.maximum(line_a[:, 0] ** 2 + line_a[:, 1] ** 2, 1e-12)
+    inl = (d_b < CHI2_EPIPOLAR) & (d_a < CHI2_EPIPOLAR)
+    score = np.where(d_b < CHI2_EPIPOLAR, CHI2_SCORE - d_b, 0.0) + np.where(d_a < CHI2_EPIPOLAR, CHI2_SCORE - d_a, 0.0)
+    return float(score[inl].sum()), inl
+
+
+def _candidates(k: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[str, list[np.ndarray], np.ndarray] | None:
+    """(model, candidate second-camera poses, inlier mask) of the model the scores choose."""
+    e, e_mask = cv2.findEssentialMat(a, b, k, method=cv2.RANSAC, prob=0.999, threshold=1.0)
+    h, _ = cv2.findHomography(a, b, cv2.RANSAC, np.sqrt(CHI2_SCORE))
+    s_f, f_inl = 0.0, np.zeros(len(a), bool)
+    if e is not None and e.shape == (3, 3):
+        k_inv = np.linalg.inv(k)
+        s_f, f_inl = epipolar_score(k_inv.T @ e @ k_inv, a, b)
+    s_h, h_inl = (0.0, np.zeros(len(a), bool)) if h is None else homography_score(h, a, b)
+    if s_h + s_f <= 0:
+        return None
+    if s_h / (s_h + s_f) > HOMOGRAPHY_RATIO:
+        assert h is not None
+        _, rotations, translations, _ = cv2.decomposeHomographyMat(h, k)
+        # x_b = R x_a + t: camera b from camera a, the pose of b in a's (the world's) frame inverted
+        return "homography", [inverse(make(r, t.ravel())) for r, t in zip(rotations, translations, strict=True)], h_inl
+    assert e is not None
+    _, r, t, _ = cv2.recoverPose(e, a, b, k, mask=e_mask.copy())
+    return "essential", [inverse(make(r, t.ravel()))], f_inl
+
+
+def choose_start(k: np.ndarray, a: np.ndarray, b: np.ndarray,
+                 octave: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """(second camera's pose, points, good mask) of a trustworthy two-view start, or None to wait.
+
+    Refused when the best motion is ambiguous (its runner-up triangulates nearly as many points),
+    triangulates fewer than MIN_POINTS or MIN_GOOD_SHARE of its model's inliers, or when its points'
+    median parallax is under MIN_MEDIAN_PARALLAX_DEG."""
+    chosen = _candidates(k, a, b)
+    if chosen is None:
+        return None
+    _, poses, inl = chosen
+    results = []
+    for pose_b in poses:
+        norm = float(np.linalg.norm(pose_b[:3, 3]))
+        if norm < 1e-9:
+            continue
+        pose_b = pose_b.copy()
+        pose_b[:3, 3] /= norm
+        points, good = _triangulate(k, np.eye(4), pose_b, a, b, octave)
+        good &= inl
+        results.append((int(good.sum()), pose_b, points, good))
+    if not results:
+        return None
+    results.sort(key=lambda r: -r[0])
+    count, pose_b, points, good = results[0]
+    if count < MIN_POINTS or count < MIN_GOOD_SHARE * int(inl.sum()):
+        return None
+    if len(results) > 1 and results[1][0] > 0.75 * count:
+        return None  # two motions explain the matches about as well: wait for more parallax
+    ray_a, ray_b = points[good], points[good] - pose_b[:3, 3]
+    cos = (ray_a * ray_b).sum(axis=1) / (np.linalg.norm(ray_a, axis=1) * np.linalg.norm(ray_b, axis=1) + 1e-12)
+    if np.degrees(np.median(np.arccos(np.clip(cos, -1.0, 1.0)))) < MIN_MEDIAN_PARALLAX_DEG:
+        return None
+    return pose_b, points, good
+
+
 class Initialiser:
     """Holds a reference frame until a later one sees the same points from far enough away."""
 
@@ -75,16 +172,10 @@ class Initialiser:
         if np.median(np.linalg.norm(a - b, axis=1)) < 0.03 * self.intrinsics.width:
             return False  # too little motion to see depth
         k = self.intrinsics.matrix()
-        e, mask = cv2.findEssentialMat(a, b, k, method=cv2.RANSAC, prob=0.999, threshold=1.0)
-        if e is None or e.shape != (3, 3):
+        start = choose_start(k, a, b, f.octave[pairs[:, 1]])
+        if start is None:
             return False
-        _, r, t, mask = cv2.recoverPose(e, a, b, k, mask=mask)
-        pose_b = inverse(make(r, t.ravel()))  # recoverPose gives camera b from camera a
-        inl = mask.ravel() > 0
-        points, good = _triangulate(k, np.eye(4), pose_b, a, b, f.octave[pairs[:, 1]])
-        good &= inl
-        if good.sum() < MIN_POINTS:
-            return False
+        pose_b, points, good = start
         scale = 1.0 / float(np.median(points[good, 2]))
         pose_b[:3, 3] *= scale
         ids = m.points.add(points[good] * scale, f.desc[pairs[good, 1]], 0)

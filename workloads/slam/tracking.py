@@ -10,6 +10,13 @@ Per frame (ORB-SLAM2's TrackWithMotionModel and TrackLocalMap in one step): pred
 with a constant-velocity model, project the local map's points (the recent keyframes' and those
 of keyframes a closed loop joined them to), match descriptors only within a radius of each
 projection, then PnP RANSAC and Levenberg-Marquardt refinement on the inliers.
+
+A frame counts as tracked only when its pose is trustworthy: enough inliers, and (while the
+previous frame was tracked) landing within ``max_jump`` of where the motion model put it. A
+pose that jumps is more likely wrong than the camera is fast, and a wrong pose reported as
+tracked (and made a keyframe) bends the map for good; so the run says it is lost instead, and
+the next frames relocalise: their features are matched against every point of the map, and a
+pose needs ``relocalise_inliers`` inliers before tracking resumes.
 """
 
 from __future__ import annotations
@@ -114,6 +121,9 @@ class Config:
     keyframe_rotation_deg: float = 8.0
     keyframe_inlier_ratio: float = 0.7  # of the inliers the last keyframe was tracked with
     loop_min_gap: int = 20  # keyframes between a loop's two ends
+    max_jump: float = 0.15  # metres (map units in monocular) a pose may land from the motion model's prediction
+    max_jump_deg: float = 10.0
+    relocalise_inliers: int = 50  # inliers a pose found against the whole map needs after tracking was lost
 
 
 @dataclass(frozen=True)
@@ -135,6 +145,7 @@ class Tracker:
         self._velocity = np.eye(4)
         self._kf_inliers = 0
         self._since_keyframe = 0
+        self._lost = 0  # frames since the last trustworthy pose
         self._init: monocular.Initialiser | None = monocular.Initialiser(intrinsics) if mono else None
 
     # -- tracking ------------------------------------------------------------------------------
@@ -147,15 +158,21 @@ class Tracker:
             return self._initialise(f)
         previous = self.last_pose
         predicted = previous @ self._velocity
-        local = self._local_keyframes()
-        ids = self.map.point_ids_of(local)
-        pose, inliers = self._pose_against(f, ids, predicted)
-        tracked = pose is not None and len(inliers) >= self.config.min_inliers
+        relocalising = self._lost > 0
+        if relocalising:  # lost: the whole map, not just what the last (untrusted) pose would see
+            ids = self.map.point_ids_of(list(range(len(self.map.keyframes))))
+        else:
+            ids = self.map.point_ids_of(self._local_keyframes())
+        pose, inliers = self._pose_against(f, ids, predicted, wide=relocalising)
+        tracked = pose is not None and self._trustworthy(pose, predicted, len(inliers), relocalising)
         if not tracked:
             pose, inliers = predicted, np.zeros((0, 2), np.int64)
             self._velocity = np.eye(4)
+            self._lost += 1
         else:
+            assert pose is not None
             self._velocity = inverse(previous) @ pose
+            self._lost = 0
         assert pose is not None
         ref = self.map.keyframes[-1]
         self._last_ref, self._last_relative = ref.id, inverse(ref.pose) @ pose
@@ -166,6 +183,17 @@ class Tracker:
             self._insert_keyframe(f, pose, inliers)
         return TrackResult(pose, tracked, len(inliers), made)
 
+    def _trustworthy(self, pose: np.ndarray, predicted: np.ndarray, inliers: int, relocalising: bool) -> bool:
+        """Enough inliers, and (while tracking) a pose near the motion model's prediction."""
+        c = self.config
+        if relocalising:
+            return inliers >= c.relocalise_inliers
+        if inliers < c.min_inliers:
+            return False
+        jump = inverse(predicted) @ pose
+        return bool(float(np.linalg.norm(jump[:3, 3])) <= c.max_jump
+                    and float(np.degrees(angle_of(jump[:3, :3]))) <= c.max_jump_deg)
+
     def _local_keyframes(self) -> list[int]:
         count = len(self.map.keyframes)
         local = set(range(max(0, count - self.config.local_keyframes), count))
@@ -174,12 +202,13 @@ class Tracker:
                 local.update(range(max(0, other - 2), min(count, other + 3)))
         return sorted(local)
 
-    def _pose_against(self, f: Features, ids: np.ndarray,
-                      predicted: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
-        """(pose, (M, 2) inlier pairs of feature index and map point id) or (None, empty)."""
+    def _pose_against(self, f: Features, ids: np.ndarray, predicted: np.ndarray,
+                      *, wide: bool = False) -> tuple[np.ndarray | None, np.ndarray]:
+        """(pose, (M, 2) inlier pairs of feature index and map point id) or (None, empty);
+        ``wide``: match every feature against every point (relocalisation) from the start."""
         radius = self.config.search_radius_px
         pairs = np.zeros((0, 2), np.int64)
-        for r in (radius, 3 * radius, None):  # widen the search while too few match
+        for r in ((None,) if wide else (radius, 3 * radius, None)):  # widen the search while too few match
             pairs = self._search(f, ids, predicted, r)
             if len(pairs) >= 2 * self.config.min_inliers:
                 break

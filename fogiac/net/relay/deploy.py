@@ -154,6 +154,7 @@ def replicas_argv(group: str, routes: list[Route], *, stack: str, connect: Mappi
             "--certs", str(certs), "--stats-file", str(_group_stats(folder, group, suffix)), *_client_argv(stack, edge),
             "--queue-depth", str(first.queue_size), "--name", name, "--match", replica.match,
             "--hedge", replica.hedge, "--hedge-delay", str(replica.hedge_delay_s)]
+    argv += [a for topic, name in replica.types for a in ("--type", f"{topic}={name}")]
     for route in routes:
         assert route.replica is not None
         argv += ["--replica", ",".join([str(route.replica.index), route.host, connect[route.host],

@@ -7,7 +7,9 @@ time stamp, string frame_id), whatever the type. Any other dotted path (``id``, 
 ``header.frame_id``...) needs the topic's message definition, which a publisher sends in its TCPROS
 header: the store adds it and finds the field, skipping every field before it (strings and arrays by
 their length prefixes), so the key is the field's own bytes, whatever its type. A path that names no
-field is an error; a message too short for it has no key.
+field is an error; a message too short for it has no key. A definition comes from a publisher (over a
+replica's link, a replica's): one fogiac will not read (:class:`~fogiac.msgtypes.DefinitionError`) is a
+:class:`BadDefinition`, which refuses that publisher, where a field its type lacks only leaves it keyless.
 """
 
 from __future__ import annotations
@@ -17,6 +19,10 @@ from fogiac.msgtypes import DEFAULT_MATCH as DEFAULT_MATCH
 from fogiac.msgtypes import Key as Key
 from fogiac.msgtypes import KeyOf as KeyOf
 from fogiac.net.relay.errors import RelayError
+
+
+class BadDefinition(RelayError):
+    """A publisher's message definition that is malformed, self-referential, nested too deep or too big."""
 
 
 def key_reader(match: str, type_name: str = "*", definition: str = "") -> KeyOf:
@@ -29,5 +35,7 @@ def key_reader(match: str, type_name: str = "*", definition: str = "") -> KeyOf:
         if not definition:
             raise RelayError(f"match {match!r}: the publisher of {type_name} sent no message definition")
         return msgtypes.ROS1.with_definition(definition, type_name).key_reader(type_name, match)
+    except msgtypes.DefinitionError as err:
+        raise BadDefinition(str(err)) from None
     except msgtypes.MatchError as err:
         raise RelayError(str(err)) from None

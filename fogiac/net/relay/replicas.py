@@ -8,10 +8,14 @@ has one subscription here, and every request read from it goes to every live rep
 ``hedge_delay_s`` (hedge ``delayed``: Dean and Barroso's hedged request). Each ``out`` topic has one
 publisher here, and the robot gets the first reply to each request; a later copy of it is dropped.
 
-A reply names its request by a key (:mod:`fogiac.net.relay.match`, ``header.stamp`` by default).
-What is remembered is bounded: the last ``remember`` keys delivered per topic, and the last
-``remember`` requests (for hedging and latency). A reply whose key was forgotten is delivered again
-only if it comes ``remember`` requests late.
+A reply names its request by a key (:mod:`fogiac.net.relay.match`, ``header.stamp`` by default), read
+with the reply topic's message definition as that replica's link sent it: one reader per link and topic,
+made at each OPEN, so one replica's definition never decides how another's replies are keyed. A
+definition is the replica's word, so it is checked: its type must be the one the manifest states for
+the topic (``message_types``), or else the one the topic's publisher here already has, and a definition
+the reader refuses (malformed, self-referential, nested too deep) refuses that link's replies on the
+topic, with a logged line, while the other links go on. What is remembered is bounded: the last
+``remember`` requests, and which replica answered each (:class:`fogiac.net.replicas.Merge`).
 
 The decisions and the figures are :class:`fogiac.net.replicas.Merge`'s (the Zenoh edge uses it too).
 Per replica, the group counts requests sent, answers, answers won, duplicates dropped, the latency
@@ -37,11 +41,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from fogiac.msgtypes import canonical_type
 from fogiac.net.relay.config import EdgeConfig, default_ros_host, parse_hostport, policy_from_spec
 from fogiac.net.relay.edge import EdgeRelay
 from fogiac.net.relay.errors import RelayError
 from fogiac.net.relay.framing import Payload
-from fogiac.net.relay.match import DEFAULT_MATCH, KeyOf, key_reader
+from fogiac.net.relay.match import DEFAULT_MATCH, BadDefinition, KeyOf, key_reader
 from fogiac.net.relay.monitor import Monitor
 from fogiac.net.relay.node import RelayNode
 from fogiac.net.relay.pubsub import LocalPublisher, LocalSubscription, TopicMeta
@@ -73,6 +78,7 @@ class GroupConfig:
     remember: int = 4096
     silent_after: float = 3.0
     stats_file: Path | None = None
+    types: tuple[tuple[str, str], ...] = ()  # topic -> its message type as the manifest states it
 
     def __post_init__(self) -> None:
         if self.hedge not in HEDGES:
@@ -119,9 +125,13 @@ class _Fan:
             sub.stop()
 
     def _meta(self, meta: TopicMeta) -> None:
-        with self.group.lock:
+        with self.group.lock:  # the robot's own publisher: its definition keys the requests
             if self.meta is None or self.key is None:
-                self.meta, self.key = meta, self.group.reader(self.topic, meta)
+                self.meta = meta
+                try:
+                    self.key = self.group.reader(self.topic, meta)
+                except BadDefinition as err:
+                    log.error("%s: %s; its requests have no key", self.topic, err)
             sources = list(self.sources.values())
         for source in sources:
             source._meta(meta)
@@ -137,25 +147,38 @@ class _Merge:
         self.group, self.topic = group, topic
         self.pub: LocalPublisher | None = None
         self.linked: set[int] = set()
-        self.key: KeyOf | None = None
+        self.keys: dict[int, KeyOf | None] = {}  # link -> how its replies are keyed (None: they have no key)
+        self.refused: set[int] = set()  # links whose replies on this topic are dropped (their type or definition)
 
     def attach(self, index: int, meta: TopicMeta) -> None:
-        with self.group.lock:
+        """A link opened the topic: its own reader, from its own definition, once the type checks."""
+        group = self.group
+        with group.lock:
             self.linked.add(index)
-            if self.key is None:
-                self.key = self.group.reader(self.topic, meta)
-            if self.pub is not None:
-                if self.pub.meta.md5sum != meta.md5sum:
-                    log.warning("replica %d publishes %s as %s, another as %s", index, self.topic,
-                                meta.type, self.pub.meta.type)
+            self.keys.pop(index, None)
+            self.refused.discard(index)
+            problem = group.type_problem(self.topic, meta, self.pub.meta if self.pub is not None else None)
+            if problem is None:
+                try:
+                    self.keys[index] = group.reader(self.topic, meta)
+                except BadDefinition as err:
+                    problem = f"its message definition of {meta.type}: {err}"
+            if problem is not None:
+                self.refused.add(index)
+                log.error("replica %d of %s: %s: %s; its replies there are refused", index + 1,
+                          group.config.group, self.topic, problem)
                 return
-            self.pub = LocalPublisher(self.group.node, self.topic, meta, depth=self.group.config.edge.queue_depth)
+            if self.pub is not None:
+                return
+            self.pub = LocalPublisher(group.node, self.topic, meta, depth=group.config.edge.queue_depth)
             pub = self.pub
         pub.start()
 
     def detach(self, index: int) -> None:
         with self.group.lock:
             self.linked.discard(index)
+            self.keys.pop(index, None)
+            self.refused.discard(index)
             pub = self.pub if not self.linked else None
             if pub is not None:
                 self.pub = None
@@ -229,7 +252,8 @@ class _Link(EdgeRelay):
 
     def _session(self, sock: ssl.SSLSocket) -> Session:
         group, index = self.group, self.index
-        return Session(sock=sock, node=self.node, config=self.config, peer=f"replica {index}",  # type: ignore[arg-type]
+        return Session(sock=sock, node=self.node, config=self.config,  # type: ignore[arg-type]
+                       peer=f"replica {index + 1} of {group.config.group}",
                        accepts=self._asked.__contains__,
                        feed=lambda source: _Feed(group.fan(source.topic), index, source),
                        outlet=lambda sink, meta: _Outlet(group.merge(sink.topic), index, meta))
@@ -306,11 +330,27 @@ class ReplicaGroup:
             return self._merges.setdefault(topic, _Merge(self, topic))
 
     def reader(self, topic: str, meta: TopicMeta) -> KeyOf | None:
+        """How messages of ``meta`` on ``topic`` are keyed; None: they have no key (answered in order, see
+        :class:`~fogiac.net.replicas.Merge`). :class:`BadDefinition` for a definition not to be read."""
         try:
             return key_reader(self.config.match, meta.type, meta.definition)
+        except BadDefinition:
+            raise
         except RelayError as err:
-            log.error("%s: %s; without a key only one replica's replies pass (no hedging)", topic, err)
+            log.warning("%s: %s; its messages have no key: each replica's replies answer its requests in order",
+                        topic, err)
             return None
+
+    def type_problem(self, topic: str, meta: TopicMeta, current: TopicMeta | None) -> str | None:
+        """Why a link's ``meta`` for an out topic is refused: not the type the manifest states, or not the
+        one the topic's publisher here already has (whose subscribers expect it)."""
+        stated = dict(self.config.types).get(topic)
+        if stated is not None and canonical_type(meta.type) != canonical_type(stated):
+            return f"it sends {meta.type[:100]!r}, but the manifest states {stated}"
+        if current is not None and (current.md5sum, current.type) != (meta.md5sum, meta.type):
+            return (f"it sends {meta.type[:100]!r} ({meta.md5sum[:32]!r}), the topic here is {current.type} "
+                    f"({current.md5sum})")
+        return None
 
     # --- requests and replies --------------------------------------------------------------
     def _live(self) -> list[int]:
@@ -340,8 +380,13 @@ class ReplicaGroup:
                 self._send(self.fan(topic), data, targets)
 
     def reply(self, merge: _Merge, index: int, data: Payload) -> None:
-        """A replica's reply: published if it is the first with its key on this topic."""
-        key = merge.key(data) if merge.key is not None else None
+        """A replica's reply, keyed by its own link's reader: published if it answers a request sent to it that
+        no reply on this topic answered yet."""
+        with self.lock:
+            if index in merge.refused:
+                return
+            reader = merge.keys.get(index)
+        key = reader(data) if reader is not None else None
         if self.core.reply(merge.topic, index, key, time.monotonic()):
             pub = merge.pub
             if pub is not None:
@@ -359,8 +404,8 @@ class ReplicaGroup:
             doc = self.stats()
             for r in doc["replicas"]:
                 if r["health"] == "silent" and r["index"] not in said:
-                    log.warning("replica %d on %s stopped answering (%d requests, last answer %s s ago)",
-                                r["index"], r["host"], r["sent"], r["last_answer_s"])
+                    log.warning("replica %d of %s on %s stopped answering (%d requests, last answer %s s ago)",
+                                r["index"] + 1, self.config.group, r["host"], r["sent"], r["last_answer_s"])
                     said.add(r["index"])
                 elif r["health"] == "ok":
                     said.discard(r["index"])
@@ -388,6 +433,14 @@ def parse_replica(text: str) -> ReplicaTarget:
                          Path(parts[4]) if len(parts) > 4 and parts[4] else None)
 
 
+def parse_type(text: str) -> tuple[str, str]:
+    """``TOPIC=TYPE``."""
+    topic, _, name = text.partition("=")
+    if not topic.startswith("/") or not name:
+        raise RelayError(f"--type {text!r}: expected TOPIC=TYPE")
+    return topic, name
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     from fogiac.net.relay.compression import parse_spec  # noqa: PLC0415 (the process's own imports)
 
@@ -410,6 +463,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--match", default=DEFAULT_MATCH)
     parser.add_argument("--hedge", default="all", choices=HEDGES)
     parser.add_argument("--hedge-delay", type=float, default=0.0)
+    parser.add_argument("--type", action="append", default=[], dest="types",
+                        help="TOPIC=TYPE: the message type the manifest states for a topic (replies checked with it)")
     parser.add_argument("--verbose", "-v", action="store_true")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
@@ -423,7 +478,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                           client=args.client, caller_id=args.name)
         group = ReplicaGroup(GroupConfig(
             edge=edge, group=args.group, replicas=tuple(parse_replica(r) for r in args.replica),
-            match=args.match, hedge=args.hedge, hedge_delay_s=args.hedge_delay, stats_file=args.stats_file))
+            match=args.match, hedge=args.hedge, hedge_delay_s=args.hedge_delay, stats_file=args.stats_file,
+            types=tuple(parse_type(t) for t in args.types)))
     except RelayError as err:
         print(f"error: {err}", flush=True)
         return 2

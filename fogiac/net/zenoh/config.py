@@ -66,10 +66,11 @@ def _keys(topics: Iterable[str], prefix: str = "") -> list[str]:
 
 
 def replica_keys_prefix(route: Route) -> str:
-    """Where a replica's data crosses: under ``fogiac/replica/<group>/<index>/`` (the host's replica process
-    renames to and from its nodes' plain keys; :mod:`fogiac.net.zenoh.replicas`), or plain ("")."""
+    """Where a replica's data crosses: under ``fogiac/replica/<group>/<number>/`` (``index + 1``, as
+    :func:`fogiac.net.zenoh.replicas.replica_prefix` names it: the host's replica process renames to and
+    from its nodes' plain keys), or plain ("")."""
     replica = route.replica
-    return "" if replica is None else f"fogiac/replica/{replica.group}/{replica.index}/"
+    return "" if replica is None else f"fogiac/replica/{replica.group}/{replica.index + 1}/"
 
 
 def graph_key(topic: str, kind: str) -> str:

@@ -185,9 +185,11 @@ def replica_merges(plan: Plan, *, entry: str, connect: Mapping[str, str], folder
             continue
         first = up[0].replica
         assert first is not None
-        if first.match != SUPPORTED_MATCH:
-            notes.append(f"node {group}: over Zenoh replies are matched by {SUPPORTED_MATCH} only, "
+        if first.match != SUPPORTED_MATCH:  # validate refuses it; a plan made otherwise gets no merge that
+            # would key its replies by bytes 4..12 whatever its match says
+            notes.append(f"node {group}: not merged: over Zenoh replies are matched by {SUPPORTED_MATCH} only, "
                          f"not {first.match!r}")
+            continue
         argv = [sys.executable, "-m", "fogiac.net.zenoh.replicas", "edge", entry, "--group", group,
                 "--hedge", first.hedge, "--hedge-delay", str(first.hedge_delay_s),
                 "--linked-file", str(folder / f"zenoh-edge{suffix}.stats.json"),

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from fogiac.hostmodel import Launching
+from fogiac.msgtypes import DEFAULT_MATCH
 from fogiac.net.zenoh.config import LOCAL_PORT as LOCAL_PORT  # re-exported: the ports in one place
 from fogiac.net.zenoh.config import ROUTER_PORT
 
@@ -36,10 +37,18 @@ class ZenohMiddleware:
         return str(edge.zenoh_router)
 
     def manifest_problems(self, manifest: Any) -> tuple[tuple[str, str], ...]:
-        """Access control allows exactly the listed topics: a node whose topics are "auto" has none."""
-        return tuple((f"ROS {manifest.ros.distro} crosses through {self.name}, whose access control allows only "
-                      "listed topics: give this node topics: {in: [...], out: [...]}", f"nodes[{i}].topics")
-                     for i, node in enumerate(manifest.nodes) if node.topics == "auto")
+        """Access control allows exactly the listed topics: a node whose topics are "auto" has none. The replica
+        merge reads a reply's key where a CDR ``header.stamp`` is (rmw_zenoh sends no message definition to
+        find any other field by): a replicated node matching by anything else would have its replies keyed by
+        bytes that are not its field, so it is refused."""
+        auto = [(f"ROS {manifest.ros.distro} crosses through {self.name}, whose access control allows only "
+                 "listed topics: give this node topics: {in: [...], out: [...]}", f"nodes[{i}].topics")
+                for i, node in enumerate(manifest.nodes) if node.topics == "auto"]
+        match = [(f"{node.reply_match!r}: over {self.name} (ROS {manifest.ros.distro}) replicas' replies are matched "
+                  f"by {DEFAULT_MATCH} only (rmw_zenoh sends no message definition to find another field by); "
+                  f"give the reply a std_msgs/Header copied from its request", f"nodes[{i}].reply_match")
+                 for i, node in enumerate(manifest.nodes) if node.replicas > 1 and node.reply_match != DEFAULT_MATCH]
+        return tuple(auto + match)
 
 
 ZENOH = ZenohMiddleware()

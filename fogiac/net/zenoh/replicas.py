@@ -1,7 +1,8 @@
 """A replicated ROS 2 node over Zenoh: each replica under its own key prefix, an edge-side merge.
 
 rmw_zenoh's data keys are ``<domain>/<topic>/<type>/<hash>``. On a replica's host a small process (``cloud``)
-renames between the plain keys its nodes use and ``fogiac/replica/<group>/<index>/<key>``, the only keys
+renames between the plain keys its nodes use and ``fogiac/replica/<group>/<number>/<key>`` (``<number>``:
+1 for ``<group>-r1``), the only keys
 its router lets cross to the edge (:func:`fogiac.net.zenoh.config.access_control` with ``Route.replica``).
 On the edge, ``edge`` subscribes the robot's requests (the node's ``in`` topics, plain keys) and puts each
 under every live replica's prefix (hedge ``all``), or the fastest one's first (``delayed``); it subscribes
@@ -46,7 +47,9 @@ _STAMP = msgtypes.CDR.key_reader(msgtypes.HEADER, SUPPORTED_MATCH)
 
 
 def replica_prefix(group: str, index: int) -> str:
-    return f"{PREFIX}/{group}/{index}"
+    """Replica ``index`` (the plan's, from 0) of ``group`` crosses under its number, as it is shown: 1 of 2
+    is ``fogiac/replica/<group>/1`` on host ``<group>-r1``."""
+    return f"{PREFIX}/{group}/{index + 1}"
 
 
 def stamp_key(payload: bytes) -> bytes | None:
@@ -147,10 +150,10 @@ class EdgeMerge:
             _forward(self.session, f"{replica_prefix(self.group, i)}/{key}", sample)
 
     def _reply(self, topic: str, sample: Any) -> None:
-        parts = str(sample.key_expr).split("/", 4)  # fogiac, replica, group, index, the plain key
-        if len(parts) < 5 or not parts[3].isdigit() or int(parts[3]) not in self.merge.figures:
+        parts = str(sample.key_expr).split("/", 4)  # fogiac, replica, group, number (index + 1), the plain key
+        if len(parts) < 5 or not parts[3].isdigit() or int(parts[3]) - 1 not in self.merge.figures:
             return
-        if self.merge.reply(topic, int(parts[3]), stamp_key(sample.payload.to_bytes()), time.monotonic()):
+        if self.merge.reply(topic, int(parts[3]) - 1, stamp_key(sample.payload.to_bytes()), time.monotonic()):
             _forward(self.session, parts[4], sample)
 
     def _hedge_loop(self) -> None:

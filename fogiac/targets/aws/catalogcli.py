@@ -9,14 +9,16 @@ in place of the shipped one. The aws target contributes these commands (plug-in 
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 from typing import Any
 
 import typer
 
+from fogiac.errors import FogiacError
 from fogiac.tables import console, table
-from fogiac.targets.aws import api, refresh
-from fogiac.targets.aws.catalogue import Arch, Offer
+from fogiac.targets.aws import api, known, refresh
+from fogiac.targets.aws.catalogue import Arch, Catalogue, Offer, suggest_region
 from fogiac.targets.aws.manifest import CLOUD, spot_estimate, user_catalogue
 
 _REGION = typer.Option("us-east-1", "--region", help="The region to search.")
@@ -28,6 +30,22 @@ def _row(offer: Offer) -> tuple[str, ...]:
     when = f"{price.source.date}{' est.' if price.source.estimate else ''}" if price else "-"
     return (spec.name, str(spec.vcpus), f"{spec.memory_gib:g}", spec.arch, gpu,
             f"{price.usd_per_hour:.4f}" if price else "unknown", f"{spot:.4f}" if spot is not None else "-", when)
+
+
+def _typo(cat: Catalogue, region: str) -> FogiacError:
+    near = suggest_region(cat, region)
+    return FogiacError(f"--region {region!r} is not an AWS region" + (f"; did you mean {near[0]!r}?" if near else ""))
+
+
+def _searchable(cat: Catalogue, region: str) -> None:
+    """Refuse a region the catalogue cannot answer for: a typo (with the nearest name), or a real region
+    it does not cover (saying how to fill it); an empty table with exit 0 read as "nothing fits"."""
+    if region in cat.regions:
+        return
+    if region in known.regions():
+        raise FogiacError(f"--region {region!r}: the catalogue does not cover this AWS region (no machines, no "
+                          f"prices); `fogiac catalog update --region {region}` reads it with your credentials")
+    raise _typo(cat, region)
 
 
 def register(app: typer.Typer) -> None:
@@ -53,13 +71,22 @@ def commands() -> typer.Typer:
         if arch not in (None, "x86_64", "arm64"):
             raise typer.BadParameter(f"{arch!r} is not x86_64 or arm64", param_hint="--arch")
         chosen: Arch | None = "arm64" if arch == "arm64" else ("x86_64" if arch else None)
-        found = CLOUD.catalogue.search(region=region, gpu=True if gpu == "any" else gpu, arch=chosen, vcpus=vcpus,
-                                       memory=memory, spot=spot)
-        out = table(f"EC2 in {region}: {len(found)} types", "type", "vCPU", "GiB", "arch", "GPU", "$/hour",
-                    "spot $/hour", "price as of")
+        _searchable(CLOUD.catalogue, region)
+        asked = functools.partial(CLOUD.catalogue.search, region=region, gpu=True if gpu == "any" else gpu,
+                                  arch=chosen, vcpus=vcpus, memory=memory, spot=spot)
+        found = asked()
+        unpriced = not found and not any(CLOUD.catalogue.price(t, region) for t in CLOUD.catalogue.types
+                                         if CLOUD.catalogue.offered(t, region))
+        if unpriced:  # a region with no price source: its types, with their cost shown as unknown
+            found = asked(priced_only=False)
+        out = table(f"EC2 in {region}: {len(found)} types" + (", prices unknown" if unpriced else ""), "type", "vCPU",
+                    "GiB", "arch", "GPU", "$/hour", "spot $/hour", "price as of")
         for offer in found[:limit]:
             out.add_row(*_row(offer))
         console().print(out)
+        if unpriced:
+            typer.echo(f"The catalogue has no prices for {region}: `fogiac catalog update --region {region}` "
+                       "reads them with your credentials.")
 
     @cat.command("update")
     def update(regions: list[str] = typer.Option(None, "--region", help="Regions to read (default: all known)."),
@@ -67,6 +94,9 @@ def commands() -> typer.Typer:
                spot: bool = typer.Option(True, "--spot/--no-spot", help="Read spot price history too.")) -> None:
         """Rebuild the catalogue from DescribeInstanceTypes, the Price List API and spot price history."""
         wanted = list(regions or CLOUD.catalogue.regions)
+        for region in wanted:
+            if region not in CLOUD.catalogue.regions and region not in known.regions():
+                raise _typo(CLOUD.catalogue, region)
         clients: dict[str, Any] = {}
 
         def ec2_for(region: str) -> Any:

@@ -14,6 +14,7 @@ no network, no boto3.
 from __future__ import annotations
 
 import gzip
+import hashlib
 import json
 import math
 import re
@@ -24,11 +25,31 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Literal
 
+from fogiac.errors import CloudError
+
 FORMAT = 1
 SHIPPED = "targets/aws/data/catalogue.json.gz"
 Arch = Literal["x86_64", "arm64"]
 _ROW = ("vcpus", "memory_gib", "arch", "accelerators", "accelerator_model", "accelerator_memory_gib",
         "accelerator_kind", "hardware_source", "offered", "prices")
+
+
+class BadPrice(CloudError):
+    """A catalogue holds a price that is not a finite number of dollars at least 0 (NaN, negative, infinite).
+
+    Such a number poisons every comparison it meets: NaN sorts nowhere (a NaN catalogue chose a
+    192-vCPU machine for ``vcpus: '>=2'``) and a negative one lowers a total under any budget."""
+
+
+def checked_price(value: Any, where: str) -> float:
+    """``value`` as a price in USD, or :class:`BadPrice` naming ``where`` (the entry it came from)."""
+    try:
+        usd = float(value)
+    except (TypeError, ValueError):
+        raise BadPrice(f"{where}: price {value!r} is not a number") from None
+    if isinstance(value, bool) or not math.isfinite(usd) or usd < 0:
+        raise BadPrice(f"{where}: price {value!r} is not a finite number of dollars at least 0") from None
+    return usd
 
 
 @dataclass(frozen=True)
@@ -98,7 +119,9 @@ class Catalogue:
         self.provenance: Mapping[str, Any] = raw["provenance"]
         self.sources = tuple(Source(**s) for s in raw["sources"])
         self.regions: tuple[str, ...] = tuple(raw["regions"])
-        self.client_vpn_usd_per_hour: Mapping[str, float] = raw.get("client_vpn_usd_per_hour", {})
+        self.client_vpn_usd_per_hour: Mapping[str, float] = {
+            key: (checked_price(value, f"{path}: client_vpn_usd_per_hour {key}") if key != "source" else value)
+            for key, value in raw.get("client_vpn_usd_per_hour", {}).items()}
         self._rows: Mapping[str, list[Any]] = raw["types"]
         self._types: dict[str, InstanceType] = {}
         self._index = {r: i for i, r in enumerate(self.regions)}
@@ -167,10 +190,15 @@ class Catalogue:
             text = self._rows[name][9] if name in self._rows else ""
             for cell in filter(None, text.split(";")):
                 ri, od, ods, sp, sps = cell.split(",")
-                points[int(ri)] = (float(od) if od else None, int(ods or 0),
-                                   float(sp) if sp else None, int(sps or 0))
+                where = f"{self.path}: {name} in {self._region_at(ri)}"
+                points[int(ri)] = (checked_price(od, f"{where} (on-demand)") if od else None, int(ods or 0),
+                                   checked_price(sp, f"{where} (spot)") if sp else None, int(sps or 0))
             self._prices[name] = points
         return points
+
+    def _region_at(self, index: str) -> str:
+        i = int(index) if index.isdigit() else -1
+        return self.regions[i] if 0 <= i < len(self.regions) else f"region #{index}"
 
     def _point(self, name: str, region: str, column: int) -> Price | None:
         i = self._index.get(region)
@@ -338,6 +366,13 @@ def read(path: str | Path) -> Catalogue:
     if data[:2] == b"\x1f\x8b":
         data = gzip.decompress(data)
     return Catalogue(json.loads(data), path=str(path))
+
+
+def digest(path: str | None = None) -> str:
+    """The sha256 of the catalogue file :func:`load` reads for ``path``: a saved plan binds the catalogue its
+    machines were chosen and priced from, so a refreshed one is not applied unreviewed."""
+    data = Path(path).read_bytes() if path is not None else resources.files("fogiac").joinpath(SHIPPED).read_bytes()
+    return hashlib.sha256(data).hexdigest()
 
 
 @cache

@@ -1,7 +1,12 @@
 """The IAM permissions fogiac needs on AWS, shipped as a policy document, and ``doctor``'s check of them.
 
 ``data/iam-policy.json`` is the policy to attach to the user or role fogiac runs as
-(``python -m fogiac.targets.aws.iam`` prints it). It allows two kinds of actions:
+(``python -m fogiac.targets.aws.iam`` prints it). It is least privilege against the caller turning it into
+more: a role may be created (and given an inline policy) only with the account's ``fogiac-boundary``
+permissions boundary on it (``data/iam-boundary.json``, ``--boundary`` prints it; writing flow logs is all
+it allows) and passed only to VPC flow logs; whatever deletes, stops, modifies or re-tags needs the
+resource to carry ``fogiac:stack`` already, and that tag is given only at creation (``ec2:CreateAction``),
+so nothing fogiac did not create can be touched. It allows two kinds of actions:
 
 - the AWS API calls fogiac makes itself through boto3 (preflight, status, refresh, sweep, quotas,
   waking stopped instances, reading host keys from the console); a test scans this package for
@@ -31,8 +36,23 @@ from fogiac.targets.aws import api
 from fogiac.targets.base import Check
 
 POLICY_FILE = Path(__file__).parent / "data" / "iam-policy.json"
+BOUNDARY_FILE = Path(__file__).parent / "data" / "iam-boundary.json"  # the account's ``fogiac-boundary`` policy
+BOUNDARY = "arn:aws:iam::{account}:policy/fogiac-boundary"  # as stacks/network.py sets it on the roles it makes
 
-OWN_STATEMENTS = ("FogiacCalls", "FogiacSweepsItsFlowLogRoles", "Doctor")  # the document's statements of own calls
+# the document's statements of fogiac's own calls
+OWN_STATEMENTS = ("FogiacReads", "FogiacChangesOnlyWhatItTagged", "FogiacReadsItsRoles", "FogiacSweepsItsRoles",
+                  "FogiacSweepsItsRolesPolicies", "Doctor")
+
+
+def own_request(account: str) -> dict[str, list[str]]:
+    """The condition keys of the requests fogiac itself makes (what the policy's conditions ask of them): a
+    resource tagged ``fogiac:stack``, tags given at creation, a role created with the boundary and passed
+    only to flow logs. ``doctor`` hands these to IAM's simulator, which otherwise evaluates every condition
+    as unmet; the tests evaluate the policy under the same keys."""
+    return {"aws:ResourceTag/fogiac:stack": ["a-stack"], "aws:RequestTag/fogiac:stack": ["a-stack"],
+            "aws:TagKeys": ["Name"], "ec2:CreateAction": ["RunInstances"],
+            "iam:PermissionsBoundary": [BOUNDARY.format(account=account)],
+            "iam:PassedToService": ["vpc-flow-logs.amazonaws.com"]}
 _TAGS = ("ec2:CreateTags", "ec2:DeleteTags", "ec2:DescribeTags")
 _SG_RULES = ("ec2:DescribeSecurityGroupRules", "ec2:ModifySecurityGroupRules", "ec2:DescribeSecurityGroups")
 
@@ -131,15 +151,20 @@ def _principal(arn: str) -> str:
 
 
 def denied(actions: Iterable[str], *, region: str, sts: Any = None, iam: Any = None) -> list[str]:
-    """The actions the caller may not make, by IAM's policy simulator (sorted)."""
+    """The actions the caller may not make on fogiac's own requests (:func:`own_request`), by IAM's policy
+    simulator (sorted)."""
     sts = sts or api.client("sts", region=region)
     iam = iam or api.client("iam", region=region)
-    caller = _principal(str(api._call(sts.get_caller_identity)["Arn"]))
+    identity = api._call(sts.get_caller_identity)
+    caller = _principal(str(identity["Arn"]))
+    context = [{"ContextKeyName": key, "ContextKeyValues": values,
+                "ContextKeyType": "stringList" if len(values) > 1 or key == "aws:TagKeys" else "string"}
+               for key, values in own_request(str(identity["Account"])).items()]
     wanted = sorted(actions)
     refused: list[str] = []
     for start in range(0, len(wanted), 100):
         result = api._call(iam.simulate_principal_policy, PolicySourceArn=caller,
-                           ActionNames=wanted[start:start + 100])
+                           ActionNames=wanted[start:start + 100], ContextEntries=context)
         refused += [r["EvalActionName"] for r in result["EvaluationResults"] if r["EvalDecision"] != "allowed"]
     return sorted(refused)
 
@@ -165,4 +190,4 @@ def doctor_check(plan: Plan, resource_types: Iterable[str], *, sts: Any = None, 
 
 
 if __name__ == "__main__":  # pragma: no cover
-    sys.stdout.write(POLICY_FILE.read_text())
+    sys.stdout.write((BOUNDARY_FILE if sys.argv[1:] == ["--boundary"] else POLICY_FILE).read_text())

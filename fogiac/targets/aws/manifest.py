@@ -50,6 +50,7 @@ from fogiac.targets.aws.catalogue import (
     suggest_region,
     suggest_type,
 )
+from fogiac.targets.aws.catalogue import digest as catalogue_digest
 
 DEFAULT_REGION = "us-west-2"  # a manifest without cloud.region
 # AWS's tag limits per resource (50 tags, keys of 128 characters, values of 256; the aws: prefix is
@@ -201,6 +202,11 @@ class AwsCloud:
         """The user's refreshed catalogue when there is one, else the shipped one (each read once)."""
         own = user_catalogue()
         return load(str(own)) if own.is_file() else load()
+
+    def catalogue_sha256(self) -> str:
+        """The digest of the catalogue :attr:`catalogue` reads now (a saved plan binds it)."""
+        own = user_catalogue()
+        return catalogue_digest(str(own) if own.is_file() else None)
 
     def regions(self) -> Sequence[str]:
         return self.catalogue.regions

@@ -33,7 +33,12 @@ def _newest_ami(args: Mapping[str, Any]) -> dict[str, Any]:
     return {"id": ami, "imageId": ami, "name": pattern, "architecture": "x86_64"}
 
 
-PLACEHOLDERS = offline.Placeholders(computed=_COMPUTED, always=("arn",), calls={"aws:ec2/getAmi:getAmi": _newest_ami})
+def _caller(args: Mapping[str, Any]) -> dict[str, Any]:
+    return {"id": "<account>", "accountId": "<account>", "arn": "<caller>", "userId": "<caller>"}
+
+
+PLACEHOLDERS = offline.Placeholders(computed=_COMPUTED, always=("arn",), calls={
+    "aws:ec2/getAmi:getAmi": _newest_ami, "aws:index/getCallerIdentity:getCallerIdentity": _caller})
 
 
 def offline_bundle(stack: str) -> Bundle:

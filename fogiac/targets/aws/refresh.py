@@ -57,7 +57,7 @@ from typing import Any
 
 from fogiac.errors import CloudError
 from fogiac.extras import need
-from fogiac.targets.aws.catalogue import FORMAT, Source
+from fogiac.targets.aws.catalogue import FORMAT, Source, checked_price
 
 CLIENT_VPN_USD_PER_HOUR = {"association": 0.1, "connection": 0.05}  # us-east-1 list price, as before
 _CLIENT_VPN_SOURCE = "AWS Client VPN pricing page (aws.amazon.com/vpn/pricing), us-east-1, 2025-06"
@@ -228,7 +228,9 @@ def from_aws(*, regions: Sequence[str], ec2_for: Any, pricing: Any, today: str |
                              region, ProductDescriptions=["Linux/UNIX"],
                              StartTime=_dt.datetime.now(_dt.UTC))
             for item in sorted(history, key=lambda i: i.get("Timestamp") or _dt.datetime.min):
-                latest[(item["InstanceType"], item.get("AvailabilityZone", ""))] = float(item["SpotPrice"])
+                zone = item.get("AvailabilityZone", "")
+                latest[(item["InstanceType"], zone)] = checked_price(
+                    item.get("SpotPrice"), f"DescribeSpotPriceHistory in {region}: {item['InstanceType']} in {zone}")
             per_type: dict[str, list[float]] = {}
             for (itype, _), value in latest.items():
                 per_type.setdefault(itype, []).append(value)
@@ -251,8 +253,10 @@ def parse_price_item(item: str | Mapping[str, Any]) -> tuple[str, str, float] | 
     for term in doc.get("terms", {}).get("OnDemand", {}).values():
         for dim in term.get("priceDimensions", {}).values():
             usd = dim.get("pricePerUnit", {}).get("USD")
-            if itype and region and usd is not None and float(usd) > 0:
-                return itype, region, round(float(usd), 6)
+            if itype and region and usd is not None:
+                value = checked_price(usd, f"Price List entry {itype} in {region}")
+                if value > 0:  # a zero price is a placeholder dimension, not the type's price
+                    return itype, region, round(value, 6)
     return None
 
 
@@ -271,15 +275,17 @@ def from_skypilot_csv(path: str | Path, *, commit: str, date: str) -> Builder:
                                f"commit {commit}; median over the region's zones", _SKYPILOT_LICENSE, estimate=True))
     spots: dict[tuple[str, str], list[float]] = {}
     with open(path, newline="") as fh:
-        for row in csv.DictReader(fh):
+        reader = csv.DictReader(fh)
+        for row in reader:
             itype, region = row["InstanceType"], row["Region"]
             if itype not in b.hardware:
                 b.hardware[itype] = _csv_hardware(row) + [src]
             b.offer(itype, region)
+            where = f"{path} line {reader.line_num}: {itype} in {region}"
             if row.get("Price"):
-                b.on_demand[(itype, region)] = (round(float(row["Price"]), 6), src)
+                b.on_demand[(itype, region)] = (round(checked_price(row["Price"], f"{where} (Price)"), 6), src)
             if row.get("SpotPrice"):
-                spots.setdefault((itype, region), []).append(float(row["SpotPrice"]))
+                spots.setdefault((itype, region), []).append(checked_price(row["SpotPrice"], f"{where} (SpotPrice)"))
     for key, values in spots.items():
         b.spot[key] = (round(statistics.median(values), 5), spot_src)
     return b

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import importlib.util
 import shutil
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from fogiac.errors import FogiacError
 from fogiac.manifest.schema import Manifest
 from fogiac.plan.model import HostSpec, Plan
 from fogiac.plan.placement import Placement, Tags
@@ -16,7 +16,7 @@ from fogiac.provision.local import PORTS_FILE, local_access, local_ports, sandbo
 from fogiac.state import StackState
 from fogiac.targets.base import Check
 from fogiac.targets.existing import ExistingMachines
-from fogiac.targets.local import placement
+from fogiac.targets.local import needs, placement
 
 
 class LocalTarget(ExistingMachines):
@@ -52,14 +52,24 @@ class LocalTarget(ExistingMachines):
         run_dir = Path(entry[1] or entry[0].sandbox) / "run"
         return [{"node": node, **supervise.status(run_dir, f"node-{node}")} for node in spec.nodes]
 
+    def ready(self, plan: Plan, *, verb: str) -> None:
+        """Before ``up`` starts anything: the workload nodes' requirements installed for this interpreter
+        (the sandboxes run it), else one line naming them and the command that installs them."""
+        if verb != "up":
+            return
+        failed = [check for check in needs.workload_problems(plan, import_nodes=False) if not check.ok]
+        if failed:
+            raise FogiacError("; ".join(f"{check.what}: {check.detail}" for check in failed)
+                              + " (`fogiac doctor --target local` checks everything local needs)")
+
     def doctor(self, plan: Plan, *, ssh_from: str | None = None) -> list[Check]:
-        """What the sandboxes need on this machine: ROS 1's roscore and rospy."""
+        """What the sandboxes need on this machine: ROS 1's roscore and rospy, and what each workload node
+        imports (its requirements installed for the interpreter the sandboxes run, its node module)."""
         roscore = shutil.which("roscore")
-        rospy = importlib.util.find_spec("rospy")
         return [
             Check("roscore", roscore is not None, roscore or "not on PATH (install ros-core)"),
-            Check("rospy", rospy is not None,
-                  (rospy.origin or "found") if rospy else "not importable (install python3-rospy)"),
+            needs.rospy_check(),
+            *needs.workload_problems(plan, import_nodes=True),
         ]
 
 

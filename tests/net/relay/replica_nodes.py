@@ -1,15 +1,16 @@
 """rospy nodes for the replica tests and benchmark: a robot asking, and a node answering (one per process).
 
-    python replica_nodes.py echo REQ REPLY --name NAME [--work-ms W] [--pad BYTES]
+    python replica_nodes.py echo REQ REPLY --name NAME [--work-ms W] [--pad BYTES] [--definition TEXT]
     python replica_nodes.py robot REQ REPLY --count N [--rate HZ] [--base B] [--wait S]
 
 Both topics carry ``std_msgs/Header``. ``echo`` answers each request with a Header of the same seq
 and stamp and ``frame_id`` NAME, after W ms of CPU work (a busy loop, so a CPU quota or a stop
 slows it; ``--name ip``: this host's global IPv4 address, for replicas that run one command on
 several hosts; ``--pad``: that many random characters after a ``|`` in ``frame_id``, a reply big enough
-for a slow link to delay). ``robot`` waits until someone subscribes to REQ and publishes to REPLY, sends N requests
-(seq i, stamp base+i s), and prints one JSON line per reply it gets: {"i", "from", "ms"} (ms: from
-its send to the reply's arrival), then ``done``.
+for a slow link to delay; ``--definition``: the message definition its publisher sends, a hostile replica's).
+``robot`` waits until someone subscribes to REQ and publishes to REPLY, sends N requests (seq i, stamp
+base+i s; ``--zero-stamp``: stamp 0, and replies told apart by seq), and prints one JSON line per reply
+it gets: {"i", "from", "ms"} (ms: from its send to the reply's arrival), then ``done``.
 """
 
 from __future__ import annotations
@@ -40,6 +41,9 @@ def main() -> None:
     parser.add_argument("--rate", type=float, default=20.0)
     parser.add_argument("--base", type=int, default=1000, help="robot: request i is stamped base + i seconds")
     parser.add_argument("--wait", type=float, default=10.0, help="robot: how long to wait for the last replies")
+    parser.add_argument("--definition", default=None,
+                        help="echo: the message definition its publisher sends (a hostile replica's), not Header's")
+    parser.add_argument("--zero-stamp", action="store_true", help="robot: every request stamped 0, told apart by seq")
     args = parser.parse_args()
 
     import rospy
@@ -50,6 +54,8 @@ def main() -> None:
         name = _host_address() if args.name == "ip" else args.name
         if args.pad:
             name += "|" + secrets.token_urlsafe(args.pad)[:args.pad]  # random: the relay's compression keeps it big
+        if args.definition is not None:  # what rospy sends in its connection header as message_definition
+            Header._full_text = args.definition.replace("\\n", "\n")
         pub = rospy.Publisher(args.reply, Header, queue_size=100)
 
         def answer(req: Header) -> None:
@@ -69,7 +75,7 @@ def main() -> None:
 
     def got(reply: Header) -> None:
         now = time.perf_counter()
-        i = reply.stamp.secs - args.base
+        i = reply.seq if args.zero_stamp else reply.stamp.secs - args.base
         with lock:
             t0 = sent.get(i)
         ms = None if t0 is None else round((now - t0) * 1e3, 3)
@@ -84,7 +90,8 @@ def main() -> None:
     for i in range(args.count):
         with lock:
             sent[i] = time.perf_counter()
-        pub.publish(Header(seq=i, stamp=rospy.Time(args.base + i, 0), frame_id="robot"))
+        stamp = rospy.Time(0, 0) if args.zero_stamp else rospy.Time(args.base + i, 0)
+        pub.publish(Header(seq=i, stamp=stamp, frame_id="robot"))
         time.sleep(1.0 / args.rate)
     time.sleep(args.wait)
     print("done", flush=True)

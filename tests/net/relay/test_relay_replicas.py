@@ -188,20 +188,86 @@ def test_delayed_hedge_asks_the_second_replica_only_when_the_first_is_late(
 def test_a_field_other_than_the_stamp_matches_replies(three_masters: tuple[Master, Master, Master],
                                                       certs: Path, procs: Procs, tmp_path: Path) -> None:
     """``match: seq`` (std_msgs/Header's first field) keys replies by the field's raw bytes, found
-    with the message definition the publisher sends."""
+    with the message definition the publisher sends; a field the replies do not copy from their request
+    (``frame_id``: each replica writes its own name there) matches no request, and nothing passes."""
     edge, m0, m1 = three_masters
     req, rep = "/seq/request", "/seq/reply"
     _, a0 = cloud_end(procs, m0, certs, req, rep)
     _, a1 = cloud_end(procs, m1, certs, req, rep)
     node(procs, m0, "echo", req, rep, "--name", "r0")
     node(procs, m1, "echo", req, rep, "--name", "r1")
-    with group(edge, certs, [a0, a1], req, rep, tmp_path, match="frame_id") as g:
+    with group(edge, certs, [a0, a1], req, rep, tmp_path, match="seq") as g:
         got = run_robot(procs, edge, req, rep, 10)
         stats = g.stats()
-    # Every reply's frame_id names its replica, so keyed by frame_id each replica's first reply wins and
-    # the rest are dropped as duplicates: the key really is the field asked for.
-    assert sorted(r["from"] for r in got) == ["r0", "r1"]
-    assert stats["delivered"] == 2 and stats["duplicates_dropped"] == 18 and stats["unmatched"] == 0
+    assert sorted(r["i"] for r in got) == list(range(10))
+    assert stats["delivered"] == 10 and stats["duplicates_dropped"] == 10 and stats["unmatched"] == 0
+    with group(edge, certs, [a0, a1], req, rep, tmp_path, match="frame_id") as g:
+        got = run_robot(procs, edge, req, rep, 5, base=2000)
+        stats = g.stats()
+    # Issue 35 (2): a reply whose key names no request was delivered (here: each replica's first one).
+    assert got == [] and stats["delivered"] == 0 and stats["unsolicited"] == 10
+
+
+def test_requests_with_a_zero_stamp_are_each_answered_once(three_masters: tuple[Master, Master, Master],
+                                                           certs: Path, procs: Procs, tmp_path: Path) -> None:
+    """Issue 35 (8): five requests stamped 0 got one answer on ROS 1 (the others' replies were taken for
+    copies of the first): each is answered once, never merged, whichever replica is first."""
+    edge, m0, m1 = three_masters
+    req, rep = "/zero/request", "/zero/reply"
+    _, a0 = cloud_end(procs, m0, certs, req, rep)
+    _, a1 = cloud_end(procs, m1, certs, req, rep)
+    node(procs, m0, "echo", req, rep, "--name", "r0")
+    node(procs, m1, "echo", req, rep, "--name", "r1")
+    with group(edge, certs, [a0, a1], req, rep, tmp_path) as g:
+        robot = node(procs, edge, "robot", req, rep, "--count", "5", "--wait", "3", "--zero-stamp")
+        wait_for(lambda: "done" in robot.lines, 120, "the robot's run")
+        stats = g.stats()
+    assert sorted(r["i"] for r in replies(robot)) == list(range(5))
+    assert stats["delivered"] == 5 and stats["duplicates_dropped"] == 5
+
+
+# A Header whose definition puts a self-referential type, then an array of a bad size, before seq.
+HOSTILE = {"cycle": "Loop x\\nuint32 seq\\ntime stamp\\nstring frame_id\\n=====\\nMSG: std_msgs/Loop\\nLoop y\\n",
+           "size": "float64[x] junk\\nuint32 seq\\ntime stamp\\nstring frame_id\\n"}
+
+
+@pytest.mark.parametrize("hostile", sorted(HOSTILE))
+def test_a_hostile_definition_refuses_only_that_replica(three_masters: tuple[Master, Master, Master],
+                                                        certs: Path, procs: Procs, tmp_path: Path, hostile: str,
+                                                        caplog: pytest.LogCaptureFixture) -> None:
+    """Issue 35 (3): the first link's definition keyed every replica's replies, and a hostile one raised
+    RecursionError or ValueError in the link that opened it. Each link now has its own reader: the hostile
+    replica's replies are refused with a logged line, the healthy one answers every request."""
+    edge, m0, m1 = three_masters
+    req, rep = f"/hostile_{hostile}/request", f"/hostile_{hostile}/reply"
+    _, a0 = cloud_end(procs, m0, certs, req, rep)
+    _, a1 = cloud_end(procs, m1, certs, req, rep)
+    node(procs, m0, "echo", req, rep, "--name", "r0", "--definition", HOSTILE[hostile])
+    node(procs, m1, "echo", req, rep, "--name", "r1")
+    with group(edge, certs, [a0, a1], req, rep, tmp_path, match="seq") as g:
+        got = run_robot(procs, edge, req, rep, 10)
+        stats = g.stats()
+        assert all(link.linked for link in g.links) and g.links[0].reconnects == 0  # the link itself stays
+    assert sorted(r["i"] for r in got) == list(range(10)) and {r["from"] for r in got} == {"r1"}
+    assert stats["replicas"][0]["won"] == 0 and stats["replicas"][1]["won"] == 10
+    refused = [r.getMessage() for r in caplog.records if "its replies there are refused" in r.getMessage()]
+    assert refused and all(m.startswith(f"replica 1 of echo: {rep}: its message definition") for m in refused)
+
+
+def test_replies_of_another_type_than_the_stated_one_are_refused(three_masters: tuple[Master, Master, Master],
+                                                                 certs: Path, procs: Procs, tmp_path: Path) -> None:
+    """The manifest's message_types is what a reply's type is checked against (a replica's word is not)."""
+    edge, m0, m1 = three_masters
+    req, rep = "/stated/request", "/stated/reply"
+    _, a0 = cloud_end(procs, m0, certs, req, rep)
+    _, a1 = cloud_end(procs, m1, certs, req, rep)
+    node(procs, m0, "echo", req, rep, "--name", "r0")
+    node(procs, m1, "echo", req, rep, "--name", "r1")
+    with group(edge, certs, [a0, a1], req, rep, tmp_path, types=((rep, "std_msgs/msg/Header"),)) as g:
+        assert len(run_robot(procs, edge, req, rep, 3)) == 3  # the stated type, in ROS 2 spelling
+    with group(edge, certs, [a0, a1], req, rep, tmp_path, types=((rep, "geometry_msgs/PoseStamped"),)) as g:
+        wait_for(lambda: g.merge(rep).refused == {0, 1}, 20, "both replicas' replies refused")
+        assert g.merge(rep).pub is None and "/fogiac_relay_replicas_test" not in edge.publishers(rep)
 
 
 def replica_route(host: str, index: int, req: str, rep: str) -> Route:
@@ -248,7 +314,7 @@ def test_edge_up_starts_one_merge_per_group_and_status_names_a_dead_replica(
         wait_for(lambda: figures()["r0"]["health"] == "down", 30, "replica 0 reported down")
         lines = replicas_lines(edge_links(folder, connect, plan))
         assert [line for line in lines if isinstance(line, str)] == [
-            "replica 0 of echo on r0 is not linked (host or its relay down)"]
+            "replica 1 of echo on r0 is not linked (host or its relay down)"]  # counted from 1 (issue 35, 23)
         table = lines[0]
         assert table.row_count == 2 and list(table.columns[2].cells) == ["r0", "r1"]
     finally:

@@ -19,7 +19,7 @@ import pytest
 
 from fogiac.hostmodel import Layout, Where
 from fogiac.manifest.schema import load_manifest
-from fogiac.net.zenoh.config import access_control, edge_access_control
+from fogiac.net.zenoh.config import access_control, edge_access_control, replica_keys_prefix
 from fogiac.net.zenoh.deploy import edge_links, replica_merges, replica_service
 from fogiac.net.zenoh.errors import ZenohError
 from fogiac.net.zenoh.replicas import CloudPrefix, EdgeMerge, replica_prefix
@@ -57,14 +57,15 @@ def replica_route(host: str, index: int, port: int) -> Route:
 
 
 def test_a_replica_only_lets_its_prefixed_keys_cross() -> None:
-    rt = replica_route("r1", 1, 7448)
+    rt = replica_route("r1", 1, 7448)  # the second replica: numbered 2 on the wire, as shown (issue 35, 23)
+    assert replica_keys_prefix(rt) == replica_prefix("planner", 1) + "/" == "fogiac/replica/planner/2/"
     rules = {r["id"]: r["key_exprs"] for r in access_control(rt, edge_name="edge")["rules"]}
-    assert rules["edge-data-in"] == rules["edge-interest-out"] == ["fogiac/replica/planner/1/*/plan_req/*/*"]
-    assert rules["edge-data-out"] == rules["edge-interest-in"] == ["fogiac/replica/planner/1/*/plan_rep/*/*"]
+    assert rules["edge-data-in"] == rules["edge-interest-out"] == ["fogiac/replica/planner/2/*/plan_req/*/*"]
+    assert rules["edge-data-out"] == rules["edge-interest-in"] == ["fogiac/replica/planner/2/*/plan_rep/*/*"]
     # the edge router's mirror image: from that host only its prefixed replies, to it only its prefixed requests
     edge = {r["id"]: r["key_exprs"] for r in edge_access_control([("r1-cert", rt)])["rules"]}
-    assert edge["cloud0-data-in"] == ["fogiac/replica/planner/1/*/plan_rep/*/*"]
-    assert edge["cloud0-data-out"] == ["fogiac/replica/planner/1/*/plan_req/*/*"]
+    assert edge["cloud0-data-in"] == ["fogiac/replica/planner/2/*/plan_rep/*/*"]
+    assert edge["cloud0-data-out"] == ["fogiac/replica/planner/2/*/plan_req/*/*"]
 
 
 def test_a_topic_renamed_both_ways_is_refused_before_it_loops() -> None:
@@ -111,7 +112,9 @@ def test_every_request_answered_once_while_a_replica_dies(tmp_path: Path) -> Non
 
             robot.declare_subscriber("*/plan_rep/*/*", received)
             # until the path is up, a probe request (stamp 0) is answered
-            assert poll(lambda: robot.put(REQ_KEY, header(0, "robot")) or (got or None), timeout=30, interval=0.5)
+            probes: list[None] = []  # each stamped 0: each is a request of its own, answered once if it got through
+            assert poll(lambda: probes.append(robot.put(REQ_KEY, header(0, "robot"))) or (got or None), timeout=30,
+                        interval=0.5)
             time.sleep(1.0)  # late probe replies arrive before the counted run
             with lock:
                 got.clear()
@@ -176,7 +179,9 @@ def test_the_deployed_merge_answers_once_and_its_figures_reach_status(tmp_path: 
             got: list[int] = []
             robot.declare_subscriber("*/plan_rep/*/*", lambda s: got.append(
                 struct.unpack_from("<i", s.payload.to_bytes(), 4)[0]))
-            assert poll(lambda: robot.put(REQ_KEY, header(0, "robot")) or (got or None), timeout=30, interval=0.5)
+            probes: list[None] = []  # each stamped 0: each is a request of its own, answered once if it got through
+            assert poll(lambda: probes.append(robot.put(REQ_KEY, header(0, "robot"))) or (got or None), timeout=30,
+                        interval=0.5)
             time.sleep(1.0)
             got.clear()
             for sec in range(1, 31):
@@ -195,6 +200,17 @@ def test_the_deployed_merge_answers_once_and_its_figures_reach_status(tmp_path: 
             for s in opened:
                 s.close()
     assert sorted(got) == list(range(1, 31))
-    assert found is not None and found["r0"]["won"] + found["r1"]["won"] == 31
+    assert found is not None and 31 <= found["r0"]["won"] + found["r1"]["won"] <= 30 + len(probes)
     assert {f["health"] for f in found.values()} == {"ok"}
-    assert min(f["answers"] for f in found.values()) >= 31  # both answered every request (the probe maybe twice)
+    assert min(f["answers"] for f in found.values()) >= 30  # both answered every request (and the probes they got)
+
+
+def test_a_match_the_zenoh_merge_cannot_read_starts_no_merge(tmp_path: Path) -> None:
+    """Issue 35 (8): a reply_match other than header.stamp was merged by bytes 4..12 whatever it said (a CDR
+    request_id gave 1 answer of 5). validate refuses it; a plan made otherwise gets a note and no merge."""
+    routes = tuple(dataclasses.replace(replica_route(f"r{i}", i, 1), replica=Replica("planner", i, 2, "request_id"))
+                   for i in range(2))
+    plan = dataclasses.replace(compile_plan(load_manifest(EXAMPLES / "ros2-zenoh.yaml")), routes=routes)
+    notes = replica_merges(plan, entry="tcp/127.0.0.1:1", connect={"r0": "a:1", "r1": "b:1"}, folder=tmp_path)
+    assert notes == ["node planner: not merged: over Zenoh replies are matched by header.stamp only, not 'request_id'"]
+    assert list(tmp_path.iterdir()) == []

@@ -5,3 +5,14 @@ entry point below is its whole registration (its container recipe module, as fog
 from __future__ import annotations
 
 ENTRY_POINTS = {"fogiac.workloads": {"tally": "tests.plugins.tally.container"}}
+
+# A manifest with one tally node on the local target, for the tests that deploy or check the plugin.
+MANIFEST = """\
+name: counting
+cloud: {provider: local}
+nodes:
+  - name: counter
+    machine: t3.micro
+    workload: tally
+    topics: {in: [/items], out: [/count]}
+"""

@@ -3,7 +3,8 @@
 The venv comes from ``.ci/localstack.sh``; without it these tests skip and say so. LocalStack
 listens on 127.0.0.1:4566 (another free loopback port if that one is taken). Its EC2 image list
 is replaced (moto's ``MOTO_AMIS_PATH``) by AMIs named like the ones fogiac's plans query, so
-preflight resolves images here as it does on AWS.
+preflight resolves images here as it does on AWS. It is started through ``localstack_main.py``, which
+gives it Python 3.12's ``uuid.uuid5`` (its KMS needs it to create a key on 3.11).
 """
 
 from __future__ import annotations
@@ -73,9 +74,9 @@ def localstack(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     env = {k: v for k, v in os.environ.items() if not k.startswith(("AWS_", "LOCALSTACK_"))}
     env.update(GATEWAY_LISTEN=f"127.0.0.1:{port}", MOTO_AMIS_PATH=str(amis), SKIP_SSL_CERT_DOWNLOAD="1",
                DISABLE_EVENTS="1", LOCALSTACK_TELEMETRY="0", DISABLE_CORS_CHECKS="1",
-               SERVICES="ec2,sts,acm,logs,iam", FILESYSTEM_ROOT=str(work / "fs"))
+               SERVICES="ec2,sts,acm,logs,iam,s3,kms", FILESYSTEM_ROOT=str(work / "fs"))
     log = (work / "localstack.log").open("wb")
-    proc = subprocess.Popen([str(VENV_PYTHON), "-m", "localstack.runtime.main"], cwd=work, env=env,
+    proc = subprocess.Popen([str(VENV_PYTHON), str(Path(__file__).with_name("localstack_main.py"))], cwd=work, env=env,
                             stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
     try:
         deadline = time.monotonic() + 90
@@ -131,7 +132,7 @@ def _clients(localstack: str) -> dict[str, Any]:
 
     with pytest.MonkeyPatch.context() as monkeypatch:
         _point_at(localstack, monkeypatch)
-        return {name: client(name, region=REGION) for name in ("ec2", "acm", "logs", "iam")}
+        return {name: client(name, region=REGION) for name in ("ec2", "acm", "logs", "iam", "kms")}
 
 
 @pytest.fixture
@@ -152,3 +153,8 @@ def logs(aws_env: str, _clients: dict[str, Any]) -> Any:
 @pytest.fixture
 def iam(aws_env: str, _clients: dict[str, Any]) -> Any:
     return _clients["iam"]
+
+
+@pytest.fixture
+def kms(aws_env: str, _clients: dict[str, Any]) -> Any:
+    return _clients["kms"]

@@ -52,3 +52,15 @@ def test_update_writes_the_accounts_catalogue_that_plan_then_prices_from(
             "  - {name: gpu, machine: g6.xlarge, image: 'ros:noetic'}\n")
     plan: Any = compile_plan(parse_manifest(text, source="mine.yaml"), target="aws")
     assert plan.host("gpu").usd_per_hour == 0.9999  # the account's price, not the shipped 2026-07-20 estimate
+
+
+def test_a_region_without_prices_lists_its_types_as_unknown_and_says_how_to_fill_it() -> None:
+    """Issue 35, costs that are unknown say so: sa-east-1 has types but no price source; it showed "0 types"."""
+    shown = CliRunner().invoke(app, ["catalog", "--region", "sa-east-1", "--vcpus", ">=2", "--limit", "2"],
+                               env={"COLUMNS": "200"})
+    assert shown.exit_code == 0, shown.output
+    assert "EC2 in sa-east-1: " in shown.output and " types, prices unknown" in shown.output
+    rows = _rows(shown.output)
+    assert len(rows) == 2 and all(r[5] == "unknown" and r[6] == "-" for r in rows), rows
+    assert shown.output.rstrip().endswith("The catalogue has no prices for sa-east-1: `fogiac catalog update "
+                                          "--region sa-east-1` reads them with your credentials.")

@@ -64,7 +64,9 @@ def test_the_policy_is_a_valid_document_scoped_where_it_can_be() -> None:
         assert statement["Effect"] == "Allow" and all(":" in a for a in statement["Action"]), statement
         if any(a.startswith("iam:") and a != "iam:SimulatePrincipalPolicy" and a != "iam:ListRoles"
                for a in statement["Action"]):
-            assert statement["Resource"] == "arn:aws:iam::*:role/fogiac-*", statement  # only fogiac's own roles
+            # only fogiac's own roles: stacks/ puts them under the path /fogiac/<stack>/ (issue 35 item 4: the
+            # pattern was role/fogiac-*, which that path's ARN role/fogiac/<stack>/... never matched)
+            assert statement["Resource"] == "arn:aws:iam::*:role/fogiac/*", statement
 
 
 def test_doctor_without_credentials_checks_nothing_and_names_the_policy(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -113,7 +115,10 @@ def test_doctor_names_the_actions_an_assumed_role_is_denied(monkeypatch: pytest.
         iam_stub.add_response("simulate_principal_policy", {"EvaluationResults": [
             {"EvalActionName": a, "EvalDecision": "implicitDeny" if a in ("ec2:RunInstances", "iam:PassRole")
              else "allowed"} for a in batch]},
-            {"PolicySourceArn": "arn:aws:iam::123456789012:role/ci-deployer", "ActionNames": batch})
+            {"PolicySourceArn": "arn:aws:iam::123456789012:role/ci-deployer", "ActionNames": batch,
+             "ContextEntries": [{"ContextKeyName": key, "ContextKeyValues": values,
+                                 "ContextKeyType": "stringList" if len(values) > 1 or key == "aws:TagKeys"
+                                 else "string"} for key, values in iam.own_request("123456789012").items()]})
     plan = compile_plan(load_manifest(EXAMPLES / "minimal.yaml"))
     with sts_stub, iam_stub:
         check = iam.doctor_check(plan, types, sts=sts, iam=client)

@@ -36,6 +36,9 @@ def _run(end: object, verbose: bool) -> None:
     done = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: done.set())
+    reload = getattr(end, "reload_access", None)
+    if reload is not None:  # the cloud end: SIGHUP reads a fleet's access file now (it is polled anyway)
+        signal.signal(signal.SIGHUP, lambda *_: reload())
     end.start()  # type: ignore[attr-defined]
     try:
         done.wait()

@@ -6,6 +6,7 @@ region, the keys it adds to ``network:``): this module names no cloud."""
 
 from __future__ import annotations
 
+import re
 from typing import TYPE_CHECKING, Annotated, Literal
 from urllib.parse import urlparse
 
@@ -172,6 +173,28 @@ class Edge(_Model):
         if proto != "tcp" or not host or not port.isdigit() or not 0 < int(port) < 65536:
             raise ValueError(f"{value!r} is not a Zenoh endpoint like 'tcp/127.0.0.1:7447'")
         return value
+
+
+_ROBOT_NAME = re.compile(r"^[a-z][a-z0-9]{0,30}$")
+
+
+def _robot_name(value: str) -> str:
+    """A robot's name is its ROS namespace (``/<robot>/...``: no '-') and a DNS label in its certificate's
+    name (no '_'): so lowercase letters and digits only."""
+    if not _ROBOT_NAME.match(value):
+        raise ValueError(f"{value!r} is not a robot name: a lowercase letter, then lowercase letters and digits "
+                         "(up to 31), since it is both the robot's ROS namespace and a DNS label")
+    return value
+
+
+class Robot(Edge):
+    """One robot of a fleet: its name (its namespace and its certificate), where its graph is reached, and what
+    the middleware does differently for it."""
+
+    name: Annotated[str, AfterValidator(_robot_name)] = Field(
+        description="The robot's name: its topics' namespace (/<name>/...) and its certificate's identity.")
+    compression: Compression | None = Field(
+        default=None, description="Relay: this robot's compression for every topic (default: relay.compression).")
 
 
 class Relay(_Model):

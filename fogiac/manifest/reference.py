@@ -29,6 +29,7 @@ SECTIONS: tuple[tuple[str, type[BaseModel]], ...] = (
     ("cloud.registries[]", m.Registry),
     ("network", m.Network),
     ("edge", m.Edge),
+    ("robots[]", m.Robot),
     ("nodes[]", m.Node),
     ("nodes[].machine (a mapping)", m.Machine),
     ("nodes[].launch", m.Launch),

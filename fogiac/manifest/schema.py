@@ -23,7 +23,7 @@ from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from fogiac import middlewares
 from fogiac.errors import ManifestError
-from fogiac.manifest.blocks import Autostop, Cloud, Edge, HostMachine, Network, Registry, Relay, Ros
+from fogiac.manifest.blocks import Autostop, Cloud, Edge, HostMachine, Network, Registry, Relay, Robot, Ros
 from fogiac.manifest.clouds import Limits, known, limits
 from fogiac.manifest.crossfield import cross_field_problems
 from fogiac.manifest.fields import DnsName, _Model, ssh_from_problem
@@ -54,7 +54,9 @@ class Manifest(_Model):
     ros: Ros = Field(default_factory=Ros, description="ROS settings.")
     cloud: Cloud = Field(default_factory=Cloud, description="Where the cloud nodes run.")
     network: Network = Field(default_factory=Network, description="How the edge reaches them.")
-    edge: Edge = Field(default_factory=Edge, description="The robot's side.")
+    edge: Edge = Field(default_factory=Edge, description="The robot's side (one robot: the shorthand of robots:).")
+    robots: tuple[Robot, ...] = Field(default=(), min_length=1, description="A fleet: every robot, each with its "
+                                      "name, its ROS master and its own certificate; instead of edge:.")
     nodes: tuple[Node, ...] = Field(min_length=1, description="The nodes that run off the robot.")
     relay: Relay = Field(default_factory=Relay, description="How topics cross between edge and cloud.")
     tags: dict[str, str] = Field(default_factory=dict, description="Extra tags on every cloud resource.")
@@ -166,11 +168,50 @@ class Manifest(_Model):
                                                  choices=tuple(host_names)))
             if node.host is not None and node.replica_hosts:
                 problems.append(FieldProblem("give host or replica_hosts, not both", field=f"nodes[{i}].replica_hosts"))
+        problems += fleet_problems(self)
         chosen = middlewares.for_distro(self.ros.distro)
         for message, field in chosen.manifest_problems(self):  # the middleware's own rules, in its words
             problems.append(FieldProblem(message, field=field))
         raise_all(problems)
         return self
+
+
+def fleet_problems(manifest: Manifest) -> list[FieldProblem]:
+    """The fleet's rules: ``robots:`` or ``edge:``, names and masters unique, and whom each node serves."""
+    problems: list[FieldProblem] = []
+    names = [r.name for r in manifest.robots]
+    if manifest.robots and "edge" in manifest.model_fields_set:
+        problems.append(FieldProblem("give edge: (one robot) or robots: (a fleet), not both", field="robots"))
+    if manifest.robots and manifest.ros.distro != "noetic":
+        problems.append(FieldProblem(f"a fleet is built for ROS 1 (noetic) through the relay; ROS "
+                                     f"{manifest.ros.distro} has no robots: yet", field="robots"))
+    for i, robot in enumerate(manifest.robots):
+        if robot.name in names[:i]:
+            problems.append(FieldProblem(f"duplicate robot name {robot.name!r}", field=f"robots[{i}].name"))
+        elif robot.ros_master in [r.ros_master for r in manifest.robots[:i]]:
+            problems.append(FieldProblem(f"{robot.ros_master!r} is another robot's master too",
+                                         field=f"robots[{i}].ros_master"))
+    for i, node in enumerate(manifest.nodes):
+        if node.serve == "all":
+            continue
+        if not manifest.robots:
+            problems.append(FieldProblem(f"serve: {_said(node.serve)} needs a robots: list", field=f"nodes[{i}].serve"))
+        elif node.serve == "per_robot":
+            problems.append(FieldProblem("serve: per_robot (one instance per robot) is not built yet; give all or "
+                                         "a list of robots", field=f"nodes[{i}].serve"))
+        else:
+            for name in node.serve:
+                if name not in names:
+                    problems.append(FieldProblem(f"{name!r} is not in robots", field=f"nodes[{i}].serve",
+                                                 choices=tuple(names)))
+            if not node.serve:
+                problems.append(FieldProblem("serves no robot: give all or at least one robot's name",
+                                             field=f"nodes[{i}].serve"))
+    return problems
+
+
+def _said(value: object) -> str:
+    return value if isinstance(value, str) else "[" + ", ".join(map(str, value)) + "]"  # type: ignore[call-overload]
 
 
 def _limits(info: ValidationInfo) -> Limits:
@@ -275,12 +316,13 @@ def json_schema() -> dict:
 
 def node_types() -> tuple[type[BaseModel], ...]:
     """Every model of the manifest, for the README reference test."""
-    return (Manifest, Ros, Cloud, Autostop, HostMachine, Registry, Network, Edge, Node, Machine, Launch, TopicLists,
-            Relay, Hedge)
+    return (Manifest, Ros, Cloud, Autostop, HostMachine, Registry, Network, Edge, Robot, Node, Machine, Launch,
+            TopicLists, Relay, Hedge)
 
 
 
 # What other modules import from here (the blocks and nodes live in blocks.py and nodes.py).
 __all__ = ["Autostop", "Build", "Cloud", "Edge", "Hedge", "HostMachine", "Launch", "Machine", "Manifest", "Network",
-           "Node", "NodeKind", "Registry", "Relay", "Ros", "TopicLists", "Workload", "json_schema", "load_manifest",
+           "Node", "NodeKind", "Registry", "Relay", "Robot", "Ros", "TopicLists", "Workload", "json_schema",
+           "load_manifest",
            "parse_manifest", "ssh_from_problem"]

@@ -78,7 +78,7 @@ def compile_plan(manifest: Manifest, *, target: str | None = None, environment: 
         middleware=carrier.name,
         mode=placed.mode,
         # the manifest's edge: block, the one-robot shorthand: a list of one edge, named after the stack
-        edges=(EdgeSpec(name=stack, entry=carrier.edge_entry(manifest.edge), shorthand=True),),
+        edges=_edges(manifest, stack, carrier),
         ssh_from=ssh_sources(manifest),
         network=placed.network,
         security_groups=placed.security_groups,
@@ -94,6 +94,15 @@ def compile_plan(manifest: Manifest, *, target: str | None = None, environment: 
         notes=placed.notes + _unchecked(manifest),
         registries=tuple((r.server, r.username, r.password.secret) for r in manifest.cloud.registries),
     )
+
+
+def _edges(manifest: Manifest, stack: str, carrier: middleware.Middleware) -> tuple[EdgeSpec, ...]:
+    """The fleet's robots, each its own edge; else the ``edge:`` block, the one-robot shorthand: a list of one
+    edge, named after the stack, whose certificate and files keep the names of before fleets."""
+    if not manifest.robots:
+        return (EdgeSpec(name=stack, entry=carrier.edge_entry(manifest.edge), shorthand=True),)
+    return tuple(EdgeSpec(name=robot.name, entry=carrier.edge_entry(robot), compression=robot.compression)
+                 for robot in manifest.robots)
 
 
 def _unchecked(manifest: Manifest) -> tuple[str, ...]:
@@ -153,6 +162,7 @@ def _node(node: Node, host: str) -> NodeSpec:
         topics_auto=lists is None,
         topics_in=lists.inputs if lists else (),
         topics_out=lists.outputs if lists else (),
+        serves=node.serve if isinstance(node.serve, tuple) else (),
     )
 
 

@@ -51,6 +51,7 @@ class EdgeSpec:
     name: str
     entry: str  # its ROS 1 master URI, or the edge Zenoh router's endpoint
     shorthand: bool = False  # the manifest's one-robot ``edge:`` block made it (see above)
+    compression: str | None = None  # a fleet robot's own relay compression for every topic (None: the routes')
 
     @property
     def named(self) -> str | None:
@@ -152,6 +153,7 @@ class NodeSpec:
     build: BuildSpec | None = None
     # (NAME, reference): env values read at `up` (env:NAME, file:PATH), never held in the plan
     secrets: tuple[tuple[str, str], ...] = ()
+    serves: tuple[str, ...] = ()  # in a fleet, the robots it serves when not every one (the manifest's serve: list)
 
 
 @dataclass(frozen=True)
@@ -314,6 +316,15 @@ class Plan:
         and processes keep the file names they had before edges were a list, so a stack folder of then works."""
         return edge.shorthand
 
+    @property
+    def fleet(self) -> bool:
+        """Whether the manifest listed its robots (``robots:``): each then has its own namespace and access."""
+        return not self.edges[0].shorthand
+
+    def robots_of(self, node: NodeSpec) -> tuple[str, ...]:
+        """The robots ``node`` serves (every one unless its ``serve:`` lists some)."""
+        return node.serves or tuple(edge.name for edge in self.edges)
+
     def edges_at(self, entry: str | None = None) -> tuple[EdgeSpec, ...]:
         """The edges, the first reached at ``entry`` when given (``up --edge-master``, a test's own master)."""
         if entry is None or entry == self.edges[0].entry:
@@ -362,6 +373,11 @@ class Plan:
         for node in out["nodes"]:
             if not node["secrets"]:  # none: the same bytes (and digest) as before secrets could be named
                 del node["secrets"]
+            if not node["serves"]:  # every robot: the same bytes (and digest) as before fleets
+                del node["serves"]
+        for edge in out["edges"]:
+            if edge["compression"] is None:  # the routes' own: the same bytes as before a robot could name one
+                del edge["compression"]
         if not self.registries:  # none: the same bytes (and digest) as before registries could be named
             del out["registries"]
         if not self.middleware_settings:  # none: the same bytes (and digest) as before there could be any

@@ -14,6 +14,10 @@ connection that has not sent a byte yet (of its own source first) is closed for 
 is talking TLS, the new one is closed. So idle connections cannot pile up threads, and they never
 keep the edge out, even from the edge's own address: the edge speaks at once and is not evicted.
 Refusals are logged at most once per kind per 10 s (:mod:`.ratelog`).
+
+A fleet's cloud end also follows its access file (:mod:`.fleet`, ``fleet.json`` beside its certificates):
+only a listed, unrevoked robot is linked, and only for its own namespace and the shared nodes' topics;
+when the file changes, the links that lost their access are closed (within the watch's poll).
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ from fogiac.net.relay import framing
 from fogiac.net.relay.config import CloudConfig
 from fogiac.net.relay.end import RelayEnd
 from fogiac.net.relay.errors import RelayError
+from fogiac.net.relay.fleet import ACCESS_FILE, AccessWatch, FleetAccess
 from fogiac.net.relay.framing import Frame, FrameError, Kind
 from fogiac.net.relay.graph import Direction, GraphState, may_cross
 from fogiac.net.relay.ratelog import RateLimitedLog
@@ -79,6 +84,8 @@ class CloudRelay(RelayEnd):
         self._slots = threading.Lock()
         self._quiet = RateLimitedLog(log)
         self.turned_away = 0  # connections closed because too many were handshaking (new ones or idle ones)
+        self.refused_links = 0  # fleet: linked TLS connections of an unknown or revoked robot, closed
+        self.access: AccessWatch | None = None
 
     @property
     def address(self) -> tuple[str, int]:
@@ -90,6 +97,8 @@ class CloudRelay(RelayEnd):
     def _start_link(self) -> None:
         assert self.node is not None
         self._topics = SharedTopics(self.node, depth=self.config.queue_depth)
+        self.access = AccessWatch(self.cloud_config.access_file or self.cloud_config.certs / ACCESS_FILE,
+                                  self._access_changed)
         try:
             self._listener = socket.create_server(self.cloud_config.listen, backlog=16, reuse_port=False)
         except OSError as err:
@@ -97,6 +106,7 @@ class CloudRelay(RelayEnd):
             raise RelayError(f"cannot listen on {host}:{port}: {err}") from None
         log.info("cloud relay listening on %s:%d", *self.address)
         self._spawn(self._accept_loop, "relay-accept")
+        self._spawn(self.access.run, "relay-access", self._stopping)
 
     def _stop_link(self) -> None:
         if self._listener is not None:
@@ -205,6 +215,12 @@ class CloudRelay(RelayEnd):
             if self._stopping.is_set():
                 sock.close()
                 return
+            if not self._admitted(identity):
+                self.refused_links += 1
+                self._quiet.warning("robot", "refused edge %s from %s: not a robot of this fleet, or revoked",
+                                    identity, peer)
+                sock.close()
+                return
             old = self.sessions.get(identity)  # the same edge's earlier session; other edges' stay
             if old is not None and old.alive:
                 old.close(f"replaced by a new connection of edge {identity} from {peer}")
@@ -213,37 +229,66 @@ class CloudRelay(RelayEnd):
                 self.reconnects += 1
             assert self.node is not None and self._topics is not None
             session = Session(sock=sock, node=self.node, config=self.config, peer=f"edge {peer}",
-                              accepts=lambda topic: self._allowed(topic, "out"),
+                              accepts=lambda topic: self._allowed(topic, "out", identity),
                               feed=self._topics.feed, outlet=self._topics.outlet)
-            session.handlers[Kind.SUBSCRIBE] = lambda f: self._on_subscribe(session, f)
+            session.handlers[Kind.SUBSCRIBE] = lambda f: self._on_subscribe(session, f, identity)
             session.handlers[Kind.UNSUBSCRIBE] = lambda f: self._on_unsubscribe(session, f)
             self.sessions[identity] = self.session = session
         log.info("edge %s connected from %s", identity, peer)
-        threading.Thread(target=self._report_graph, args=(session,), name="relay-poll", daemon=True).start()
+        threading.Thread(target=self._report_graph, args=(session, identity), name="relay-poll", daemon=True).start()
         session.run()
         log.info("edge %s (%s) disconnected", identity, peer)
 
-    def _report_graph(self, session: Session) -> None:
-        """Tell the edge about this master's graph whenever it changes (it decides routes)."""
+    def reload_access(self) -> None:
+        """Read the fleet's access file now (SIGHUP) instead of at the next poll."""
+        if self.access is not None:
+            self.access.reload()
+
+    def _rules(self) -> FleetAccess | None:
+        return self.access.rules if self.access is not None else None
+
+    def _admitted(self, identity: str) -> bool:
+        rules = self._rules()
+        return rules is None or rules.robot(identity) is not None
+
+    def _access_changed(self, rules: FleetAccess | None) -> None:
+        """Close the links of robots that lost their access (revoked, or dropped from the fleet)."""
+        if rules is None:
+            return
+        with self._swap:
+            gone = [(i, s) for i, s in self.sessions.items() if s.alive and rules.robot(i) is None]
+        for identity, session in gone:
+            session.close(f"edge {identity} is no longer a robot of this fleet (revoked or removed)")
+
+    def _report_graph(self, session: Session, identity: str) -> None:
+        """Tell the edge about this master's graph whenever it changes (it decides routes); a fleet's robot
+        hears only of the topics it may use."""
         last: GraphState | None = None
         while session.alive and not self._stopping.is_set():
             graph = self.local_graph(types=True)  # the edge tells its master the types (rostopic echo)
-            if graph is not None and graph != last:
+            if graph is not None:
                 self._graph = graph
+                rules = self._rules()
+                if rules is not None:
+                    graph = rules.visible(identity, graph)
+            if graph is not None and graph != last:
                 session.send(framing.json_frame(Kind.STATE, graph.to_json()))
                 last = graph
             session.closed.wait(self.config.poll_interval)
 
-    def _on_subscribe(self, session: Session, frame: Frame) -> None:
+    def _on_subscribe(self, session: Session, frame: Frame, identity: str) -> None:
         body = framing.parse_json(frame)
         if not isinstance(body.get("topic"), str):
             raise FrameError("SUBSCRIBE needs a topic")
-        if not self._allowed(body["topic"], "in"):
+        if not self._allowed(body["topic"], "in", identity):
             session.refuse(f"SUBSCRIBE for {body['topic']!r}")
             return
         session.start_source(body["topic"], str(body.get("compression", "none")))
 
-    def _allowed(self, topic: str, direction: Direction) -> bool:
+    def _allowed(self, topic: str, direction: Direction, identity: str) -> bool:
+        rules = self._rules()
+        if rules is not None and not rules.allows(identity, topic):
+            return False  # another robot's topic, or a revoked robot's last frames
         policy = self.cloud_config.policy
         if may_cross(topic, direction, policy, self._graph):
             return True

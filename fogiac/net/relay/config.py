@@ -50,6 +50,7 @@ class CloudConfig(EndConfig):
     max_per_source: int = 4  # of those, from one address
     tls_timeout: float = 3.0  # seconds a connection may take to start and finish TLS (before any certificate)
     caller_id: str = "/fogiac_relay_cloud"
+    access_file: Path | None = None  # a fleet's access rules (None: ``fleet.json`` under certs; no file: one edge)
 
 
 @dataclass(frozen=True, kw_only=True)

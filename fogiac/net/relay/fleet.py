@@ -1,0 +1,158 @@
+"""Who may link to a cloud end of a fleet, and which topics each robot may touch.
+
+A fleet's cloud end keeps an access file beside its certificates (``fleet.json``, written by
+provisioning and rewritten by ``fogiac robot revoke``/``restore``)::
+
+    {"robots": {"arm1": {"identity": "arm1.edge.lab.fogiac", "topics": ["/plan/request", "/plan/reply"]}},
+     "revoked": ["arm3"]}
+
+A robot may ask for (SUBSCRIBE) and send (OPEN) only the topics of its own namespace ``/<robot>/...`` and
+the listed ones (the request/reply topics of the shared nodes that serve it); a certificate of no listed
+robot, or of a revoked one, is not linked at all. The file is read again whenever it changes
+(:class:`AccessWatch`), so robots are added and revoked with no process restarted. Without the file the
+cloud end keeps the rules of a single edge (every identity linked, the topic policy alone decides).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import threading
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from fogiac.net.relay.graph import GraphState
+
+log = logging.getLogger(__name__)
+ACCESS_FILE = "fleet.json"
+POLL_S = 1.0  # how often the access file is checked for a change (revocation must bite within 10 s)
+
+
+class AccessError(ValueError):
+    """The access file is not what provisioning writes."""
+
+
+@dataclass(frozen=True)
+class Robot:
+    name: str
+    identity: str  # the common name in the robot's client certificate
+    topics: frozenset[str] = frozenset()  # beyond its namespace: the shared nodes' request/reply topics
+
+    def may_use(self, topic: str) -> bool:
+        return topic.startswith(f"/{self.name}/") or topic in self.topics
+
+
+@dataclass(frozen=True)
+class FleetAccess:
+    """The parsed access file: robots by certificate identity, and the revoked robots' names."""
+
+    robots: Mapping[str, Robot] = field(default_factory=dict)
+    revoked: frozenset[str] = frozenset()
+
+    def robot(self, identity: str) -> Robot | None:
+        """The robot this identity may link as; None when it is unknown or revoked."""
+        robot = self.robots.get(identity)
+        return None if robot is None or robot.name in self.revoked else robot
+
+    def allows(self, identity: str, topic: str) -> bool:
+        robot = self.robot(identity)
+        return robot is not None and robot.may_use(topic)
+
+    def visible(self, identity: str, graph: GraphState) -> GraphState:
+        """The part of the cloud's graph this robot may use: other robots' topic names are not its business."""
+        robot = self.robot(identity)
+
+        def keep(side: Mapping[str, frozenset[str]]) -> dict[str, frozenset[str]]:
+            return {t: n for t, n in side.items() if robot is not None and robot.may_use(t)}
+
+        types = {t: ty for t, ty in graph.types.items() if robot is not None and robot.may_use(t)}
+        return GraphState(keep(graph.publishers), keep(graph.subscribers), types)
+
+    def to_json(self) -> dict[str, object]:
+        return {"robots": {r.name: {"identity": r.identity, "topics": sorted(r.topics)}
+                           for r in sorted(self.robots.values(), key=lambda r: r.name)},
+                "revoked": sorted(self.revoked)}
+
+    @classmethod
+    def from_json(cls, body: object) -> FleetAccess:
+        if not isinstance(body, dict) or not isinstance(body.get("robots"), dict):
+            raise AccessError("needs a 'robots' object")
+        robots: dict[str, Robot] = {}
+        for name, entry in body["robots"].items():
+            if not isinstance(entry, dict) or not isinstance(entry.get("identity"), str):
+                raise AccessError(f"robot {name!r} needs an 'identity' string")
+            topics = entry.get("topics", [])
+            if not isinstance(topics, list) or not all(isinstance(t, str) and t.startswith("/") for t in topics):
+                raise AccessError(f"robot {name!r}: 'topics' must be a list of absolute topic names")
+            robots[entry["identity"]] = Robot(str(name), entry["identity"], frozenset(topics))
+        revoked = body.get("revoked", [])
+        if not isinstance(revoked, list) or not all(isinstance(n, str) for n in revoked):
+            raise AccessError("'revoked' must be a list of robot names")
+        return cls(robots, frozenset(revoked))
+
+
+def write_access(path: Path, access: FleetAccess) -> None:
+    """Replace the access file at once (a reader never sees half of it)."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(access.to_json(), indent=2, sort_keys=True) + "\n")
+    os.chmod(tmp, 0o600)
+    os.replace(tmp, path)
+
+
+def read_access(path: Path) -> FleetAccess | None:
+    """The access file's rules; None when there is no file (a single edge's cloud end); AccessError if bad."""
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        return None
+    except OSError as err:
+        raise AccessError(f"cannot read {path}: {err}") from None
+    try:
+        return FleetAccess.from_json(json.loads(text))
+    except (json.JSONDecodeError, AccessError) as err:
+        raise AccessError(f"{path}: {err}") from None
+
+
+_DENY_ALL = FleetAccess()  # a fleet file that never parsed: no robot is linked (fail closed)
+
+
+class AccessWatch:
+    """The access file's current rules, re-read when its stat changes (or :meth:`reload` on SIGHUP).
+
+    A file that stops parsing keeps the last good rules (logged); one that never parsed links no robot.
+    ``on_change`` is called with the new rules after each change, so the cloud end closes the links that
+    lost their access."""
+
+    def __init__(self, path: Path, on_change: Callable[[FleetAccess | None], None]) -> None:
+        self.path, self._on_change = path, on_change
+        self._stamp: tuple[int, int, int] | None = None
+        self._lock = threading.Lock()
+        self.rules: FleetAccess | None = None
+        self.reload()
+
+    def _stat(self) -> tuple[int, int, int] | None:
+        try:
+            st = self.path.stat()
+        except OSError:
+            return None
+        return st.st_mtime_ns, st.st_size, st.st_ino
+
+    def reload(self) -> None:
+        with self._lock:
+            self._stamp = self._stat()
+            try:
+                rules = read_access(self.path)
+            except AccessError as err:
+                log.error("fleet access file: %s; keeping the previous rules", err)
+                rules = self.rules if self.rules is not None else _DENY_ALL
+            self.rules = rules
+        if rules is not None:
+            log.info("fleet access: %d robots, %d revoked", len(rules.robots), len(rules.revoked))
+        self._on_change(rules)
+
+    def run(self, stopping: threading.Event) -> None:
+        while not stopping.wait(POLL_S):
+            if self._stat() != self._stamp:
+                self.reload()

@@ -1,0 +1,140 @@
+"""Issue 34, ROS 1: a fleet's cloud end links each robot by its own certificate and only for its own topics.
+
+Three robots, each its own roscore, certificate and relay edge end, link to one cloud end that follows the
+access file beside its certificates (``fleet.json``). A robot asking for or sending another robot's topic is
+refused; revoking a robot in the file closes its link and refuses its redials within 10 s while the others
+carry on; restoring it links it again; no process is restarted.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import shutil
+import socket
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from fogiac.certs import edge_identity, edge_role, load_or_create_edges
+from fogiac.net.relay import CloudConfig, CloudRelay, EdgeConfig, EdgeRelay, TopicPolicy, framing
+from fogiac.net.relay.config import policy_from_spec
+from fogiac.net.relay.fleet import ACCESS_FILE, FleetAccess, Robot, write_access
+from fogiac.net.relay.framing import Kind
+from fogiac.net.relay.session import read_frame
+from fogiac.net.relay.tls import client_context, expected_server_name
+from tests.net.relay.relay_support import Master, Procs, wait_for
+
+pytestmark = pytest.mark.ros
+
+STACK = "relaytest"  # the lab certificates' stack (the relay conftest's ``certs``)
+ROBOTS = ("arm1", "arm2", "arm3")
+SHARED = ("/plan/request", "/plan/reply")  # a shared node's request/reply topics: every robot may use them
+
+
+def _access(revoked: tuple[str, ...] = ()) -> FleetAccess:
+    robots = {edge_identity(STACK, r): Robot(r, edge_identity(STACK, r), frozenset(SHARED)) for r in ROBOTS}
+    return FleetAccess(robots, frozenset(revoked))
+
+
+@pytest.fixture
+def fleet_certs(certs: Path, tmp_path: Path) -> Path:
+    """The lab folder with each robot's own pair (issued the way ``up`` issues every edge's) and the access file."""
+    folder = tmp_path / "certs"
+    shutil.copytree(certs, folder)
+    load_or_create_edges(STACK, folder, list(ROBOTS))
+    for name in ("server.pem", "server.key"):  # the lab's cloud end pair, which a stack's folder never keeps
+        shutil.copy(certs / name, folder / name)
+    write_access(folder / ACCESS_FILE, _access())
+    return folder
+
+
+@contextlib.contextmanager
+def cloud_end(master: Master, certs: Path, policy: TopicPolicy = TopicPolicy(auto=True)) -> Iterator[CloudRelay]:
+    cloud = CloudRelay(CloudConfig(master_uri=master.uri, certs=certs, ros_host="127.0.0.1",
+                                   listen=("127.0.0.1", 0), poll_interval=0.1, policy=policy))
+    cloud.start()
+    try:
+        yield cloud
+    finally:
+        cloud.stop()
+
+
+def _hello(certs: Path, robot: str | None, address: tuple[str, int]) -> socket.socket:
+    """A bare edge with ``robot``'s certificate (None: the shorthand's one edge): TLS and HELLO."""
+    raw = socket.create_connection(address, timeout=5)
+    sock = client_context(certs, edge_role(STACK, robot)).wrap_socket(raw, server_hostname=expected_server_name(certs))
+    sock.sendall(framing.encode(framing.json_frame(Kind.HELLO, {"role": "edge", "version": 1})))
+    assert read_frame(sock).kind is Kind.HELLO
+    return sock
+
+
+def _send(sock: socket.socket, kind: Kind, topic: str) -> None:
+    sock.sendall(framing.encode(framing.json_frame(kind, {"topic": topic, "compression": "none"}, topic=7)))
+
+
+def test_a_robot_is_refused_another_robots_topics(masters: tuple[Master, Master], fleet_certs: Path) -> None:
+    _, cloud_m = masters
+    arm1 = edge_identity(STACK, "arm1")
+    # The topic policy lets all four cross: only the fleet's rules refuse.
+    policy = policy_from_spec("auto", in_topics="/arm1/scan,/arm2/scan,/plan/reply", out_topics="/arm2/cmd_vel")
+    with cloud_end(cloud_m, fleet_certs, policy) as cloud, _hello(fleet_certs, "arm1", cloud.address) as sock:
+        wait_for(lambda: arm1 in cloud.sessions, 10, "arm1's session")
+        session = cloud.sessions[arm1]
+        _send(sock, Kind.SUBSCRIBE, "/arm2/scan")  # read another robot's topic
+        _send(sock, Kind.OPEN, "/arm2/cmd_vel")  # publish on another robot's topic
+        _send(sock, Kind.SUBSCRIBE, "/arm1/scan")  # its own namespace
+        _send(sock, Kind.SUBSCRIBE, "/plan/reply")  # the shared node's reply topic
+        wait_for(lambda: session.refused == 2 and "/fogiac_relay_cloud" in cloud_m.subscribers("/plan/reply"),
+                 10, "two refusals and the allowed subscriptions")
+        assert "/fogiac_relay_cloud" in cloud_m.subscribers("/arm1/scan")
+        assert "/fogiac_relay_cloud" not in cloud_m.subscribers("/arm2/scan")
+        assert "/fogiac_relay_cloud" not in cloud_m.publishers("/arm2/cmd_vel")
+        assert session.alive  # a refusal is counted and logged; the link stays
+        assert cloud.stats().refused == 2
+        # A certificate of the same CA that names no robot of the fleet (the shorthand's one edge) is not linked.
+        before = cloud.refused_links
+        with _hello(fleet_certs, None, cloud.address) as stranger:
+            stranger.settimeout(10)
+            assert stranger.recv(1) == b""  # closed at once
+        assert cloud.refused_links == before + 1 and edge_identity(STACK, None) not in cloud.sessions
+
+
+def test_a_revoked_robot_is_cut_off_within_10_s_and_restored(masters: tuple[Master, Master], fleet_certs: Path,
+                                                             procs: Procs) -> None:
+    first, cloud_m = masters
+    robots = {"arm1": first, "arm2": procs.roscore(), "arm3": procs.roscore()}
+    with cloud_end(cloud_m, fleet_certs) as cloud, contextlib.ExitStack() as stack:
+        ends: dict[str, EdgeRelay] = {}
+        for n, (name, master) in enumerate(robots.items()):
+            end = EdgeRelay(EdgeConfig(master_uri=master.uri, certs=fleet_certs, client=edge_role(STACK, name),
+                                       ros_host="127.0.0.1", connect=cloud.address, poll_interval=0.1,
+                                       backoff_initial=0.1, backoff_max=0.5, caller_id=f"/fogiac_relay_edge_{n}"))
+            end.start()
+            stack.callback(end.stop)
+            ends[name] = end
+        ups = {}
+        for name, master in robots.items():  # each robot's own client process, and its listener in the cloud
+            procs.node(master, "pub", f"/{name}/up", "--forever", "--rate", "40")
+            ups[name] = procs.node(cloud_m, "sub", f"/{name}/up", "--count", "100000")
+        # arm1's master also subscribes to arm2's topic: arm1 never hears of it (the cloud's graph is filtered).
+        spy = procs.node(robots["arm1"], "sub", "/arm2/up", "--count", "100000")
+        wait_for(lambda: all(len(p.data()) >= 10 for p in ups.values()), 40, "every robot's flow")
+        assert spy.data() == [] and cloud_m.publishers("/arm2/up") == ["/fogiac_relay_cloud"]
+        assert robots["arm1"].publishers("/arm2/up") == []
+
+        arm3 = edge_identity(STACK, "arm3")
+        session = cloud.sessions[arm3]
+        write_access(fleet_certs / ACCESS_FILE, _access(revoked=("arm3",)))
+        wait_for(lambda: not session.alive, 10, "arm3's link closed")
+        wait_for(lambda: cloud.refused_links >= 1, 10, "arm3's redial refused")
+        assert not cloud.sessions[arm3].alive and not ends["arm3"].connected.is_set()
+        cut = len(ups["arm3"].data())
+        counts = {n: len(ups[n].data()) for n in ("arm1", "arm2")}
+        wait_for(lambda: all(len(ups[n].data()) >= counts[n] + 20 for n in counts), 20, "arm1 and arm2 carry on")
+        assert len(ups["arm3"].data()) <= cut + 1  # at most one message in flight when the link was cut
+        assert all(cloud.sessions[edge_identity(STACK, n)].alive for n in ("arm1", "arm2"))
+
+        write_access(fleet_certs / ACCESS_FILE, _access())  # restored: its edge's next redial is linked
+        wait_for(lambda: cloud.sessions[arm3].alive and ends["arm3"].connected.is_set(), 15, "arm3 back")
+        wait_for(lambda: len(ups["arm3"].data()) >= cut + 10, 20, "arm3's flow again")

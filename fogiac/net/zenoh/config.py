@@ -24,7 +24,7 @@ their side: neither side learns the other's node names or unlisted topics, nor f
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -134,6 +134,43 @@ def access_control(route: Route, *, edge_name: str | Sequence[str]) -> dict[str,
     }
 
 
+def namespace_key(robot: str) -> str:
+    """rmw_zenoh's data keys of every topic in ``robot``'s namespace (``/<robot>/...``), any domain and type."""
+    return f"*/{robot}/**"
+
+
+def namespace_graph_keys(robot: str) -> list[str]:
+    """The publisher and subscriber tokens of the topics in ``robot``'s namespace: the mangled topic is one chunk
+    (``%<robot>%scan``), so ``$*`` within it never reaches another robot's (``%r1%`` is not ``%r10%``)."""
+    return [f"{GRAPH_SPACE}/*/*/*/*/{kind}/*/*/*/%{robot}%$*/*/*/*" for kind in (PUBLISHER, SUBSCRIBER)]
+
+
+def fleet_access_control(robots: Mapping[str, str], *, revoked: Collection[str] = ()) -> dict[str, Any]:
+    """A fleet's cloud router: deny by default; the host's nodes (TCP on loopback) anything among themselves;
+    each robot's edge router, known by its certificate's common name (``robots``: name -> common name), only the
+    keys of its own namespace, both ways: its topics' data and subscriptions, their publisher/subscriber
+    tokens. A shared request/reply node is reached through :mod:`fogiac.net.zenoh.fleet`, which carries each
+    robot's requests and replies under that robot's namespace, so no shared plain key ever crosses a link.
+    A ``revoked`` robot has no subject and no rule: its certificate gets nothing (deny is the default)."""
+    rules = _local_rules()
+    subjects: list[dict[str, Any]] = [{"id": "host-nodes", "link_protocols": ["tcp"], "interfaces": ["lo"]}]
+    policies: list[dict[str, Any]] = [{"id": "host-nodes", "rules": ["local-in", "local-out"],
+                                       "subjects": ["host-nodes"]}]
+    for robot in sorted(set(robots) - set(revoked)):
+        data, tokens = [namespace_key(robot)], namespace_graph_keys(robot)
+        mine = [_rule(f"robot-{robot}-data-in", "ingress", _DATA, data),
+                _rule(f"robot-{robot}-data-out", "egress", _DATA, data),
+                _rule(f"robot-{robot}-interest-in", "ingress", ["declare_subscriber"], data),
+                _rule(f"robot-{robot}-interest-out", "egress", ["declare_subscriber"], data),
+                _rule(f"robot-{robot}-graph-in", "ingress", ["liveliness_token"], tokens),
+                _rule(f"robot-{robot}-graph-out", "egress", ["liveliness_token"], tokens)]
+        rules += mine
+        subjects.append({"id": f"robot-{robot}", "link_protocols": ["tls"], "cert_common_names": [robots[robot]]})
+        policies.append({"id": f"robot-{robot}", "rules": [r["id"] for r in mine], "subjects": [f"robot-{robot}"]})
+    return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects,
+            "policies": policies}
+
+
 def _local_rules() -> list[dict[str, Any]]:
     every = _DATA + ["declare_subscriber", "query", "reply", "declare_queryable"] + _GRAPH
     keys = ["**", f"{GRAPH_SPACE}/**"]  # ``**`` never matches a chunk starting with ``@``
@@ -179,12 +216,21 @@ def _base(*, listen: Sequence[str], connect: Sequence[str], tls: dict[str, Any])
     }
 
 
-def cloud_router(route: Route, *, listen_host: str, tls: TlsFiles, edge_name: str | Sequence[str],
-                 local_port: int = LOCAL_PORT) -> dict[str, Any]:
-    """The router on ``route.host``: mutual TLS for the edge on ``listen_host``, loopback for its nodes."""
+def cloud_router(route: Route, *, listen_host: str, tls: TlsFiles, edge_name: str | Sequence[str] = (),
+                 local_port: int = LOCAL_PORT, robots: Mapping[str, str] | None = None,
+                 revoked: Collection[str] = ()) -> dict[str, Any]:
+    """The router on ``route.host``: mutual TLS for the edge on ``listen_host``, loopback for its nodes.
+
+    One robot (``edge_name``): the route's topics (:func:`access_control`). A fleet (``robots``: each robot's
+    name -> its edge router certificate's common name, ``revoked`` the names cut off): each robot only its own
+    namespace (:func:`fleet_access_control`). Zenoh reads access control once, when the router opens: a
+    running router learns a new fleet (a robot added or revoked) only by being restarted on the new config."""
+    if robots is None and not edge_name:
+        raise ValueError("a cloud router needs its edge's certificate name (edge_name) or a fleet (robots)")
     config = _base(listen=(f"tls/{listen_host}:{route.port}", f"tcp/127.0.0.1:{local_port}"), connect=(),
                    tls=_tls(tls, listen=True))
-    config["access_control"] = access_control(route, edge_name=edge_name)
+    config["access_control"] = (access_control(route, edge_name=edge_name) if robots is None
+                                else fleet_access_control(robots, revoked=revoked))
     return config
 
 

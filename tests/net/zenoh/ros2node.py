@@ -36,7 +36,7 @@ DEFINITIONS = {
         "uint32 step\nuint8[] data\n"
     ),
 }
-TYPES = {"String": "std_msgs/msg/String", "Image": "sensor_msgs/msg/Image"}
+TYPES = {"String": "std_msgs/msg/String", "Image": "sensor_msgs/msg/Image", "Header": "std_msgs/msg/Header"}
 WIDTH, HEIGHT = 640, 480
 
 
@@ -45,12 +45,16 @@ def message(kind: str, topic: str, seq: int, size: int = 0) -> dict[str, Any]:
     if kind == "String":
         text = f"{topic} #{seq} " + "".join(random.Random(seq).choices("abcdefghij", k=size))
         return {"data": text}
+    if kind == "Header":  # a request: stamped with its seq, so two robots' requests have equal stamps
+        return {"frame_id": f"{topic} #{seq}"}
     data = random.Random(f"{topic}{seq}").randbytes(WIDTH * HEIGHT * 3)
     return {"width": WIDTH, "height": HEIGHT, "encoding": "rgb8", "is_bigendian": 0, "step": WIDTH * 3,
             "data": data, "frame_id": f"seq {seq}"}
 
 
 def _seq(kind: str, msg: Any) -> int:
+    if kind == "Header":
+        return int(msg.frame_id.split("#")[1])
     text = msg.data if kind == "String" else msg.header.frame_id
     return int(text.split("#")[1].split()[0]) if kind == "String" else int(text.split()[1])
 
@@ -98,6 +102,8 @@ def main() -> None:
             cdr = bytes(store.serialize_cdr(msg, TYPES[kind]))
             if kind == "String" and "#" not in msg.data:  # not one of ours (fogiac's /fogros/* figures): keep the text
                 record("received", topic, -1, cdr, msg.data)
+            elif kind == "Header":  # a reply: whose request it answers (frame_id) and its stamp
+                record("received", topic, _seq(kind, msg), cdr, f"{msg.frame_id} @{msg.stamp.sec}.{msg.stamp.nanosec}")
             else:
                 record("received", topic, _seq(kind, msg), cdr)
 
@@ -118,6 +124,8 @@ def main() -> None:
     while not stop.wait(0.1):
         for topic, kind, pub in pubs:
             fields = message(kind, topic, seq, args.size)
+            if kind == "Header":
+                fields = dict(fields, stamp=Time(sec=seq, nanosec=0))
             if kind == "Image":
                 fields = dict(fields, header=Header(stamp=Time(sec=seq, nanosec=0), frame_id=fields.pop("frame_id")),
                               data=np.frombuffer(fields["data"], dtype=np.uint8))

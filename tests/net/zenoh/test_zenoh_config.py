@@ -109,3 +109,23 @@ def test_the_hosts_router_requirement_is_pyprojects_pin() -> None:
     (pin,) = middleware.get("zenoh").host_requirements
     assert pin in extras["ros2"] and pin.startswith("eclipse-zenoh==")
     assert middleware.get("relay").host_requirements == ()
+
+
+def test_a_fleets_cloud_router_lets_each_robot_only_its_namespace_and_a_revoked_one_nothing() -> None:
+    robots = {"r1": "r1.edge.router.s.fogiac", "r2": "r2.edge.router.s.fogiac", "r3": "r3.edge.router.s.fogiac"}
+    acl = cloud_router(route(7448), listen_host="10.0.0.5", tls=FILES, robots=robots, revoked=("r3",))["access_control"]
+    assert acl["default_permission"] == "deny"
+    names = {s["id"]: s.get("cert_common_names") for s in acl["subjects"]}
+    assert names == {"host-nodes": None, "robot-r1": [robots["r1"]], "robot-r2": [robots["r2"]]}
+    rules = {r["id"]: r for r in acl["rules"]}
+    for policy in acl["policies"][1:]:
+        robot = policy["id"].removeprefix("robot-")
+        keys = {k for rule in policy["rules"] for k in rules[rule]["key_exprs"]}
+        assert keys == {f"*/{robot}/**", f"@ros2_lv/*/*/*/*/MP/*/*/*/%{robot}%$*/*/*/*",
+                        f"@ros2_lv/*/*/*/*/MS/*/*/*/%{robot}%$*/*/*/*"}
+    assert not [r for r in acl["rules"] if "r3" in r["id"]]
+
+
+def test_a_cloud_router_names_its_edge_or_its_fleet() -> None:
+    with pytest.raises(ValueError, match="edge_name.*or a fleet"):
+        cloud_router(route(7448), listen_host="10.0.0.5", tls=FILES)

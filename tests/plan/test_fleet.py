@@ -6,7 +6,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from typer.testing import CliRunner
 
+from fogiac.cli import app
 from fogiac.errors import ManifestError
 from fogiac.manifest.schema import parse_manifest
 from fogiac.plan.compile import compile_plan
@@ -70,3 +72,15 @@ def test_a_bad_fleet_is_named_in_one_line(change: tuple[str, str], expect: str) 
     with pytest.raises(ManifestError) as err:
         parse_manifest(text, source="fogiac.yaml", base=Path.cwd())
     assert any(expect in line for line in err.value.problems), err.value.problems
+
+
+def test_up_refuses_a_fleet_in_one_line_and_creates_nothing(tmp_path: Path, _state_dir: Path) -> None:
+    """Until up writes each robot's access file and starts its edge end, a fleet would link every robot to
+    every topic: up refuses it before anything exists (plan and validate work)."""
+    manifest = tmp_path / "fogiac.yaml"
+    manifest.write_text(FLEET)
+    done = CliRunner().invoke(app, ["up", str(manifest), "--yes"])
+    assert done.exit_code == 1, done.output
+    assert "robots: a fleet is planned but up does not deploy one yet" in done.output
+    assert "Traceback" not in done.output and list(_state_dir.iterdir()) == []
+    assert CliRunner().invoke(app, ["plan", str(manifest)]).exit_code == 0

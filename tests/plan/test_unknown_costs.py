@@ -66,3 +66,10 @@ def test_status_guard_says_unknown_not_zero() -> None:
 def test_a_free_machine_still_costs_zero_not_unknown() -> None:
     doc = guard.guard([guard.Billed("host sandbox", 0.0, 0.0)], now=3600.0, autostop_s=None, edge_idle_since=None)
     assert doc["unknown"] == [] and "$0.0000/h now" in guard.render(doc)[0]
+
+
+def test_ls_gives_no_bound_when_a_price_is_unknown() -> None:
+    from fogiac.cli.stacks import _so_far
+    assert _so_far({"cost": {"hourly_usd": 0.15, "unknown": ["instance talker (t3.small)"]}}, 2.0) == \
+        "unknown ($0.1500/h plus 1 unknown)"
+    assert _so_far({"cost": {"hourly_usd": 0.15, "unknown": []}}, 2.0).startswith("at most $0.30")

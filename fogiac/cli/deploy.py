@@ -27,7 +27,7 @@ from fogiac.lifecycle.driver import DownOptions, Feature, Target, UpOptions
 from fogiac.lifecycle.events import Progress, Timers
 from fogiac.lifecycle.report import render_status
 from fogiac.plan import placeholders
-from fogiac.plan.cost import MONTH, per_month
+from fogiac.plan.cost import total_words
 from fogiac.plan.guard import up_summary
 from fogiac.plan.model import Plan
 from fogiac.plan.review import visible, visible_doc
@@ -52,9 +52,10 @@ def _show(doc: Mapping[str, Any], summary: tuple[str, ...] | None) -> None:
         counts = Counter(r["type"].rsplit(":", 1)[-1] for r in doc["resources"] if r["stack"] == stack)
         out.print(f"  {stack}: " + ", ".join(f"{n} {kind}" for kind, n in sorted(counts.items())))
     for line in doc["cost"]["lines"]:
-        out.print(f"  ${line['total']:.4f}/h  {line['item']}")
+        out.print(f"  {'unknown' if line['total'] is None else '$' + format(line['total'], '.4f') + '/h'}  "
+                  f"{line['item']}")
     total = doc["cost"]["hourly_usd"]
-    out.print(f"[bold]cost: ${total:.4f} per hour[/] (about ${per_month(total):.2f} per {MONTH} if left running)")
+    out.print(f"[bold]cost:[/] {total_words(total, len(doc['cost'].get('unknown') or ()))}")
     spot = doc["cost"].get("spot_hourly_usd")
     if spot is not None:
         out.print(f"with spot: about ${spot:.4f} per hour (the catalogue's spot estimate of "

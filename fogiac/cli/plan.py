@@ -25,7 +25,7 @@ from fogiac.manifest.clouds import prices as price_source
 from fogiac.manifest.revision import load_revision
 from fogiac.plan import drift, placeholders, review, saved
 from fogiac.plan.compile import compile_plan
-from fogiac.plan.cost import MONTH, menu_line, per_month, saving_pct
+from fogiac.plan.cost import MONTH, menu_line, per_month, rate, saving_pct, total_words
 from fogiac.plan.diff import annotate, autostop_words, diff_documents, with_drift
 from fogiac.plan.document import document, plan_document
 from fogiac.state import write_json_atomic
@@ -74,6 +74,8 @@ def _spot_cell(host: Mapping[str, Any]) -> str:
     each = host.get("spot_usd_per_hour")
     if each is None:
         return "yes (price unknown)"
+    if host["usd_per_hour"] is None:
+        return f"{each:.4f}"
     return f"{each:.4f} ({saving_pct(host['usd_per_hour'], each)}% less)"
 
 
@@ -115,7 +117,7 @@ def render(doc: Mapping[str, Any]) -> None:
                   "spot $/h", "nodes")
     for h in doc["hosts"]:
         hosts.add_row(h["name"], h["machine"], escape(str(h["address"] or "-")), str(h["vcpus"]), str(h["gpus"]),
-                      f"{h['memory_gib']:g}", str(h["disk_gb"]), f"{h['usd_per_hour']:.4f}", _spot_cell(h),
+                      f"{h['memory_gib']:g}", str(h["disk_gb"]), rate(h["usd_per_hour"]), _spot_cell(h),
                       ", ".join(h["nodes"]) + "".join(f" ({h[k]})" for k in ("replica", "zone") if h.get(k)))
     out.print(hosts)
     for h in doc["hosts"]:
@@ -133,15 +135,20 @@ def render(doc: Mapping[str, Any]) -> None:
     cost = table("hourly cost (on-demand prices" + ("; spot estimate beside)" if spot is not None else ")"), *columns)
     for line in doc["cost"]["lines"]:
         each = line.get("spot_usd_per_hour")
-        cost.add_row(escape(line["item"]), f"{line['quantity']:g}", f"{line['usd_per_hour']:.4f}",
-                     f"{line['total']:.4f}",
-                     *((f"{line['quantity'] * (line['usd_per_hour'] if each is None else each):.4f}",)
-                       if spot is not None else ()))
+        every = line["usd_per_hour"] if each is None else each
+        cost.add_row(escape(line["item"]), f"{line['quantity']:g}", rate(line["usd_per_hour"]),
+                     rate(line["total"]),
+                     *((rate(None if every is None else line["quantity"] * every),) if spot is not None else ()))
     total = doc["cost"]["hourly_usd"]
-    beside = (f"[bold]{spot:.4f}[/]",) if spot is not None else ()
-    cost.add_row("[bold]total[/]", "", "", f"[bold]{total:.4f}[/]", *beside)
+    unknown = len(doc["cost"].get("unknown") or ())
+    plus = f" + {unknown} unknown" if unknown else ""
+    beside = (f"[bold]{spot:.4f}{plus}[/]",) if spot is not None else ()
+    cost.add_row("[bold]total[/]", "", "", f"[bold]{total:.4f}{plus}[/]", *beside)
     out.print(cost)
-    out.print(f"cost: ${total:.4f} per hour (about ${per_month(total):.2f} per {MONTH} if left running)")
+    out.print(f"cost: {total_words(total, unknown)}", highlight=False)
+    if unknown:
+        out.print(f"  unknown: {escape(', '.join(doc['cost']['unknown']))} (the catalogue has no price there; "
+                  "`fogiac catalog update` fills it where AWS publishes one)", highlight=False)
     out.print(f"  {escape(autostop_words(doc.get('autostop')))}", highlight=False)  # what bounds that month
     if spot is not None:
         source = doc["cost"]["spot_prices"]

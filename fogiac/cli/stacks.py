@@ -58,6 +58,9 @@ def _so_far(applied: dict[str, Any] | None, hours: float) -> str:
         return "—"
     hourly = cost["hourly_usd"]
     rate, total = usd(hourly, digits=4), usd(hourly * hours) if usd(hourly) else None
+    unknown = cost.get("unknown")
+    if isinstance(unknown, list) and unknown:  # some price is unknown: no bound can be given, only what is known
+        return f"unknown ({rate}/h plus {len(unknown)} unknown)" if rate else "unknown"
     return f"at most {total} ({rate}/h)" if rate and total else "unknown"
 
 

@@ -155,7 +155,7 @@ class Choice:
     """The resolved type and the next cheapest ones that also fit."""
 
     machine: str
-    usd_per_hour: float  # on-demand
+    usd_per_hour: float | None  # on-demand; None: the catalogue has no price there (cost unknown)
     alternatives: tuple[Option, ...]
     chosen_for: str | None = None  # the requirement, in words; None when the manifest named the type
     ranked_by: RankedBy | None = None  # None when the manifest named the type

@@ -24,7 +24,8 @@ def per_month(usd_per_hour: float) -> float:
 
 
 def cost_line(line: CostLine) -> dict[str, Any]:
-    return {"item": line.item, "quantity": line.quantity, "usd_per_hour": line.usd_per_hour, "total": line.total,
+    return {"item": line.item, "quantity": line.quantity, "usd_per_hour": line.usd_per_hour,
+            "total": line.total if line.known else None, "price_unknown": not line.known,
             "spot_usd_per_hour": line.spot_usd_per_hour}
 
 
@@ -42,7 +43,8 @@ def spot_source(target: str | None = None) -> dict[str, str]:
 def cost(plan: Plan) -> dict[str, Any]:
     """``{lines, hourly_usd}``: the target's cost lines (instances, its network's hours); with
     spot hosts also ``spot_hourly_usd`` and where the spot estimate comes from."""
-    out: dict[str, Any] = {"lines": [cost_line(line) for line in plan.cost], "hourly_usd": plan.hourly_usd}
+    out: dict[str, Any] = {"lines": [cost_line(line) for line in plan.cost], "hourly_usd": plan.hourly_usd,
+                           "unknown": list(plan.unknown_costs)}  # hourly_usd leaves these out: at least that much
     if plan.spot_hourly_usd is not None:
         out["spot_hourly_usd"] = plan.spot_hourly_usd
         out["spot_prices"] = spot_source(plan.target)
@@ -73,7 +75,8 @@ def host_row(host: HostSpec) -> dict[str, Any]:
         "vcpus": host.vcpus,
         "gpus": host.gpus,
         "memory_gib": host.memory_gib,
-        "usd_per_hour": host.usd_per_hour,
+        "usd_per_hour": host.usd_per_hour,  # None (null): unknown, the catalogue has no price there
+        "price_unknown": host.usd_per_hour is None,
         "spot": host.spot,
         "spot_usd_per_hour": host.spot_usd_per_hour,
         "disk_gb": host.disk_gb,
@@ -126,3 +129,17 @@ def hosts(plan: Plan) -> list[dict[str, Any]]:
 def nodes(plan: Plan) -> list[dict[str, Any]]:
     return [{**node_row(node), **({"replica_hosts": reps} if (reps := replica_hosts(plan, node.name)) else {})}
             for node in plan.nodes]
+
+
+def rate(usd_per_hour: float | None, digits: int = 4) -> str:
+    """A price as a table shows it: ``0.0960``, or ``unknown`` (never ``0.0000``) when there is none."""
+    return "unknown" if usd_per_hour is None else f"{usd_per_hour:.{digits}f}"
+
+
+def total_words(total: float, unknown: int) -> str:
+    """``$0.1920 per hour (about $140.16 per month if left running)``; with unknown prices
+    ``at least $0.1920 per hour plus 2 unknown (...)``: a sum that leaves something out says so."""
+    month = f"about ${per_month(total):.2f} per {MONTH} if left running"
+    if not unknown:
+        return f"${total:.4f} per hour ({month})"
+    return f"at least ${total:.4f} per hour plus {unknown} unknown (at least {month.removeprefix('about ')})"

@@ -91,6 +91,8 @@ class PlanDiff:
     cost_risk: tuple[str, ...] = ()  # changes that let the stack cost more while nobody uses it (autostop weakened)
     autostop: Mapping[str, Any] | None = None  # the after side's autostop (None: off)
     autostop_known: bool = False  # the after document says its autostop (format 2 from this fogiac on)
+    unknown_before: int = 0  # cost lines each side whose price is unknown: the hour is then "at least"
+    unknown_after: int = 0
 
     def count(self, action: Action) -> int:
         return sum(1 for r in self.resources if r.action == action)
@@ -335,6 +337,8 @@ def diff_documents(before: Mapping[str, Any] | None, after: Mapping[str, Any], *
         topics=topics, security_rules=rules, settings=settings,
         cost_before=float(before.get("cost", {}).get("hourly_usd", 0.0)),
         cost_after=float(after.get("cost", {}).get("hourly_usd", 0.0)),
+        unknown_before=len(before.get("cost", {}).get("unknown") or ()),
+        unknown_after=len(after.get("cost", {}).get("unknown") or ()),
         exposure=_exposure(rules, topics),
         spot_before=_spot_hourly(before), spot_after=_spot_hourly(after),
         # an applied document recorded before pushed paths were listed: nothing to compare them with

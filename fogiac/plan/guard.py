@@ -23,7 +23,7 @@ class Billed:
     """One thing the stack still has."""
 
     item: str
-    usd_per_hour: float  # what it costs now (0 while stopped, or on a machine with no price)
+    usd_per_hour: float | None  # what it costs now (0 while stopped); None: unknown (the catalogue has no price)
     since: float | None  # epoch seconds this rate has applied since; None: unknown, nothing counted so far
     running: bool = True  # a stopped host is kept (its disk) but does not run
     spot_estimate: bool = False  # the rate is the catalogue's spot estimate (a spot instance), not a list price
@@ -48,27 +48,37 @@ def guard(billed: Sequence[Billed], *, now: float, autostop_s: float | None,
     it cannot stop (the Client VPN association) is still billed.
     """
     lines: list[dict[str, Any]] = [{"item": b.item, "usd_per_hour": b.usd_per_hour, "running": b.running,
-              "spot_estimate": b.spot_estimate, "since": b.since,
-              "cost_usd": round(max(0.0, now - b.since) / 3600 * b.usd_per_hour, 4) if b.since is not None else None}
+              "spot_estimate": b.spot_estimate, "since": b.since, "price_unknown": b.usd_per_hour is None,
+              "cost_usd": (round(max(0.0, now - b.since) / 3600 * b.usd_per_hour, 4)
+                           if b.since is not None and b.usd_per_hour is not None else None)}
              for b in billed]
-    hourly = round(sum(b.usd_per_hour for b in billed), 4)
+    unknown = [b.item for b in billed if b.usd_per_hour is None]
+    hourly = round(sum(b.usd_per_hour or 0.0 for b in billed), 4)
     no_edge = now - edge_idle_since if edge_idle_since is not None else None
     warning = ""
     if autostop_s is not None and no_edge is not None and no_edge > autostop_s:
-        costly = [b.item for b in billed if b.usd_per_hour > 0]
+        costly = [b.item for b in billed if b.usd_per_hour is None or b.usd_per_hour > 0]
         running = [b.item for b in billed if b.running]
         head = f"no edge for {duration(no_edge)}, longer than autostop's {duration(autostop_s)}"
         if costly:
-            about = "about " if any(b.spot_estimate and b.usd_per_hour > 0 for b in billed) else ""
-            warning = (f"{head}, and this stack still costs {about}${hourly:.2f}/h ({', '.join(costly)}): "
-                       "`fogiac down` removes it")
+            about = "about " if any(b.spot_estimate and (b.usd_per_hour or 0) > 0 for b in billed) else ""
+            warning = (f"{head}, and this stack still costs {about}{at_least(hourly, len(unknown))} "
+                       f"({', '.join(costly)}): `fogiac down` removes it")
         elif running:
             warning = (f"{head}, yet {', '.join(running)} still run: the autostop watchdog did not stop them "
                        "(see its log on the host)")
-    return {"lines": lines, "usd_per_hour": hourly,
+    # Totals are sums of the known prices; ``unknown`` names what they leave out (null, never 0, in JSON).
+    return {"lines": lines, "usd_per_hour": hourly, "unknown": unknown,
             "cost_usd": round(sum(line["cost_usd"] or 0.0 for line in lines), 4),
             "no_edge_s": round(no_edge) if no_edge is not None else None, "warning": warning,
             "spot_estimate_as_of": price_source().spot_as_of if any(b.spot_estimate for b in billed) else None}
+
+
+def at_least(usd_per_hour: float, unknown: int, *, digits: int = 2) -> str:
+    """``$0.19/h``, or ``at least $0.19/h plus 2 unknown`` when some prices are unknown: a sum that leaves
+    out what the catalogue cannot price must never read as the whole cost."""
+    amount = f"${usd_per_hour:.{digits}f}/h"
+    return amount if not unknown else f"at least {amount} plus {unknown} unknown"
 
 
 def _prices(spot_as_of: str | None) -> str:
@@ -79,12 +89,15 @@ def _prices(spot_as_of: str | None) -> str:
 
 def render(doc: dict[str, Any]) -> list[str]:
     """The guard's lines under a status table: the totals, then the warning if any."""
-    out = [f"cost: ${doc['usd_per_hour']:.4f}/h now, ${doc['cost_usd']:.2f} so far "
+    unknown = len(doc.get("unknown") or ())
+    so_far_total = f"${doc['cost_usd']:.2f}" if not unknown else f"at least ${doc['cost_usd']:.2f}"
+    out = [f"cost: {at_least(doc['usd_per_hour'], unknown, digits=4)} now, {so_far_total} so far "
            f"({_prices(doc.get('spot_estimate_as_of'))}; stopped hosts' disks not counted)"]
     for line in doc["lines"]:
         so_far = "-" if line["cost_usd"] is None else f"${line['cost_usd']:.2f}"
         estimate = " (spot estimate)" if line.get("spot_estimate") else ""
-        out.append(f"  ${line['usd_per_hour']:.4f}/h  {so_far:>8} so far  {line['item']}{estimate}")
+        rate = "unknown  " if line["usd_per_hour"] is None else f"${line['usd_per_hour']:.4f}/h"
+        out.append(f"  {rate}  {so_far:>8} so far  {line['item']}{estimate}")
     if doc["warning"]:
         out.append(f"warning: {doc['warning']}")
     return out
@@ -98,10 +111,12 @@ def up_summary(plan: Plan) -> str:
     """
     spot = plan.spot_hourly_usd
     prices = price_source(plan.target)
-    head = f"cost: ${plan.hourly_usd:.4f}/h while up"
+    unknown = len(plan.unknown_costs)
+    head = f"cost: {at_least(plan.hourly_usd, unknown, digits=4)} while up"
     if spot is not None:
         head = (f"cost: about ${spot:.4f}/h while up (spot hosts at the catalogue's spot estimate of "
-                f"{prices.spot_as_of}; ${plan.hourly_usd:.4f}/h at on-demand prices, the most spot costs)")
+                f"{prices.spot_as_of}; {at_least(plan.hourly_usd, unknown, digits=4)} at on-demand prices, "
+                f"the most spot costs)")
     if plan.autostop is None:
         return f"{head}; autostop is off: it costs this until `fogiac down`"
     stop = plan.autostop

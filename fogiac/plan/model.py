@@ -165,7 +165,7 @@ class HostSpec:
     vcpus: int
     gpus: int
     memory_gib: float
-    usd_per_hour: float  # on-demand: what a spot host costs at most
+    usd_per_hour: float | None  # on-demand: what a spot host costs at most; None: unknown (no price there)
     spot: bool
     disk_gb: int
     nodes: tuple[str, ...]
@@ -256,18 +256,23 @@ class AutostopSpec:
 class CostLine:
     item: str
     quantity: float
-    usd_per_hour: float  # on-demand
+    usd_per_hour: float | None  # on-demand; None: the catalogue has no price there (unknown, never $0)
     spot_usd_per_hour: float | None = None  # the catalogue's spot estimate, for a spot instance
 
     @property
+    def known(self) -> bool:
+        return self.usd_per_hour is not None
+
+    @property
     def total(self) -> float:
-        return round(self.quantity * self.usd_per_hour, 4)
+        """The line's on-demand total; 0 for an unknown price, which every total counts apart (``unknown``)."""
+        return round(self.quantity * (self.usd_per_hour or 0.0), 4)
 
     @property
     def spot_total(self) -> float:
         """What the line costs at the spot estimate (the on-demand total where there is none)."""
         each = self.usd_per_hour if self.spot_usd_per_hour is None else self.spot_usd_per_hour
-        return round(self.quantity * each, 4)
+        return round(self.quantity * (each or 0.0), 4)
 
 
 @dataclass(frozen=True)
@@ -335,6 +340,11 @@ class Plan:
     def hourly_usd(self) -> float:
         """On-demand prices throughout: the most the plan costs an hour."""
         return round(sum(line.total for line in self.cost), 4)
+
+    @property
+    def unknown_costs(self) -> tuple[str, ...]:
+        """The cost lines whose price is unknown: every total is then "at least" what it says, never exact."""
+        return tuple(line.item for line in self.cost if not line.known)
 
     @property
     def spot_hourly_usd(self) -> float | None:

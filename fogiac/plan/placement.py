@@ -92,7 +92,7 @@ def steps_for(nodes: Sequence[Node]) -> tuple[str, ...]:
 
 
 def host_per_node(manifest: Manifest, *, stack: str, tags: Tags,
-                  usd_per_hour: Callable[[MachineSpec], float] = lambda spec: 0.0,
+                  usd_per_hour: Callable[[MachineSpec], float | None] = lambda spec: 0.0,
                   spot: bool = False,
                   spot_usd_per_hour: Callable[[MachineSpec], float | None] = lambda spec: None,
                   image: Callable[[MachineSpec], MachineImage | None] = lambda spec: None,

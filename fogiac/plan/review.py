@@ -126,10 +126,10 @@ def _topic(row: Mapping[str, Any]) -> str:
 def _host(row: Mapping[str, Any]) -> str:
     spot = row.get("spot_usd_per_hour") if row.get("spot") else None
     where = "".join(f", {row[k]}" for k in ("replica", "zone") if row.get(k))  # a replica's host: which, where
+    price = "cost unknown" if row["usd_per_hour"] is None else f"${row['usd_per_hour']:.4f}/h"
     if spot is None:
-        return f"{row['name']} ({row['machine']}, ${row['usd_per_hour']:.4f}/h{where})"
-    return (f"{row['name']} ({row['machine']}, spot, about ${spot:.4f}/h est., ${row['usd_per_hour']:.4f}/h "
-            f"on-demand{where})")
+        return f"{row['name']} ({row['machine']}, {price}{where})"
+    return f"{row['name']} ({row['machine']}, spot, about ${spot:.4f}/h est., {price} on-demand{where})"
 
 
 def _node(row: Mapping[str, Any]) -> str:
@@ -157,13 +157,19 @@ def drift_lines(drift: Drift) -> list[str]:
                     for path, applied, cloud in drift.changes]
 
 
+def _plus(unknown: int) -> str:
+    """`` plus 2 unknown`` after a sum that leaves out prices the catalogue lacks (never read as $0)."""
+    return f" plus {unknown} unknown" if unknown else ""
+
+
 def cost_line(diff: PlanDiff) -> str:
     """The hour before and after; with spot hosts on either side, at their spot estimate (dated) and
     at on-demand, the most they cost."""
     before, after = diff.expected_before, diff.expected_after
     delta = after - before
     sign = "+" if delta >= 0 else "-"
-    line = f"hourly cost: ${before:.4f} -> ${after:.4f} ({sign}${abs(delta):.4f})"
+    line = (f"hourly cost: ${before:.4f}{_plus(diff.unknown_before)} -> ${after:.4f}{_plus(diff.unknown_after)} "
+            f"({sign}${abs(delta):.4f}{' of what is known' if diff.unknown_before or diff.unknown_after else ''})")
     if not diff.has_spot:
         return line
     return (f"{line}, spot hosts at the catalogue's spot estimate of {diff.spot_as_of}; "
@@ -175,7 +181,8 @@ def month_line(diff: PlanDiff) -> str:
     before, after = per_month(diff.expected_before), per_month(diff.expected_after)
     delta = after - before
     sign = "+" if delta >= 0 else "-"
-    line = (f"monthly cost if left running ({HOURS_PER_MONTH} h): ${before:.2f} -> ${after:.2f} "
+    line = (f"monthly cost if left running ({HOURS_PER_MONTH} h): ${before:.2f}{_plus(diff.unknown_before)} -> "
+            f"${after:.2f}{_plus(diff.unknown_after)} "
             f"({sign}${abs(delta):.2f})")
     if diff.has_spot:
         line += f", at on-demand prices ${per_month(diff.cost_before):.2f} -> ${per_month(diff.cost_after):.2f}"

@@ -118,7 +118,8 @@ class ExistingMachines:
         watched = self.autostop_states(plan, recorded)
         hosts = [{"host": spec.name, "machine": spec.machine,
                   "address": self.host_address(plan, spec, recorded.get(spec.name)),
-                  "uptime_s": round(uptime), "cost_usd": round(spec.usd_per_hour * uptime / 3600, 4),
+                  "uptime_s": round(uptime), "cost_usd": (round(spec.usd_per_hour * uptime / 3600, 4)
+                               if spec.usd_per_hour is not None else None),
                   "nodes": self.node_states(plan, spec, recorded.get(spec.name)),
                   "autostop": watched.get(spec.name)} for spec in plan.hosts]
         return {"hosts": hosts, "cost": self._guard(plan, hosts, now=now)}

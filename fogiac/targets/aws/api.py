@@ -305,8 +305,8 @@ class InstanceStatus:
     private_ip: str | None
     launched: _dt.datetime  # AWS moves it on every start: the running stretch's beginning
     uptime_s: float
-    cost_usd: float
-    usd_per_hour: float = 0.0  # what it costs now (0 while stopped; its disk is not in the catalogue)
+    cost_usd: float | None  # None: the price is unknown (the catalogue has none in the region)
+    usd_per_hour: float | None = 0.0  # what it costs now (0 while stopped, disk not counted); None: unknown
     stopped_at: _dt.datetime | None = None
     stopped_by: str = ""  # "the instance" (autostop's poweroff), "a user", or "" while running
     spot: bool = False  # bought on the spot market, as EC2 reports it (after any fallback to on-demand)
@@ -356,7 +356,8 @@ def status(stack: str, *, region: str, ec2: Any = None,
                 name=host_of(tags, tags.get("Name", inst["InstanceId"])), instance_id=inst["InstanceId"],
                 state=state, machine=inst["InstanceType"], public_ip=inst.get("PublicIpAddress"),
                 private_ip=inst.get("PrivateIpAddress"), launched=launched, uptime_s=uptime,
-                cost_usd=round(uptime / 3600 * price, 4), usd_per_hour=price if running else 0.0,
+                cost_usd=round(uptime / 3600 * price, 4) if price is not None else None,
+                usd_per_hour=price if running else 0.0,
                 stopped_at=stopped_at, stopped_by=stopped_by, spot=spot, spot_estimate=estimate is not None))
     return sorted(rows, key=lambda r: (r.name, r.instance_id))
 

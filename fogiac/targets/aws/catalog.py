@@ -40,10 +40,10 @@ def catalog() -> AwsCatalog:
                       facts=cat)
 
 
-def on_demand(name: str, region: str) -> float:
-    """The on-demand price of ``name`` in ``region``; 0.0 when the catalogue has none (cost unknown)."""
+def on_demand(name: str, region: str) -> float | None:
+    """The on-demand price of ``name`` in ``region``; None when the catalogue has none (cost unknown, never $0)."""
     price = AWS.catalogue.price(name, region)
-    return price.usd_per_hour if price is not None else 0.0
+    return price.usd_per_hour if price is not None else None
 
 
 def spot_price(name: str, region: str) -> float | None:

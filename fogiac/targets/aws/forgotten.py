@@ -46,7 +46,7 @@ def forgotten(name: str, plan: Plan) -> Forgotten:
         raise ValueError(f"{name}: the table assumes autostop's default, but the plan has it off")
     return Forgotten(
         example=name, machines=", ".join(h.machine for h in plan.hosts),
-        instances_usd_per_hour=sum(h.usd_per_hour for h in plan.hosts),
+        instances_usd_per_hour=sum(h.usd_per_hour or 0.0 for h in plan.hosts),
         network_usd_per_hour=catalog().vpn_association_usd_per_hour if plan.vpn is not None else 0.0,
         idle_hours=plan.autostop.idle_s / 3600)
 

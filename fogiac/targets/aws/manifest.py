@@ -272,7 +272,7 @@ class AwsCloud:
         if offer is None or offer.on_demand is None:
             if named in cat or named in known.instance_types():  # else its own field's error says it
                     _unpriced(f"{named} in {region}: cost unknown (the catalogue has no price there)")
-            return Choice(machine=named, usd_per_hour=0.0, alternatives=())
+            return Choice(machine=named, usd_per_hour=None, alternatives=())
         return Choice(machine=named, usd_per_hour=offer.on_demand.usd_per_hour, alternatives=())
 
     def prices(self) -> PriceSource:

@@ -212,7 +212,8 @@ class AwsTarget:
                 state += f" at {h['stopped_at'][11:19]} UTC" + (f" by {h['stopped_by']}" if h["stopped_by"] else "")
             machine = h["machine"] + (" (spot)" if h.get("market") == "spot" else "")
             out.add_row(h["host"], h["instance_id"], state, machine, h["public_ip"] or "-",
-                        h["private_ip"] or "-", f"{h['uptime_s'] / 3600:.1f} h", f"${h['cost_usd']:.2f}")
+                        h["private_ip"] or "-", f"{h['uptime_s'] / 3600:.1f} h",
+                        "unknown" if h["cost_usd"] is None else f"${h['cost_usd']:.2f}")
         idle_lines = [f"{h['host']}: {autostop_line(h['autostop'])}" for h in doc["hosts"] if h.get("autostop")]
         return [*partial, out, *idle_lines, *guarded]
 
@@ -313,7 +314,7 @@ def cost_guard(plan: Plan, rows: list[api.InstanceStatus], outputs: Mapping[str,
     billed = [guard.Billed(f"instance {r.name} ({r.machine}{', spot' if r.spot else ''}, {r.state})", r.usd_per_hour,
                            r.launched.timestamp() if r.usd_per_hour else None,
                            running=r.state in {"pending", "running", "stopping"},
-                           spot_estimate=r.spot_estimate and r.usd_per_hour > 0) for r in rows]
+                           spot_estimate=r.spot_estimate and (r.usd_per_hour or 0.0) > 0) for r in rows]
     if plan.vpn is not None and outputs.get("network", {}).get("vpn_endpoint_id"):
         billed.append(guard.Billed("Client VPN subnet association", catalog().vpn_association_usd_per_hour,
                                    outputs.get(NETWORK_SINCE)))

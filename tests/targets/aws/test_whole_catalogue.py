@@ -56,7 +56,7 @@ def test_us_east_1_prices_come_from_the_price_list_itself() -> None:
 def test_the_six_unpriced_regions_plan_with_a_one_line_cost_unknown_warning(machine: str, region: str) -> None:
     with pytest.warns(CostUnknown) as caught:
         host = plan(machine, region).host("n")
-    assert host.usd_per_hour == 0.0
+    assert host.usd_per_hour is None  # unknown, never $0 (issue 35: costs that are unknown say so)
     assert [str(w.message) for w in caught][:1] == [
         f"{machine} in {region}: cost unknown (the catalogue has no price there); `fogiac catalog update` "
         "refreshes the catalogue"]
@@ -81,7 +81,7 @@ def test_requirements_resolve_to_the_cheapest_fit_in_the_region(need: str, regio
 def test_real_names_outside_the_catalogue_are_accepted_with_a_warning_and_typos_refused() -> None:
     with pytest.warns(CostUnknown, match=r"^g3\.4xlarge in us-east-1: cost unknown"):
         host = plan("g3.4xlarge", "us-east-1").host("n")  # botocore's EC2 model lists it; the catalogue does not
-    assert (host.machine, host.usd_per_hour) == ("g3.4xlarge", 0.0)
+    assert (host.machine, host.usd_per_hour) == ("g3.4xlarge", None)  # price unknown
     with pytest.warns(CostUnknown, match=r"^'mx-central-1' is a real AWS region the catalogue does not cover"):
         plan("t3.micro", "mx-central-1")
     with pytest.raises(ManifestError, match=r"'g6.xlrge' is not a known instance type; did you mean 'g6.xlarge'\?"):

@@ -24,7 +24,14 @@ from workloads.slam.mapdata import Keyframe, Map
 
 MIN_MATCHES = 100
 MIN_POINTS = 80
-MIN_PARALLAX_DEG = 1.0
+MIN_PARALLAX_DEG = 1.0  # the two-view start's per-point cut
+# A new keyframe's points are cut at a lower parallax. The cut keeps a point by the parallax of
+# its *estimated* position, and noise that puts a point too close also widens its parallax: where
+# a keyframe pair's true parallax is near the cut (short baselines between keyframes), the points
+# kept are the ones that came out too close. On the rendered bigloop (measured) the new points sat
+# 4-60% closer than the map's, tracking against them shortened the next keyframe's baseline, that
+# pair's points came out closer still, and the map's scale collapsed 40-fold within 16 keyframes.
+NEW_POINT_MIN_PARALLAX_DEG = 0.5
 MIN_MEDIAN_PARALLAX_DEG = 2.0  # a start whose points' median parallax is lower is refused
 MIN_GOOD_SHARE = 0.5  # of the chosen model's inliers that must triangulate well
 HOMOGRAPHY_RATIO = 0.45  # R_H above which the homography is used (ORB-SLAM's threshold)
@@ -48,7 +55,7 @@ def _matches(a: Features, b: Features, *, ratio: float) -> np.ndarray:
 
 
 def _triangulate(k: np.ndarray, pose_a: np.ndarray, pose_b: np.ndarray, uv_a: np.ndarray, uv_b: np.ndarray,
-                 octave: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                 octave: np.ndarray, *, min_parallax_deg: float = MIN_PARALLAX_DEG) -> tuple[np.ndarray, np.ndarray]:
     """(world points (N, 3), good (N,) bool): in front of both, reprojecting within 2 px, with parallax."""
     cw_a, cw_b = inverse(pose_a), inverse(pose_b)
     h = cv2.triangulatePoints(k @ cw_a[:3], k @ cw_b[:3], uv_a.T.astype(np.float64), uv_b.T.astype(np.float64))
@@ -62,7 +69,7 @@ def _triangulate(k: np.ndarray, pose_a: np.ndarray, pose_b: np.ndarray, uv_a: np
         good &= (cam[:, 2] > 0) & (np.linalg.norm(proj - uv, axis=1) < 2.0 * 1.2 ** octave)
     ray_a, ray_b = points - pose_a[:3, 3], points - pose_b[:3, 3]
     cos = (ray_a * ray_b).sum(axis=1) / (np.linalg.norm(ray_a, axis=1) * np.linalg.norm(ray_b, axis=1) + 1e-12)
-    good &= cos < np.cos(np.radians(MIN_PARALLAX_DEG))
+    good &= cos < np.cos(np.radians(min_parallax_deg))
     return points, good
 
 
@@ -201,7 +208,8 @@ def triangulate_new_points(m: Map, intrinsics: Intrinsics, new: Keyframe, previo
         return 0
     i_old, i_new = free_old[pairs[:, 0]], free_new[pairs[:, 1]]
     points, good = _triangulate(intrinsics.matrix(), previous.pose, new.pose, previous.features.uv[i_old],
-                                new.features.uv[i_new], new.features.octave[i_new])
+                                new.features.uv[i_new], new.features.octave[i_new],
+                                min_parallax_deg=NEW_POINT_MIN_PARALLAX_DEG)
     ids = m.points.add(points[good], new.features.desc[i_new[good]], new.id)
     new.point_ids[i_new[good]] = ids
     previous.point_ids[i_old[good]] = ids

@@ -147,10 +147,25 @@ class Slam:
             for kf_id in range(self._loop_sent, len(self.tracker.map.keyframes)):
                 self._loop_in.put(self.tracker.loop_keyframe(kf_id))
             self._loop_sent = len(self.tracker.map.keyframes)
-            self._start_bundle()
+            if self.tracker.mono:
+                self._adjust_now()
+            else:
+                self._start_bundle()
             if self.stats.first_map_at is None and self._mapping_busy:
                 self._await_first_map()
         return result
+
+    def _adjust_now(self, timeout: float = 60.0) -> None:
+        """Monocular: adjust the window around each new keyframe before tracking goes on. A monocular
+        map has no depth to hold its scale; tracked on an unadjusted window, keyframes came out with
+        short baselines and the map shrank (rendered bigloop, measured: adjusting 9 of 53 keyframes in
+        the background gave 58 cm ATE; waiting for each adjustment before the next frame, 2.1 cm)."""
+        deadline = time.monotonic() + timeout
+        while self._mapping_busy and time.monotonic() < deadline:
+            self._poll(block=0.5)
+        self._start_bundle()
+        while self._mapping_busy and time.monotonic() < deadline:
+            self._poll(block=0.5)
 
     def _await_first_map(self, timeout: float = 60.0) -> None:
         """Block until the first adjustment is back. The first map is the one serial chain in the system

@@ -148,7 +148,7 @@ def render(doc: Mapping[str, Any]) -> None:
     out.print(f"cost: {total_words(total, unknown)}", highlight=False)
     if unknown:
         out.print(f"  unknown: {escape(', '.join(doc['cost']['unknown']))} (the catalogue has no price there; "
-                  "`fogiac catalog update` fills it where AWS publishes one)", highlight=False)
+                  "`fogiac catalog update` fills it where the cloud publishes one)", highlight=False)
     out.print(f"  {escape(autostop_words(doc.get('autostop')))}", highlight=False)  # what bounds that month
     if spot is not None:
         source = doc["cost"]["spot_prices"]

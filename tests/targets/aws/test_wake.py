@@ -55,7 +55,8 @@ def test_up_starts_a_stopped_host_again_same_instance(engine_is_harness: Harness
     assert (host["instance_id"], host["state"]) == (instance, "stopped")
     assert host["stopped_at"] is not None and host["stopped_by"] == "a user", host  # the test stopped it, not autostop
     assert doc["cost"]["lines"][0] == {"item": "instance planner (c5.large, stopped)", "usd_per_hour": 0.0,
-                                       "running": False, "spot_estimate": False, "since": None, "cost_usd": None}
+                                       "running": False, "spot_estimate": False, "since": None, "cost_usd": None,
+                                       "price_unknown": False}
     assert [line["item"] for line in doc["cost"]["lines"]][1:] == ["Client VPN subnet association"]
     assert doc["cost"]["usd_per_hour"] == 0.1  # the network stack is still billed while the host sleeps
 

@@ -79,7 +79,8 @@ def test_torch_goes_into_a_venv_that_sees_the_systems_rospy() -> None:
 
     text = dockerfile(**FLAVOURS["debian"])
     assert text.startswith("FROM ros:noetic-ros-core\n") and "apt-get" not in text
-    assert "RUN python3 -m venv --system-site-packages /opt/venv \\\n && /opt/venv/bin/pip install --no-cache-dir " \
+    assert "RUN --mount=type=secret,id=pip.conf export PIP_CONFIG_FILE=/run/secrets/pip.conf \\\n" \
+           " && python3 -m venv --system-site-packages /opt/venv \\\n && /opt/venv/bin/pip install --no-cache-dir " \
            "torch==2.13.0\n" in text
     assert "PATH=/opt/venv/bin:$PATH" in text and "python3 -m pip" not in text
     assert 'CMD ["python", "-m", "workloads.grasp_planning", "node", "_device:=cpu"' in text

@@ -17,7 +17,6 @@ import signal
 import threading
 import xmlrpc.client
 import xmlrpc.server
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -25,17 +24,11 @@ from typer.testing import CliRunner
 
 from fogiac.cli import app
 from fogiac.provision import supervise
-from tests.provision.test_supervise import _status, _sup, _wait
+from tests.provision.test_supervise import _status, _sup, _wait, run_dir
 from tests.support.nodes import script_node_manifest
 
+__all__ = ["run_dir"]  # the supervisor tests' run folder fixture, found by pytest in this module's names
 ROS = pytest.mark.skipif(shutil.which("roscore") is None, reason="needs Debian's ros-core (roscore)")
-
-
-@pytest.fixture
-def run_dir(tmp_path: Path) -> Iterator[Path]:
-    folder = tmp_path / "run"
-    yield folder
-    _sup(folder, "stop-all", "")
 
 
 def test_a_program_that_exits_soon_after_starting_is_not_alive(run_dir: Path) -> None:

@@ -1,14 +1,6 @@
-"""fogiac's Pulumi programs: one ComponentResource module per AWS resource family.
+"""fogiac's Pulumi programs, one package per cloud (``stacks.aws``), each fed to the one engine.
 
-This package's top stays light (no pulumi import) so that fogiac's aws target can read the
-names below without loading Pulumi; the resource modules import pulumi themselves.
+Kept apart from ``fogiac/`` so that plain ``pulumi preview`` can run in a cloud's folder (its
+``Pulumi.yaml`` and ``__main__.py``) and so that only that cloud's target imports its programs.
+This top imports nothing: a cloud's package names what its target reads without loading Pulumi.
 """
-
-from __future__ import annotations
-
-PROJECT = "fogiac"  # the Pulumi project: stacks/Pulumi.yaml's name, and the engine's and offline plan's
-LAYERS = ("network", "compute")  # the two stacks per manifest, in the order they are created
-# cloud-init prints each instance's SSH host key fingerprints between these lines on its
-# console; fogiac reads them there (EC2 GetConsoleOutput) and pins them before connecting.
-HOST_KEYS_BEGIN = "-----BEGIN FOGIAC SSH HOST KEYS-----"
-HOST_KEYS_END = "-----END FOGIAC SSH HOST KEYS-----"

@@ -15,7 +15,7 @@ entry point anywhere else is a plain import in disguise and counts as one.
 - the Pulumi engine (``fogiac/pulumi_engine/``) never imports targets, provision, net, cli or a middleware:
   a cloud's target feeds it, never the reverse;
 - no import cycle spans two folders;
-- only ``fogiac/targets/aws/`` (and ``stacks/``) touch boto3, botocore, pulumi, pulumi_aws or ``stacks``,
+- only ``fogiac/targets/aws/`` (and ``stacks/aws/``) touch boto3, botocore, pulumi, pulumi_aws or ``stacks``,
   except that the provider-neutral engine ``fogiac/pulumi_engine/`` imports ``pulumi`` (and nothing else
   of these), and the shared state's modules (``fogiac/sealed.py``: secrets sealed under a KMS key) import
   and name boto3 and botocore, whichever target the stack runs on; no code line outside ``targets/aws/``
@@ -27,7 +27,9 @@ entry point anywhere else is a plain import in disguise and counts as one.
   strings of a field's ``description=`` or an option's ``help=`` may name them);
 - ``fogiac/errors.py`` is one neutral tree: it names no middleware, VPN, cloud or engine, whose errors
   subclass its classes in their own folders;
-- no branch on a target's name outside that target's own folder.
+- no branch on a target's name outside that target's own folder;
+- ``stacks/`` holds one folder per cloud, named after that cloud's target (``stacks/aws/``), and nothing
+  else but its empty top.
 """
 
 from __future__ import annotations
@@ -206,6 +208,15 @@ def test_only_the_aws_target_touches_cloud_sdks_and_stacks() -> None:
     offenders = sorted(f"{MODULES[m].relative_to(REPO)} imports {imported}" for m in MODULES for imported in GRAPH[m]
                        if imported.split(".")[0] in CLOUD and not _may_import(m, imported.split(".")[0]))
     assert offenders == []
+
+
+def test_stacks_hold_one_folder_per_cloud() -> None:
+    """A cloud's programs sit in ``stacks/<target>/``, so a second cloud's never mix with aws's."""
+    strays = sorted(str(p.relative_to(REPO)) for p in (REPO / "stacks").rglob("*.py")
+                    if p.parent == REPO / "stacks" and p.name != "__init__.py"
+                    or p.parent != REPO / "stacks" and p.relative_to(REPO / "stacks").parts[0] not in TARGET_NAMES)
+    top = ast.parse((REPO / "stacks" / "__init__.py").read_text()).body
+    assert (strays, [type(node).__name__ for node in top[1:]]) == ([], [])
 
 
 def test_the_engine_imports_pulumi() -> None:

@@ -42,7 +42,7 @@ def test_installed_package_finds_its_files_outside_the_checkout(installed: Path,
     paths = json.loads(out)
     for path in paths:
         assert path.startswith(str(installed)), path
-    assert (installed / "stacks" / "Pulumi.yaml").is_file()
+    assert (installed / "stacks" / "aws" / "Pulumi.yaml").is_file()
     assert (installed / "templates" / "vpn" / "client.ovpn.j2").is_file()
     assert any((installed / "workloads").rglob("*.cfg")), "motion-planning problems are not shipped"
 

@@ -2,7 +2,7 @@
 
 ::
 
-    aws/      EC2 machines, VPC and Client VPN through Pulumi (the only user of boto3, pulumi, stacks/)
+    aws/      EC2 machines, VPC and Client VPN through Pulumi (the only user of boto3, pulumi, stacks/aws/)
     hosts/    machines that already exist, reached over SSH (a lab GPU server is fog too)
     local/    sandboxes on this machine, one ROS master each (demos, CI)
 

@@ -6,11 +6,11 @@ import pytest
 
 from fogiac.targets.aws.placement import NVIDIA, UBUNTU
 from fogiac.targets.aws.offline import OfflinePlan, offline_public_key
-from stacks.compute import HOST_KEYS_BEGIN, HOST_KEYS_END
+from stacks.aws.compute import HOST_KEYS_BEGIN, HOST_KEYS_END
 from fogiac.manifest.schema import load_manifest
 from fogiac.plan.compile import compile_plan
 from fogiac.targets.aws.offline import declare
-from stacks.program import compute_program
+from stacks.aws.program import compute_program
 
 from .conftest import EXAMPLES
 from .recorder import Recorder

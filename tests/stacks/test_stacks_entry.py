@@ -15,12 +15,12 @@ import pytest
 
 from fogiac.errors import PlanError
 from fogiac.certs import load_or_create_ssh_key
-from stacks.entry import StackConfig, main, operator_cidrs, read_config
+from stacks.aws.entry import StackConfig, main, operator_cidrs, read_config
 
 from .conftest import EXAMPLES, compiled
 from .recorder import Recorder
 
-STACKS = Path(__file__).resolve().parents[2] / "stacks"
+STACKS = Path(__file__).resolve().parents[2] / "stacks" / "aws"  # the aws programs, where plain pulumi runs
 
 
 class _Config:
@@ -124,9 +124,10 @@ print(json.dumps(out))
 
 
 def test_main_runs_like_pulumi_runs_it(_state_dir: Path) -> None:
-    """A fresh interpreter in stacks/ (as the Pulumi language host starts it), config from env."""
+    """A fresh interpreter in stacks/aws/ (as the Pulumi language host starts it), config from env."""
     env = dict(os.environ)
-    env["PULUMI_CONFIG"] = json.dumps({"fogiac:manifest": "../examples/minimal.yaml", "fogiac:sshFrom": "192.0.2.7/32"})
+    env["PULUMI_CONFIG"] = json.dumps({"fogiac:manifest": "../../examples/minimal.yaml",
+                                       "fogiac:sshFrom": "192.0.2.7/32"})
     done = subprocess.run(
         [sys.executable, "-c", _RUN_MAIN], cwd=STACKS, env=env, capture_output=True, text=True, timeout=120
     )

@@ -9,7 +9,7 @@ import pytest
 from fogiac.errors import PlanError
 from fogiac.plan.model import OPERATOR, OPERATOR_PLACEHOLDER, Rule, check_ingress
 from fogiac.targets.aws.offline import OfflinePlan
-from stacks.firewall import expand, rule_name
+from stacks.aws.firewall import expand, rule_name
 
 INGRESS = "aws:vpc/securityGroupIngressRule:SecurityGroupIngressRule"
 EGRESS = "aws:vpc/securityGroupEgressRule:SecurityGroupEgressRule"

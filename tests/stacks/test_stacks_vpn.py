@@ -11,7 +11,7 @@ from fogiac.certs import Bundle, new_bundle, relay_name, save_bundle, save_pair
 from fogiac.net import hostcert
 from fogiac.provision.local import LocalHost
 from fogiac.targets.aws.offline import OfflinePlan
-from stacks.program import network_program
+from stacks.aws.program import network_program
 from tests.support.tls import handshake, public_der
 
 from .conftest import EXAMPLES, compiled

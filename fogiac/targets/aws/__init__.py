@@ -2,7 +2,7 @@
 in proxy mode, over the relay's mutual TLS to public addresses open only to ``ssh_from``.
 
 Pulumi creates and deletes through fogiac's one engine (:mod:`fogiac.pulumi_engine`), fed the
-programs in ``stacks/`` and the region by :mod:`.engine`; boto3 checks before, reports during and
+programs in ``stacks/aws/`` and the region by :mod:`.engine`; boto3 checks before, reports during and
 proves after (:mod:`.api`, :mod:`.sweep`). Offline, the same programs run under the engine's mocks
 (:mod:`.offline`) so ``fogiac plan`` needs no credentials, and :mod:`.tfplan` names the Terraform
 types for the plan-JSON export. This folder is the only code in fogiac that imports boto3,

@@ -24,7 +24,7 @@ from fogiac.plan.model import OPERATOR, Plan
 from fogiac.targets.aws.catalog import on_demand, spot_price
 from fogiac.targets.aws.model import ImageQuery, image_of
 from fogiac.targets.aws.sdk import need
-from stacks import HOST_KEYS_BEGIN, HOST_KEYS_END
+from stacks.aws import HOST_KEYS_BEGIN, HOST_KEYS_END
 
 STACK_TAG = "fogiac:stack"
 NODE_TAG = "fogiac:node"

@@ -1,7 +1,7 @@
 """The aws stacks through fogiac's one Pulumi engine (:mod:`fogiac.pulumi_engine`): two stacks per manifest
 and environment, network then compute.
 
-What is aws's here is what the engine is fed: the programs from ``stacks/`` (with the stack's
+What is aws's here is what the engine is fed: the programs from ``stacks/aws/`` (with the stack's
 certificates and SSH key, made on first use), the stack config (``aws:region``), which outputs
 name cloud ids, and the wiring of compute to network's outputs. Network goes up before compute
 (compute is fed network's outputs) and comes down after it. Nothing here imports pulumi at import.
@@ -22,10 +22,10 @@ from fogiac.pulumi_engine.project import Earlier, Program, Project
 from fogiac.pulumi_engine.workspace import backend_dir
 from fogiac.state import StackState, read_json
 from fogiac.targets.aws.sdk import need
-from stacks import LAYERS, PROJECT
+from stacks.aws import LAYERS, PROJECT
 
 OUTPUTS_FILE = "outputs.json"
-SSH_KEY_FILE = Path(StackState.SSH) / SSH_KEY  # in the stack folder, where stacks/entry.py (plain pulumi up) keeps it
+SSH_KEY_FILE = Path(StackState.SSH) / SSH_KEY  # where stacks/aws/entry.py (plain pulumi up) keeps it
 CERTS_DIR = StackState.CERTS
 VPN_NOTICE = ("The Client VPN endpoint's subnet association takes about 10 minutes to create "
               "(and again to delete); its resources wait up to 30 minutes.")
@@ -36,14 +36,14 @@ def stack_config(plan: Plan) -> dict[str, str]:
 
 
 def project(plan: Plan) -> Project:
-    """The aws Pulumi project of ``plan``'s stack: stacks/Pulumi.yaml's name, its two layers, its region."""
+    """The aws Pulumi project of ``plan``'s stack: stacks/aws/Pulumi.yaml's name, its two layers, its region."""
     return Project(PROJECT, plan.stack, LAYERS, stack_config(plan))
 
 
 def ssh_public_key(stack: str) -> str:
     """The stack's SSH key (ed25519, private half 0600), created on first use.
 
-    Kept where ``stacks/entry.py`` (plain ``pulumi up``) keeps it, so both paths use one key.
+    Kept where ``stacks/aws/entry.py`` (plain ``pulumi up``) keeps it, so both paths use one key.
     """
     state = StackState(stack)
     state.ensure()
@@ -90,7 +90,7 @@ class Engine:
     def programs(self, *, operator_cidrs: tuple[str, ...],
                  network_outputs: Callable[[], Mapping[str, Any]]) -> dict[str, Program]:
         stack = self.plan.stack
-        return need("stacks.program").layer_programs(
+        return need("stacks.aws.program").layer_programs(
             self.plan, certs=load_or_create_bundle(stack, StackState(stack).certs),
             operator_cidrs=operator_cidrs, public_key_openssh=ssh_public_key(stack), network_outputs=network_outputs)
 

@@ -37,7 +37,7 @@ from fogiac.targets.base import Check
 
 POLICY_FILE = Path(__file__).parent / "data" / "iam-policy.json"
 BOUNDARY_FILE = Path(__file__).parent / "data" / "iam-boundary.json"  # the account's ``fogiac-boundary`` policy
-BOUNDARY = "arn:aws:iam::{account}:policy/fogiac-boundary"  # as stacks/network.py sets it on the roles it makes
+BOUNDARY = "arn:aws:iam::{account}:policy/fogiac-boundary"  # as stacks/aws/network.py sets it on the roles it makes
 
 # the document's statements of fogiac's own calls
 OWN_STATEMENTS = ("FogiacReads", "FogiacChangesOnlyWhatItTagged", "FogiacReadsItsRoles", "FogiacSweepsItsRoles",

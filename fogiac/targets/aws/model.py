@@ -2,7 +2,7 @@
 
 The provider-neutral Plan holds them as :class:`fogiac.plan.model.NetworkSpec`,
 :class:`fogiac.plan.model.EdgeVpn` and :class:`fogiac.plan.model.MachineImage`; the plan document and
-digest serialise them as before (``dataclasses.asdict``). The stack programs (``stacks/``) and the
+digest serialise them as before (``dataclasses.asdict``). The stack programs (``stacks/aws/``) and the
 boto3 checks read them here.
 """
 

@@ -18,7 +18,7 @@ from fogiac.pulumi_engine import offline
 from fogiac.pulumi_engine.offline import OfflinePlan
 from fogiac.pulumi_engine.project import Earlier, Program, Project
 from fogiac.targets.aws.sdk import need
-from stacks import LAYERS, PROJECT
+from stacks.aws import LAYERS, PROJECT
 
 # Attributes AWS computes that the programs read or export (``arn`` on every resource).
 _COMPUTED: dict[str, tuple[str, ...]] = {
@@ -64,7 +64,7 @@ def declare(plan: Plan, *, mocks: Any | None = None) -> OfflinePlan:
     if plan.network is None:
         return OfflinePlan(plan=plan, resources=(), outputs=MappingProxyType({}))
     need("pulumi")  # a missing SDK names the aws extra, before the engine asks for it
-    program = need("stacks.program")
+    program = need("stacks.aws.program")
 
     def programs(earlier: Earlier) -> dict[str, Program]:
         return program.layer_programs(

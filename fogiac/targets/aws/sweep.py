@@ -66,7 +66,7 @@ class SweepResult:
 
 
 def prefix(stack: str) -> str:
-    """Where ``stacks/`` puts a stack's log groups (by name) and IAM roles (by path)."""
+    """Where ``stacks/aws/`` puts a stack's log groups (by name) and IAM roles (by path)."""
     return f"/fogiac/{stack}/"
 
 

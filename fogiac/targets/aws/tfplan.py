@@ -16,7 +16,7 @@ from fogiac.pulumi_engine import terraform
 
 PROVIDER = "registry.terraform.io/hashicorp/aws"
 
-# Pulumi type token -> Terraform resource type (pulumi-aws's bridge mapping, for what stacks/ declares).
+# Pulumi type token -> Terraform resource type (pulumi-aws's bridge mapping, for what stacks/aws/ declares).
 TYPES: dict[str, str] = {
     "aws:ec2/vpc:Vpc": "aws_vpc",
     "aws:ec2/defaultSecurityGroup:DefaultSecurityGroup": "aws_default_security_group",

@@ -26,7 +26,7 @@ from fogiac.targets.aws.api import error_code
 from fogiac.certs import Bundle
 from fogiac.pulumi_engine.offline import run_program
 from fogiac.plan.model import Plan
-from stacks import PROJECT
+from stacks.aws import PROJECT
 
 _SECRET_SIG = "4dabf18193072939515e22adb298388d"
 CLIENT_VPN = ("aws:ec2clientvpn/endpoint:Endpoint", "aws:ec2clientvpn/networkAssociation:NetworkAssociation",
@@ -84,7 +84,7 @@ class Harness:
     def apply(self, plan: Plan, *, certs: Bundle, operator_cidrs: tuple[str, ...],
               public_key_openssh: str) -> dict[str, dict[str, Any]]:
         """Run the network program, then compute with network's outputs; return both outputs."""
-        from stacks.program import compute_program, network_program
+        from stacks.aws.program import compute_program, network_program
 
         self.created, self.reused = [], []
         outputs: dict[str, dict[str, Any]] = {}

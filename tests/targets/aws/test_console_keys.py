@@ -8,7 +8,7 @@ import pytest
 
 from fogiac.targets.aws.api import host_fingerprints, parse_host_fingerprints
 from fogiac.errors import CloudError
-from stacks.compute import HOST_KEYS_BEGIN, HOST_KEYS_END
+from stacks.aws.compute import HOST_KEYS_BEGIN, HOST_KEYS_END
 
 CONSOLE = f"""\
 [   12.3] cloud-init[812]: Cloud-init v. 24.1 running 'modules:final'

@@ -64,7 +64,7 @@ def test_the_policy_is_a_valid_document_scoped_where_it_can_be() -> None:
         assert statement["Effect"] == "Allow" and all(":" in a for a in statement["Action"]), statement
         if any(a.startswith("iam:") and a != "iam:SimulatePrincipalPolicy" and a != "iam:ListRoles"
                for a in statement["Action"]):
-            # only fogiac's own roles: stacks/ puts them under the path /fogiac/<stack>/ (issue 35 item 4: the
+            # only fogiac's own roles: stacks/aws/ puts them under the path /fogiac/<stack>/ (issue 35 item 4: the
             # pattern was role/fogiac-*, which that path's ARN role/fogiac/<stack>/... never matched)
             assert statement["Resource"] == "arn:aws:iam::*:role/fogiac/*", statement
 

@@ -20,7 +20,7 @@ from tests.support.iam_eval import decide
 
 ACCOUNT = "123456789012"
 BOUNDARY = f"arn:aws:iam::{ACCOUNT}:policy/fogiac-boundary"
-ROLE = f"arn:aws:iam::{ACCOUNT}:role/fogiac/robots-dev/fogiac-robots-dev-flow-logs"  # where stacks/ puts it
+ROLE = f"arn:aws:iam::{ACCOUNT}:role/fogiac/robots-dev/fogiac-robots-dev-flow-logs"  # where stacks/aws/ puts it
 FOREIGN_ROLE = f"arn:aws:iam::{ACCOUNT}:role/admin"
 INSTANCE = f"arn:aws:ec2:us-west-2:{ACCOUNT}:instance/i-0123456789abcdef0"
 CALLER = {"aws:PrincipalAccount": [ACCOUNT]}

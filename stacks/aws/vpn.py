@@ -18,8 +18,8 @@ import pulumi_aws as aws
 
 from fogiac.certs import Bundle, KeyPair
 from fogiac.targets.aws.model import VpnSpec
-from stacks.network import log_group
-from stacks.tags import tagged
+from stacks.aws.network import log_group
+from stacks.aws.tags import tagged
 
 SLOW = pulumi.CustomTimeouts(create="30m", update="30m", delete="30m")
 

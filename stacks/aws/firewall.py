@@ -17,7 +17,7 @@ import pulumi_aws as aws
 
 from fogiac.errors import PlanError
 from fogiac.plan.model import OPERATOR, OPERATOR_PLACEHOLDER, Rule, SecurityGroup, check_ingress
-from stacks.tags import tagged
+from stacks.aws.tags import tagged
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""``pulumi preview`` / ``pulumi up`` entry point for fogiac's stacks (see stacks/entry.py)."""
+"""``pulumi preview`` / ``pulumi up`` entry point for fogiac's aws stacks (see stacks/aws/entry.py)."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ from pathlib import Path
 try:
     import stacks  # noqa: F401  (installed with fogiac)
 except ImportError:  # a checkout: the repository root holds the stacks package
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from stacks.entry import main  # noqa: E402
+from stacks.aws.entry import main  # noqa: E402
 
 main(base=Path.cwd())

@@ -18,8 +18,8 @@ import pulumi_aws as aws
 from fogiac.plan.model import HostSpec
 from fogiac.render import render
 from fogiac.targets.aws.model import ImageQuery, image_of
-from stacks import HOST_KEYS_BEGIN, HOST_KEYS_END
-from stacks.tags import tagged
+from stacks.aws import HOST_KEYS_BEGIN, HOST_KEYS_END
+from stacks.aws.tags import tagged
 
 USER_DATA_TEMPLATE = "cloud-init/user-data.yaml.j2"
 AMI_ARCHITECTURE = "x86_64"  # every type in fogiac's catalogue is x86_64

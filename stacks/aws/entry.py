@@ -1,9 +1,9 @@
-"""What plain ``pulumi preview``/``up`` in ``stacks/`` runs: stack config in, one layer declared.
+"""What plain ``pulumi preview``/``up`` in ``stacks/aws/`` runs: stack config in, one layer declared.
 
 The engine drives the same programs through the Automation API; this entry exists so a user's
-CI can run the stock Pulumi CLI on a manifest. Config (project ``fogiac``, :data:`stacks.PROJECT`):
+CI can run the stock Pulumi CLI on a manifest. Config (project ``fogiac``, :data:`stacks.aws.PROJECT`):
 
-- ``fogiac:manifest``     path to fogiac.yaml (relative to ``stacks/``)
+- ``fogiac:manifest``     path to fogiac.yaml (relative to ``stacks/aws/``)
 - ``fogiac:layer``        ``network`` or ``compute``
 - ``fogiac:environment``  default ``dev``;  ``fogiac:target`` default ``aws``
 - ``fogiac:sshFrom``      the operator's CIDRs, comma-separated (needed when ssh_from is auto)
@@ -25,8 +25,8 @@ from fogiac.manifest.schema import load_manifest
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.model import OPERATOR, Plan
 from fogiac.state import StackState
-from stacks import LAYERS, PROJECT
-from stacks.program import layer_programs
+from stacks.aws import LAYERS, PROJECT
+from stacks.aws.program import layer_programs
 
 
 @dataclass(frozen=True)
@@ -67,7 +67,7 @@ def operator_cidrs(plan: Plan, config: StackConfig) -> tuple[str, ...]:
 
 
 def main(*, base: Path | None = None) -> None:
-    """Declare the configured layer; called by ``stacks/__main__.py`` inside a Pulumi program."""
+    """Declare the configured layer; called by ``stacks/aws/__main__.py`` inside a Pulumi program."""
     config = read_config(pulumi.Config(PROJECT).get, base=base or Path.cwd())
     plan = compile_plan(load_manifest(config.manifest), target=config.target, environment=config.environment)
     region = pulumi.Config("aws").get("region")

@@ -1,6 +1,6 @@
 """The two stack programs, network and compute, built from a compiled Plan.
 
-Both are plain functions run inside a Pulumi program: by ``stacks/__main__.py`` under
+Both are plain functions run inside a Pulumi program: by ``stacks/aws/__main__.py`` under
 ``pulumi preview``/``up``, by the engine's Automation API (:mod:`fogiac.pulumi_engine.engine`, fed by
 :mod:`fogiac.targets.aws.engine`), or under mocks for the offline plan (:mod:`fogiac.targets.aws.offline`).
 Compute takes network's outputs as plain values, so a second ``up`` after ``down --keep-network``
@@ -18,10 +18,10 @@ from fogiac.certs import Bundle
 from fogiac.errors import PlanError
 from fogiac.plan.model import Plan
 from fogiac.targets.aws.model import vpc_of, vpn_of, zone_subnet
-from stacks.compute import Compute, ComputeArgs
-from stacks.firewall import Firewall, FirewallArgs
-from stacks.network import Network, NetworkArgs
-from stacks.vpn import ClientVpn, ClientVpnArgs
+from stacks.aws.compute import Compute, ComputeArgs
+from stacks.aws.firewall import Firewall, FirewallArgs
+from stacks.aws.network import Network, NetworkArgs
+from stacks.aws.vpn import ClientVpn, ClientVpnArgs
 
 HOSTS_SUBNET = "hosts"  # the public subnet the instances live in
 HOSTS_GROUP = "hosts"  # the instances' security group
@@ -38,7 +38,7 @@ def layer_programs(plan: Plan, *, certs: Bundle, operator_cidrs: tuple[str, ...]
     """The program of each layer, network then compute; compute reads the network's outputs when it runs.
 
     The one place the two stacks are wired together: the engine (outputs of the applied network
-    stack), the offline plan (outputs the mocks resolved) and ``stacks/entry.py`` (a
+    stack), the offline plan (outputs the mocks resolved) and ``stacks/aws/entry.py`` (a
     StackReference) each pass their own ``network_outputs``.
     """
     return {

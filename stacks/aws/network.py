@@ -18,7 +18,7 @@ import pulumi
 import pulumi_aws as aws
 
 from fogiac.targets.aws.model import VpcSpec
-from stacks.tags import tagged
+from stacks.aws.tags import tagged
 
 _ANYWHERE = "0.0.0.0/0"  # the public route table's default route (egress, not a firewall rule)
 LOG_RETENTION_DAYS = 365  # a year, as scanners ask; the group goes with the stack at down anyway

@@ -10,7 +10,8 @@ several hosts; ``--pad``: that many random characters after a ``|`` in ``frame_i
 for a slow link to delay; ``--definition``: the message definition its publisher sends, a hostile replica's).
 ``robot`` waits until someone subscribes to REQ and publishes to REPLY, sends N requests (seq i, stamp
 base+i s; ``--zero-stamp``: stamp 0, and replies told apart by seq), and prints one JSON line per reply
-it gets: {"i", "from", "ms"} (ms: from its send to the reply's arrival), then ``done``.
+it gets: {"i", "from", "ms", "t"} (ms: from its send to the reply's arrival; t: the arrival's wall-clock time),
+then ``done``.
 """
 
 from __future__ import annotations
@@ -79,7 +80,8 @@ def main() -> None:
         with lock:
             t0 = sent.get(i)
         ms = None if t0 is None else round((now - t0) * 1e3, 3)
-        print(json.dumps({"i": i, "from": reply.frame_id.split("|")[0], "ms": ms}), flush=True)
+        print(json.dumps({"i": i, "from": reply.frame_id.split("|")[0], "ms": ms, "t": round(time.time(), 4)}),
+              flush=True)
 
     pub = rospy.Publisher(args.request, Header, queue_size=100, tcp_nodelay=True)
     sub = rospy.Subscriber(args.reply, Header, got, queue_size=1000, tcp_nodelay=True)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import re
 from functools import cache
+from pathlib import Path
 from types import SimpleNamespace
 from typing import cast
 
@@ -83,3 +84,19 @@ def test_a_measured_demo_table_has_the_shape_the_demo_prints_today() -> None:
         assert re.fullmatch(r"load average \(1, 5, 15 min\) at the end: [\d.]+ [\d.]+ [\d.]+", lines[len(printed)])
         assert re.fullmatch(r"cores the planners got while planning \(CPU seconds / wall seconds\): "
                             r"robot [\d.]+ of 1, cloud [\d.]+ of \d+", lines[len(printed) + 1])
+
+
+def test_output_pasted_without_a_marker_is_what_the_guard_flags(tmp_path: Path) -> None:
+    page = tmp_path / "page.md"
+    page.write_text("\n".join([
+        "```text", "fogiac.yaml: valid (1 node, 1 host, target aws)", "```", "",  # plain text
+        "```", "first-day-dev: not deployed; nothing to remove", "```", "",  # no language
+        "```console", "$ fogiac validate", "fogiac.yaml: valid", "```", "",  # a transcript
+        "```sh", "fogiac state unlock lab-dev", "# broke the lock of stack 'lab-dev'", "```", "",  # output as comment
+        "```sh", "fogiac validate   # one line per problem", "fogiac plan", "```", "",  # commands: not output
+        "```yaml", "name: lab", "```", "",
+        "<!-- output (typos): fogiac validate -->", "```text", "fogiac.yaml:9: ...", "```", ""]))
+    found = blocks(page)
+    assert [looks_like_output(b) for b in found] == [True, True, True, True, False, False, True]
+    assert [b.kind for b in found] == [None] * 6 + ["case"]
+    assert (found[-1].field("case"), found[-1].field("command")) == ("typos", "fogiac validate")

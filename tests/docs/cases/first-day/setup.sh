@@ -1,0 +1,2 @@
+# The getting-started page's first line.
+fogiac init --name first-day

@@ -1,0 +1,1 @@
+export PLANNER_THREADS=16

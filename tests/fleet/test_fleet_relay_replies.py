@@ -39,8 +39,14 @@ def _replies(proc: Proc) -> list[dict]:
     return [json.loads(line) for line in proc.lines if line.startswith("{")]
 
 
+def _go(asking: dict[str, Proc], go: Path) -> None:
+    """Let the robots send at once, when every one is linked: their requests are in flight together."""
+    wait_for(lambda: all("connected" in p.lines for p in asking.values()), 60, "every robot linked")
+    go.touch()
+
+
 def test_each_reply_goes_to_the_robot_that_asked(masters: tuple[Master, Master], fleet_certs: Path,
-                                                 procs: Procs) -> None:
+                                                 procs: Procs, tmp_path: Path) -> None:
     first, cloud_m = masters
     write_access(fleet_certs / ACCESS_FILE, access(shared=(PLANNER,)))
     robots = {"arm1": first, "arm2": procs.roscore(), "arm3": procs.roscore()}
@@ -52,9 +58,10 @@ def test_each_reply_goes_to_the_robot_that_asked(masters: tuple[Master, Master],
         for n, (name, master) in enumerate(robots.items()):
             stack.callback(edge_end(name, master, fleet_certs, cloud, n).stop)
         asking = {name: _node(procs, master, "robot", "/plan/request", "/plan/reply", "--count", str(COUNT),
-                              "--rate", "20", "--wait", "5", "--seq-base", str(SEQ_BASE[name]),
-                              *(["--zero-stamp"] if name == "arm3" else ["--base", "1000"]))
+                              "--rate", "20", "--wait", "5", "--seq-base", str(SEQ_BASE[name]), "--go",
+                              str(tmp_path / "go"), *(["--zero-stamp"] if name == "arm3" else ["--base", "1000"]))
                   for name, master in robots.items()}
+        _go(asking, tmp_path / "go")
         wait_for(lambda: all(_replies(p) for p in asking.values()), 60, "every robot's first reply")
         stray = _node(procs, cloud_m, "robot", "/stray/request", "/plan/reply", "--count", "10", "--rate", "20",
                       "--base", "900000", "--wait", "1")
@@ -71,3 +78,31 @@ def test_each_reply_goes_to_the_robot_that_asked(masters: tuple[Master, Master],
         assert figures["forwarded"] == figures["answered"] == 3 * COUNT and figures["pending"] == 0
         assert figures["restamped"] > 0  # equal stamps were in flight together
         assert figures["unmatched"] >= 1  # the stray replies, dropped
+
+
+def test_equal_keys_of_another_field_are_answered_in_arrival_order(masters: tuple[Master, Master],
+                                                                   fleet_certs: Path, procs: Procs,
+                                                                   tmp_path: Path) -> None:
+    """``match: seq``, read with the definitions the robots' and the node's publishers send: arm1 and arm2 send
+    the same seqs, in flight together, and each robot gets only its own replies (told apart by their stamps)."""
+    first, cloud_m = masters
+    grasp = SharedPair("grasp", frozenset({"/grasp/request"}), frozenset({"/grasp/reply"}), "seq")
+    write_access(fleet_certs / ACCESS_FILE, access(shared=(grasp,), topics=("/grasp/request", "/grasp/reply")))
+    robots = {"arm1": first, "arm2": procs.roscore()}
+    bases = {"arm1": 1000, "arm2": 5000}
+    _node(procs, cloud_m, "echo", "/grasp/request", "/grasp/reply", "--name", "grasp", "--work-ms", "30")
+    with cloud_end(cloud_m, fleet_certs) as cloud, contextlib.ExitStack() as stack:
+        for n, (name, master) in enumerate(robots.items()):
+            stack.callback(edge_end(name, master, fleet_certs, cloud, n).stop)
+        asking = {name: _node(procs, master, "robot", "/grasp/request", "/grasp/reply", "--count", "40",
+                              "--rate", "50", "--wait", "8", "--base", str(bases[name]), "--go", str(tmp_path / "go"))
+                  for name, master in robots.items()}
+        _go(asking, tmp_path / "go")
+        wait_for(lambda: all("done" in p.lines for p in asking.values()), 90, "both robots done")
+        for name in robots:
+            got = _replies(asking[name])
+            assert sorted(r["i"] for r in got) == list(range(40)), name  # its own stamps, each once
+            assert sorted(r["seq"] for r in got) == list(range(40)), name
+        figures = cloud.reply_stats()["grasp"]
+        assert figures["forwarded"] == figures["answered"] == 80 and figures["restamped"] == 0
+        assert figures["queued"] > 0  # equal seqs were in flight together

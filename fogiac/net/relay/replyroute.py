@@ -82,7 +82,7 @@ class _Node:
     by_key: dict[Key, deque[int]] = field(default_factory=dict)
     seq: int = 0
     counts: dict[str, int] = field(default_factory=lambda: dict.fromkeys(
-        ("forwarded", "answered", "restamped", "unmatched", "keyless", "expired", "forgotten"), 0))
+        ("forwarded", "answered", "restamped", "queued", "unmatched", "keyless", "expired", "forgotten"), 0))
 
     @property
     def restamps(self) -> bool:
@@ -149,6 +149,8 @@ class ReplyRouter:
                 if key != own:
                     data = _with_stamp(data, key)
                     node.counts["restamped"] += 1
+            elif key in node.by_key:
+                node.counts["queued"] += 1  # behind a request with the same key: answered after it
             node.seq += 1
             node.asked[node.seq] = _Asked(robot, key, own, now, set(node.pair.replies))
             node.by_key.setdefault(key, deque()).append(node.seq)
@@ -188,7 +190,8 @@ class ReplyRouter:
             node.counts["expired"] += 1
 
     def stats(self) -> dict[str, dict[str, int]]:
-        """Per shared node: requests forwarded and answered, replies unmatched, requests keyless, restamped,
-        expired or forgotten, and how many wait now."""
+        """Per shared node: requests forwarded and answered, replies unmatched, requests keyless, restamped (their
+        stamp was in flight already), queued (their key was: answered in arrival order), expired or forgotten, and
+        how many wait now."""
         with self._lock:
             return {name: {**node.counts, "pending": len(node.asked)} for name, node in sorted(self._nodes.items())}

@@ -1,7 +1,7 @@
 """rospy nodes for the replica tests and benchmark: a robot asking, and a node answering (one per process).
 
     python replica_nodes.py echo REQ REPLY --name NAME [--work-ms W] [--pad BYTES] [--definition TEXT]
-    python replica_nodes.py robot REQ REPLY --count N [--rate HZ] [--base B] [--wait S] [--seq-base Q]
+    python replica_nodes.py robot REQ REPLY --count N [--rate HZ] [--base B] [--wait S] [--seq-base Q] [--go FILE]
 
 Both topics carry ``std_msgs/Header``. ``echo`` answers each request with a Header of the same seq
 and stamp and ``frame_id`` NAME, after W ms of CPU work (a busy loop, so a CPU quota or a stop
@@ -12,12 +12,14 @@ for a slow link to delay; ``--definition``: the message definition its publisher
 base+i s; ``--zero-stamp``: stamp 0, and replies told apart by seq), and prints one JSON line per reply
 it gets: {"i", "from", "ms", "seq", "nsecs"} (ms: from its send to the reply's arrival; seq and nsecs as the reply
 carries them: with ``--seq-base`` robots sending equal stamps tell whose request a reply answers), then ``done``.
+With ``--go``, it prints ``connected`` once linked and sends only once FILE exists (robots that start together).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import secrets
 import subprocess
 import threading
@@ -46,6 +48,7 @@ def main() -> None:
                         help="echo: the message definition its publisher sends (a hostile replica's), not Header's")
     parser.add_argument("--zero-stamp", action="store_true", help="robot: every request stamped 0, told apart by seq")
     parser.add_argument("--seq-base", type=int, default=0, help="robot: request i carries seq Q + i")
+    parser.add_argument("--go", default=None, help="robot: once linked, wait for this file before sending")
     args = parser.parse_args()
 
     import rospy
@@ -89,6 +92,10 @@ def main() -> None:
     print("ready", flush=True)
     while (pub.get_num_connections() == 0 or sub.get_num_connections() == 0) and not rospy.is_shutdown():
         time.sleep(0.05)
+    if args.go is not None:
+        print("connected", flush=True)
+        while not os.path.exists(args.go) and not rospy.is_shutdown():
+            time.sleep(0.01)
     time.sleep(0.5)
     for i in range(args.count):
         with lock:

@@ -69,6 +69,7 @@ def test_another_key_queues_equal_keys_in_arrival_order() -> None:
     assert routes.reply("/g/rep", header(5, 1), SEQ) == ("arm1", header(5, 1))
     assert routes.reply("/g/rep", header(5, 2), SEQ) == ("arm2", header(5, 2))
     assert routes.reply("/g/rep", header(5, 2), SEQ) is None
+    assert routes.stats()["grasp"]["queued"] == 1 and routes.stats()["grasp"]["restamped"] == 0
 
 
 def test_keyless_requests_are_not_sent_and_keyless_or_stray_replies_reach_nobody() -> None:

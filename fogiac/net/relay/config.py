@@ -51,7 +51,7 @@ class CloudConfig(EndConfig):
     tls_timeout: float = 3.0  # seconds a connection may take to start and finish TLS (before any certificate)
     caller_id: str = "/fogiac_relay_cloud"
     access_file: Path | None = None  # a fleet's access rules (None: ``fleet.json`` under certs; no file: one edge)
-    reply_pending: int = 4096  # fleet: requests of one shared node waiting for their reply (the oldest forgotten)
+    reply_pending: int = 4096  # fleet: a robot's requests to one shared node waiting for a reply (its oldest forgotten)
     reply_expire_s: float = 60.0  # fleet: how long a request waits for its reply before it is forgotten
 
 

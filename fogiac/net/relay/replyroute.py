@@ -27,8 +27,9 @@ A reply whose key no waiting request has (answered already, expired, from before
 junk) reaches no robot: it is dropped and counted (``unmatched``), never guessed. A request without a key
 (too short, or a field its type lacks) is not passed on (``keyless``): no reply to it could be routed. A
 shared node with several reply topics answers each request once on each of them. Memory is bounded: at most
-``pending`` requests wait per shared node (the oldest is forgotten first) and none longer than
-``expire_s``; a reply to a forgotten request is unmatched. A shared node with no key (``match: null``) is
+``pending`` requests of each robot wait per shared node (that robot's oldest is forgotten first, so a robot
+that floods the node forgets only its own requests) and none longer than ``expire_s``; a reply to a
+forgotten request is unmatched. A shared node with no key (``match: null``) is
 not routed: its outputs go to every robot that subscribes them, which the access rules limit to the robots
 it serves.
 """
@@ -37,7 +38,7 @@ from __future__ import annotations
 
 import threading
 import time
-from collections import OrderedDict, deque
+from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -45,7 +46,7 @@ from fogiac.net.relay.fleet import SharedPair
 from fogiac.net.relay.framing import Payload
 from fogiac.net.relay.match import DEFAULT_MATCH, Key, KeyOf
 
-PENDING = 4096  # requests waiting for a reply, per shared node
+PENDING = 4096  # requests of one robot waiting for a reply, per shared node
 EXPIRE_S = 60.0  # how long a request waits for its reply before it is forgotten
 _NS = 1_000_000_000
 _STAMP = slice(4, 12)  # header.stamp in a ROS 1 message that begins with its std_msgs/Header
@@ -64,13 +65,13 @@ def _with_stamp(data: Payload, stamp: Key) -> bytes:
     return bytes(raw)
 
 
-@dataclass
+@dataclass(slots=True)
 class _Asked:
     robot: str
     key: Key  # as the node sees it
     own: Key  # as the robot sent it
     at: float
-    waiting: set[str]  # reply topics that have not answered it yet
+    waiting: frozenset[str]  # reply topics that have not answered it yet (the pair's own set at first: no copy)
 
 
 @dataclass
@@ -79,7 +80,9 @@ class _Node:
 
     pair: SharedPair
     asked: OrderedDict[int, _Asked] = field(default_factory=OrderedDict)
-    by_key: dict[Key, deque[int]] = field(default_factory=dict)
+    by_key: dict[Key, list[int]] = field(default_factory=dict)  # lists: most keys have one request
+    by_robot: dict[str, OrderedDict[int, None]] = field(default_factory=dict)  # each robot's, oldest first
+    moved: dict[Key, Key] = field(default_factory=dict)  # a robot's stamp -> the last stamp it was moved to
     seq: int = 0
     counts: dict[str, int] = field(default_factory=lambda: dict.fromkeys(
         ("forwarded", "answered", "restamped", "queued", "unmatched", "keyless", "expired", "forgotten"), 0))
@@ -88,12 +91,37 @@ class _Node:
     def restamps(self) -> bool:
         return self.pair.match == DEFAULT_MATCH
 
+    def add(self, asked: _Asked) -> int:
+        self.seq += 1
+        self.asked[self.seq] = asked
+        self.by_key.setdefault(asked.key, []).append(self.seq)
+        self.by_robot.setdefault(asked.robot, OrderedDict())[self.seq] = None
+        return self.seq
+
     def drop(self, seq: int) -> None:
         asked = self.asked.pop(seq)
         queue = self.by_key[asked.key]
         queue.remove(seq)
         if not queue:
             del self.by_key[asked.key]
+        mine = self.by_robot[asked.robot]
+        del mine[seq]
+        if not mine:
+            del self.by_robot[asked.robot]
+
+    def free_stamp(self, own: Key, limit: int) -> Key:
+        """A stamp no request in flight has, from ``own`` on. The search starts after the last stamp ``own`` was
+        moved to, so a robot that sends one stamp over and over costs a step or two each, not the whole chain."""
+        if own not in self.by_key:
+            return own
+        last = self.moved.get(own)
+        key = _next_stamp(last if last is not None and last in self.by_key else own)  # a freed one: from own again
+        while key in self.by_key:
+            key = _next_stamp(key)
+        if len(self.moved) >= limit:
+            self.moved.clear()
+        self.moved[own] = key
+        return key
 
 
 class ReplyRouter:
@@ -144,18 +172,16 @@ class ReplyRouter:
             self._expire(node, now)
             own = key
             if node.restamps:
-                while key in node.by_key:
-                    key = _next_stamp(key)
+                key = node.free_stamp(own, self.pending)
                 if key != own:
                     data = _with_stamp(data, key)
                     node.counts["restamped"] += 1
             elif key in node.by_key:
                 node.counts["queued"] += 1  # behind a request with the same key: answered after it
-            node.seq += 1
-            node.asked[node.seq] = _Asked(robot, key, own, now, set(node.pair.replies))
-            node.by_key.setdefault(key, deque()).append(node.seq)
-            while len(node.asked) > self.pending:
-                node.drop(next(iter(node.asked)))
+            node.add(_Asked(robot, key, own, now, node.pair.replies))
+            mine = node.by_robot[robot]
+            while len(mine) > self.pending:  # this robot's oldest: a robot that floods forgets only its own
+                node.drop(next(iter(mine)))
                 node.counts["forgotten"] += 1
             node.counts["forwarded"] += 1
         return data
@@ -175,7 +201,7 @@ class ReplyRouter:
                 node.counts["unmatched"] += 1
                 return None
             asked = node.asked[seq]
-            asked.waiting.discard(topic)
+            asked.waiting = asked.waiting - {topic}
             if not asked.waiting:
                 node.drop(seq)
             node.counts["answered"] += 1

@@ -101,20 +101,32 @@ def test_a_node_with_two_reply_topics_answers_each_request_once_on_each() -> Non
     assert routes.stats()["planner"]["pending"] == 0
 
 
-def test_what_is_remembered_is_capped_and_expires() -> None:
+def test_what_is_remembered_is_capped_per_robot_and_expires() -> None:
     clock = Clock()
     routes = router(pending=3, expire_s=10.0, clock=clock)
-    for secs in range(5):
+    routes.request("/plan/request", "arm2", header(0, 100), STAMP)
+    for secs in range(5):  # arm1 floods: only its own oldest are forgotten
         routes.request("/plan/request", "arm1", header(0, secs), STAMP)
-    assert routes.stats()["planner"]["pending"] == 3 and routes.stats()["planner"]["forgotten"] == 2
+    assert routes.stats()["planner"]["pending"] == 4 and routes.stats()["planner"]["forgotten"] == 2
     assert routes.reply("/plan/reply", header(0, 0), STAMP) is None  # forgotten: the oldest went first
     clock.now = 5.0
-    routes.request("/plan/request", "arm2", header(0, 100), STAMP)  # the oldest of four forgotten again
-    clock.now = 12.0  # the first three are older than 10 s now
+    routes.request("/plan/request", "arm2", header(0, 200), STAMP)
+    clock.now = 12.0  # all but arm2's second are older than 10 s now
     assert routes.reply("/plan/reply", header(0, 4), STAMP) is None
-    assert routes.reply("/plan/reply", header(0, 100), STAMP) == ("arm2", header(0, 100))
+    assert routes.reply("/plan/reply", header(0, 200), STAMP) == ("arm2", header(0, 200))
     figures = routes.stats()["planner"]
-    assert (figures["expired"], figures["forgotten"], figures["pending"]) == (2, 3, 0)
+    assert (figures["expired"], figures["forgotten"], figures["unmatched"], figures["pending"]) == (4, 2, 2, 0)
+
+
+def test_a_robot_repeating_one_stamp_gets_a_free_one_each_time() -> None:
+    """The search for a free stamp starts after the last one given: a robot stamping every request 0 costs a step
+    each, and once its requests are answered its next one is handed on untouched."""
+    routes = router()
+    seen = [routes.request("/plan/request", "arm1", header(i, 0), STAMP) for i in range(4)]
+    assert seen == [header(i, 0, i) for i in range(4)]
+    for i in range(4):
+        assert routes.reply("/plan/reply", header(i, 0, i), STAMP) == ("arm1", header(i, 0))
+    assert routes.request("/plan/request", "arm1", header(9, 0), STAMP) == header(9, 0)
 
 
 def test_reconfiguring_keeps_an_unchanged_nodes_requests_and_drops_a_removed_one() -> None:

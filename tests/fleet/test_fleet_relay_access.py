@@ -3,7 +3,7 @@
 Three robots, each its own roscore, certificate and relay edge end, link to one cloud end that follows the
 access file beside its certificates (``fleet.json``). A robot asking for or sending another robot's topic is
 refused; revoking a robot in the file closes its link and refuses its redials within 10 s while the others
-carry on; restoring it links it again; no process is restarted.
+carry on; restoring it links it again; no process is restarted. A shared node's topics are used one way only.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import pytest
 from fogiac.certs import edge_identity, edge_role
 from fogiac.net.relay import EdgeRelay, framing
 from fogiac.net.relay.config import policy_from_spec
-from fogiac.net.relay.fleet import ACCESS_FILE, write_access
+from fogiac.net.relay.fleet import ACCESS_FILE, SharedPair, write_access
 from fogiac.net.relay.framing import Kind
 from fogiac.net.relay.session import read_frame
 from fogiac.net.relay.tls import client_context, expected_server_name
@@ -101,3 +101,23 @@ def test_a_revoked_robot_is_cut_off_within_10_s_and_restored(masters: tuple[Mast
         write_access(fleet_certs / ACCESS_FILE, access())  # restored: its edge's next redial is linked
         wait_for(lambda: cloud.sessions[arm3].alive and ends["arm3"].connected.is_set(), 15, "arm3 back")
         wait_for(lambda: len(ups["arm3"].data()) >= cut + 10, 20, "arm3's flow again")
+
+
+def test_a_robot_uses_a_shared_nodes_topics_one_way(masters: tuple[Master, Master], fleet_certs: Path) -> None:
+    """A shared node named in the file: a robot sends its requests and hears its replies, but may not read the
+    request topic (every robot's requests) nor publish on the reply topic (posing as the node)."""
+    _, cloud_m = masters
+    planner = SharedPair("planner", frozenset({"/plan/request"}), frozenset({"/plan/reply"}))
+    write_access(fleet_certs / ACCESS_FILE, access(shared=(planner,)))
+    arm2 = edge_identity(STACK, "arm2")
+    policy = policy_from_spec("auto", in_topics="/plan/request,/plan/reply", out_topics="/plan/reply")
+    with cloud_end(cloud_m, fleet_certs, policy) as cloud, _hello(fleet_certs, "arm2", cloud.address) as sock:
+        wait_for(lambda: arm2 in cloud.sessions, 10, "arm2's session")
+        session = cloud.sessions[arm2]
+        _send(sock, Kind.SUBSCRIBE, "/plan/request")  # read every robot's requests
+        _send(sock, Kind.OPEN, "/plan/reply")  # answer in the node's name
+        _send(sock, Kind.SUBSCRIBE, "/plan/reply")  # hear its replies: allowed
+        wait_for(lambda: session.refused == 2 and "/fogiac_relay_cloud" in cloud_m.subscribers("/plan/reply"),
+                 10, "two refusals and the reply subscription")
+        assert "/fogiac_relay_cloud" not in cloud_m.subscribers("/plan/request")
+        assert "/fogiac_relay_cloud" not in cloud_m.publishers("/plan/reply") and session.alive

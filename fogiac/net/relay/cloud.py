@@ -299,8 +299,8 @@ class CloudRelay(RelayEnd):
 
     def _allowed(self, topic: str, direction: Direction, identity: str) -> bool:
         rules = self._rules()
-        if rules is not None and not rules.allows(identity, topic):
-            return False  # another robot's topic, or a revoked robot's last frames
+        if rules is not None and not rules.allows(identity, topic, direction):
+            return False  # another robot's topic, a shared node's the wrong way, or a revoked robot's last frames
         policy = self.cloud_config.policy
         if may_cross(topic, direction, policy, self._graph):
             return True

@@ -9,7 +9,8 @@ provisioning and rewritten by ``fogiac robot revoke``/``restore``)::
                  "match": "header.stamp"}]}
 
 A robot may ask for (SUBSCRIBE) and send (OPEN) only the topics of its own namespace ``/<robot>/...`` and
-the listed ones (the request/reply topics of the shared nodes that serve it); a certificate of no listed
+the listed ones (the request/reply topics of the shared nodes that serve it; those named under ``shared``
+only one way: it sends requests and hears replies); a certificate of no listed
 robot, or of a revoked one, is not linked at all. The file is read again whenever it changes
 (:class:`AccessWatch`), so robots are added and revoked with no process restarted. Without the file the
 cloud end keeps the rules of a single edge (every identity linked, the topic policy alone decides).
@@ -97,9 +98,18 @@ class FleetAccess:
         robot = self.robots.get(identity)
         return None if robot is None or robot.name in self.revoked else robot
 
-    def allows(self, identity: str, topic: str) -> bool:
+    def allows(self, identity: str, topic: str, direction: str | None = None) -> bool:
+        """Whether the robot may use ``topic``; with a ``direction`` (``out``: it sends, ``in``: it hears), a shared
+        node's topics only the way a client uses them: it sends requests and hears replies, so it never reads
+        its neighbours' requests nor poses as the node."""
         robot = self.robot(identity)
-        return robot is not None and robot.may_use(topic)
+        if robot is None or not robot.may_use(topic):
+            return False
+        if direction == "in":
+            return not any(topic in pair.requests for pair in self.shared)
+        if direction == "out":
+            return not any(topic in pair.replies for pair in self.shared)
+        return True
 
     def visible(self, identity: str, graph: GraphState) -> GraphState:
         """The part of the cloud's graph this robot may use: other robots' topic names are not its business."""

@@ -126,12 +126,15 @@ class _Outlet:
         if merge is None:
             return
         router = self.topics.router
-        if router is not None:
+        if router is None or router.match_of(self.topic) is None:
+            merge.pub.publish(data)
+            return
+        # Remembered and handed on in one step: the node hears the robots' requests in the order they are
+        # remembered, which equal keys other than a stamp are answered in.
+        with self.topics.ordered:
             routed = router.request(self.topic, self.robot, data, self.topics.reader(self.topic, self.meta))
-            if routed is None:
-                return
-            data = routed
-        merge.pub.publish(data)
+            if routed is not None:
+                merge.pub.publish(routed)
 
 
 class SharedTopics:
@@ -148,6 +151,7 @@ class SharedTopics:
         self._changing = threading.Lock()
         self._fans: dict[str, _Fan] = {}
         self._merges: dict[str, _Merge] = {}
+        self.ordered = threading.Lock()  # a shared node's requests: remembered and published in one order
         self._readers: dict[tuple[str, TopicMeta | None], KeyOf | None] = {}
         self._quiet = RateLimitedLog(log)
 

@@ -38,6 +38,17 @@ def test_a_robot_may_use_its_namespace_and_its_shared_topics_only() -> None:
     assert seen.types == {"/arm1/a": "std_msgs/String"}
 
 
+def test_a_shared_nodes_topics_go_one_way() -> None:
+    pair = SharedPair("planner", frozenset({"/plan/request"}), frozenset({"/plan/reply"}))
+    arm1 = Robot("arm1", "arm1.edge.lab.fogiac", frozenset({"/plan/request", "/plan/reply"}))
+    rules = FleetAccess({arm1.identity: arm1}, frozenset(), (pair,))
+    assert rules.allows(arm1.identity, "/plan/request", "out") and rules.allows(arm1.identity, "/plan/reply", "in")
+    assert not rules.allows(arm1.identity, "/plan/request", "in")
+    assert not rules.allows(arm1.identity, "/plan/reply", "out")
+    assert rules.allows(arm1.identity, "/arm1/scan", "in") and rules.allows(arm1.identity, "/arm1/scan", "out")
+    assert FleetAccess({arm1.identity: arm1}).allows(arm1.identity, "/plan/request", "in")  # not named: both ways
+
+
 def test_revoked_robot_is_no_robot(tmp_path: Path) -> None:
     path = tmp_path / ACCESS_FILE
     write_access(path, FleetAccess(RULES.robots, frozenset({"arm2"})))

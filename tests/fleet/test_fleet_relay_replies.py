@@ -76,6 +76,7 @@ def test_each_reply_goes_to_the_robot_that_asked(masters: tuple[Master, Master],
             assert {r["nsecs"] for r in got} == {0}, name  # the stamp it sent, never the one the node saw
         figures = cloud.reply_stats()["planner"]
         assert figures["forwarded"] == figures["answered"] == 3 * COUNT and figures["pending"] == 0
+        assert figures["served"] == dict.fromkeys(ROBOTS, COUNT) and figures["undelivered"] == 0
         assert figures["restamped"] > 0  # equal stamps were in flight together
         assert figures["unmatched"] >= 1  # the stray replies, dropped
 

@@ -257,9 +257,16 @@ class CloudRelay(RelayEnd):
         rules = self._rules()
         return rules is None or rules.robot(identity) is not None
 
-    def reply_stats(self) -> dict[str, dict[str, int]]:
-        """Per shared request/reply node: requests forwarded, answered, waiting; replies that reached no robot."""
-        return self.replies.stats()
+    def reply_stats(self) -> dict[str, dict[str, Any]]:
+        """Per shared request/reply node: requests forwarded, answered, waiting; replies that reached no robot;
+        the replies each robot got (``served``, by robot name where the access file names it)."""
+        figures = self.replies.stats()
+        rules = self._rules()
+        if rules is not None:
+            for node in figures.values():
+                node["served"] = {(r.name if (r := rules.robots.get(i)) is not None else i): n
+                                  for i, n in node["served"].items()}
+        return figures
 
     def _access_changed(self, rules: FleetAccess | None) -> None:
         """Route the shared nodes' replies the file names; close the links of robots that lost their access

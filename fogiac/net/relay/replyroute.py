@@ -41,6 +41,7 @@ import time
 from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 from fogiac.net.relay.fleet import SharedPair
 from fogiac.net.relay.framing import Payload
@@ -83,9 +84,11 @@ class _Node:
     by_key: dict[Key, list[int]] = field(default_factory=dict)  # lists: most keys have one request
     by_robot: dict[str, OrderedDict[int, None]] = field(default_factory=dict)  # each robot's, oldest first
     moved: dict[Key, Key] = field(default_factory=dict)  # a robot's stamp -> the last stamp it was moved to
+    served: dict[str, int] = field(default_factory=dict)  # replies routed to each robot (``fogiac status``)
     seq: int = 0
     counts: dict[str, int] = field(default_factory=lambda: dict.fromkeys(
-        ("forwarded", "answered", "restamped", "queued", "unmatched", "keyless", "expired", "forgotten"), 0))
+        ("forwarded", "answered", "undelivered", "restamped", "queued", "unmatched", "keyless", "expired",
+         "forgotten"), 0))
 
     @property
     def restamps(self) -> bool:
@@ -205,7 +208,16 @@ class ReplyRouter:
             if not asked.waiting:
                 node.drop(seq)
             node.counts["answered"] += 1
+            if len(node.served) < 4 * self.pending or asked.robot in node.served:  # robots come and go: bounded
+                node.served[asked.robot] = node.served.get(asked.robot, 0) + 1
         return asked.robot, (_with_stamp(data, asked.own) if asked.own != asked.key else data)
+
+    def undelivered(self, topic: str) -> None:
+        """Count a routed reply whose robot has no link that hears ``topic`` now (it went away, or was revoked)."""
+        node = self._replies.get(topic)
+        if node is not None:
+            with self._lock:
+                node.counts["undelivered"] += 1
 
     def _expire(self, node: _Node, now: float) -> None:
         while node.asked:
@@ -215,9 +227,10 @@ class ReplyRouter:
             node.drop(seq)
             node.counts["expired"] += 1
 
-    def stats(self) -> dict[str, dict[str, int]]:
-        """Per shared node: requests forwarded and answered, replies unmatched, requests keyless, restamped (their
-        stamp was in flight already), queued (their key was: answered in arrival order), expired or forgotten, and
-        how many wait now."""
+    def stats(self) -> dict[str, dict[str, Any]]:
+        """Per shared node: requests forwarded and answered (and of those, undelivered: the robot had gone),
+        replies unmatched, requests keyless, restamped (their stamp was in flight already), queued (their key was:
+        answered in arrival order), expired or forgotten, how many wait now, and the replies each robot got."""
         with self._lock:
-            return {name: {**node.counts, "pending": len(node.asked)} for name, node in sorted(self._nodes.items())}
+            return {name: {**node.counts, "pending": len(node.asked), "served": dict(sorted(node.served.items()))}
+                    for name, node in sorted(self._nodes.items())}

@@ -75,6 +75,8 @@ class _Fan:
         robot, reply = routed
         with self.topics.lock:
             sources = [s for s in self.sources if self.robots.get(s) == robot]
+        if not sources:
+            router.undelivered(self.topic)
         for source in sources:
             source._message(reply)
 

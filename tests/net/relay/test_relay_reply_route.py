@@ -48,7 +48,7 @@ def test_equal_stamps_from_two_robots_each_get_their_own_reply_in_any_order() ->
     assert routes.reply("/plan/reply", header(1, 1000, frame="A"), STAMP) is None  # answered already: nobody
     figures = routes.stats()["planner"]
     assert (figures["forwarded"], figures["answered"], figures["restamped"], figures["unmatched"]) == (2, 2, 1, 1)
-    assert figures["pending"] == 0
+    assert figures["pending"] == 0 and figures["served"] == {"arm1": 1, "arm2": 1}
 
 
 def test_a_moved_stamp_carries_into_the_next_second_and_skips_stamps_in_flight() -> None:

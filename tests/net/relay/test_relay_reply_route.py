@@ -4,9 +4,14 @@ counted, and what is remembered bounded (a cap and an age)."""
 
 from __future__ import annotations
 
+from typing import cast
+
 from fogiac.net.relay.fleet import SharedPair
 from fogiac.net.relay.match import key_reader
+from fogiac.net.relay.node import RelayNode
+from fogiac.net.relay.pubsub import TopicMeta
 from fogiac.net.relay.replyroute import ReplyRouter
+from fogiac.net.relay.shared import SharedTopics
 
 PLAN = SharedPair("planner", frozenset({"/plan/request"}), frozenset({"/plan/reply"}))
 STAMP = key_reader("header.stamp")
@@ -137,3 +142,17 @@ def test_reconfiguring_keeps_an_unchanged_nodes_requests_and_drops_a_removed_one
     routes.request("/plan/request", "arm1", header(0, 2), STAMP)
     routes.configure(())  # no shared node any more (the file lost them, or one edge): nothing routed
     assert not routes.routes("/plan/reply") and routes.stats() == {}
+
+
+def test_a_robots_hostile_definition_leaves_its_requests_unsent() -> None:
+    """With a key other than the stamp, a request is keyed with the definition the robot's publisher sent: one that
+    refers to itself (or is malformed) gives no reader, so its requests are not handed on, and nothing raises."""
+    routes = router(SharedPair("grasp", frozenset({"/g/req"}), frozenset({"/g/rep"}), "seq"))
+    topics = SharedTopics(cast(RelayNode, None), depth=4, router=routes)  # reader() needs no ROS node
+    loop = TopicMeta("pkg/Loop", "*", "pkg/Loop next\n================\nMSG: pkg/Loop\npkg/Loop next\n", False)
+    assert topics.reader("/g/req", loop) is None
+    good = topics.reader("/g/req", TopicMeta("std_msgs/Header", "*", HEADER_DEF, False))
+    assert good is not None and good(header(7, 1)) == (7).to_bytes(4, "little")
+    assert routes.request("/g/req", "arm1", header(7, 1), topics.reader("/g/req", loop)) is None
+    assert routes.stats()["grasp"]["keyless"] == 1
+    assert topics.reader("/arm1/scan", loop) is None  # not a routed topic: never read

@@ -34,6 +34,7 @@ from fogiac import registry
 from fogiac.errors import StateError
 
 STATE_URL = "FOGIAC_STATE_URL"  # where a lab's shared records live (s3://BUCKET/PREFIX); unset: the folder
+STATE_KMS_KEY = "FOGIAC_STATE_KMS_KEY"  # the KMS key a shared store seals key material under (else a passphrase)
 STORES = "fogiac.stores"  # URL scheme -> a StateStore class with from_url(url, kms_key=...)
 # Test-only: ``N`` makes the process SIGKILL itself right after its Nth write to a store (record put, lock
 # taken, record or lock removed), so a test can show that a ``kill -9`` at each such point leaves a record
@@ -358,13 +359,14 @@ def configured_url() -> str | None:
 def open_store(url: str | None = None, *, kms_key: str | None = None) -> StateStore:
     """The store for ``url`` (default: :func:`configured_url`): the stack folder when none is set, else the
     store its scheme's ``fogiac.stores`` entry point names (``s3://``: the aws target's), one per process
-    and configuration (a store keeps its client and what it pulled)."""
+    and configuration (a store keeps its client and what it pulled). ``kms_key`` (default: ``$FOGIAC_STATE_KMS_KEY``,
+    else the manifest's ``state.kms_key`` when ``url`` is the manifest's) seals the stack's key material."""
     env_url = os.environ.get(STATE_URL)
     if url is None:
         url = configured_url()
-        if kms_key is None:
-            kms_key = os.environ.get("FOGIAC_STATE_KMS_KEY") or (
-                _manifest_state.get("kms_key") if not env_url else None)
+    if kms_key is None:  # a URL named outright (`state migrate --to`, `--url`) seals under the member's key too
+        kms_key = os.environ.get(STATE_KMS_KEY) or (
+            _manifest_state.get("kms_key") if not env_url and url == _manifest_state.get("url") else None)
     if not url or url == "folder":
         return FolderStore()
     scheme, sep, _ = url.partition("://")

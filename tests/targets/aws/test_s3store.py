@@ -196,3 +196,22 @@ def test_pulumi_state_follows_the_store(bucket: str, monkeypatch: pytest.MonkeyP
     monkeypatch.setenv("FOGIAC_STATE_URL", f"s3://{bucket}/team")
     assert workspace_env("demo-dev")["PULUMI_BACKEND_URL"] == f"s3://{bucket}/team"
     assert not StackState("demo-dev").target_file("pulumi").exists(), "a folder backend was made beside it"
+
+
+def test_a_url_named_outright_seals_under_the_members_kms_key(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``state migrate --to s3://...`` and ``state ... --url`` open the store by its URL: ``$FOGIAC_STATE_KMS_KEY``
+    (or the manifest's ``state.kms_key``, for the manifest's URL) still seals what goes there, not the passphrase."""
+    from fogiac import store
+
+    monkeypatch.delenv("FOGIAC_STATE_URL", raising=False)
+    monkeypatch.setenv("FOGIAC_STATE_KMS_KEY", "alias/lab-state")
+    named = open_store("s3://lab-state/robots")
+    assert isinstance(named, S3Store) and named.kms_key == "alias/lab-state"
+    assert isinstance(named.sealer, type(sealer_for("alias/lab-state")))  # KmsSealer: made lazily, no call yet
+    monkeypatch.delenv("FOGIAC_STATE_KMS_KEY")
+    store.configure("s3://lab-state/robots", "alias/manifest-key")
+    try:
+        assert getattr(open_store("s3://lab-state/robots"), "kms_key", None) == "alias/manifest-key"
+        assert getattr(open_store("s3://lab-state/elsewhere"), "kms_key", "?") is None  # another store: not its key
+    finally:
+        store.configure(None)

@@ -1,11 +1,15 @@
 """Two members of a lab share one stack through the S3 state store (LocalStack), on the ``hosts`` target.
 
-Each operator has a home and a state folder of their own and the same ``FOGIAC_STATE_URL``; every verb
-is the real ``fogiac`` command in a process of its own. The lab host is a network namespace with its own
-sshd (``tests/provision/sshlab.py``), and ``up`` provisions it over SSH as on a lab's server.
+Each operator has a home and a state folder of their own, the same ``FOGIAC_STATE_URL`` and the same
+``FOGIAC_STATE_KMS_KEY`` (a LocalStack KMS key: the stack's key material is sealed under it, no passphrase
+is set); every verb is the real ``fogiac`` command in a process of its own. The lab host is a network
+namespace with its own sshd (``tests/provision/sshlab.py``), and ``up`` provisions it over SSH as on a
+lab's server.
 
 - A deploys from the local folder, migrates the stack to the bucket (the folder then says where it
-  went); B sees it running and plans no change; A's ``up`` waiting at its question holds the lock and
+  went; every key object is sealed under the KMS key); B, with nothing on disk, sees it running, plans no
+  change, reads the node's log and opens a shell on its host (the host keys pinned at ``up`` come from the
+  bucket: ``ssh`` checks them strictly); A's ``up`` waiting at its question holds the lock and
   B's ``up`` is refused naming A; A migrates back to the folder and out again; B's ``down`` removes it
   and leaves the host clean; A's ``status`` says not deployed.
 - A ``kill -9`` of A's ``up`` once the record says it began: B's ``status`` reads the record, B's
@@ -49,7 +53,7 @@ REPO = Path(__file__).resolve().parents[3]
 class Operator:
     """One lab member: a home and a state folder of their own, their own checkout of the manifest."""
 
-    def __init__(self, root: Path, name: str, manifest: Path, url: str) -> None:
+    def __init__(self, root: Path, name: str, manifest: Path, url: str, kms_key: str) -> None:
         self.home, self.state = root / name / "home", root / name / "state"
         self.home.mkdir(parents=True)
         self.state.mkdir(parents=True)
@@ -59,11 +63,13 @@ class Operator:
         self.manifest.write_text(manifest.read_text())
         make_workspace(self.checkout / "ws")  # the lab's repository, as each member checked it out
         self.url = url
+        self.kms_key = kms_key
 
     def env(self, *, shared: bool = True) -> dict[str, str]:
-        env = {k: v for k, v in os.environ.items() if k not in ("FOGIAC_STATE_URL", "FOGIAC_STATE_DIR")}
+        env = {k: v for k, v in os.environ.items()
+               if k not in ("FOGIAC_STATE_URL", "FOGIAC_STATE_DIR", "FOGIAC_STATE_PASSPHRASE")}
         env.update(HOME=str(self.home), FOGIAC_STATE_DIR=str(self.state), COLUMNS="250",
-                   FOGIAC_STATE_PASSPHRASE="the lab's passphrase",  # seals the stack's files (fogiac.sealed)
+                   FOGIAC_STATE_KMS_KEY=self.kms_key,  # seals the stack's key material (fogiac.sealed)
                    PYTHONPATH=os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")])))
         if shared:
             env["FOGIAC_STATE_URL"] = self.url
@@ -72,9 +78,9 @@ class Operator:
     def argv(self, *args: str) -> list[str]:
         return [sys.executable, "-m", "fogiac", *args]
 
-    def run(self, *args: str, shared: bool = True, timeout: float = 600) -> tuple[int, str]:
+    def run(self, *args: str, shared: bool = True, timeout: float = 600, input: str | None = None) -> tuple[int, str]:
         done = subprocess.run(self.argv(*args), cwd=self.checkout, env=self.env(shared=shared), capture_output=True,
-                              text=True, timeout=timeout)
+                              text=True, timeout=timeout, input=input)
         return done.returncode, done.stdout + done.stderr
 
     def start(self, *args: str, stdin: Any = subprocess.DEVNULL) -> subprocess.Popen[str]:
@@ -89,19 +95,21 @@ def lab(tmp_path: Path) -> Iterator[tuple[LabHost, Path]]:
 
 
 @pytest.fixture
-def team(lab: tuple[LabHost, Path], aws_env: str, tmp_path: Path) -> Iterator[tuple[Operator, Operator, str, LabHost]]:
+def team(lab: tuple[LabHost, Path], kms: Any, tmp_path: Path) -> Iterator[tuple[Operator, Operator, str, LabHost]]:
     import boto3
 
     host, key = lab
     bucket = f"fogiac-lab-{uuid.uuid4().hex[:10]}"
     boto3.client("s3").create_bucket(Bucket=bucket, CreateBucketConfiguration={"LocationConstraint": "us-west-2"})
+    alias = f"alias/fogiac-lab-{uuid.uuid4().hex[:8]}"  # the lab's state key, as docs/guides/teams.md makes it
+    kms.create_alias(AliasName=alias, TargetKeyId=kms.create_key(Description="fogiac state")["KeyMetadata"]["KeyId"])
     name = f"shared{uuid.uuid4().hex[:6]}"
     manifest = hosts_manifest(tmp_path / "fogiac.yaml", hosts=[(host.name, host.address)], key=key,
                               workspace=Path("ws"), name=name)
     manifest.write_text(manifest.read_text().replace(
         "nodes:\n", f'edge: {{ros_master: "http://127.0.0.1:{free_port()}"}}\nnodes:\n', 1))
     url = f"s3://{bucket}/lab"
-    a, b = Operator(tmp_path, "a", manifest, url), Operator(tmp_path, "b", manifest, url)
+    a, b = Operator(tmp_path, "a", manifest, url, alias), Operator(tmp_path, "b", manifest, url, alias)
     stack = f"{name}-dev"
     try:
         yield a, b, stack, host
@@ -171,12 +179,23 @@ def test_two_members_share_a_stack_through_the_bucket(team: tuple[Operator, Oper
     assert any(key.endswith("/files/certs/ca.key") for key in objects), "the stack's files stayed behind"
     if importlib.util.find_spec("fogiac.sealed") is not None:  # the sealer is wired: no key leaves in the clear
         assert [k for k, body in objects.items() if b"PRIVATE KEY" in body or b"OPENSSH" in body] == []
+        sealed = {k: body.split(b"\n", 2)[:2] for k, body in objects.items() if body.startswith(b"fogiac-sealed ")}
+        assert any(k.endswith("/files/certs/ca.key") for k in sealed), sorted(objects)
+        assert all(line == b"fogiac-sealed 1 kms" and json.loads(header)["key"] == a.kms_key
+                   for line, header in sealed.values()), sealed  # under the lab's KMS key, not a passphrase
 
+    assert not [f for folder in (b.home, b.state) for f in folder.rglob("*")], "B starts with nothing on disk"
     code, said = _status(b)
     assert code == 0 and isinstance(said, dict) and said["deployed"] and not said["partial"], said
     assert [(h["host"], h["nodes"]) for h in said["hosts"]] == [(host.name, [{"node": f"talker-{host.name}"}])], said
     code, out = b.run("plan", str(b.manifest), "--detailed-exitcode")
     assert code == 0, out
+    # B reaches the node's host with what the bucket holds: its log, and a shell in its folder there
+    code, out = b.run("logs", f"talker-{host.name}", str(b.manifest), "-n", "50")
+    assert code == 0 and "process[fog_talker-1]: started with pid" in out, out
+    code, out = b.run("ssh", f"talker-{host.name}", str(b.manifest), input="echo from-b-$((6*7)); pwd\nexit\n",
+                      timeout=120)
+    assert code == 0 and "from-b-42" in out and f"/{stack}/{host.name}\n" in out, out
     code, out = b.run("state", "ls")
     assert code == 0 and stack in out and "hosts" in out and "root@" in out, out
 

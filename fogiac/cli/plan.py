@@ -25,7 +25,7 @@ from fogiac.manifest.clouds import prices as price_source
 from fogiac.manifest.revision import load_revision
 from fogiac.plan import drift, placeholders, review, saved
 from fogiac.plan.compile import compile_plan
-from fogiac.plan.cost import MONTH, menu_line, per_month, rate, saving_pct, total_words
+from fogiac.plan.cost import MONTH, menu_line, per_month, rate, saving_pct, total_words, unknown_note
 from fogiac.plan.diff import annotate, autostop_words, diff_documents, with_drift
 from fogiac.plan.document import document, plan_document
 from fogiac.state import write_json_atomic
@@ -147,8 +147,7 @@ def render(doc: Mapping[str, Any]) -> None:
     out.print(cost)
     out.print(f"cost: {total_words(total, unknown)}", highlight=False)
     if unknown:
-        out.print(f"  unknown: {escape(', '.join(doc['cost']['unknown']))} (the catalogue has no price there; "
-                  "`fogiac catalog update` fills it where the cloud publishes one)", highlight=False)
+        out.print(f"  {escape(unknown_note(doc['cost']['unknown']))}", highlight=False)
     out.print(f"  {escape(autostop_words(doc.get('autostop')))}", highlight=False)  # what bounds that month
     if spot is not None:
         source = doc["cost"]["spot_prices"]

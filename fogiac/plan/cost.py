@@ -136,6 +136,12 @@ def rate(usd_per_hour: float | None, digits: int = 4) -> str:
     return "unknown" if usd_per_hour is None else f"{usd_per_hour:.{digits}f}"
 
 
+def unknown_note(unknown: tuple[str, ...] | list[str]) -> str:
+    """The line under a total that leaves some lines out: which, and what would fill them."""
+    return (f"unknown: {', '.join(unknown)} (the catalogue has no price there; "
+            "`fogiac catalog update` fills it where the cloud publishes one)")
+
+
 def total_words(total: float, unknown: int) -> str:
     """``$0.1920 per hour (about $140.16 per month if left running)``; with unknown prices
     ``at least $0.1920 per hour plus 2 unknown (...)``: a sum that leaves something out says so."""

@@ -25,9 +25,10 @@ from fogiac.manifest.clouds import prices as price_source
 from fogiac.manifest.revision import load_revision
 from fogiac.plan import drift, placeholders, review, saved
 from fogiac.plan.compile import compile_plan
-from fogiac.plan.cost import MONTH, menu_line, per_month, rate, saving_pct, total_words, unknown_note
+from fogiac.plan.cost import MONTH, budget_words, menu_line, per_month, rate, saving_pct, total_words, unknown_note
 from fogiac.plan.diff import annotate, autostop_words, diff_documents, with_drift
 from fogiac.plan.document import document, plan_document
+from fogiac.plan.guard import ACCEPT_UNKNOWN
 from fogiac.state import write_json_atomic
 from fogiac.tables import console, table
 
@@ -149,6 +150,8 @@ def render(doc: Mapping[str, Any]) -> None:
     if unknown:
         out.print(f"  {escape(unknown_note(doc['cost']['unknown']))}", highlight=False)
     out.print(f"  {escape(autostop_words(doc.get('autostop')))}", highlight=False)  # what bounds that month
+    if (budget := budget_words(doc["cost"], accept=f"`fogiac up {ACCEPT_UNKNOWN}`")) is not None:
+        out.print(f"  {budget}", highlight=False)
     if spot is not None:
         source = doc["cost"]["spot_prices"]
         out.print(f"with spot: about ${spot:.4f} per hour (${per_month(spot):.2f} per {MONTH}), "

@@ -256,6 +256,12 @@ def status(manifest: Path = MANIFEST, env: str = ENV, target: str | None = TARGE
         typer.echo(json.dumps(doc, indent=2, sort_keys=True))
         return
     console().print(*render_status(chosen, doc), sep="\n")  # each line of a target on its own line
+    if target is None and not doc.get("deployed", True) and deployment.read(plan.stack) is None:
+        # nothing says where the stack went (a first up that stopped before it made anything leaves no record):
+        # the manifest's own target was asked, which may not be the one the operator tried
+        others = ", ".join(name for name in targets.names() if name != plan.target)
+        typer.echo(f"note: nothing is recorded for {plan.stack} on this machine, so this is target {plan.target} "
+                   f"(the manifest's cloud.provider); --target asks another ({others})", err=True)
 
 
 def sweep(manifest: Path = MANIFEST, env: str = ENV, target: str | None = TARGET, yes: bool = YES,

@@ -116,9 +116,11 @@ def render(doc: Mapping[str, Any]) -> None:
     out.print()
     hosts = table("hosts", "host", "machine", "address", "vCPUs", "GPUs", "memory GiB", "disk GB", "on-demand $/h",
                   "spot $/h", "nodes")
-    for h in doc["hosts"]:
-        hosts.add_row(h["name"], h["machine"], escape(str(h["address"] or "-")), str(h["vcpus"]), str(h["gpus"]),
-                      f"{h['memory_gib']:g}", str(h["disk_gb"]), rate(h["usd_per_hour"]), _spot_cell(h),
+    machine, size = _variant_says(doc["target"], "host_machine"), _variant_says(doc["target"], "host_size")
+    for h in doc["hosts"]:  # a target that rents nothing says where a host runs, and that its size is not its own
+        sizes = (size,) * 4 if size else (str(h["vcpus"]), str(h["gpus"]), f"{h['memory_gib']:g}", str(h["disk_gb"]))
+        hosts.add_row(h["name"], escape(machine.format(machine=h["machine"])) if machine else h["machine"],
+                      escape(str(h["address"] or "-")), *sizes, rate(h["usd_per_hour"]), _spot_cell(h),
                       ", ".join(h["nodes"]) + "".join(f" ({h[k]})" for k in ("replica", "zone") if h.get(k)))
     out.print(hosts)
     for h in doc["hosts"]:

@@ -225,7 +225,9 @@ class AwsTarget:
             checks.append(Check("Pulumi CLI", True, str(pulumi_cli())))
         except CloudError as err:
             checks.append(Check("Pulumi CLI", False, str(err)))
-        checks.append(iam.doctor_check(plan, {str(r["type"]) for r in self.declare(plan)}))
+        declared = {str(r["type"]) for r in self.declare(plan)}
+        checks.append(iam.doctor_check(plan, declared))
+        checks.append(iam.boundary_check(plan, declared))
         known = engine.known_ids(plan.stack) if StackState(plan.stack).exists() else frozenset()
         try:
             report = api.preflight(plan, operator_cidr=ssh_from, known_ids=known)

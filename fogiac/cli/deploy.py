@@ -28,7 +28,7 @@ from fogiac.lifecycle.events import Progress, Timers
 from fogiac.lifecycle.report import render_status
 from fogiac.plan import placeholders
 from fogiac.plan.cost import total_words
-from fogiac.plan.guard import up_summary
+from fogiac.plan.guard import ACCEPT_UNKNOWN, over_budget, up_summary
 from fogiac.plan.model import Plan
 from fogiac.plan.review import visible, visible_doc
 from fogiac.plan.saved import check_applies, check_saved_plan
@@ -148,10 +148,14 @@ def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str |
        edge_master: str | None = typer.Option(None, "--edge-master", help="Override edge.ros_master."),
        infra_only: bool = typer.Option(False, "--infra-only", help="Create the machines only; provision nothing."),
        force: bool = typer.Option(False, "--force", help="Take over a stack another manifest file made (same name "
-                                  "and env), or deploy documentation placeholders (example images, addresses).")
+                                  "and env), or deploy documentation placeholders (example images, addresses)."),
+       accept_unknown_cost: bool = typer.Option(False, ACCEPT_UNKNOWN, help="Apply under cloud.budget_usd_per_hour "
+                                                "even where the catalogue has no price (the rest must still fit).")
        ) -> None:
     """Check, show the plan and its cost, ask, then create the machines and start the nodes."""
     plan = compile_deployed(manifest, env, target, force=force, has_force=True, creating=True)
+    if (problem := over_budget(plan, accept_unknown=accept_unknown_cost)) is not None:
+        raise FogiacError(f"{manifest}: {problem}")
     if plan.fleet:  # up would link every robot to every topic: per-robot access is not written by up yet
         raise FogiacError(f"{manifest}: robots: a fleet is planned but up does not deploy one yet (each robot's "
                           "access file and edge end are not written by up: docs/guides/fleet.md); "
@@ -252,6 +256,12 @@ def status(manifest: Path = MANIFEST, env: str = ENV, target: str | None = TARGE
         typer.echo(json.dumps(doc, indent=2, sort_keys=True))
         return
     console().print(*render_status(chosen, doc), sep="\n")  # each line of a target on its own line
+    if target is None and not doc.get("deployed", True) and deployment.read(plan.stack) is None:
+        # nothing says where the stack went (a first up that stopped before it made anything leaves no record):
+        # the manifest's own target was asked, which may not be the one the operator tried
+        others = ", ".join(name for name in targets.names() if name != plan.target)
+        typer.echo(f"note: nothing is recorded for {plan.stack} on this machine, so this is target {plan.target} "
+                   f"(the manifest's cloud.provider); --target asks another ({others})", err=True)
 
 
 def sweep(manifest: Path = MANIFEST, env: str = ENV, target: str | None = TARGET, yes: bool = YES,

@@ -15,7 +15,7 @@ from fogiac.manifest.schema import json_schema, parse_manifest
 from fogiac.net import middleware
 from fogiac.plan import placeholders
 from fogiac.plan.compile import compile_plan
-from fogiac.plan.cost import MONTH, per_month, saving_pct
+from fogiac.plan.cost import MONTH, per_month, saving_pct, total_words, unknown_note
 from fogiac.state import write_text_atomic
 from fogiac.tables import console, table
 
@@ -70,23 +70,43 @@ def cost(manifest: Path = MANIFEST, target: str | None = TARGET) -> None:
     for column in out.columns[1:]:
         column.justify = "right"
     for line in plan.cost:
-        beside = (f"{line.spot_total:.4f}", f"{per_month(line.spot_total):.2f}") if spot is not None else ()
-        out.add_row(line.item, f"{line.total:.4f}", f"{line.total * 24:.2f}", f"{per_month(line.total):.2f}", *beside)
+        known = line.known or line.spot_usd_per_hour is not None
+        beside = _spot(line.spot_total if known else None) if spot is not None else ()
+        out.add_row(line.item, *_amounts(line.total if line.known else None), *beside)
     total = plan.hourly_usd
-    beside = (f"{spot:.4f}", f"{per_month(spot):.2f}") if spot is not None else ()
-    out.add_row("total", f"{total:.4f}", f"{total * 24:.2f}", f"{per_month(total):.2f}", *beside, style="bold")
+    unknown = plan.unknown_costs
+    beside = _spot(spot, len(unknown)) if spot is not None else ()
+    out.add_row("total", *_amounts(total, len(unknown)), *beside, style="bold")
     screen = console()
     screen.print(out)
+    if unknown:  # a sum that leaves these out is at least that much, never the whole cost
+        screen.print(f"cost: {total_words(total, len(unknown))}", markup=False)
+        screen.print(f"  {unknown_note(unknown)}", markup=False)
     carrier = middleware.get(plan.middleware)
     screen.print(f"ROS {plan.ros_distro} via {carrier.label}; edge: {carrier.edge_side}; "
                  f"each host: {carrier.cloud_side} (no charge beyond the hosts)", markup=False)
     prices = price_source(plan.target)
     screen.print(f"prices: {prices.source} ({prices.as_of})", markup=False, style="dim")
     if spot is not None:
-        screen.print(f"with spot: ${spot:.4f} per hour, {saving_pct(plan.hourly_usd, spot)}% less than on-demand "
+        at = f"at least ${spot:.4f} per hour plus {len(unknown)} unknown" if unknown else f"${spot:.4f} per hour"
+        screen.print(f"with spot: {at}, {saving_pct(plan.hourly_usd, spot)}% less than on-demand "
                      f"(an estimate; {prices.spot_ceiling})", markup=False)
         screen.print(f"spot prices: {prices.spot_source} ({prices.spot_as_of}); {prices.spot_method}",
                      markup=False, style="dim")
+
+
+def _amounts(usd_per_hour: float | None, unknown: int = 0) -> tuple[str, str, str]:
+    """The hour, the day and the month (730 h) as the table shows them: ``unknown`` where the price is
+    (never ``0.0000``), and ``+ N unknown`` after a total that leaves N lines out."""
+    if usd_per_hour is None:
+        return ("unknown",) * 3
+    plus = f" + {unknown} unknown" if unknown else ""
+    return (f"{usd_per_hour:.4f}{plus}", f"{usd_per_hour * 24:.2f}{plus}", f"{per_month(usd_per_hour):.2f}{plus}")
+
+
+def _spot(usd_per_hour: float | None, unknown: int = 0) -> tuple[str, str]:
+    hour, _, month = _amounts(usd_per_hour, unknown)
+    return hour, month
 
 
 def register(app: typer.Typer) -> None:

@@ -25,9 +25,10 @@ from fogiac.manifest.clouds import prices as price_source
 from fogiac.manifest.revision import load_revision
 from fogiac.plan import drift, placeholders, review, saved
 from fogiac.plan.compile import compile_plan
-from fogiac.plan.cost import MONTH, menu_line, per_month, rate, saving_pct, total_words
+from fogiac.plan.cost import MONTH, budget_words, menu_line, per_month, rate, saving_pct, total_words, unknown_note
 from fogiac.plan.diff import annotate, autostop_words, diff_documents, with_drift
 from fogiac.plan.document import document, plan_document
+from fogiac.plan.guard import ACCEPT_UNKNOWN
 from fogiac.state import write_json_atomic
 from fogiac.tables import console, table
 
@@ -115,9 +116,11 @@ def render(doc: Mapping[str, Any]) -> None:
     out.print()
     hosts = table("hosts", "host", "machine", "address", "vCPUs", "GPUs", "memory GiB", "disk GB", "on-demand $/h",
                   "spot $/h", "nodes")
-    for h in doc["hosts"]:
-        hosts.add_row(h["name"], h["machine"], escape(str(h["address"] or "-")), str(h["vcpus"]), str(h["gpus"]),
-                      f"{h['memory_gib']:g}", str(h["disk_gb"]), rate(h["usd_per_hour"]), _spot_cell(h),
+    machine, size = _variant_says(doc["target"], "host_machine"), _variant_says(doc["target"], "host_size")
+    for h in doc["hosts"]:  # a target that rents nothing says where a host runs, and that its size is not its own
+        sizes = (size,) * 4 if size else (str(h["vcpus"]), str(h["gpus"]), f"{h['memory_gib']:g}", str(h["disk_gb"]))
+        hosts.add_row(h["name"], escape(machine.format(machine=h["machine"])) if machine else h["machine"],
+                      escape(str(h["address"] or "-")), *sizes, rate(h["usd_per_hour"]), _spot_cell(h),
                       ", ".join(h["nodes"]) + "".join(f" ({h[k]})" for k in ("replica", "zone") if h.get(k)))
     out.print(hosts)
     for h in doc["hosts"]:
@@ -147,9 +150,10 @@ def render(doc: Mapping[str, Any]) -> None:
     out.print(cost)
     out.print(f"cost: {total_words(total, unknown)}", highlight=False)
     if unknown:
-        out.print(f"  unknown: {escape(', '.join(doc['cost']['unknown']))} (the catalogue has no price there; "
-                  "`fogiac catalog update` fills it where the cloud publishes one)", highlight=False)
+        out.print(f"  {escape(unknown_note(doc['cost']['unknown']))}", highlight=False)
     out.print(f"  {escape(autostop_words(doc.get('autostop')))}", highlight=False)  # what bounds that month
+    if (budget := budget_words(doc["cost"], accept=f"`fogiac up {ACCEPT_UNKNOWN}`")) is not None:
+        out.print(f"  {budget}", highlight=False)
     if spot is not None:
         source = doc["cost"]["spot_prices"]
         out.print(f"with spot: about ${spot:.4f} per hour (${per_month(spot):.2f} per {MONTH}), "

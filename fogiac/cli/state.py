@@ -61,12 +61,15 @@ def rows(store: StateStore, *, now: float | None = None) -> list[dict[str, str]]
         if document is None:
             continue
         record = _mapping(document.get("deployment"))
-        hourly = _mapping(_mapping(document.get("applied")).get("cost")).get("hourly_usd")
+        cost = _mapping(_mapping(document.get("applied")).get("cost"))
+        hourly, unknown = cost.get("hourly_usd"), cost.get("unknown")
         since = record.get("since_epoch")
         alive = record.get("state") != deployment.REMOVED
         so_far = "—"
         if isinstance(hourly, (int, float)) and isinstance(since, (int, float)) and alive:
             so_far = f"at most ${float(hourly) * max(0.0, now - since) / 3600:.2f} (${float(hourly):.4f}/h)"
+            if isinstance(unknown, list) and unknown:  # a price left out of the sum: no bound, as `fogiac ls` says
+                so_far = f"unknown (${float(hourly):.4f}/h plus {len(unknown)} unknown)"
         holder = _holder(store, stack)
         out.append({"stack": stack, "target": str(record.get("target", "?")),
                     "state": {"complete": "up", "partial": "partial", "removed": "removed"}.get(

@@ -112,6 +112,18 @@ class Cloud(_Model):
         description="How nodes run on local and hosts machines: in containers (podman, or a docker that answers), "
         "natively, or auto (containers where `docker info` answers).",
     )
+    budget_usd_per_hour: float | None = Field(
+        default=None, gt=0, allow_inf_nan=False,
+        description="The most the stack may cost an hour at on-demand prices: `up` refuses a plan over it, and one "
+        "with a price the catalogue does not know unless `up --accept-unknown-cost`. Unset: no budget.")
+
+    @field_validator("budget_usd_per_hour", mode="before")
+    @classmethod
+    def _dollars(cls, value: object) -> object:
+        """YAML's ``true`` would read as $1: a budget is a number of dollars."""
+        if isinstance(value, bool):
+            raise ValueError(f"{str(value).lower()} is not a number of dollars")
+        return value
 
     @field_validator("region")
     @classmethod

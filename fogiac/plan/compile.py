@@ -93,6 +93,7 @@ def compile_plan(manifest: Manifest, *, target: str | None = None, environment: 
         middleware_settings=_settings(manifest, carrier.name),
         notes=placed.notes + _unchecked(manifest),
         registries=tuple((r.server, r.username, r.password.secret) for r in manifest.cloud.registries),
+        budget_usd_per_hour=manifest.cloud.budget_usd_per_hour,
     )
 
 

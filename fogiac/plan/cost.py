@@ -48,7 +48,23 @@ def cost(plan: Plan) -> dict[str, Any]:
     if plan.spot_hourly_usd is not None:
         out["spot_hourly_usd"] = plan.spot_hourly_usd
         out["spot_prices"] = spot_source(plan.target)
+    if plan.budget_usd_per_hour is not None:  # absent without one: documents as before
+        out["budget_usd_per_hour"] = plan.budget_usd_per_hour
     return out
+
+
+def budget_words(cost_doc: Mapping[str, Any], *, accept: str) -> str | None:
+    """What ``up`` will make of the plan's budget (see :func:`fogiac.plan.guard.over_budget`); None: no budget."""
+    budget = cost_doc.get("budget_usd_per_hour")
+    if budget is None:
+        return None
+    total, unknown = cost_doc["hourly_usd"], len(cost_doc.get("unknown") or ())
+    head = f"budget: ${budget:.4f}/h (cloud.budget_usd_per_hour)"
+    if total > budget:
+        return f"{head}: over it; up refuses"
+    if unknown:
+        return f"{head}: cannot be checked with {unknown} price(s) unknown; up refuses unless {accept}"
+    return f"{head}: within it"
 
 
 def menu_line(row: Mapping[str, Any], *, spot_as_of: str) -> str:
@@ -134,6 +150,12 @@ def nodes(plan: Plan) -> list[dict[str, Any]]:
 def rate(usd_per_hour: float | None, digits: int = 4) -> str:
     """A price as a table shows it: ``0.0960``, or ``unknown`` (never ``0.0000``) when there is none."""
     return "unknown" if usd_per_hour is None else f"{usd_per_hour:.{digits}f}"
+
+
+def unknown_note(unknown: tuple[str, ...] | list[str]) -> str:
+    """The line under a total that leaves some lines out: which, and what would fill them."""
+    return (f"unknown: {', '.join(unknown)} (the catalogue has no price there; "
+            "`fogiac catalog update` fills it where the cloud publishes one)")
 
 
 def total_words(total: float, unknown: int) -> str:

@@ -49,6 +49,8 @@ def _hardware(host: HostSpec) -> str:
         return f"lab machine, {host.gpus} GPU" if host.gpus else "lab machine"
     gpu = f", {host.gpus} GPU" if host.gpus else ""
     price = f", ${host.usd_per_hour:.2f}/h" if host.usd_per_hour else ""
+    if host.usd_per_hour is None:  # the catalogue has no price there: unknown, never free
+        price = ", cost unknown"
     return f"{host.machine}: {host.vcpus} vCPU{gpu}{price}"
 
 
@@ -84,7 +86,9 @@ def layout(plan: Plan) -> Drawing:
         arrows.append(Arrow(4.1, y + 0.4, 9.9, y + 0.4, ins))
         arrows.append(Arrow(9.9, y - 0.4, 4.1, y - 0.4, outs))
     caption = f"{plan.stack}: {len(plan.hosts)} host(s), {link}"
-    if plan.hourly_usd:
+    if plan.unknown_costs:  # a sum that leaves machines out is at least that much
+        caption += f", at least ${plan.hourly_usd:.2f}/h plus {len(plan.unknown_costs)} unknown"
+    elif plan.hourly_usd:
         caption += f", ${plan.hourly_usd:.2f}/h"
     return Drawing(18.0, height, tuple(boxes), tuple(arrows), caption)
 

@@ -81,6 +81,31 @@ def at_least(usd_per_hour: float, unknown: int, *, digits: int = 2) -> str:
     return amount if not unknown else f"at least {amount} plus {unknown} unknown"
 
 
+ACCEPT_UNKNOWN = "--accept-unknown-cost"  # up's flag that lets an unknown price pass the budget
+
+
+def over_budget(plan: Plan, *, accept_unknown: bool) -> str | None:
+    """Why ``up`` must not apply ``plan`` against its ``cloud.budget_usd_per_hour``, in one line; None: it may.
+
+    The plan is held to the budget at on-demand prices (the most it can cost). A price the catalogue does
+    not know cannot be held to anything: it is not 0, so such a plan is refused by name until the price is
+    known or the operator says to take it (:data:`ACCEPT_UNKNOWN`); what is known must still fit.
+    """
+    budget = plan.budget_usd_per_hour
+    if budget is None:
+        return None
+    unknown = plan.unknown_costs
+    where = f"cloud.budget_usd_per_hour (${budget:.4f}/h)"
+    if plan.hourly_usd > budget:
+        return (f"{where}: this plan costs {at_least(plan.hourly_usd, len(unknown), digits=4)} at on-demand "
+                "prices, over the budget; raise the budget or ask for smaller machines")
+    if unknown and not accept_unknown:
+        return (f"{where} cannot be checked: the price of {', '.join(unknown)} in {plan.region} is unknown (the "
+                f"catalogue has none there; the rest costs ${plan.hourly_usd:.4f}/h); `fogiac catalog update` fills "
+                f"it where the cloud publishes one, or `fogiac up {ACCEPT_UNKNOWN}` applies it anyway")
+    return None
+
+
 def _prices(spot_as_of: str | None) -> str:
     if spot_as_of is None:
         return "on-demand catalogue prices"

@@ -303,6 +303,7 @@ class Plan:
     notes: tuple[str, ...] = ()  # what placement decided that a reader should know (replicas' zones, ...)
     # Private registries the hosts log in to: (server, username, the password's secret reference)
     registries: tuple[tuple[str, str, str], ...] = ()
+    budget_usd_per_hour: float | None = None  # cloud.budget_usd_per_hour: what `up` lets the plan cost an hour
 
     def __post_init__(self) -> None:
         names = [edge.name for edge in self.edges]
@@ -395,6 +396,8 @@ class Plan:
         if len(self.edges) == 1 and self.edges[0].shorthand:
             del out["edges"]  # the one edge of today's manifests: the same bytes (and digest) as before edges
             out["edge_master"] = self.edge_master
+        if self.budget_usd_per_hour is None:  # no budget: the same bytes (and digest) as before there could be one
+            del out["budget_usd_per_hour"]
         out["hourly_usd"] = self.hourly_usd
         return out
 

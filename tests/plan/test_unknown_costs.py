@@ -23,8 +23,8 @@ def folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return here
 
 
-def fogiac(folder: Path, *args: str) -> str:
-    done = subprocess.run([sys.executable, "-m", "fogiac", "plan", *args], cwd=folder, capture_output=True,
+def fogiac(folder: Path, *args: str, verb: str = "plan") -> str:
+    done = subprocess.run([sys.executable, "-m", "fogiac", verb, *args], cwd=folder, capture_output=True,
                           text=True, timeout=300, env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin",
                                                        "COLUMNS": "200", "HOME": str(folder)})
     assert done.returncode == 0, done.stderr
@@ -73,3 +73,46 @@ def test_ls_gives_no_bound_when_a_price_is_unknown() -> None:
     assert _so_far({"cost": {"hourly_usd": 0.15, "unknown": ["instance talker (t3.small)"]}}, 2.0) == \
         "unknown ($0.1500/h plus 1 unknown)"
     assert _so_far({"cost": {"hourly_usd": 0.15, "unknown": []}}, 2.0).startswith("at most $0.30")
+
+
+def test_cost_table_says_unknown_and_at_least(folder: Path) -> None:
+    out = fogiac(folder, verb="cost")
+    assert "0.0000" not in out and "0.00 " not in out
+    row = next(line for line in out.splitlines() if "instance talker (t3.small)" in line)
+    assert row.count("unknown") == 3  # the hour, the day and the month
+    assert "0.1500 + 1 unknown" in out  # the total leaves it out, and says so
+    assert "cost: at least $0.1500 per hour plus 1 unknown" in out
+    assert "unknown: instance talker (t3.small)" in out
+
+
+def test_diagram_and_state_ls_say_at_least(folder: Path, tmp_path: Path) -> None:
+    from fogiac.cli.state import rows
+    from fogiac.manifest.schema import load_manifest
+    from fogiac.plan.compile import compile_plan
+    from fogiac.plan.diagram import layout
+    from fogiac.state import FORMAT_VERSION
+    from fogiac.store import FolderStore
+
+    plan = compile_plan(load_manifest(folder / "fogiac.yaml"))
+    drawing = layout(plan)
+    assert drawing.caption.endswith("at least $0.15/h plus 1 unknown")
+    assert any("t3.small: 2 vCPU, cost unknown" in box.lines for box in drawing.boxes)
+    store = FolderStore(tmp_path)
+    store.put("talker-dev", {"format_version": FORMAT_VERSION,
+                             "deployment": {"target": "aws", "state": "complete", "since_epoch": 0.0},
+                             "applied": {"cost": {"hourly_usd": 0.15, "unknown": ["instance talker (t3.small)"]}}},
+              expected=None)
+    assert rows(store, now=7200.0)[0]["cost so far"] == "unknown ($0.1500/h plus 1 unknown)"  # never "at most"
+
+
+def test_spot_fallback_line_says_unknown(folder: Path) -> None:
+    import dataclasses
+
+    from fogiac.manifest.schema import load_manifest
+    from fogiac.plan.compile import compile_plan
+    from fogiac.targets.aws.spot import fallback_line
+
+    plan = compile_plan(load_manifest(folder / "fogiac.yaml"))
+    plan = dataclasses.replace(plan, hosts=tuple(dataclasses.replace(h, spot=True) for h in plan.hosts))
+    line = fallback_line(plan, plan.hosts[0].name, "InsufficientInstanceCapacity")
+    assert line.endswith("running on-demand instead at an unknown price (the catalogue has none there)")

@@ -104,8 +104,17 @@ def commands() -> typer.Typer:
 
         built = refresh.from_aws(regions=wanted, ec2_for=ec2_for, spot=spot,
                                  pricing=api.client("pricing", region=refresh.PRICING_REGION))
+        read = (len(built.hardware), len(built.on_demand))
+        unpriced = [r for r in wanted if not any(region == r for _, region in built.on_demand)]
+        current = CLOUD.catalogue
+        kept = built.keep(current, refreshed=wanted)  # the regions not read keep their facts and dates
         path = built.write(out or user_catalogue())
-        typer.echo(f"{path}: {len(built.hardware)} types in {len(wanted)} regions, "
-                   f"{len(built.on_demand)} on-demand prices")
+        typer.echo(f"{path}: {read[0]} types in {len(wanted)} regions, {read[1]} on-demand prices")
+        if kept:
+            typer.echo(f"kept {len(kept)} other regions as they were in {current.path} (each price with its source "
+                       "and date)")
+        for region in unpriced:  # said, never left to read as $0
+            typer.echo(f"warning: the Price List answered no on-demand price for {region}: costs there stay unknown",
+                       err=True)
 
     return cat

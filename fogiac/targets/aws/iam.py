@@ -41,7 +41,8 @@ BOUNDARY = "arn:aws:iam::{account}:policy/fogiac-boundary"  # as stacks/aws/netw
 
 # the document's statements of fogiac's own calls
 OWN_STATEMENTS = ("FogiacReads", "FogiacChangesOnlyWhatItTagged", "FogiacReadsItsRoles", "FogiacSweepsItsRoles",
-                  "FogiacSweepsItsRolesPolicies", "Doctor")
+                  "FogiacSweepsItsRolesPolicies", "Doctor")  # (DoctorReadsTheBoundary: doctor's own read, not a plan's)
+ROLE_TYPES = ("aws:iam/role:Role",)  # the declared resources that are roles, each made with the boundary on it
 
 
 def own_request(account: str) -> dict[str, list[str]]:
@@ -187,6 +188,34 @@ def doctor_check(plan: Plan, resource_types: Iterable[str], *, sts: Any = None, 
         return Check("IAM policy", False, f"{len(refused)} of the {len(actions)} actions this plan needs are "
                                           f"denied: {shown}; {where}")
     return Check("IAM policy", True, f"the caller may make all {len(actions)} actions this plan needs")
+
+
+def boundary_check(plan: Plan, resource_types: Iterable[str], *, sts: Any = None, iam: Any = None) -> Check:
+    """``fogiac doctor``'s line about the account's ``fogiac-boundary`` policy: the shipped policy lets fogiac
+    create a role only with it on, so a plan that makes a role (``flow_logs: true``) fails at ``up`` without
+    it, after the network's other resources were made. A plan that makes no role needs none: said, not failed."""
+    makes = sorted(set(resource_types) & set(ROLE_TYPES))
+    create = "an administrator creates it once from `python -m fogiac.targets.aws.iam --boundary`"
+    errors = need("botocore.exceptions")
+    try:
+        sts = sts or api.client("sts", region=plan.region)
+        iam = iam or api.client("iam", region=plan.region)
+        arn = BOUNDARY.format(account=api._call(sts.get_caller_identity)["Account"])
+        api._call(iam.get_policy, PolicyArn=arn)
+    except CloudError as err:  # no or rejected credentials, AWS unreachable: check nothing, say what is needed
+        return Check("permissions boundary", True, f"not checked ({err}); roles fogiac makes carry the account's "
+                                                   f"fogiac-boundary policy: {create}")
+    except errors.ClientError as err:
+        code = api.error_code(err)
+        if code != "NoSuchEntity":
+            return Check("permissions boundary", True, f"not checked (IAM answered {code}; checking needs "
+                                                       "iam:GetPolicy on policy/fogiac-boundary)")
+        if makes:
+            return Check("permissions boundary", False, f"the account has no {arn}, which the role this plan makes "
+                                                        f"(flow_logs: true) must carry, or up fails: {create}")
+        return Check("permissions boundary", True, f"the account has no {arn}; this plan makes no role, so it "
+                                                   f"needs none (flow_logs: true would: {create})")
+    return Check("permissions boundary", True, f"{arn} exists")
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -57,7 +57,7 @@ from typing import Any
 
 from fogiac.errors import CloudError
 from fogiac.extras import need
-from fogiac.targets.aws.catalogue import FORMAT, Source, checked_price
+from fogiac.targets.aws.catalogue import FORMAT, Catalogue, Source, checked_price
 
 CLIENT_VPN_USD_PER_HOUR = {"association": 0.1, "connection": 0.05}  # us-east-1 list price, as before
 _CLIENT_VPN_SOURCE = "AWS Client VPN pricing page (aws.amazon.com/vpn/pricing), us-east-1, 2025-06"
@@ -103,6 +103,41 @@ class Builder:
     def zone(self, itype: str, zone: str) -> None:
         """One availability-zone offering (a DescribeInstanceTypeOfferings answer by zone)."""
         self.zones.setdefault(itype, {}).setdefault(zone[:-1], set()).add(zone)
+
+    def keep(self, cat: Catalogue, *, refreshed: Iterable[str]) -> list[str]:
+        """Carry over from ``cat`` what this build did not read: every other region's offers, prices and
+        zones (each with its own source and date), the hardware of types it did not see, and zones it did
+        not ask for. A refresh of one region fills that region; it must not drop the others. Returns the
+        regions kept."""
+        fresh = set(refreshed)
+        sources: dict[Source, int] = {}
+
+        def source(found: Source) -> int:
+            if found not in sources:
+                sources[found] = self.source(found)
+            return sources[found]
+
+        kept = [r for r in cat.regions if r not in fresh]
+        self.provenance["kept"] = {"from": cat.path, "regions": kept, "provenance": dict(cat.provenance)}
+        for name in cat.types:
+            spec = cat.get(name)
+            if spec is None:
+                continue
+            if name not in self.hardware:
+                self.hardware[name] = [spec.vcpus, spec.memory_gib, spec.arch, spec.gpus, spec.gpu_model,
+                                       spec.gpu_memory_gib, spec.accelerator_kind, source(spec.hardware_source)]
+            for region in cat.regions_offering(name):
+                if region not in fresh:
+                    self.offer(name, region)
+            for region in kept:
+                for column, price in ((self.on_demand, cat.price(name, region)), (self.spot, cat.spot(name, region))):
+                    if price is not None:
+                        column[(name, region)] = (price.usd_per_hour, source(price.source))
+            for region in cat.regions:
+                zones = cat.zones_offering(name, region)
+                if zones and region not in self.zones.get(name, {}):
+                    self.zones.setdefault(name, {})[region] = set(zones)
+        return kept
 
     def document(self) -> dict[str, Any]:
         regions = sorted({r for rs in self.offered.values() for r in rs}

@@ -39,4 +39,5 @@ def on_demand(plan: Plan, hosts: Collection[str]) -> Plan:
 def fallback_line(plan: Plan, host: str, code: str) -> str:
     spec = next(h for h in plan.hosts if h.name == host)
     return (f"{host}: no spot capacity for {spec.machine} in {plan.zone} ({code}); "
-            f"running on-demand instead at ${spec.usd_per_hour:.4f}/h")
+            "running on-demand instead at " + ("an unknown price (the catalogue has none there)"
+                                               if spec.usd_per_hour is None else f"${spec.usd_per_hour:.4f}/h"))

@@ -87,7 +87,8 @@ class AwsTarget:
                 raise CloudError("\n".join(quotas.report(short)))
         plan = dataclasses.replace(plan, zone=report.zone)
         spot_hourly = plan.spot_hourly_usd
-        price = f"${plan.hourly_usd:.4f}/h" + (f", about ${spot_hourly:.4f}/h with spot" if spot_hourly else "")
+        price = guard.at_least(plan.hourly_usd, len(plan.unknown_costs), digits=4) + (
+            f", about ${spot_hourly:.4f}/h with spot" if spot_hourly else "")
         summary = (f"{plan.stack}: {report.region} zone {report.zone}, account {report.account}, "
                    f"SSH from {', '.join(report.operator_cidrs)}",)
         return Prepared(plan=plan, question=f"Create these resources in {plan.region} ({price})?", summary=summary,
@@ -224,7 +225,9 @@ class AwsTarget:
             checks.append(Check("Pulumi CLI", True, str(pulumi_cli())))
         except CloudError as err:
             checks.append(Check("Pulumi CLI", False, str(err)))
-        checks.append(iam.doctor_check(plan, {str(r["type"]) for r in self.declare(plan)}))
+        declared = {str(r["type"]) for r in self.declare(plan)}
+        checks.append(iam.doctor_check(plan, declared))
+        checks.append(iam.boundary_check(plan, declared))
         known = engine.known_ids(plan.stack) if StackState(plan.stack).exists() else frozenset()
         try:
             report = api.preflight(plan, operator_cidr=ssh_from, known_ids=known)

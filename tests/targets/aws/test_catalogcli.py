@@ -64,3 +64,44 @@ def test_a_region_without_prices_lists_its_types_as_unknown_and_says_how_to_fill
     assert len(rows) == 2 and all(r[5] == "unknown" and r[6] == "-" for r in rows), rows
     assert shown.output.rstrip().endswith("The catalogue has no prices for sa-east-1: `fogiac catalog update "
                                           "--region sa-east-1` reads them with your credentials.")
+
+
+def test_update_of_one_region_fills_its_unknown_prices_and_keeps_the_others(
+        aws_env: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue 35, costs that are unknown say so: `fogiac catalog update --region sa-east-1` fills that region's
+    prices; it wrote a catalogue of sa-east-1 alone, so every other region's machines lost theirs."""
+    from fogiac.targets.aws import api
+    from fogiac.targets.aws.catalogue import load
+
+    monkeypatch.setenv("FOGIAC_STATE_DIR", str(tmp_path / "state"))
+    pricing, stubber = _pricing([_price_item("t3.small", "sa-east-1", "0.0336000000")])
+    real = api.client
+    monkeypatch.setattr(api, "client", lambda service, *, region: pricing if service == "pricing"
+                        else real(service, region=region))
+    done = CliRunner().invoke(app, ["catalog", "update", "--region", "sa-east-1", "--no-spot"])
+    assert done.exit_code == 0, done.output
+    assert "kept " in done.stdout and "warning" not in done.output
+    stubber.assert_no_pending_responses()
+
+    def price(region: str) -> Any:
+        text = f"name: mine\ncloud: {{region: {region}}}\nnodes:\n  - {{name: a, machine: t3.small, image: 'ros:noetic'}}\n"
+        return compile_plan(parse_manifest(text, source="mine.yaml"), target="aws").host("a").usd_per_hour
+
+    assert price("sa-east-1") == 0.0336  # was unknown
+    shipped = load().price("t3.small", "us-west-2")
+    assert shipped is not None and price("us-west-2") == shipped.usd_per_hour  # kept, not dropped
+
+
+def test_update_says_when_the_price_list_has_nothing_for_a_region(
+        aws_env: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from fogiac.targets.aws import api
+
+    monkeypatch.setenv("FOGIAC_STATE_DIR", str(tmp_path / "state"))
+    pricing, _ = _pricing([])
+    real = api.client
+    monkeypatch.setattr(api, "client", lambda service, *, region: pricing if service == "pricing"
+                        else real(service, region=region))
+    done = CliRunner().invoke(app, ["catalog", "update", "--region", "sa-east-1", "--no-spot"])
+    assert done.exit_code == 0, done.output
+    assert ("warning: the Price List answered no on-demand price for sa-east-1: costs there stay unknown"
+            in done.output)

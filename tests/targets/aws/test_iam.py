@@ -13,9 +13,10 @@ from typing import Any
 import pytest
 
 from fogiac import targets
-from fogiac.manifest.schema import load_manifest
+from fogiac.manifest.schema import load_manifest, parse_manifest
 from fogiac.plan.compile import compile_plan
 from fogiac.targets.aws import iam
+from fogiac.targets.base import Check
 from tests.conftest import EXAMPLES, REPO
 
 SERVICES = {"ec2": "ec2", "sts": "sts", "acm": "acm", "logs": "logs", "iam": "iam",
@@ -62,7 +63,9 @@ def test_the_policy_is_a_valid_document_scoped_where_it_can_be() -> None:
     assert document["Version"] == "2012-10-17"
     for statement in document["Statement"]:
         assert statement["Effect"] == "Allow" and all(":" in a for a in statement["Action"]), statement
-        if any(a.startswith("iam:") and a != "iam:SimulatePrincipalPolicy" and a != "iam:ListRoles"
+        if statement["Action"] == ["iam:GetPolicy"]:  # doctor reads the one boundary policy, nothing else
+            assert statement["Resource"] == "arn:aws:iam::*:policy/fogiac-boundary", statement
+        elif any(a.startswith("iam:") and a != "iam:SimulatePrincipalPolicy" and a != "iam:ListRoles"
                for a in statement["Action"]):
             # only fogiac's own roles: stacks/aws/ puts them under the path /fogiac/<stack>/ (issue 35 item 4: the
             # pattern was role/fogiac-*, which that path's ARN role/fogiac/<stack>/... never matched)
@@ -127,3 +130,47 @@ def test_doctor_names_the_actions_an_assumed_role_is_denied(monkeypatch: pytest.
     assert check.detail.startswith(f"{len(denied)} of the {len(wanted)} actions this plan needs are denied: "
                                    f"{', '.join(denied)}; ")
     iam_stub.assert_no_pending_responses()
+
+
+def _flow_logs(text: str) -> str:
+    """A manifest whose network makes a role (the flow logs' role, with the boundary on it)."""
+    return text.replace("nodes:\n", "network:\n  flow_logs: true\nnodes:\n", 1)
+
+
+def test_doctor_checks_the_permissions_boundary_exists(aws_env: str) -> None:
+    """Issue 35 (item 4's boundary): doctor said nothing of fogiac-boundary, so a plan with flow_logs failed at up,
+    after the VPC was made, when the account had none. On LocalStack's IAM: missing, then made."""
+    from fogiac.targets.aws.api import client
+
+    minimal = (EXAMPLES / "minimal.yaml").read_text()
+    logged = parse_manifest(_flow_logs(minimal))
+    plan, plain = compile_plan(logged), compile_plan(parse_manifest(minimal))
+    roles = {str(r["type"]) for r in targets.get("aws").declare(plan)}
+    assert set(iam.ROLE_TYPES) <= roles
+    arn = "arn:aws:iam::000000000000:policy/fogiac-boundary"
+    missing = iam.boundary_check(plan, roles)
+    assert (missing.what, missing.ok) == ("permissions boundary", False)
+    assert missing.detail == (f"the account has no {arn}, which the role this plan makes (flow_logs: true) must "
+                              "carry, or up fails: an administrator creates it once from `python -m "
+                              "fogiac.targets.aws.iam --boundary`")
+    unneeded = iam.boundary_check(plain, _declared_types(EXAMPLES / "minimal.yaml"))
+    assert unneeded.ok and "this plan makes no role, so it needs none" in unneeded.detail
+    account = client("iam", region="us-east-1")
+    made = account.create_policy(PolicyName="fogiac-boundary", PolicyDocument=iam.BOUNDARY_FILE.read_text())
+    try:
+        assert made["Policy"]["Arn"] == arn
+        assert iam.boundary_check(plan, roles) == Check("permissions boundary", True, f"{arn} exists")
+    finally:
+        account.delete_policy(PolicyArn=arn)  # the emulator is shared: cli doctor's test expects none
+
+
+def test_doctor_without_credentials_does_not_check_the_boundary(monkeypatch: pytest.MonkeyPatch) -> None:
+    for key in [k for k in os.environ if k.startswith("AWS_")]:
+        monkeypatch.delenv(key)
+    monkeypatch.setenv("AWS_CONFIG_FILE", os.devnull)
+    monkeypatch.setenv("AWS_SHARED_CREDENTIALS_FILE", os.devnull)
+    monkeypatch.setenv("AWS_EC2_METADATA_DISABLED", "true")
+    monkeypatch.setenv("AWS_ENDPOINT_URL", "http://127.0.0.1:9")
+    check = iam.boundary_check(compile_plan(load_manifest(EXAMPLES / "minimal.yaml")), set(iam.ROLE_TYPES))
+    assert check.ok and check.detail.startswith("not checked (no AWS credentials found")
+    assert "`python -m fogiac.targets.aws.iam --boundary`" in check.detail

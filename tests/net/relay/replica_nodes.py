@@ -10,14 +10,10 @@ several hosts; ``--pad``: that many random characters after a ``|`` in ``frame_i
 for a slow link to delay; ``--definition``: the message definition its publisher sends, a hostile replica's).
 ``robot`` waits until someone subscribes to REQ and publishes to REPLY, sends N requests (seq Q+i, stamp
 base+i s; ``--zero-stamp``: stamp 0, and replies told apart by seq), and prints one JSON line per reply
-<<<<<<< HEAD
-it gets: {"i", "from", "ms", "t"} (ms: from its send to the reply's arrival; t: the arrival's wall-clock time),
-then ``done``.
-=======
-it gets: {"i", "from", "ms", "seq", "nsecs"} (ms: from its send to the reply's arrival; seq and nsecs as the reply
-carries them: with ``--seq-base`` robots sending equal stamps tell whose request a reply answers), then ``done``.
+it gets: {"i", "from", "ms", "seq", "nsecs", "t"} (ms: from its send to the reply's arrival; seq and nsecs as the
+reply carries them: with ``--seq-base`` robots sending equal stamps tell whose request a reply answers; t: the
+arrival's wall-clock time), then ``done``.
 With ``--go``, it prints ``connected`` once linked and sends only once FILE exists (robots that start together).
->>>>>>> fleetreply
 """
 
 from __future__ import annotations

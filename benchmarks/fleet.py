@@ -38,7 +38,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from fogiac.certs import edge_identity, edge_role, load_or_create_edges, write_relay_lab  # noqa: E402
-from fogiac.net.relay.fleet import ACCESS_FILE, FleetAccess, Robot, write_access  # noqa: E402
+from fogiac.net.relay.fleet import ACCESS_FILE, FleetAccess, Robot, SharedPair, write_access  # noqa: E402
 from tests.net.relay.relay_support import Master, Proc, Procs, free_port, wait_for  # noqa: E402
 from tests.support.ros import ros_missing  # noqa: E402
 
@@ -57,8 +57,9 @@ def fleet_certs(folder: Path, robots: list[str]) -> None:
     for name in ("server.pem", "server.key"):  # the lab's cloud-end pair (a stack's host makes its own)
         shutil.copy(lab / name, folder / name)
     shared = frozenset((REQ, REP))
+    pair = SharedPair("echo", frozenset((REQ,)), frozenset((REP,)))  # replies routed to the robot that asked
     write_access(folder / ACCESS_FILE, FleetAccess(
-        {edge_identity(STACK, r): Robot(r, edge_identity(STACK, r), shared) for r in robots}, frozenset()))
+        {edge_identity(STACK, r): Robot(r, edge_identity(STACK, r), shared) for r in robots}, frozenset(), (pair,)))
 
 
 def master(procs: Procs) -> Master:

@@ -134,7 +134,18 @@ def _host(row: Mapping[str, Any]) -> str:
 
 def _node(row: Mapping[str, Any]) -> str:
     hosts = ", ".join(row["replica_hosts"]) if row.get("replica_hosts") else row["host"]
-    return f"{row['name']} on {hosts} ({row['kind']}: {row['runs']})"
+    return f"{row['name']} on {hosts} ({row['kind']}: {row['runs']}){_serves(row)}"
+
+
+def _serves(row: Mapping[str, Any]) -> str:
+    """A fleet node's robots, instances and each robot's share of its hour; nothing for a one-robot plan's node."""
+    if "serves" not in row:
+        return ""
+    robots, count = list(row["serves"]), row.get("instances", 1)
+    share = row.get("usd_per_hour_per_robot")
+    each = "cost unknown" if share is None else f"${share:.4f}/h per robot"
+    return (f", serves {len(robots)} robot{'s' if len(robots) != 1 else ''} ({', '.join(robots)}), "
+            f"{count} instance{'s' if count != 1 else ''}{' (one per robot)' if count != 1 else ' (shared)'}, {each}")
 
 
 def _pushed(row: Mapping[str, Any]) -> str:

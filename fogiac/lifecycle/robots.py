@@ -15,6 +15,7 @@ robot), and the drops and topics its cloud ends refused it.
 from __future__ import annotations
 
 import dataclasses
+import math
 import statistics
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -50,7 +51,14 @@ def _links(plan: Plan, robot: Mapping[str, Any]) -> list[dict[str, Any]]:
 
 
 def _number(value: Any) -> float | None:
-    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
+    """A figure from a stats file, or None where it holds anything else (text, NaN, infinity, a boolean)."""
+    if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
+        return None
+    return float(value)
+
+
+def _up(link: Mapping[str, Any]) -> bool:
+    return link.get("connected") is True  # "yes" or 1 in a file fogiac did not write is not a link
 
 
 def summary(name: str, robot: Mapping[str, Any], links: Sequence[Mapping[str, Any]],
@@ -59,16 +67,16 @@ def summary(name: str, robot: Mapping[str, Any], links: Sequence[Mapping[str, An
     topics = [t for link in links for t in link.get("topics", []) if isinstance(t, Mapping)]
     latencies = [v for t in topics if (v := _number(t.get("latency_ms"))) is not None]
     p99 = [v for t in topics if (v := _number(t.get("latency_p99_ms"))) is not None]
-    rtts = [v for link in links if link.get("connected") and (v := _number(link.get("rtt_ms"))) is not None]
+    rtts = [v for link in links if _up(link) and (v := _number(link.get("rtt_ms"))) is not None]
 
     def total(key: str, direction: str | None = None) -> int:
         return sum(int(_number(t.get(key)) or 0) for t in topics
                    if direction is None or t.get("direction") == direction)
 
     return {"robot": name, "edge_master": robot.get("edge_master"), "revoked": bool(robot.get("revoked")),
-            "links": [{"host": link.get("host"), "connected": bool(link.get("connected")), "rtt_ms": link.get("rtt_ms")}
+            "links": [{"host": link.get("host"), "connected": _up(link), "rtt_ms": _number(link.get("rtt_ms"))}
                       for link in links],
-            "links_up": sum(1 for link in links if link.get("connected")), "rtt_ms": min(rtts) if rtts else None,
+            "links_up": sum(1 for link in links if _up(link)), "rtt_ms": min(rtts) if rtts else None,
             "topics": sorted({str(t.get("topic")) for t in topics if (_number(t.get("msgs")) or 0) > 0}),
             "latency_ms": round(statistics.median(latencies), 3) if latencies else None,
             "latency_p99_ms": max(p99) if p99 else None,

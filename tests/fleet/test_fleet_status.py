@@ -9,18 +9,21 @@ the thing under test is what status reads from them and how it shows it, not the
 from __future__ import annotations
 
 import json
+from io import StringIO
 from pathlib import Path
 
+from rich.console import Console
 from typer.testing import CliRunner
 
 from fogiac import deployment
 from fogiac.cli import app
 from fogiac.lifecycle.edge import edge_dir, record_edge
-from fogiac.lifecycle.robots import robot_status
+from fogiac.lifecycle.robots import robot_status, robots_table
 from fogiac.manifest.revision import load_revision
 from fogiac.net.relay.stats import RelayStats, TopicStats, write_stats
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.model import Plan
+from fogiac.state import StackState
 from tests.plan.test_fleet import FLEET
 
 runner = CliRunner()
@@ -115,7 +118,6 @@ def test_a_stack_of_one_robot_shows_no_robot_rows(tmp_path: Path) -> None:
 def test_a_revoked_robot_and_a_hostile_edges_list(tmp_path: Path) -> None:
     """A robot the record keeps revoked says so; an edges list that is not fogiac's shows no robot, no traceback."""
     manifest, plan = _deploy(tmp_path)
-    from fogiac.state import StackState
 
     def revoke(document: dict[str, object]) -> None:
         edges = document[StackState.EDGES]
@@ -129,3 +131,23 @@ def test_a_revoked_robot_and_a_hostile_edges_list(tmp_path: Path) -> None:
     StackState(plan.stack).set(StackState.EDGES, [{"name": "\x1b[31mred"}, 7, "x"])
     shown = runner.invoke(app, ["status", str(manifest)], env=WIDE)
     assert shown.exit_code == 0 and "Traceback" not in shown.output and "\x1b[31m" not in shown.output
+
+
+def test_odd_figures_in_a_robots_stats_are_unknown_not_trusted(tmp_path: Path) -> None:
+    """A stats file with text, NaN or a string for connected (not what the relay writes) gives unknown figures,
+    never a link up, a NaN in the JSON or a control character on the terminal."""
+    _, plan = _deploy(tmp_path)
+    folder = edge_dir(plan)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "relay-edge-planner@arm1.stats.json").write_text(json.dumps(
+        {"connected": "yes", "rtt_ms": "fast", "refused": "many",
+         "topics": [{"topic": "/a\x1b[31m", "direction": "out", "msgs": 1, "latency_ms": "x", "drops": "some"},
+                    {"topic": "/c", "direction": "out", "msgs": "lots"},
+                    {"topic": "/b", "direction": "in", "msgs": 3, "latency_ms": float("nan")}]}))
+    (row, *_) = robot_status(plan)
+    assert (row["links_up"], row["rtt_ms"], row["latency_ms"], row["sent"], row["served"], row["refused"],
+            row["drops"]) == (0, None, None, 1, 3, 0, 0)
+    assert json.loads(json.dumps(row, allow_nan=False))["links"][0]["connected"] is False
+    out = StringIO()
+    Console(file=out, width=250, color_system=None).print(robots_table([row]))
+    assert "\x1b" not in out.getvalue() and "/a\\x1b[31m" in out.getvalue() and "down 0/2" in out.getvalue()

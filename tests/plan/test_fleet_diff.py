@@ -105,3 +105,25 @@ def test_a_one_robot_diff_says_nothing_of_robots(tmp_path: Path) -> None:
     diff = diff_documents(deployment.read_applied(doc["stack"]), doc)
     assert diff.robots.empty and not diff.fleet
     assert not any("robot" in line for line in terminal(diff, against="applied"))
+
+
+def test_a_fleet_applied_before_robots_were_shown_compares_by_its_edges(tmp_path: Path) -> None:
+    """An applied fleet document without ``robots`` (a fogiac before this one) lists its edges: the robots
+    compare by name and entry, so only the new one shows, and the others no made-up change."""
+    manifest = _deploy(tmp_path, TWO)
+    stack = "lab-dev"
+
+    def older(document: dict[str, object]) -> None:
+        applied = document[StackState.APPLIED]
+        assert isinstance(applied, dict)
+        del applied["robots"]
+        for node in applied["nodes"]:
+            for key in ("serves", "serve", "instances", "usd_per_hour_per_robot"):
+                node.pop(key)
+
+    StackState(stack).update(older)
+    manifest.write_text(THREE)
+    doc = json.loads(runner.invoke(app, ["plan", str(manifest), "--json"]).output)
+    robots = doc["changes"]["robots"]
+    assert [r["name"] for r in robots["added"]] == ["arm3"] and robots["changed"] == [] and robots["removed"] == []
+    assert doc["changes"]["nodes"] == {"added": [], "removed": [], "changed": []}

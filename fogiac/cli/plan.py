@@ -92,6 +92,26 @@ def _variant_says(target: str, name: str) -> str | None:
     return said if isinstance(said, str) else None
 
 
+def _serve_cells(node: Mapping[str, Any]) -> tuple[str, ...]:
+    """A fleet node's serves / instances / share cells: ``all (3)``, ``arm1, arm3``, ``per robot (3)``; the share
+    is what each robot it serves bears of its part of its host's hour (:mod:`fogiac.plan.fleet`)."""
+    serves = node.get("serves") or []
+    said = {"all": f"all ({len(serves)})", "per_robot": f"per robot ({len(serves)})"}.get(str(node.get("serve")))
+    instances = node.get("instances", 1)
+    where = "shared" if instances == 1 else "one per robot"
+    return (escape(said or ", ".join(serves)), f"{instances} ({where})", rate(node.get("usd_per_hour_per_robot")))
+
+
+def _robots_table(robots: list[Mapping[str, Any]]) -> Any:
+    """One row per robot: its ROS master, certificate, the nodes it uses, its access and its share of the hour."""
+    shown = table(f"robots ({len(robots)}; each its own certificate, namespace and access)", "robot", "ROS master",
+                  "certificate", "nodes", "may cross", "hosts' $/h share")
+    for r in robots:
+        shown.add_row(escape(r["name"]), escape(str(r["entry"])), escape(str(r["certificate"])),
+                      escape(", ".join(r["nodes"]) or "-"), escape(", ".join(r["access"])), rate(r["usd_per_hour"]))
+    return shown
+
+
 def render(doc: Mapping[str, Any]) -> None:
     doc = review.visible_doc(doc)  # no value reaches the terminal with a control or bidi character in it
     out = console()
@@ -126,11 +146,15 @@ def render(doc: Mapping[str, Any]) -> None:
     for h in doc["hosts"]:
         if h["chosen_for"]:
             out.print(escape(menu_line(h, spot_as_of=price_source(doc["target"]).spot_as_of)), highlight=False)
-    nodes = table("nodes", "node", "host", "kind", "runs", "GPU")
+    robots = doc.get("robots")  # a fleet: whom each node serves, and what each robot brings and costs
+    nodes = table("nodes", "node", "host", "kind", "runs", "GPU",
+                  *(("serves", "instances", "$/h per robot") if robots is not None else ()))
     for n in doc["nodes"]:
         nodes.add_row(n["name"], ", ".join(n.get("replica_hosts") or [n["host"]]), n["kind"], escape(n["runs"]),
-                      "yes" if n["gpu"] else "no")
+                      "yes" if n["gpu"] else "no", *(_serve_cells(n) if robots is not None else ()))
     out.print(nodes)
+    if robots is not None:
+        out.print(_robots_table(robots))
     for note in doc.get("notes", ()):  # where placement put replicas, and what it skipped
         out.print(f"note: {escape(note)}", highlight=False)
     spot = doc["cost"].get("spot_hourly_usd")

@@ -16,6 +16,7 @@ import typer
 
 from fogiac import deployment
 from fogiac.errors import FogiacError
+from fogiac.lifecycle.robots import robot_count
 from fogiac.manifest.fogros import load_any
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.guard import duration
@@ -81,20 +82,22 @@ def rows(*, everything: bool = False, now: float | None = None) -> list[dict[str
         so_far = "—" if not record.exists else _so_far(applied, max(0.0, now - record.since_epoch) / 3600)
         out.append({"stack": stack, "env": env, "target": record.target,
                     "state": STATES.get(record.state, record.state), "since": record.since,
-                    "cost so far": so_far, "autostop": autostop, "manifest": record.manifest})
+                    "cost so far": so_far, "autostop": autostop, "manifest": record.manifest,
+                    "robots": str(robot_count(stack) or "-")})  # a fleet's robots the record links
     return out
 
 
 def register(app: typer.Typer) -> None:
     def ls(everything: bool = typer.Option(False, "--all", help="Also stacks that `down` removed."),
            manifests: bool = typer.Option(False, "--manifests", help="Show the manifest file that made each.")) -> None:
-        """Every stack deployed from this machine: target, state, cost so far and autostop (offline)."""
+        """Every stack deployed from this machine: target, state, robots (a fleet), cost so far, autostop (offline)."""
         found = rows(everything=everything)
         if not found:
             typer.echo("no stacks deployed from this machine (state in "
                        f"{state_root()}); `fogiac up` deploys one")
             return
-        columns = ["stack", "env", "target", "state", "since", "cost so far", "autostop"] + (
+        fleets = ["robots"] if any(row["robots"] != "-" for row in found) else []  # else the table as before
+        columns = ["stack", "env", "target", "state", *fleets, "since", "cost so far", "autostop"] + (
             ["manifest"] if manifests else [])
         out = table(None, *columns)
         for row in found:

@@ -8,6 +8,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from fogiac.lifecycle.driver import Target
+from fogiac.lifecycle.robots import robots_table
 from fogiac.provision import idle
 from fogiac.tables import table
 
@@ -26,6 +27,8 @@ def render_status(target: Target, doc: Mapping[str, Any]) -> list[Any]:
     running = [e for e in doc.get("edge", []) if e["running"]]
     if running:
         out.append("edge processes: " + ", ".join(f"{e['name']} (pid {e['pid']})" for e in running))
+    if doc.get("robots"):  # a fleet: one row per robot before its links' topics
+        out.append(robots_table(doc["robots"]))
     if doc.get("relays"):
         out.append(relays_table(doc["relays"]))
         out += replicas_lines(doc["relays"])
@@ -41,7 +44,8 @@ def relays_table(links: list[Mapping[str, Any]]) -> Any:
         for t in relay.get("topics", []) or [{}]:
             latency = "-" if t.get("latency_ms") is None else f"{t['latency_ms']:.2f}"
             rate = t.get("bytes_per_s")
-            relays.add_row(relay["host"], link, t.get("topic", "-"), t.get("direction", "-"),
+            host = relay["host"] + (f" ({relay['edge']})" if relay.get("edge") else "")  # a fleet robot's link
+            relays.add_row(host, link, t.get("topic", "-"), t.get("direction", "-"),
                            str(t.get("msgs", "-")), str(t.get("msgs_per_s", "-")),
                            "-" if rate is None else f"{rate / 1024:.1f}", latency, str(t.get("drops", "-")))
     return relays

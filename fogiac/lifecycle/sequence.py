@@ -41,6 +41,7 @@ from fogiac.lifecycle.edge import (
     stop_edge,
 )
 from fogiac.lifecycle.events import OnEvent, Phase, Progress
+from fogiac.lifecycle.robots import robot_status
 from fogiac.net import middleware
 from fogiac.plan.document import plan_document
 from fogiac.plan.model import Plan
@@ -216,6 +217,8 @@ def status(target: Target, plan: Plan, *, now: float | None = None) -> dict[str,
     saved = recorded_edge(plan)
     relays = middleware.deployment(plan.middleware).edge_links(plan, folder=edge_dir(plan, create=False),
                                                                connect=saved.get("relays", {}))
+    running = running_edge(plan)
+    robots = robot_status(plan, running)  # a fleet's robots, one row each; none for a stack of one robot
     return {**head, "deployed": True, "partial": record.partial if record is not None and known else provisioned,
             "edge_master": saved.get("edge_master", plan.edge_master), **described,
-            "relays": relays, "edge": running_edge(plan)}
+            "relays": relays, "edge": running, **({"robots": robots} if robots else {})}

@@ -164,6 +164,7 @@ def _node(node: Node, host: str) -> NodeSpec:
         topics_in=lists.inputs if lists else (),
         topics_out=lists.outputs if lists else (),
         serves=node.serve if isinstance(node.serve, tuple) else (),
+        per_robot=node.serve == "per_robot",
     )
 
 

@@ -93,6 +93,10 @@ class PlanDiff:
     autostop_known: bool = False  # the after document says its autostop (format 2 from this fogiac on)
     unknown_before: int = 0  # cost lines each side whose price is unknown: the hour is then "at least"
     unknown_after: int = 0
+    # A fleet's robots (either side lists ``robots``): each added or removed one is its certificate, access rules
+    # and edge links, never a host; a changed one, what it may cross or where it links.
+    robots: Section = Section()
+    fleet: bool = False
 
     def count(self, action: Action) -> int:
         return sum(1 for r in self.resources if r.action == action)
@@ -103,7 +107,7 @@ class PlanDiff:
 
     @property
     def empty(self) -> bool:
-        sections = (self.hosts, self.nodes, self.topics, self.security_rules, self.pushed)
+        sections = (self.hosts, self.nodes, self.topics, self.security_rules, self.pushed, self.robots)
         return (not self.changed_resources and all(s.empty for s in sections) and not self.settings
                 and self.cost_before == self.cost_after and self.spot_before == self.spot_after and not self.drift)
 
@@ -133,9 +137,12 @@ class PlanDiff:
         return self.count("create") + replaced, self.count("update"), self.count("delete") + replaced
 
     def summary(self) -> str:
-        """Terraform's line (:meth:`counts`); then the drift, if any."""
+        """Terraform's line (:meth:`counts`); then a fleet's robots, and the drift, if any."""
         add, change, destroy = self.counts()
         line = f"Plan: {add} to add, {change} to change, {destroy} to destroy."
+        if not self.robots.empty:
+            line += (f" Robots: {len(self.robots.added)} to add, {len(self.robots.changed)} to change, "
+                     f"{len(self.robots.removed)} to remove.")
         if self.drift:
             counts = [f"{n} {status}" for status in ("changed", "deleted", "added")
                       if (n := sum(1 for d in self.drift if d.status == status))]
@@ -159,6 +166,7 @@ class PlanDiff:
                          "spot_as_of": self.spot_as_of} if self.has_spot else {})},
             "exposure": list(self.exposure), "cost_risk": list(self.cost_risk),
             "drift": [d.to_dict() for d in self.drift], "refreshed_at": self.refreshed_at or None,
+            **({"robots": section(self.robots)} if self.fleet else {}),  # a one-robot plan's changes as before
         }
 
 
@@ -226,10 +234,12 @@ def _resources(before: Sequence[Mapping[str, Any]], after: Sequence[Mapping[str,
 
 
 def _section(before: Sequence[Mapping[str, Any]] | None, after: Sequence[Mapping[str, Any]] | None,
-             key: tuple[str, ...], *, compare: bool, content: str | None = None) -> Section:
+             key: tuple[str, ...], *, compare: bool, content: str | None = None,
+             ignore: tuple[str, ...] = ()) -> Section:
     """Rows keyed by ``key``; with ``compare``, rows on both sides report changed fields. ``content``: the field
     that digests what a row pushes: equal on both sides, the row's local path is no change (the same bytes
-    reach the hosts from another member's checkout of the lab's repository, as a shared state store has it)."""
+    reach the hosts from another member's checkout of the lab's repository, as a shared state store has it).
+    ``ignore``: fields that follow from another section (a node's robots follow from the robots')."""
     if before is None or after is None:  # a version 1 document lacks this section: nothing to compare
         return Section()
 
@@ -243,7 +253,8 @@ def _section(before: Sequence[Mapping[str, Any]] | None, after: Sequence[Mapping
             # a field the older document did not have yet is not a change (an applied plan of an older fogiac)
             same = content is not None and old[name].get(content) == new[name].get(content)
             fields = tuple((f, old[name].get(f), new[name].get(f)) for f in new[name]
-                           if f in old[name] and old[name].get(f) != new[name].get(f) and not (same and f == "path"))
+                           if f in old[name] and old[name].get(f) != new[name].get(f) and not (same and f == "path")
+                           and f not in ignore)
             if fields:
                 changed.append(RowChange(name, fields))
     return Section(added=tuple(r for n, r in new.items() if n not in old),
@@ -318,6 +329,35 @@ def _edges(before: Mapping[str, Any], after: Mapping[str, Any]) -> tuple[tuple[s
     return (("edges", old, new),) if old != new else ()
 
 
+# A node's fields that follow from the robots (whom ``serve: all`` serves, each robot's share of its hour): a robot
+# added or removed shows in the robots section, not as every shared node changed.
+ROBOT_FOLLOWED = ("serves", "usd_per_hour_per_robot")
+# A robot's share of the hour follows every other robot's coming and going: the cost section says the total.
+ROBOT_IGNORED = ("usd_per_hour",)
+
+
+def robot_rows(doc: Mapping[str, Any]) -> list[Mapping[str, Any]] | None:
+    """A fleet document's robots; None for a document without them (one robot, or nothing deployed)."""
+    listed = doc.get("robots")
+    return listed if isinstance(listed, list) else None
+
+
+def _robots(before: Mapping[str, Any], after: Mapping[str, Any]) -> tuple[Section, bool]:
+    """The robots added, removed and changed, and whether either side is a fleet. A side without ``robots``
+    has none (a one-robot stack, nothing deployed), or lists its edges only (a fleet a fogiac before this one
+    applied): those compare by name and entry."""
+    old, new = robot_rows(before), robot_rows(after)
+    if old is None and new is None:
+        return Section(), False
+
+    def edges(doc: Mapping[str, Any]) -> list[Mapping[str, Any]]:
+        listed = doc.get("edges")
+        return [row for row in listed if isinstance(row, Mapping)] if isinstance(listed, list) else []
+
+    return _section(edges(before) if old is None else old, edges(after) if new is None else new, ("name",),
+                    compare=True, ignore=ROBOT_IGNORED), True
+
+
 def diff_documents(before: Mapping[str, Any] | None, after: Mapping[str, Any], *,
                    against: str = "applied") -> PlanDiff:
     """Everything that differs from ``before`` to ``after``; ``before`` None means nothing exists."""
@@ -327,13 +367,15 @@ def diff_documents(before: Mapping[str, Any] | None, after: Mapping[str, Any], *
     rules = _section(before.get("security_rules"), after.get("security_rules"),
                      ("group", "direction", "protocol", "ports", "cidr"), compare=True)
     topics = _section(before.get("topics"), after.get("topics"), ("topic", "direction", "host"), compare=False)
+    robots, fleet = _robots(before, after)
     settings = tuple((name, before.get(name), after.get(name)) for name in SETTINGS
                      if name in before and before.get(name) != after.get(name)) + _edges(before, after)
     return PlanDiff(
         against=against,
         resources=_resources(before.get("resources", []), after.get("resources", [])),
         hosts=_section(before.get("hosts"), after.get("hosts"), ("name",), compare=True),
-        nodes=_section(_hidden_env(before.get("nodes")), after.get("nodes"), ("name",), compare=True),
+        nodes=_section(_hidden_env(before.get("nodes")), after.get("nodes"), ("name",), compare=True,
+                       ignore=ROBOT_FOLLOWED),
         topics=topics, security_rules=rules, settings=settings,
         cost_before=float(before.get("cost", {}).get("hourly_usd", 0.0)),
         cost_after=float(after.get("cost", {}).get("hourly_usd", 0.0)),
@@ -348,6 +390,7 @@ def diff_documents(before: Mapping[str, Any] | None, after: Mapping[str, Any], *
         autostop=after.get("autostop"), autostop_known="autostop" in after,
         spot_as_of=str((after.get("cost", {}).get("spot_prices") or before.get("cost", {}).get("spot_prices")
                         or {}).get("as_of", "")),
+        robots=robots, fleet=fleet,
     )
 
 

@@ -17,6 +17,9 @@ an applied document of an earlier fogiac compares without a made-up change): ``p
 ``up`` pushes, with its content digest), ``autostop``, ``relay`` (compression and queue size),
 ``registries``, each host's ``ssh`` (user, key, port) and ``runtime``, and ``edges`` (each edge's name and
 entry, absent while the plan has only the one edge named after the stack, whose entry is ``edge_master``).
+A fleet's document (``robots:``) also has ``robots`` (each robot's certificate, access rules, edge links and
+share of the hour: :mod:`fogiac.plan.fleet`) and, in each node's row, whom it serves, its instances and each
+robot's share of its hour; a one-robot document has neither.
 A node's ``env`` shows values
 known harmless as they are, any other as ``sha256:`` and 12 hex digits, and a named secret as
 ``[secret env:NAME]``: no value reaches a plan, the stack's record or a pull-request comment.
@@ -33,7 +36,7 @@ from typing import Any
 
 from fogiac import __version__
 from fogiac.net import middleware
-from fogiac.plan import cost, pushed
+from fogiac.plan import cost, fleet, pushed
 from fogiac.plan.model import HostSpec, NodeSpec, Plan, Rule
 from fogiac.state import LEGACY_FILES, StackState
 
@@ -155,7 +158,9 @@ def document(plan: Plan, resources: Sequence[Mapping[str, Any]], *, manifest_pat
         "stacks": list(dict.fromkeys(str(r["stack"]) for r in resources)),  # in the order the target declares
         "resources": [dict(r) for r in resources],
         "hosts": [{**_host(host), **row} for host, row in zip(plan.hosts, cost.hosts(plan), strict=True)],
-        "nodes": [{**_node(node), **row} for node, row in zip(plan.nodes, cost.nodes(plan), strict=True)],
+        "nodes": [{**_node(node), **row, **(fleet.node_row(plan, node) if plan.fleet else {})}
+                  for node, row in zip(plan.nodes, cost.nodes(plan), strict=True)],
+        **({"robots": robots} if (robots := fleet.robots(plan)) is not None else {}),
         "topics": topics(plan),
         "security_rules": security_rules(plan),
         "pushed": pushed.pushed(plan),  # every path up pushes, with its content's digest

@@ -154,6 +154,7 @@ class NodeSpec:
     # (NAME, reference): env values read at `up` (env:NAME, file:PATH), never held in the plan
     secrets: tuple[tuple[str, str], ...] = ()
     serves: tuple[str, ...] = ()  # in a fleet, the robots it serves when not every one (the manifest's serve: list)
+    per_robot: bool = False  # serve: per_robot, one instance for each robot it serves, in that robot's namespace
 
 
 @dataclass(frozen=True)
@@ -386,6 +387,8 @@ class Plan:
                 del node["secrets"]
             if not node["serves"]:  # every robot: the same bytes (and digest) as before fleets
                 del node["serves"]
+            if not node["per_robot"]:  # one shared instance: the same bytes (and digest) as before per_robot
+                del node["per_robot"]
         for edge in out["edges"]:
             if edge["compression"] is None:  # the routes' own: the same bytes as before a robot could name one
                 del edge["compression"]

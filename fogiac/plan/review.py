@@ -134,11 +134,64 @@ def _host(row: Mapping[str, Any]) -> str:
 
 def _node(row: Mapping[str, Any]) -> str:
     hosts = ", ".join(row["replica_hosts"]) if row.get("replica_hosts") else row["host"]
-    return f"{row['name']} on {hosts} ({row['kind']}: {row['runs']})"
+    return f"{row['name']} on {hosts} ({row['kind']}: {row['runs']}){_serves(row)}"
+
+
+def _serves(row: Mapping[str, Any]) -> str:
+    """A fleet node's robots, instances and each robot's share of its hour; nothing for a one-robot plan's node."""
+    if "serves" not in row:
+        return ""
+    robots, count = list(row["serves"]), row.get("instances", 1)
+    share = row.get("usd_per_hour_per_robot")
+    each = "cost unknown" if share is None else f"${share:.4f}/h per robot"
+    return (f", serves {len(robots)} robot{'s' if len(robots) != 1 else ''} ({', '.join(robots)}), "
+            f"{count} instance{'s' if count != 1 else ''}{' (one per robot)' if count != 1 else ' (shared)'}, {each}")
 
 
 def _pushed(row: Mapping[str, Any]) -> str:
     return f"{row['node']} {row['what']} {row['path']} (sha256 {str(row['sha256'])[:12]})"
+
+
+def _robot(row: Mapping[str, Any], verb: str) -> list[str]:
+    """An added (or removed) robot, as what it is: its certificate, its access rules and its edge links.
+    A fleet document of an older fogiac names the robot and its entry only."""
+    lines = [f"robot {row['name']} (ROS master {row.get('entry')})"]
+    if "certificate" in row:
+        issued = "issued by the stack's CA" if verb == "add" else "no longer accepted by any cloud end"
+        lines.append(f"    certificate {row['certificate']} ({issued})")
+    if "access" in row:
+        lines.append(f"    access rules: {'may' if verb == 'add' else 'no longer'} cross "
+                     f"{', '.join(str(t) for t in row['access'])}")
+    if "edge_links" in row:
+        hosts = [str(h) for h in row["edge_links"]]
+        run = "started" if verb == "add" else "stopped"
+        lines.append(f"    edge process on this machine: linked to {', '.join(hosts) or 'no host'} ({run})")
+    return lines
+
+
+def robot_lines(section: Section) -> list[str]:
+    """Robots added, removed or changed: each its certificate, access rules and edge process, no host."""
+    lines = []
+    for row in section.added:
+        first, *rest = _robot(row, "add")
+        lines += [f"+ {first}", *rest]
+    for row in section.removed:
+        first, *rest = _robot(row, "remove")
+        lines += [f"- {first}", *rest]
+    for c in section.changed:
+        lines.append(f"~ robot {c.key}")
+        lines += [f"    {name}: {_value(before)} -> {_value(after)}" for name, before, after in c.fields]
+    return lines
+
+
+def _robots_touch_no_host(diff: PlanDiff) -> list[str]:
+    """Said where robots come or go and no host changes: what a reviewer checks before a fleet's ``up``."""
+    if diff.robots.empty or not diff.hosts.empty or any(r.action == "replace" for r in diff.resources):
+        return []
+    names = [f"+{r['name']}" for r in diff.robots.added] + [f"-{r['name']}" for r in diff.robots.removed]
+    said = f"robots {', '.join(names)}: " if names else "robots changed: "
+    return [said + "certificates, access rules and edge processes only; no host is replaced or restarted "
+            "(0 hosts to replace)"]
 
 
 def section_lines(section: Section, show: Any) -> list[str]:
@@ -210,7 +263,7 @@ def consequences(diff: PlanDiff) -> list[str]:
         if name == "autostop" and isinstance(after, Mapping) and after.get("action") == "terminate" and (
                 not isinstance(before, Mapping) or before.get("action") != "terminate"):
             lines.append("autostop now terminates the hosts: an idle stack is deleted with its disks, not stopped")
-    return lines
+    return lines + _robots_touch_no_host(diff)
 
 
 def sections(diff: PlanDiff) -> list[tuple[str, list[str]]]:
@@ -224,11 +277,14 @@ def sections(diff: PlanDiff) -> list[tuple[str, list[str]]]:
            ("security rules", section_lines(diff.security_rules, _rule)),
            ("cost", [cost_line(diff), month_line(diff)] if costs else []),
            ("resources", [line for r in diff.changed_resources for line in resource_lines(r)]),
+           ("robots (certificate, access rules, edge process)", robot_lines(diff.robots)),
            ("hosts", section_lines(diff.hosts, _host)),
            ("nodes", section_lines(diff.nodes, _node)),
            ("topics crossing the edge", section_lines(diff.topics, _topic)),
            ("pushed to the hosts", section_lines(diff.pushed, _pushed)),
-           ("settings", [f"~ {k}: {_value(b)} -> {_value(a)}" for k, b, a in diff.settings])]
+           # a fleet's edges are its robots, said above
+           ("settings", [f"~ {k}: {_value(b)} -> {_value(a)}" for k, b, a in diff.settings
+                         if not (k == "edges" and diff.fleet)])]
     return [(title, lines) for title, lines in out if lines]
 
 

@@ -23,6 +23,7 @@ from fogiac.plan.diff import diff_documents
 from fogiac.plan.document import plan_document
 from fogiac.plan.review import terminal
 from fogiac.state import StackState
+from tests.docs.blocks import REPO, blocks, normalise
 from tests.plan.test_fleet import FLEET
 
 runner = CliRunner()
@@ -66,6 +67,10 @@ def test_a_robot_added_is_its_certificate_access_and_edge_process_only(tmp_path:
     assert "Plan: 0 to add, 0 to change, 0 to destroy. Robots: 1 to add, 0 to change, 0 to remove." in lines
     assert "hosts:" not in lines and "nodes:" not in lines and "resources:" not in lines
     assert not any(line.startswith("~ robot arm") for line in lines)  # the others keep their access
+    if cloud == "local":  # the fleet guide shows this very output
+        shown_in_guide = [b for b in blocks(REPO / "docs" / "guides" / "fleet.md") if b.kind == "checked"
+                          and b.field("test") == "tests/plan/test_fleet_diff.py"]
+        assert [normalise(b.body) for b in shown_in_guide] == [normalise(shown.output.strip("\n") + "\n")]
 
     doc = json.loads(runner.invoke(app, ["plan", str(manifest), "--json"]).output)
     changes = doc["changes"]

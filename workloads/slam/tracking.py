@@ -171,7 +171,8 @@ class Tracker:
             self._lost += 1
         else:
             assert pose is not None
-            self._velocity = inverse(previous) @ pose
+            # After a lost frame, ``previous`` is the motion model's guess, not a pose: no velocity from it.
+            self._velocity = np.eye(4) if relocalising else inverse(previous) @ pose
             self._lost = 0
         assert pose is not None
         ref = self.map.keyframes[-1]

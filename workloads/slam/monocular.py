@@ -38,6 +38,10 @@ HOMOGRAPHY_RATIO = 0.45  # R_H above which the homography is used (ORB-SLAM's th
 CHI2_SCORE = 5.991  # chi-square, 2 dof, 95%: the score's cut (1 px sigma)
 CHI2_EPIPOLAR = 3.841  # chi-square, 1 dof, 95%: a point-to-line distance's inlier cut
 MAX_WAIT_FRAMES = 30  # a reference frame older than this is replaced
+# Frames before the start placed against its map once it exists. Earlier references' frames count
+# too: walking forward, the frames before the start see a wider view of the same scene (rendered
+# forward sequence: the start came at frame 50, from a reference at frame 31).
+MAX_PLACED_FRAMES = 60
 
 
 def _matches(a: Features, b: Features, *, ratio: float) -> np.ndarray:
@@ -165,13 +169,25 @@ class Initialiser:
     def __init__(self, intrinsics: Intrinsics) -> None:
         self.intrinsics = intrinsics
         self.reference: Features | None = None
+        # Frames that waited for the start, earlier references included: the tracker places them
+        # once the start's map exists (the newest MAX_PLACED_FRAMES of them, about 48 KB each).
+        self.waited: list[Features] = []
 
     def try_initialise(self, m: Map, f: Features) -> bool:
         """True once ``m`` holds keyframes 0 (the reference) and 1 (``f``) and their points."""
         ref = self.reference
         if ref is None or f.index - ref.index > MAX_WAIT_FRAMES:
+            if ref is not None:
+                self.waited.append(ref)
             self.reference = f
+            self.waited = self.waited[-MAX_PLACED_FRAMES:]
             return False
+        if not self._start(m, ref, f):
+            self.waited = [*self.waited, f][-MAX_PLACED_FRAMES:]
+            return False
+        return True
+
+    def _start(self, m: Map, ref: Features, f: Features) -> bool:
         pairs = _matches(ref, f, ratio=0.8)
         if len(pairs) < MIN_MATCHES:
             return False

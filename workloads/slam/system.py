@@ -371,6 +371,7 @@ def run_sequence(seq: Sequence, *, cores: int = 0, mono: bool = False, config: C
             stages["track"] += time.thread_time() - t0
             stages["track_wall"] += time.monotonic() - w0
         tracking_s = time.monotonic() - start
+        tracked += slam.tracker.placed_late
         cpu_s = cpu_seconds(pids) - cpu_start
         for name, pid, before in zip(("mapping", "loop"), slam.pids, back_start, strict=True):
             stages[name] = process_cpu_seconds(pid) - before

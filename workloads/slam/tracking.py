@@ -146,6 +146,7 @@ class Tracker:
         self._kf_inliers = 0
         self._since_keyframe = 0
         self._lost = 0  # frames since the last trustworthy pose
+        self.placed_late = 0  # frames placed after they came (the monocular start's waiting frames)
         self._init: monocular.Initialiser | None = monocular.Initialiser(intrinsics) if mono else None
 
     # -- tracking ------------------------------------------------------------------------------
@@ -171,7 +172,8 @@ class Tracker:
             self._lost += 1
         else:
             assert pose is not None
-            self._velocity = inverse(previous) @ pose
+            # After a lost frame, ``previous`` is the motion model's guess, not a pose: no velocity from it.
+            self._velocity = np.eye(4) if relocalising else inverse(previous) @ pose
             self._lost = 0
         assert pose is not None
         ref = self.map.keyframes[-1]
@@ -314,10 +316,35 @@ class Tracker:
                 self.map.frames.append(FrameRecord(f.index, f.stamp, -1, np.eye(4), False))
                 return TrackResult(None, False, 0, False)
             self.new_keyframes.extend([0, 1])
+            self._place_waited(self._init.waited)
+            self._init.waited = []
             self._last_ref, self._last_relative = 1, np.eye(4)
             self._kf_inliers = int((self.map.keyframes[1].point_ids >= 0).sum())
         self.map.frames.append(FrameRecord(f.index, f.stamp, self._last_ref, np.eye(4), True))
         return TrackResult(self.last_pose, True, self._kf_inliers, True)
+
+    def _place_waited(self, waited: list[Features]) -> None:
+        """Place the frames that waited for the start against the start's map.
+
+        Most see the points the start triangulated, so each is located as a lost frame is
+        relocalised: every feature against every point, PnP RANSAC, and trusted only with
+        ``relocalise_inliers`` inliers (those that do not stay untracked). Their records, written
+        untracked when they came, are rewritten: the trajectory has them, a live node published
+        nothing for them. A forward or turning start waits 10-50 frames for enough parallax
+        (rendered sequences), and a trajectory without them misses that much of the path's extent."""
+        at = {r.index: j for j, r in enumerate(self.map.frames)}
+        ref = self.map.keyframes[0].features
+        if ref.index in at:  # the reference is keyframe 0 itself
+            self.map.frames[at[ref.index]] = FrameRecord(ref.index, ref.stamp, 0, np.eye(4), True)
+            self.placed_late += 1
+        ids = self.map.point_ids_of([0, 1])
+        for f in waited:
+            pose, inliers = self._pose_against(f, ids, np.eye(4), wide=True)
+            if pose is None or len(inliers) < self.config.relocalise_inliers or f.index not in at:
+                continue
+            self.map.frames[at[f.index]] = FrameRecord(f.index, f.stamp, 0, inverse(self.map.keyframes[0].pose) @ pose,
+                                                       True)
+            self.placed_late += 1
 
     # -- back end: jobs out, answers in ---------------------------------------------------------
     def bundle_job(self) -> BundleJob | None:

@@ -2,6 +2,7 @@
 
     .venv/bin/python benchmarks/fleet.py                      # 1, 8 and 32 robots at 10 Hz (~4 min), needs rospy
     .venv/bin/python benchmarks/fleet.py --robots 1,8 --count 200 --work-ms 0
+    .venv/bin/python benchmarks/fleet.py --planner --robots 1,3,8 --rate 2 --count 60   # the motion planner
 
 On ``local`` (loopback): each robot is its own ROS master (``rosmaster --core``), its own relay edge end
 (``fogiac relay edge`` with the robot's own client certificate, as ``up`` issues them) and a rospy robot
@@ -10,7 +11,10 @@ one master, one ``fogiac relay cloud`` following the fleet's access file (``flee
 shared request/reply topics) and one shared echo node (``--work-ms`` of busy CPU per request). Each robot
 stamps its requests from its own base (robot k: 1000 + 100000 k seconds), so a reply that reaches a robot
 that did not ask for it is counted as *foreign* (a reply routed to the wrong robot); with per-robot reply
-routing it must be 0.
+routing it must be 0. With ``--planner`` the shared node is the motion planner (``python -m
+workloads.motion_planning node``, warm, every core; needs OMPL) and each robot asks it for ``--problem``
+(``PoseArray``, ``frame_id`` "PROBLEM;seed=i", stamp as above; one unmeasured request first, while the
+planner warms up).
 
 Printed per fleet size: requests, own replies, foreign replies, lost requests, P50/P99 in ms over every
 robot's replies and the worst robot's P99, total replies a second (each robot's own replies over
@@ -19,6 +23,28 @@ added robot (its RSS with every robot linked and replying, minus its RSS before 
 over the number of robots), and the load average. The machine may be shared: read figures with the load.
 
 Goals on 2 cores (issue 34): 32 robots at 10 Hz, no loss, P99 <= 50 ms; <= 5 MB of cloud-end memory per robot.
+
+Figures (Debian 12 VM, 2 CPUs shared with other jobs, 2026-11-28; ms; load average at the end of each size).
+Echo node, 300 requests per robot at 10 Hz, no work (``--robots 1,8,32``):
+
+    robots requests   own foreign lost  p50   p99  worst p99  replies/s  MB/robot  load
+         1      300   300       0    0  1.5   5.6        5.6       10.0      0.73   1.9
+         8     2400  2400       0    0  1.2   9.9       13.4       79.5      0.27   3.4
+        32     9600  9600       0    0  1.7  17.0       21.9      317.7      0.24   7.3
+
+Both goals met: 32 robots, no loss, P99 17 ms (the worst robot's 21.9 ms); 0.24 MB of cloud-end memory per
+robot. Before the cloud end routed replies (the same run, 8 robots, 100 requests each), every robot also got
+every other robot's replies: 4326 foreign replies for 800 requests.
+Motion planner (``--planner --robots 1,3,8 --rate 2 --count 60``, problem ``easy``, the planner on both cores):
+
+    robots requests   own foreign lost  p50   p99  worst p99  replies/s  MB/robot  load
+         1       60    60       0    0  8.8  18.7       18.7        2.0      0.58   6.2
+         3      180   180       0    0 13.9  45.0       47.3        6.1      0.36   4.8
+         8      480   480       0    0 19.5 505.3      505.3       16.2      0.27   4.8
+
+Every path back to the robot that asked, none lost; with 8 robots the planner's two cores are shared by 8
+robots' processes, their masters and edge ends on the same 2 CPUs, and the tail (P99 = the 5th slowest of 480)
+reaches half a second: on a real deployment the robots and their edge ends are other machines.
 """
 
 from __future__ import annotations
@@ -30,6 +56,7 @@ import shutil
 import statistics
 import subprocess
 import sys
+import threading
 import time
 import xmlrpc.client
 from pathlib import Path
@@ -43,12 +70,13 @@ from tests.net.relay.relay_support import Master, Proc, Procs, free_port, wait_f
 from tests.support.ros import ros_missing  # noqa: E402
 
 NODES = ROOT / "tests" / "net" / "relay" / "replica_nodes.py"
-REQ, REP = "/fleet_bench/request", "/fleet_bench/reply"
+ECHO = ("/fleet_bench/request", "/fleet_bench/reply")
+PLANNER = ("/motion_planning/request", "/motion_planning/path")
 STACK = "fleetbench"
 BASE, STRIDE = 1000, 100000  # robot k stamps request i with BASE + k * STRIDE + i seconds
 
 
-def fleet_certs(folder: Path, robots: list[str]) -> None:
+def fleet_certs(folder: Path, robots: list[str], topics: tuple[str, str]) -> None:
     """A lab CA and cloud-end pair, each robot's own client pair, and the access file naming them all."""
     lab = folder.with_name(folder.name + "-lab")
     write_relay_lab(STACK, lab)
@@ -56,8 +84,9 @@ def fleet_certs(folder: Path, robots: list[str]) -> None:
     load_or_create_edges(STACK, folder, robots)
     for name in ("server.pem", "server.key"):  # the lab's cloud-end pair (a stack's host makes its own)
         shutil.copy(lab / name, folder / name)
-    shared = frozenset((REQ, REP))
-    pair = SharedPair("echo", frozenset((REQ,)), frozenset((REP,)))  # replies routed to the robot that asked
+    req, rep = topics
+    shared = frozenset(topics)
+    pair = SharedPair("shared", frozenset((req,)), frozenset((rep,)))  # replies routed to the robot that asked
     write_access(folder / ACCESS_FILE, FleetAccess(
         {edge_identity(STACK, r): Robot(r, edge_identity(STACK, r), shared) for r in robots}, frozenset(), (pair,)))
 
@@ -93,20 +122,81 @@ def percentile(values: list[float], q: float) -> float:
     return ordered[min(len(ordered) - 1, int(round(q * (len(ordered) - 1))))]
 
 
+def planner_robot(argv: list[str]) -> None:
+    """A robot asking the motion planner (its own process, on its own master): ``robot REQ REP --count N
+    --rate HZ --base B --problem P``; prints one JSON line per path as replica_nodes.py's robot does, then done."""
+    parser = argparse.ArgumentParser()
+    parser.add_argument("request")
+    parser.add_argument("reply")
+    parser.add_argument("--count", type=int)
+    parser.add_argument("--rate", type=float)
+    parser.add_argument("--base", type=int)
+    parser.add_argument("--problem", default="easy")
+    parser.add_argument("--wait", type=float, default=10.0)
+    args = parser.parse_args(argv)
+    import rospy
+    from geometry_msgs.msg import PoseArray
+
+    sent: dict[int, float] = {}
+    lock = threading.Lock()
+    warm = threading.Event()
+
+    def got(reply: PoseArray) -> None:
+        now = time.perf_counter()
+        i = reply.header.stamp.secs - args.base
+        if i == -1:
+            warm.set()
+            return
+        with lock:
+            t0 = sent.get(i)
+        ms = None if t0 is None else round((now - t0) * 1e3, 3)
+        print(json.dumps({"i": i, "from": "planner", "ms": ms, "t": round(time.time(), 4),
+                          "poses": len(reply.poses)}), flush=True)
+
+    rospy.init_node("fleet_bench_robot", anonymous=True, disable_signals=True)
+    pub = rospy.Publisher(args.request, PoseArray, queue_size=100, tcp_nodelay=True)
+    rospy.Subscriber(args.reply, PoseArray, got, queue_size=1000, tcp_nodelay=True)
+    print("ready", flush=True)
+
+    def ask(i: int) -> None:
+        request = PoseArray()
+        request.header.frame_id = f"{args.problem};seed={max(i, 0)}"
+        request.header.stamp = rospy.Time(args.base + i, 0)
+        with lock:
+            sent[i] = time.perf_counter()
+        pub.publish(request)
+
+    while not warm.is_set():  # the link, then the planner's first answer (it warms up), unmeasured
+        if pub.get_num_connections():
+            ask(-1)
+        warm.wait(2.0)
+    for i in range(args.count):
+        ask(i)
+        time.sleep(1.0 / args.rate)
+    time.sleep(args.wait)
+    print("done", flush=True)
+
+
 def run(n: int, args: argparse.Namespace, home: Path) -> dict:
     robots = [f"r{k}" for k in range(n)]
     certs = home / f"certs-{n}"
-    fleet_certs(certs, robots)
+    req, rep = topics = PLANNER if args.planner else ECHO
+    fleet_certs(certs, robots, topics)
     procs = Procs(home)
     try:
         cloud_m = master(procs)
         port = free_port()
         cloud = procs.spawn([sys.executable, "-m", "fogiac", "relay", "cloud", "--listen", f"127.0.0.1:{port}",
                              "--master", cloud_m.uri, "--certs", str(certs), "--ros-host", "127.0.0.1",
-                             "--out", REQ, "--in", REP, "--topics", "", "--queue-depth", "100"], cloud_m.env)
-        echo = procs.spawn([sys.executable, str(NODES), "echo", REQ, REP, "--name", "cloud",
-                            "--work-ms", str(args.work_ms)], cloud_m.env)
-        wait_for(lambda: "ready" in echo.lines, 60, "the echo node")
+                             "--out", req, "--in", rep, "--topics", "", "--queue-depth", "100"], cloud_m.env)
+        if args.planner:
+            procs.spawn([sys.executable, "-m", "workloads.motion_planning", "node", "__name:=motion_planning"],
+                        cloud_m.env)
+            wait_for(lambda: cloud_m.subscribers(req), 120, "the motion planner")
+        else:
+            echo = procs.spawn([sys.executable, str(NODES), "echo", req, rep, "--name", "cloud",
+                                "--work-ms", str(args.work_ms)], cloud_m.env)
+            wait_for(lambda: "ready" in echo.lines, 60, "the echo node")
         time.sleep(2.0)  # the cloud end settles (its first graph poll) before its memory is read
         rss0 = rss_mb(cloud.popen.pid)
         clients: list[Proc] = []
@@ -114,11 +204,12 @@ def run(n: int, args: argparse.Namespace, home: Path) -> dict:
             edge_m = master(procs)
             procs.spawn([sys.executable, "-m", "fogiac", "relay", "edge", "--connect", f"127.0.0.1:{port}",
                          "--master", edge_m.uri, "--certs", str(certs), "--client", edge_role(STACK, robot),
-                         "--ros-host", "127.0.0.1", "--out", REQ, "--in", REP, "--topics", "",
+                         "--ros-host", "127.0.0.1", "--out", req, "--in", rep, "--topics", "",
                          "--queue-depth", "100"], edge_m.env)
-            clients.append(procs.spawn([sys.executable, str(NODES), "robot", REQ, REP, "--count", str(args.count),
-                                        "--rate", str(args.rate), "--base", str(BASE + k * STRIDE),
-                                        "--wait", "5"], edge_m.env))
+            robot = ([sys.executable, __file__, "robot", "--problem", args.problem] if args.planner
+                     else [sys.executable, str(NODES), "robot"])
+            clients.append(procs.spawn([*robot, req, rep, "--count", str(args.count), "--rate", str(args.rate),
+                                        "--base", str(BASE + k * STRIDE), "--wait", "5"], edge_m.env))
         wait_for(lambda: all(any(line.startswith("{") for line in c.lines) for c in clients),
                  120 + 2 * n, "every robot's first reply")
         rss = rss_mb(cloud.popen.pid)  # every robot linked and replying
@@ -152,11 +243,16 @@ def run(n: int, args: argparse.Namespace, home: Path) -> dict:
 
 
 def main() -> None:
+    if sys.argv[1:2] == ["robot"]:
+        planner_robot(sys.argv[2:])
+        return
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robots", default="1,8,32", help="fleet sizes, comma-separated")
     parser.add_argument("--count", type=int, default=300, help="requests per robot")
     parser.add_argument("--rate", type=float, default=10.0, help="requests a second per robot")
     parser.add_argument("--work-ms", type=float, default=0.0, help="the shared node's busy CPU per request")
+    parser.add_argument("--planner", action="store_true", help="the shared node is the motion planner")
+    parser.add_argument("--problem", default="easy", help="--planner: the problem each robot asks for")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
     why = ros_missing()

@@ -141,8 +141,10 @@ def provision(plan: Plan, *, hosts: Mapping[str, HostAccess], state_dir: Path, c
     ``ports``: host -> what its services listen on, where the target chose (unset: the plan's).
     """
     started = time.monotonic()
+    revoked = StackState.at(state_dir).get(StackState.REVOKED)
     options = Options(certs_dir=certs_dir, health_timeout=health_timeout, allow_install=allow_install,
-                      dialed=dict(dialed or {}))
+                      dialed=dict(dialed or {}),
+                      revoked=tuple(sorted(str(r) for r in revoked)) if isinstance(revoked, list) else ())
     known_hosts = StackState.at(state_dir).known_hosts
     record_access(state_dir, plan, hosts, {})  # first: an interrupted run's hosts are found again
     listen = {**planned_ports(plan), **(ports or {})}

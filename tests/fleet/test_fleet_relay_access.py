@@ -3,61 +3,28 @@
 Three robots, each its own roscore, certificate and relay edge end, link to one cloud end that follows the
 access file beside its certificates (``fleet.json``). A robot asking for or sending another robot's topic is
 refused; revoking a robot in the file closes its link and refuses its redials within 10 s while the others
-carry on; restoring it links it again; no process is restarted.
+carry on; restoring it links it again; no process is restarted. A shared node's topics are used one way only.
 """
 
 from __future__ import annotations
 
 import contextlib
-import shutil
 import socket
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-from fogiac.certs import edge_identity, edge_role, load_or_create_edges
-from fogiac.net.relay import CloudConfig, CloudRelay, EdgeConfig, EdgeRelay, TopicPolicy, framing
+from fogiac.certs import edge_identity, edge_role
+from fogiac.net.relay import EdgeRelay, framing
 from fogiac.net.relay.config import policy_from_spec
-from fogiac.net.relay.fleet import ACCESS_FILE, FleetAccess, Robot, write_access
+from fogiac.net.relay.fleet import ACCESS_FILE, SharedPair, write_access
 from fogiac.net.relay.framing import Kind
 from fogiac.net.relay.session import read_frame
 from fogiac.net.relay.tls import client_context, expected_server_name
+from tests.fleet.fleet_support import STACK, access, cloud_end, edge_end
 from tests.net.relay.relay_support import Master, Procs, wait_for
 
 pytestmark = pytest.mark.ros
-
-STACK = "relaytest"  # the lab certificates' stack (the relay conftest's ``certs``)
-ROBOTS = ("arm1", "arm2", "arm3")
-SHARED = ("/plan/request", "/plan/reply")  # a shared node's request/reply topics: every robot may use them
-
-
-def _access(revoked: tuple[str, ...] = ()) -> FleetAccess:
-    robots = {edge_identity(STACK, r): Robot(r, edge_identity(STACK, r), frozenset(SHARED)) for r in ROBOTS}
-    return FleetAccess(robots, frozenset(revoked))
-
-
-@pytest.fixture
-def fleet_certs(certs: Path, tmp_path: Path) -> Path:
-    """The lab folder with each robot's own pair (issued the way ``up`` issues every edge's) and the access file."""
-    folder = tmp_path / "certs"
-    shutil.copytree(certs, folder)
-    load_or_create_edges(STACK, folder, list(ROBOTS))
-    for name in ("server.pem", "server.key"):  # the lab's cloud end pair, which a stack's folder never keeps
-        shutil.copy(certs / name, folder / name)
-    write_access(folder / ACCESS_FILE, _access())
-    return folder
-
-
-@contextlib.contextmanager
-def cloud_end(master: Master, certs: Path, policy: TopicPolicy = TopicPolicy(auto=True)) -> Iterator[CloudRelay]:
-    cloud = CloudRelay(CloudConfig(master_uri=master.uri, certs=certs, ros_host="127.0.0.1",
-                                   listen=("127.0.0.1", 0), poll_interval=0.1, policy=policy))
-    cloud.start()
-    try:
-        yield cloud
-    finally:
-        cloud.stop()
 
 
 def _hello(certs: Path, robot: str | None, address: tuple[str, int]) -> socket.socket:
@@ -107,12 +74,8 @@ def test_a_revoked_robot_is_cut_off_within_10_s_and_restored(masters: tuple[Mast
     with cloud_end(cloud_m, fleet_certs) as cloud, contextlib.ExitStack() as stack:
         ends: dict[str, EdgeRelay] = {}
         for n, (name, master) in enumerate(robots.items()):
-            end = EdgeRelay(EdgeConfig(master_uri=master.uri, certs=fleet_certs, client=edge_role(STACK, name),
-                                       ros_host="127.0.0.1", connect=cloud.address, poll_interval=0.1,
-                                       backoff_initial=0.1, backoff_max=0.5, caller_id=f"/fogiac_relay_edge_{n}"))
-            end.start()
+            end = ends[name] = edge_end(name, master, fleet_certs, cloud, n)
             stack.callback(end.stop)
-            ends[name] = end
         ups = {}
         for name, master in robots.items():  # each robot's own client process, and its listener in the cloud
             procs.node(master, "pub", f"/{name}/up", "--forever", "--rate", "40")
@@ -125,7 +88,7 @@ def test_a_revoked_robot_is_cut_off_within_10_s_and_restored(masters: tuple[Mast
 
         arm3 = edge_identity(STACK, "arm3")
         session = cloud.sessions[arm3]
-        write_access(fleet_certs / ACCESS_FILE, _access(revoked=("arm3",)))
+        write_access(fleet_certs / ACCESS_FILE, access(revoked=("arm3",)))
         wait_for(lambda: not session.alive, 10, "arm3's link closed")
         wait_for(lambda: cloud.refused_links >= 1, 10, "arm3's redial refused")
         assert not cloud.sessions[arm3].alive and not ends["arm3"].connected.is_set()
@@ -135,6 +98,26 @@ def test_a_revoked_robot_is_cut_off_within_10_s_and_restored(masters: tuple[Mast
         assert len(ups["arm3"].data()) <= cut + 1  # at most one message in flight when the link was cut
         assert all(cloud.sessions[edge_identity(STACK, n)].alive for n in ("arm1", "arm2"))
 
-        write_access(fleet_certs / ACCESS_FILE, _access())  # restored: its edge's next redial is linked
+        write_access(fleet_certs / ACCESS_FILE, access())  # restored: its edge's next redial is linked
         wait_for(lambda: cloud.sessions[arm3].alive and ends["arm3"].connected.is_set(), 15, "arm3 back")
         wait_for(lambda: len(ups["arm3"].data()) >= cut + 10, 20, "arm3's flow again")
+
+
+def test_a_robot_uses_a_shared_nodes_topics_one_way(masters: tuple[Master, Master], fleet_certs: Path) -> None:
+    """A shared node named in the file: a robot sends its requests and hears its replies, but may not read the
+    request topic (every robot's requests) nor publish on the reply topic (posing as the node)."""
+    _, cloud_m = masters
+    planner = SharedPair("planner", frozenset({"/plan/request"}), frozenset({"/plan/reply"}))
+    write_access(fleet_certs / ACCESS_FILE, access(shared=(planner,)))
+    arm2 = edge_identity(STACK, "arm2")
+    policy = policy_from_spec("auto", in_topics="/plan/request,/plan/reply", out_topics="/plan/reply")
+    with cloud_end(cloud_m, fleet_certs, policy) as cloud, _hello(fleet_certs, "arm2", cloud.address) as sock:
+        wait_for(lambda: arm2 in cloud.sessions, 10, "arm2's session")
+        session = cloud.sessions[arm2]
+        _send(sock, Kind.SUBSCRIBE, "/plan/request")  # read every robot's requests
+        _send(sock, Kind.OPEN, "/plan/reply")  # answer in the node's name
+        _send(sock, Kind.SUBSCRIBE, "/plan/reply")  # hear its replies: allowed
+        wait_for(lambda: session.refused == 2 and "/fogiac_relay_cloud" in cloud_m.subscribers("/plan/reply"),
+                 10, "two refusals and the reply subscription")
+        assert "/fogiac_relay_cloud" not in cloud_m.subscribers("/plan/request")
+        assert "/fogiac_relay_cloud" not in cloud_m.publishers("/plan/reply") and session.alive

@@ -17,7 +17,9 @@ Refusals are logged at most once per kind per 10 s (:mod:`.ratelog`).
 
 A fleet's cloud end also follows its access file (:mod:`.fleet`, ``fleet.json`` beside its certificates):
 only a listed, unrevoked robot is linked, and only for its own namespace and the shared nodes' topics;
-when the file changes, the links that lost their access are closed (within the watch's poll).
+when the file changes, the links that lost their access are closed (within the watch's poll). The replies of
+the shared request/reply nodes the file names go back only to the robot whose request each answers
+(:mod:`.replyroute`; :meth:`CloudRelay.reply_stats` counts them); with one edge nothing is routed.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ from fogiac.net.relay.fleet import ACCESS_FILE, AccessWatch, FleetAccess
 from fogiac.net.relay.framing import Frame, FrameError, Kind
 from fogiac.net.relay.graph import Direction, GraphState, may_cross
 from fogiac.net.relay.ratelog import RateLimitedLog
+from fogiac.net.relay.replyroute import ReplyRouter
 from fogiac.net.relay.session import Session, read_frame, send_now
 from fogiac.net.relay.shared import SharedTopics
 from fogiac.net.relay.tls import server_context
@@ -86,6 +89,7 @@ class CloudRelay(RelayEnd):
         self.turned_away = 0  # connections closed because too many were handshaking (new ones or idle ones)
         self.refused_links = 0  # fleet: linked TLS connections of an unknown or revoked robot, closed
         self.access: AccessWatch | None = None
+        self.replies = ReplyRouter(pending=config.reply_pending, expire_s=config.reply_expire_s)
 
     @property
     def address(self) -> tuple[str, int]:
@@ -96,7 +100,7 @@ class CloudRelay(RelayEnd):
 
     def _start_link(self) -> None:
         assert self.node is not None
-        self._topics = SharedTopics(self.node, depth=self.config.queue_depth)
+        self._topics = SharedTopics(self.node, depth=self.config.queue_depth, router=self.replies)
         self.access = AccessWatch(self.cloud_config.access_file or self.cloud_config.certs / ACCESS_FILE,
                                   self._access_changed)
         try:
@@ -228,9 +232,11 @@ class CloudRelay(RelayEnd):
                 old.closed.wait(10)
                 self.reconnects += 1
             assert self.node is not None and self._topics is not None
+            topics = self._topics
             session = Session(sock=sock, node=self.node, config=self.config, peer=f"edge {peer}",
                               accepts=lambda topic: self._allowed(topic, "out", identity),
-                              feed=self._topics.feed, outlet=self._topics.outlet)
+                              feed=lambda source: topics.feed(source, identity),
+                              outlet=lambda sink, meta: topics.outlet(sink, meta, identity))
             session.handlers[Kind.SUBSCRIBE] = lambda f: self._on_subscribe(session, f, identity)
             session.handlers[Kind.UNSUBSCRIBE] = lambda f: self._on_unsubscribe(session, f)
             self.sessions[identity] = self.session = session
@@ -251,8 +257,21 @@ class CloudRelay(RelayEnd):
         rules = self._rules()
         return rules is None or rules.robot(identity) is not None
 
+    def reply_stats(self) -> dict[str, dict[str, Any]]:
+        """Per shared request/reply node: requests forwarded, answered, waiting; replies that reached no robot;
+        the replies each robot got (``served``, by robot name where the access file names it)."""
+        figures = self.replies.stats()
+        rules = self._rules()
+        if rules is not None:
+            for node in figures.values():
+                node["served"] = {(r.name if (r := rules.robots.get(i)) is not None else i): n
+                                  for i, n in node["served"].items()}
+        return figures
+
     def _access_changed(self, rules: FleetAccess | None) -> None:
-        """Close the links of robots that lost their access (revoked, or dropped from the fleet)."""
+        """Route the shared nodes' replies the file names; close the links of robots that lost their access
+        (revoked, or dropped from the fleet)."""
+        self.replies.configure(rules.shared if rules is not None else ())
         if rules is None:
             return
         with self._swap:
@@ -287,8 +306,8 @@ class CloudRelay(RelayEnd):
 
     def _allowed(self, topic: str, direction: Direction, identity: str) -> bool:
         rules = self._rules()
-        if rules is not None and not rules.allows(identity, topic):
-            return False  # another robot's topic, or a revoked robot's last frames
+        if rules is not None and not rules.allows(identity, topic, direction):
+            return False  # another robot's topic, a shared node's the wrong way, or a revoked robot's last frames
         policy = self.cloud_config.policy
         if may_cross(topic, direction, policy, self._graph):
             return True

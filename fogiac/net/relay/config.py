@@ -51,6 +51,8 @@ class CloudConfig(EndConfig):
     tls_timeout: float = 3.0  # seconds a connection may take to start and finish TLS (before any certificate)
     caller_id: str = "/fogiac_relay_cloud"
     access_file: Path | None = None  # a fleet's access rules (None: ``fleet.json`` under certs; no file: one edge)
+    reply_pending: int = 4096  # fleet: a robot's requests to one shared node waiting for a reply (its oldest forgotten)
+    reply_expire_s: float = 60.0  # fleet: how long a request waits for its reply before it is forgotten
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -4,13 +4,21 @@ A fleet's cloud end keeps an access file beside its certificates (``fleet.json``
 provisioning and rewritten by ``fogiac robot revoke``/``restore``)::
 
     {"robots": {"arm1": {"identity": "arm1.edge.lab.fogiac", "topics": ["/plan/request", "/plan/reply"]}},
-     "revoked": ["arm3"]}
+     "revoked": ["arm3"],
+     "shared": [{"node": "planner", "requests": ["/plan/request"], "replies": ["/plan/reply"],
+                 "match": "header.stamp"}]}
 
 A robot may ask for (SUBSCRIBE) and send (OPEN) only the topics of its own namespace ``/<robot>/...`` and
-the listed ones (the request/reply topics of the shared nodes that serve it); a certificate of no listed
+the listed ones (the request/reply topics of the shared nodes that serve it; those named under ``shared``
+only one way: it sends requests and hears replies); a certificate of no listed
 robot, or of a revoked one, is not linked at all. The file is read again whenever it changes
 (:class:`AccessWatch`), so robots are added and revoked with no process restarted. Without the file the
 cloud end keeps the rules of a single edge (every identity linked, the topic policy alone decides).
+
+``shared`` (optional) names each shared request/reply node's topics and the reply field that names a
+request (the manifest's ``reply_match``; ``null``: its outputs carry no key): the cloud end sends each
+reply only to the robot whose request it answers (:mod:`.replyroute`). A shared node's outputs not listed
+there, or listed with no match, go to every robot that may subscribe them (the robots the node serves).
 """
 
 from __future__ import annotations
@@ -24,6 +32,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from fogiac.net.relay.graph import GraphState
+from fogiac.net.relay.match import DEFAULT_MATCH
 
 log = logging.getLogger(__name__)
 ACCESS_FILE = "fleet.json"
@@ -45,20 +54,62 @@ class Robot:
 
 
 @dataclass(frozen=True)
+class SharedPair:
+    """A shared node's request and reply topics, and the reply field that names its request (None: no key)."""
+
+    node: str
+    requests: frozenset[str]
+    replies: frozenset[str]
+    match: str | None = DEFAULT_MATCH
+
+    def to_json(self) -> dict[str, object]:
+        return {"node": self.node, "requests": sorted(self.requests), "replies": sorted(self.replies),
+                "match": self.match}
+
+    @classmethod
+    def from_json(cls, body: object, where: str) -> SharedPair:
+        if not isinstance(body, dict) or not isinstance(body.get("node"), str):
+            raise AccessError(f"{where} needs a 'node' string")
+        topics: dict[str, frozenset[str]] = {}
+        for side in ("requests", "replies"):
+            names = body.get(side)
+            if not isinstance(names, list) or not names or \
+                    not all(isinstance(t, str) and t.startswith("/") for t in names):
+                raise AccessError(f"{where} ({body['node']}): '{side}' must be a non-empty list of absolute "
+                                  "topic names")
+            topics[side] = frozenset(names)
+        match = body.get("match", DEFAULT_MATCH)
+        if match is not None and (not isinstance(match, str) or not [p for p in match.split(".") if p]):
+            raise AccessError(f"{where} ({body['node']}): 'match' must be a dotted field path or null")
+        return cls(body["node"], topics["requests"], topics["replies"], match)
+
+
+@dataclass(frozen=True)
 class FleetAccess:
-    """The parsed access file: robots by certificate identity, and the revoked robots' names."""
+    """The parsed access file: robots by certificate identity, the revoked robots' names, and the shared
+    request/reply nodes whose replies are routed to the robot that asked."""
 
     robots: Mapping[str, Robot] = field(default_factory=dict)
     revoked: frozenset[str] = frozenset()
+    shared: tuple[SharedPair, ...] = ()
 
     def robot(self, identity: str) -> Robot | None:
         """The robot this identity may link as; None when it is unknown or revoked."""
         robot = self.robots.get(identity)
         return None if robot is None or robot.name in self.revoked else robot
 
-    def allows(self, identity: str, topic: str) -> bool:
+    def allows(self, identity: str, topic: str, direction: str | None = None) -> bool:
+        """Whether the robot may use ``topic``; with a ``direction`` (``out``: it sends, ``in``: it hears), a shared
+        node's topics only the way a client uses them: it sends requests and hears replies, so it never reads
+        its neighbours' requests nor poses as the node."""
         robot = self.robot(identity)
-        return robot is not None and robot.may_use(topic)
+        if robot is None or not robot.may_use(topic):
+            return False
+        if direction == "in":
+            return not any(topic in pair.requests for pair in self.shared)
+        if direction == "out":
+            return not any(topic in pair.replies for pair in self.shared)
+        return True
 
     def visible(self, identity: str, graph: GraphState) -> GraphState:
         """The part of the cloud's graph this robot may use: other robots' topic names are not its business."""
@@ -71,9 +122,12 @@ class FleetAccess:
         return GraphState(keep(graph.publishers), keep(graph.subscribers), types)
 
     def to_json(self) -> dict[str, object]:
-        return {"robots": {r.name: {"identity": r.identity, "topics": sorted(r.topics)}
-                           for r in sorted(self.robots.values(), key=lambda r: r.name)},
-                "revoked": sorted(self.revoked)}
+        body: dict[str, object] = {"robots": {r.name: {"identity": r.identity, "topics": sorted(r.topics)}
+                                              for r in sorted(self.robots.values(), key=lambda r: r.name)},
+                                   "revoked": sorted(self.revoked)}
+        if self.shared:
+            body["shared"] = [pair.to_json() for pair in self.shared]
+        return body
 
     @classmethod
     def from_json(cls, body: object) -> FleetAccess:
@@ -90,7 +144,17 @@ class FleetAccess:
         revoked = body.get("revoked", [])
         if not isinstance(revoked, list) or not all(isinstance(n, str) for n in revoked):
             raise AccessError("'revoked' must be a list of robot names")
-        return cls(robots, frozenset(revoked))
+        shared = body.get("shared", [])
+        if not isinstance(shared, list):
+            raise AccessError("'shared' must be a list of shared request/reply nodes")
+        pairs = tuple(SharedPair.from_json(entry, f"shared[{i}]") for i, entry in enumerate(shared))
+        seen: dict[str, str] = {}
+        for pair in pairs:
+            for topic in sorted(pair.requests | pair.replies):
+                if topic in seen:
+                    raise AccessError(f"topic {topic} belongs to two shared nodes' pairs ({seen[topic]}, {pair.node})")
+                seen[topic] = pair.node
+        return cls(robots, frozenset(revoked), pairs)
 
 
 def write_access(path: Path, access: FleetAccess) -> None:

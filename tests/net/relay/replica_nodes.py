@@ -1,22 +1,25 @@
 """rospy nodes for the replica tests and benchmark: a robot asking, and a node answering (one per process).
 
     python replica_nodes.py echo REQ REPLY --name NAME [--work-ms W] [--pad BYTES] [--definition TEXT]
-    python replica_nodes.py robot REQ REPLY --count N [--rate HZ] [--base B] [--wait S]
+    python replica_nodes.py robot REQ REPLY --count N [--rate HZ] [--base B] [--wait S] [--seq-base Q] [--go FILE]
 
 Both topics carry ``std_msgs/Header``. ``echo`` answers each request with a Header of the same seq
 and stamp and ``frame_id`` NAME, after W ms of CPU work (a busy loop, so a CPU quota or a stop
 slows it; ``--name ip``: this host's global IPv4 address, for replicas that run one command on
 several hosts; ``--pad``: that many random characters after a ``|`` in ``frame_id``, a reply big enough
 for a slow link to delay; ``--definition``: the message definition its publisher sends, a hostile replica's).
-``robot`` waits until someone subscribes to REQ and publishes to REPLY, sends N requests (seq i, stamp
+``robot`` waits until someone subscribes to REQ and publishes to REPLY, sends N requests (seq Q+i, stamp
 base+i s; ``--zero-stamp``: stamp 0, and replies told apart by seq), and prints one JSON line per reply
-it gets: {"i", "from", "ms"} (ms: from its send to the reply's arrival), then ``done``.
+it gets: {"i", "from", "ms", "seq", "nsecs"} (ms: from its send to the reply's arrival; seq and nsecs as the reply
+carries them: with ``--seq-base`` robots sending equal stamps tell whose request a reply answers), then ``done``.
+With ``--go``, it prints ``connected`` once linked and sends only once FILE exists (robots that start together).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import secrets
 import subprocess
 import threading
@@ -44,6 +47,8 @@ def main() -> None:
     parser.add_argument("--definition", default=None,
                         help="echo: the message definition its publisher sends (a hostile replica's), not Header's")
     parser.add_argument("--zero-stamp", action="store_true", help="robot: every request stamped 0, told apart by seq")
+    parser.add_argument("--seq-base", type=int, default=0, help="robot: request i carries seq Q + i")
+    parser.add_argument("--go", default=None, help="robot: once linked, wait for this file before sending")
     args = parser.parse_args()
 
     import rospy
@@ -75,23 +80,28 @@ def main() -> None:
 
     def got(reply: Header) -> None:
         now = time.perf_counter()
-        i = reply.seq if args.zero_stamp else reply.stamp.secs - args.base
+        i = reply.seq - args.seq_base if args.zero_stamp else reply.stamp.secs - args.base
         with lock:
             t0 = sent.get(i)
         ms = None if t0 is None else round((now - t0) * 1e3, 3)
-        print(json.dumps({"i": i, "from": reply.frame_id.split("|")[0], "ms": ms}), flush=True)
+        print(json.dumps({"i": i, "from": reply.frame_id.split("|")[0], "ms": ms, "seq": reply.seq,
+                          "nsecs": reply.stamp.nsecs}), flush=True)
 
     pub = rospy.Publisher(args.request, Header, queue_size=100, tcp_nodelay=True)
     sub = rospy.Subscriber(args.reply, Header, got, queue_size=1000, tcp_nodelay=True)
     print("ready", flush=True)
     while (pub.get_num_connections() == 0 or sub.get_num_connections() == 0) and not rospy.is_shutdown():
         time.sleep(0.05)
+    if args.go is not None:
+        print("connected", flush=True)
+        while not os.path.exists(args.go) and not rospy.is_shutdown():
+            time.sleep(0.01)
     time.sleep(0.5)
     for i in range(args.count):
         with lock:
             sent[i] = time.perf_counter()
         stamp = rospy.Time(0, 0) if args.zero_stamp else rospy.Time(args.base + i, 0)
-        pub.publish(Header(seq=i, stamp=stamp, frame_id="robot"))
+        pub.publish(Header(seq=args.seq_base + i, stamp=stamp, frame_id="robot"))
         time.sleep(1.0 / args.rate)
     time.sleep(args.wait)
     print("done", flush=True)

@@ -154,6 +154,7 @@ class NodeSpec:
     # (NAME, reference): env values read at `up` (env:NAME, file:PATH), never held in the plan
     secrets: tuple[tuple[str, str], ...] = ()
     serves: tuple[str, ...] = ()  # in a fleet, the robots it serves when not every one (the manifest's serve: list)
+    reply_match: str | None = None  # in a fleet, the reply field naming its request (routes replies to the asker)
 
 
 @dataclass(frozen=True)
@@ -385,6 +386,8 @@ class Plan:
                 del node["secrets"]
             if not node["serves"]:  # every robot: the same bytes (and digest) as before fleets
                 del node["serves"]
+            if node["reply_match"] is None:  # one robot: the same bytes (and digest) as before fleets
+                del node["reply_match"]
         for edge in out["edges"]:
             if edge["compression"] is None:  # the routes' own: the same bytes as before a robot could name one
                 del edge["compression"]

@@ -4,8 +4,9 @@ Three robots, each a real ROS master of its own (started by fogiac, as the other
 client process, and a shared stand-in planner in one sandbox that answers every ``/plan/request`` on
 ``/plan/reply`` and also publishes ``/arm2/status``, a topic in robot arm2's namespace. What ``up`` must have
 built: the sandbox's ``fleet.json`` beside its cloud end's certificates (each robot by its identity, the
-planner's topics, no robot another's namespace), one supervised edge end per robot (``...@arm1``), every
-robot's request answered, arm2's status heard by arm2 alone, and a certificate of arm1 refused arm2's topic at
+planner's topics, no robot another's namespace, the planner's request/reply pair), one supervised edge end per
+robot (``...@arm1``), every robot's request answered exactly once and to that robot only (equal stamps from
+all three robots included), arm2's status heard by arm2 alone, and a certificate of arm1 refused arm2's topic at
 the cloud end. Adding a 4th robot to the manifest and running ``up`` again starts only its edge end (the host's
 processes and the other robots' edge ends keep their pids); dropping it stops only its edge end; ``down``
 stops every one.
@@ -191,13 +192,15 @@ def test_up_deploys_a_fleet_each_robot_its_own_edge_end_and_access(tmp_path: Pat
         assert rules == {"revoked": [], "robots": {
             name: {"identity": edge_identity(STACK, name),
                    "topics": ["/arm2/status"] * (name == "arm2") + ["/plan/reply", "/plan/request"]}
-            for name in ports}}
+            for name in ports}, "shared": [  # the planner's replies go to the robot that asked, by their stamp
+            {"node": "planner", "requests": ["/plan/request"], "replies": ["/plan/reply"], "match": "header.stamp"}]}
         assert _edge_ends(stack) == {f"relay-edge-planner@{name}" for name in ports}
 
         reports = _clients(ports, tmp_path)
         for robot, report in reports.items():
-            mine = {f"{robot}:{i}" for i in range(REQUESTS)}
-            assert mine <= set(report["got"]), (robot, report)  # every request of every robot answered
+            # Every request answered exactly once, to its own robot only, though all three robots stamp their
+            # requests alike (equal stamps in flight at once) and all subscribe the one reply topic.
+            assert sorted(report["got"]) == sorted(f"{robot}:{i}" for i in range(REQUESTS)), (robot, report)
         assert reports["arm2"]["status"] > 0  # arm2's own namespace reaches arm2 ...
         assert reports["arm1"]["status"] == 0 and reports["arm3"]["status"] == 0  # ... and no other robot
 
@@ -216,7 +219,7 @@ def test_up_deploys_a_fleet_each_robot_its_own_edge_end_and_access(tmp_path: Pat
         assert {k for k in edge_now if "arm4" in k} == {"relay-edge-planner@arm4.pid", "edge-master@arm4.pid"}
         assert set(json.loads(access.read_text())["robots"]) == set(four)
         report = _clients({"arm4": four["arm4"]}, tmp_path)["arm4"]
-        assert {f"arm4:{i}" for i in range(REQUESTS)} <= set(report["got"]) and report["status"] == 0, report
+        assert sorted(report["got"]) == sorted(f"arm4:{i}" for i in range(REQUESTS)) and report["status"] == 0, report
 
         # Dropped again: only its edge end (and the master fogiac ran for it) stop; nothing else moves.
         _manifest(manifest, ports, planner)

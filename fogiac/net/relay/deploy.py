@@ -24,7 +24,8 @@ from fogiac.certs import edge_identity, edge_role, load_bundle, relay_name
 from fogiac.errors import FogiacError
 from fogiac.hostmodel import NativeRos, Service, Where, autostop_service
 from fogiac.net import hostcert
-from fogiac.net.relay.fleet import ACCESS_FILE, FleetAccess, Robot
+from fogiac.net.relay.fleet import ACCESS_FILE, FleetAccess, Robot, SharedPair
+from fogiac.net.relay.match import DEFAULT_MATCH
 from fogiac.net.relay.services import CLOUD_END, master_service, node_env, relay_service, relay_stats
 from fogiac.net.replicas import groups_of, host_figures
 from fogiac.plan.model import EdgeSpec, HostSpec, Plan, Route
@@ -188,7 +189,26 @@ def fleet_access(plan: Plan, spec: HostSpec, *, revoked: tuple[str, ...] = ()) -
                   for t in (*node.topics_in, *node.topics_out) if not t.startswith(others)}
         identity = edge_identity(plan.stack, edge.named)
         robots[identity] = Robot(edge.name, identity, frozenset(topics))
-    return FleetAccess(robots, frozenset(revoked))
+    return FleetAccess(robots, frozenset(revoked), _shared_pairs(plan, spec, names))
+
+
+def _shared_pairs(plan: Plan, spec: HostSpec, robots: list[str]) -> tuple[SharedPair, ...]:
+    """The host's shared request/reply nodes (their listed inputs the requests, their outputs outside every
+    robot's namespace the replies, keyed by the node's ``reply_match``), whose replies the cloud end routes to
+    the robot that asked. A topic already another node's pair stays unrouted (every robot served hears it): the
+    access file names each topic in one pair only."""
+    namespaces = tuple(f"/{name}/" for name in robots)
+    pairs: list[SharedPair] = []
+    taken: set[str] = set()
+    for node in plan.nodes:
+        if node.host != spec.name:
+            continue
+        requests = frozenset(t for t in node.topics_in if not t.startswith(namespaces))
+        replies = frozenset(t for t in node.topics_out if not t.startswith(namespaces))
+        if requests and replies and not (requests | replies) & taken:
+            pairs.append(SharedPair(node.name, requests, replies, node.reply_match or DEFAULT_MATCH))
+            taken |= requests | replies
+    return tuple(pairs)
 
 
 def fleet_files(plan: Plan, spec: HostSpec, *, revoked: tuple[str, ...]) -> tuple[tuple[str, bytes, int], ...]:

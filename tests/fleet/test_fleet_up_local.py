@@ -203,6 +203,8 @@ def test_up_deploys_a_fleet_each_robot_its_own_edge_end_and_access(tmp_path: Pat
             assert sorted(report["got"]) == sorted(f"{robot}:{i}" for i in range(REQUESTS)), (robot, report)
         assert reports["arm2"]["status"] > 0  # arm2's own namespace reaches arm2 ...
         assert reports["arm1"]["status"] == 0 and reports["arm3"]["status"] == 0  # ... and no other robot
+        status = runner.invoke(app, ["status", str(manifest), "--target", "local", "--json"])
+        assert status.exit_code == 0, status.output  # a deployed fleet's status answers (its rows: fleetstatus)
 
         # A 4th robot: the manifest edited, up again. Its edge end starts; the sandbox's processes (master,
         # planner, cloud end) and the other robots' edge ends keep their pids; the access file lists it.

@@ -132,6 +132,9 @@ class StackState:
     EDGES = "edges"
     HOSTS = "hosts"
     SECTIONS = (DEPLOYMENT, APPLIED, EDGES, HOSTS)
+    # Beside the sections, never keeping a record alive alone: a fleet's robots revoked by hand (``fogiac robot
+    # revoke``), refused by every cloud end until restored or dropped from the manifest.
+    REVOKED = "revoked"
     # the files beside it
     REFRESHED = "refreshed.json"
     KNOWN_HOSTS = "known_hosts"

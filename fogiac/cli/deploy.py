@@ -26,6 +26,7 @@ from fogiac.lifecycle import sequence
 from fogiac.lifecycle.driver import DownOptions, Feature, Target, UpOptions
 from fogiac.lifecycle.events import Progress, Timers
 from fogiac.lifecycle.report import render_status
+from fogiac.net import middleware
 from fogiac.plan import placeholders
 from fogiac.plan.cost import total_words
 from fogiac.plan.guard import ACCEPT_UNKNOWN, over_budget, up_summary
@@ -156,9 +157,9 @@ def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str |
     plan = compile_deployed(manifest, env, target, force=force, has_force=True, creating=True)
     if (problem := over_budget(plan, accept_unknown=accept_unknown_cost)) is not None:
         raise FogiacError(f"{manifest}: {problem}")
-    if plan.fleet:  # up would link every robot to every topic: per-robot access is not written by up yet
-        raise FogiacError(f"{manifest}: robots: a fleet is planned but up does not deploy one yet (each robot's "
-                          "access file and edge end are not written by up: docs/guides/fleet.md); "
+    if plan.fleet and not middleware.deploys_fleet(plan.middleware):  # it would link every robot to every topic
+        raise FogiacError(f"{manifest}: robots: up deploys a fleet over the relay (ROS 1) only; the "
+                          f"{plan.middleware} middleware has no per-robot access yet (docs/guides/fleet.md); "
                           "use edge: for one robot")
     chosen = targets.get(plan.target)
     need_yes(yes, "apply")
@@ -182,8 +183,9 @@ def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str |
         _interrupted(manifest, plan, chosen)
     if result.report is not None:
         console().print(report_table(result.report))
+    robots = f"robots {', '.join(edge.name for edge in plan.edges)}" if plan.fleet else ""
     for host, connect in sorted(result.relays.items()):
-        typer.echo(f"{host}: relay {connect} <-> edge {result.edge_master}")
+        typer.echo(f"{host}: relay {connect} <-> {robots or f'edge {result.edge_master}'}")
     for made in result.machines:
         typer.echo(f"{made.host}: {made.id} {made.machine} public {made.public} private {made.private}")
     typer.echo(f"applied: {result.applied}")

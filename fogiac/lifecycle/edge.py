@@ -64,6 +64,7 @@ def provision_and_connect(plan: Plan, *, access: Mapping[str, Any], connect: Map
     state = StackState(plan.stack)
     folder, certs = state.ensure(), state.certs
     load_or_create_edges(plan.stack, certs, [edge.named for edge in plan.edges])  # the CA's, and each edge's
+    forget_dropped_revocations(plan)
     report = provision(plan, hosts=access, state_dir=folder, certs_dir=certs, progress=progress,
                        dialed=dialed_addresses(connect), ports=ports)
     relays = {o.host: connect[o.host] for o in report.hosts if o.ok and o.host in connect}
@@ -72,6 +73,20 @@ def provision_and_connect(plan: Plan, *, access: Mapping[str, Any], connect: Map
         lines = [o.error or f"{o.host}: failed" for o in report.failed]
         raise ProvisionError("; ".join(lines) + " (the other hosts are up; `fogiac down` removes everything)")
     return done
+
+
+def forget_dropped_revocations(plan: Plan) -> None:
+    """A robot revoked by hand stays revoked until restored or dropped from the manifest: once ``robots:`` no
+    longer lists it, the record forgets it, so a robot of that name added later starts unrevoked."""
+    state = StackState(plan.stack)
+    revoked = state.get(StackState.REVOKED)
+    if not isinstance(revoked, list):
+        return
+    robots = {edge.name for edge in plan.edges} if plan.fleet else set()
+    kept = [name for name in revoked if name in robots]
+    if kept != revoked:
+        state.update(lambda document: document.__setitem__(StackState.REVOKED, kept) if kept
+                     else document.pop(StackState.REVOKED, None))
 
 
 def connect_edge(plan: Plan, *, connect: Mapping[str, str], master: str, started_edge_master: bool = False,

@@ -141,6 +141,23 @@ class Deployment(Protocol):
         ...
 
 
+def deploys_fleet(name: str) -> bool:
+    """Whether ``up`` can deploy a fleet (``robots:``) over middleware ``name``: its deployment says so with
+    ``deploys_fleet = True`` and answers :func:`fleet_files`. Optional, so a plug-in written before fleets
+    keeps working for one robot and is refused a fleet in one line."""
+    return bool(getattr(deployment(name), "deploys_fleet", False))
+
+
+def fleet_files(name: str, plan: Plan, spec: HostSpec, *,
+                revoked: tuple[str, ...]) -> tuple[tuple[str, bytes, int], ...]:
+    """The files (name, bytes, mode) a fleet's host keeps beside its link's certificates: who may link and
+    for which topics (the relay's ``fleet.json``), with the record's ``revoked`` robots refused. The link
+    reads them again when they change: provisioning rewrites them and restarts nothing. Empty for one robot
+    and for a middleware that deploys no fleet."""
+    made = getattr(deployment(name), "fleet_files", None)
+    return tuple(made(plan, spec, revoked=revoked)) if made is not None else ()
+
+
 def register(middleware: Middleware, deployment: Deployment) -> Middleware:
     """Add (or replace) a middleware for this process (tests, embedders); returns it."""
     middlewares.DEPLOYMENTS.register(middleware.name, deployment)

@@ -65,7 +65,7 @@ def compile_plan(manifest: Manifest, *, target: str | None = None, environment: 
     placed = place(manifest, stack=stack, tags=tags)
     for group in placed.security_groups:
         check_ingress(group.name, group.ingress)
-    nodes = tuple(_node(node, placed.node_hosts[node.name]) for node in manifest.nodes)
+    nodes = tuple(_node(node, placed.node_hosts[node.name], fleet=bool(manifest.robots)) for node in manifest.nodes)
     return Plan(
         stack=stack,
         manifest_name=manifest.name,
@@ -136,7 +136,7 @@ def _settings(manifest: Manifest, carrier: str) -> tuple[tuple[str, object], ...
     return tuple(sorted(block.model_dump(mode="json").items())) if block is not None else ()
 
 
-def _node(node: Node, host: str) -> NodeSpec:
+def _node(node: Node, host: str, *, fleet: bool = False) -> NodeSpec:
     lists = node.topics if node.topics != "auto" else None
     return NodeSpec(
         name=node.name,
@@ -165,6 +165,7 @@ def _node(node: Node, host: str) -> NodeSpec:
         topics_out=lists.outputs if lists else (),
         serves=node.serve if isinstance(node.serve, tuple) else (),
         per_robot=node.serve == "per_robot",
+        reply_match=node.reply_match if fleet else None,  # a fleet's shared node: whose request a reply answers
     )
 
 

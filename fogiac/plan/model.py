@@ -155,6 +155,7 @@ class NodeSpec:
     secrets: tuple[tuple[str, str], ...] = ()
     serves: tuple[str, ...] = ()  # in a fleet, the robots it serves when not every one (the manifest's serve: list)
     per_robot: bool = False  # serve: per_robot, one instance for each robot it serves, in that robot's namespace
+    reply_match: str | None = None  # in a fleet, the reply field naming its request (routes replies to the asker)
 
 
 @dataclass(frozen=True)
@@ -389,6 +390,8 @@ class Plan:
                 del node["serves"]
             if not node["per_robot"]:  # one shared instance: the same bytes (and digest) as before per_robot
                 del node["per_robot"]
+            if node["reply_match"] is None:  # one robot: the same bytes (and digest) as before fleets
+                del node["reply_match"]
         for edge in out["edges"]:
             if edge["compression"] is None:  # the routes' own: the same bytes as before a robot could name one
                 del edge["compression"]

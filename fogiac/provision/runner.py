@@ -7,6 +7,7 @@ the others; :class:`ProvisionReport` carries every host's steps and error line.
 
 from __future__ import annotations
 
+import hashlib
 import time
 from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
@@ -16,6 +17,7 @@ from typing import Any, TypeVar
 
 from fogiac.errors import FogiacError, ProvisionError
 from fogiac.hostmodel import Layout
+from fogiac.net import middleware
 from fogiac.plan.model import HostSpec, Plan
 from fogiac.provision.host import Host, HostAccess, HostPorts, planned_ports, q
 from fogiac.provision.managers import manager_for
@@ -142,13 +144,55 @@ def provision(plan: Plan, *, hosts: Mapping[str, HostAccess], state_dir: Path, c
     """
     started = time.monotonic()
     options = Options(certs_dir=certs_dir, health_timeout=health_timeout, allow_install=allow_install,
-                      dialed=dict(dialed or {}))
+                      dialed=dict(dialed or {}), revoked=revoked_robots(state_dir))
     known_hosts = StackState.at(state_dir).known_hosts
     record_access(state_dir, plan, hosts, {})  # first: an interrupted run's hosts are found again
     listen = {**planned_ports(plan), **(ports or {})}
     outcomes = _for_each(plan, hosts, lambda spec, access: _provision_one(
         plan, spec, access, ports=listen[spec.name], known_hosts=known_hosts, options=options, progress=progress))
     record_access(state_dir, plan, hosts, {o.host: o.base for o in outcomes if o.base})
+    return ProvisionReport(hosts=outcomes, seconds=time.monotonic() - started)
+
+
+def revoked_robots(state_dir: Path) -> tuple[str, ...]:
+    """The fleet's robots the record keeps revoked (``fogiac robot revoke``), refused by every host's link."""
+    revoked = StackState.at(state_dir).get(StackState.REVOKED)
+    return tuple(sorted(str(r) for r in revoked)) if isinstance(revoked, list) else ()
+
+
+def _rewrite_one(plan: Plan, spec: HostSpec, access: HostAccess, *, known_hosts: Path,
+                 revoked: tuple[str, ...]) -> HostOutcome:
+    started = time.monotonic()
+    host = access.open(name=spec.name, known_hosts=known_hosts, stack=plan.stack)
+    error, status, detail = None, "ok", "access files as they were"
+    try:
+        host.connect()
+        layout = Layout(host.base, plan.stack)
+        written = []
+        for name, data, mode in middleware.fleet_files(plan.middleware, plan, spec, revoked=revoked):
+            remote = f"{layout.certs}/{name}"
+            known = (host.run(f"sha256sum {q(remote)} 2>/dev/null", check=False).stdout.split() or [""])[0]
+            if known != hashlib.sha256(data).hexdigest():
+                host.put(data, remote, mode=mode)  # replaced at once: the link never reads half of it
+                written.append(name)
+        if written:
+            status, detail = CHANGED, f"rewrote {', '.join(written)}"
+    except FogiacError as err:
+        error, status, detail = str(err), "failed", str(err)
+    finally:
+        host.close()
+    return HostOutcome(host=spec.name, address=access.location, steps=(StepOutcome("access", status, detail,
+                       time.monotonic() - started),), error=error, files_pushed=0, bytes_sent=0,
+                       seconds=time.monotonic() - started, base=host.base)
+
+
+def rewrite_fleet_access(plan: Plan, *, hosts: Mapping[str, HostAccess], state_dir: Path) -> ProvisionReport:
+    """Rewrite every host's fleet access files from the plan and the record's revoked robots, and nothing else:
+    a robot revoked or restored by hand reaches every cloud end within its poll, and no process restarts."""
+    started = time.monotonic()
+    revoked = revoked_robots(state_dir)
+    outcomes = _for_each(plan, hosts, lambda spec, access: _rewrite_one(
+        plan, spec, access, known_hosts=StackState.at(state_dir).known_hosts, revoked=revoked))
     return ProvisionReport(hosts=outcomes, seconds=time.monotonic() - started)
 
 

@@ -40,6 +40,7 @@ class Options:
     health_timeout: float = 30.0
     allow_install: bool = False
     dialed: Mapping[str, str] = field(default_factory=dict)  # host -> the address the edge dials it at
+    revoked: tuple[str, ...] = ()  # a fleet's robots the record keeps revoked (refused by every host's link)
 
 
 @dataclass
@@ -343,6 +344,11 @@ def step_link(run: HostRun) -> StepResult:
         return OK, "the host's services carry the link"
     changed = [name for name, mode in run.deploying.link_files()
                if ensure_file(run, (certs / name).read_bytes(), f"{run.layout.certs}/{name}", mode=mode)]
+    # A fleet's access rules: before the link starts (it never runs without them), and never a restart when
+    # they change (the link re-reads them), so a robot added or revoked leaves the host's processes alone.
+    for name, data, mode in middleware.fleet_files(run.plan.middleware, run.plan, run.spec,
+                                                   revoked=run.options.revoked):
+        ensure_file(run, data, f"{run.layout.certs}/{name}", mode=mode)
     if not link_available(run):
         for service in wanted:
             ensure_file(run, service.script.encode(), f"{run.layout.services}/{service.name}.sh", mode=0o700)

@@ -11,6 +11,9 @@ from typer.testing import CliRunner
 from fogiac.cli import app
 from fogiac.errors import ManifestError
 from fogiac.manifest.schema import parse_manifest
+from fogiac.net import middleware
+from fogiac.net.relay import deploy as relay_deploy
+from fogiac.net.relay.middleware import RELAY
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.document import document
 from fogiac.plan.model import EdgeSpec
@@ -74,13 +77,26 @@ def test_a_bad_fleet_is_named_in_one_line(change: tuple[str, str], expect: str) 
     assert any(expect in line for line in err.value.problems), err.value.problems
 
 
-def test_up_refuses_a_fleet_in_one_line_and_creates_nothing(tmp_path: Path, _state_dir: Path) -> None:
-    """Until up writes each robot's access file and starts its edge end, a fleet would link every robot to
-    every topic: up refuses it before anything exists (plan and validate work)."""
+def test_up_refuses_a_fleet_its_middleware_cannot_deploy_in_one_line_and_creates_nothing(
+        tmp_path: Path, _state_dir: Path) -> None:
+    """A middleware deployment that does not say ``deploys_fleet`` (a plug-in written before fleets) would link
+    every robot to every topic: up refuses the fleet before anything exists (plan and validate work)."""
+
+    class BeforeFleets:  # the relay's deployment as a plug-in of before fleets would answer: no fleet words
+        def __getattr__(self, name: str) -> object:
+            if name in ("deploys_fleet", "fleet_files"):
+                raise AttributeError(name)
+            return getattr(relay_deploy.DEPLOYMENT, name)
+
     manifest = tmp_path / "fogiac.yaml"
     manifest.write_text(FLEET)
-    done = CliRunner().invoke(app, ["up", str(manifest), "--yes"])
+    middleware.register(RELAY, BeforeFleets())  # type: ignore[arg-type]
+    try:
+        done = CliRunner().invoke(app, ["up", str(manifest), "--yes"])
+    finally:
+        middleware.register(RELAY, relay_deploy.DEPLOYMENT)
     assert done.exit_code == 1, done.output
-    assert "robots: a fleet is planned but up does not deploy one yet" in done.output
+    assert "robots: up deploys a fleet over the relay (ROS 1) only; the relay middleware has no per-robot " \
+           "access yet" in done.output
     assert "Traceback" not in done.output and list(_state_dir.iterdir()) == []
     assert CliRunner().invoke(app, ["plan", str(manifest)]).exit_code == 0

@@ -5,11 +5,13 @@ host runs its own ``roscore`` (its nodes register there) and, once the nodes run
 cloud end (plus the autostop watchdog, which reads that end's stats). On the edge, one supervised
 ``fogiac relay edge`` per host and per edge (each robot's master, each with its own client certificate)
 joins the robot's master to that host's over mutual TLS. The edge named after the stack (today's manifests'
-only one) keeps the process and file names it always had; any other's carry ``@<edge>``.
+only one) keeps the process and file names it always had; any other's carry ``@<edge>``. A fleet's host also
+gets its access file (``fleet.json``: :func:`fleet_files`), which its cloud end follows without a restart.
 """
 
 from __future__ import annotations
 
+import json
 import re
 import sys
 import xmlrpc.client
@@ -18,10 +20,12 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import urlparse
 
-from fogiac.certs import edge_role, load_bundle, relay_name
+from fogiac.certs import edge_identity, edge_role, load_bundle, relay_name
 from fogiac.errors import FogiacError
 from fogiac.hostmodel import NativeRos, Service, Where, autostop_service
 from fogiac.net import hostcert
+from fogiac.net.relay.fleet import ACCESS_FILE, FleetAccess, Robot, SharedPair
+from fogiac.net.relay.match import DEFAULT_MATCH
 from fogiac.net.relay.services import CLOUD_END, master_service, node_env, relay_service, relay_stats
 from fogiac.net.replicas import groups_of, host_figures
 from fogiac.plan.model import EdgeSpec, HostSpec, Plan, Route
@@ -170,9 +174,78 @@ def replicas_argv(group: str, routes: list[Route], *, stack: str, connect: Mappi
     return argv
 
 
+def fleet_access(plan: Plan, spec: HostSpec, *, revoked: tuple[str, ...] = ()) -> FleetAccess:
+    """Who may link to ``spec``'s cloud end, and for what: each robot by its certificate's identity, its own
+    namespace (``/<robot>/...``, :class:`~fogiac.net.relay.fleet.Robot`) plus the listed topics of the host's
+    shared nodes that serve it; ``revoked``: the record's revoked robots, refused until restored. A shared
+    node without topic lists gives no robot anything beyond its namespace (whose request it answers is
+    unknown), so a fleet's shared nodes list theirs. A listed topic in another robot's namespace is that
+    robot's alone, whoever publishes it."""
+    names = [edge.name for edge in plan.edges]
+    robots = {}
+    for edge in plan.edges:
+        others = tuple(f"/{name}/" for name in names if name != edge.name)
+        topics = {t for node in plan.nodes if node.host == spec.name and edge.name in plan.robots_of(node)
+                  for t in (*node.topics_in, *node.topics_out) if not t.startswith(others)}
+        identity = edge_identity(plan.stack, edge.named)
+        robots[identity] = Robot(edge.name, identity, frozenset(topics))
+    return FleetAccess(robots, frozenset(revoked), _shared_pairs(plan, spec, names))
+
+
+def _shared_pairs(plan: Plan, spec: HostSpec, robots: list[str]) -> tuple[SharedPair, ...]:
+    """The host's shared request/reply nodes (their listed inputs the requests, their outputs outside every
+    robot's namespace the replies, keyed by the node's ``reply_match``), whose replies the cloud end routes to
+    the robot that asked. A topic already another node's pair stays unrouted (every robot served hears it): the
+    access file names each topic in one pair only."""
+    namespaces = tuple(f"/{name}/" for name in robots)
+    pairs: list[SharedPair] = []
+    taken: set[str] = set()
+    for node in plan.nodes:
+        if node.host != spec.name:
+            continue
+        requests = frozenset(t for t in node.topics_in if not t.startswith(namespaces))
+        replies = frozenset(t for t in node.topics_out if not t.startswith(namespaces))
+        if requests and replies and not (requests | replies) & taken:
+            pairs.append(SharedPair(node.name, requests, replies, node.reply_match or DEFAULT_MATCH))
+            taken |= requests | replies
+    return tuple(pairs)
+
+
+def fleet_files(plan: Plan, spec: HostSpec, *, revoked: tuple[str, ...]) -> tuple[tuple[str, bytes, int], ...]:
+    """A fleet's host gets its access file (:func:`fleet_access`) beside its cloud end's certificates; the
+    cloud end re-reads it when it changes, so a robot added, removed or revoked restarts nothing there.
+    One robot's stack (``edge:``) writes none: its cloud end links its one edge as before."""
+    if not plan.fleet:
+        return ()
+    body = json.dumps(fleet_access(plan, spec, revoked=revoked).to_json(), indent=2, sort_keys=True) + "\n"
+    return ((ACCESS_FILE, body.encode(), 0o600),)
+
+
+def _robot_of(service: str) -> str | None:
+    """The robot an edge service is for (``relay-edge-planner@arm1``: arm1); None for the stack-named edge's."""
+    _, at, robot = service.rpartition("@")
+    return robot if at else None
+
+
+def stop_gone_robots(plan: Plan, *, folder: Path) -> list[str]:
+    """Stop the edge services of robots the plan no longer has (its links, and the demo master fogiac ran for
+    it): the other robots' processes keep running, untouched; returns the services stopped."""
+    robots = {edge.name for edge in plan.edges}
+    names = sorted(p.stem for p in folder.glob("*.pid")) if folder.exists() else []
+    gone = [n for n in names if _robot_of(n) is not None and _robot_of(n) not in robots]
+    links = [n for n in gone if n.partition("@")[0] != EDGE_MASTER]
+    if links:  # the links first, as down does: a master never goes before the relays registered with it
+        supervise.stop_many(folder, links)
+    if len(links) < len(gone):
+        supervise.stop_many(folder, [n for n in gone if n not in links])
+    return gone
+
+
 def edge_up(plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path, folder: Path) -> list[str]:
-    """Every edge's relays (``entry``: where the first edge's master is, ``up --edge-master`` or the plan's)."""
-    notes = []
+    """Every edge's relays (``entry``: where the first edge's master is, ``up --edge-master`` or the plan's);
+    a robot's that is already running is left as it is, and a robot no longer in the plan is stopped."""
+    gone = {_robot_of(name) for name in stop_gone_robots(plan, folder=folder)}
+    notes = [f"robot {robot}: its edge end stopped (no longer in robots:)" for robot in sorted(r for r in gone if r)]
     for edge in plan.edges_at(entry):
         suffix = edge_suffix(plan, edge)
         for route in plan.routes:
@@ -265,7 +338,14 @@ class RelayDeployment:
         return edge_links(folder, connect, plan)
 
     def edge_stats(self, plan: Plan, *, folder: Path) -> tuple[Path, ...]:
-        return tuple(_stats(folder, route.host) for route in plan.routes)
+        return tuple(_stats(folder, route.host, edge_suffix(plan, edge)) for edge in plan.edges
+                     for route in plan.routes)
+
+    deploys_fleet = True  # a fleet's robots: each its edge end and certificate, its access in fleet.json
+
+    def fleet_files(self, plan: Plan, spec: HostSpec, *,
+                    revoked: tuple[str, ...]) -> tuple[tuple[str, bytes, int], ...]:
+        return fleet_files(plan, spec, revoked=revoked)
 
 
 DEPLOYMENT = RelayDeployment()

@@ -4,7 +4,7 @@ Why: a node must come back when it crashes, whether or not the host runs systemd
 standard-library only and self-contained: provisioning copies it to ``<base>/bin`` on each host
 and runs it with the host's ``python3``. Per service NAME in a run folder it keeps
 ``NAME.pid`` (the supervisor), ``NAME.child`` (the running process), ``NAME.log`` (its output)
-and ``NAME.state`` (restart count). The child runs in its own session; on failure it is
+and ``NAME.state`` (restart count, when the last few exits were). The child runs in its own session; on failure it is
 restarted with exponential backoff (1 s doubling to 30 s, reset after 10 s of good running).
 ``NAME.log`` is rotated when it passes ``LOG_MAX_BYTES``: copied to ``NAME.log.1`` (the one
 older file kept) and truncated in place, checked every second, so a chatty or attacked
@@ -43,6 +43,12 @@ _BACKOFF_MAX = 30.0
 _GOOD_RUN = 10.0
 LOG_MAX_BYTES = 10 * 1024 * 1024
 _LOG_CHECK_S = 1.0
+# A service whose program exited this many times within the window, and is not running now, is crash-looping:
+# health says so at once instead of waiting out its timeout. At the backoff above, a program that exits at once
+# is down for the 4th time ~7 s after its start, so a node that dies a few times while something it needs
+# comes up still passes; one that keeps dying fails ``up`` in seconds (issue 35 item 6).
+CRASH_LOOP_EXITS = 4
+CRASH_LOOP_WINDOW_S = 60.0
 
 
 def pid_alive(pid: int) -> bool:
@@ -186,13 +192,18 @@ def _supervise(files: _Files, argv: list[str]) -> None:
     signal.signal(signal.SIGTERM, stop)
     signal.signal(signal.SIGINT, stop)
     restarts, backoff = 0, 1.0
+    exits: list[float] = []  # wall-clock times of the last CRASH_LOOP_EXITS exits, read by health()
+
+    def note_state(pid: int) -> None:
+        files.state.write_text(json.dumps({"restarts": restarts, "child": pid, "exits": exits}) + "\n")
+
     with open(files.log, "ab", buffering=0) as log:
         while not stopping:
             started = time.monotonic()
             child = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
                                      start_new_session=True)
             _write_pid(files.child, child.pid)
-            files.state.write_text(json.dumps({"restarts": restarts, "child": child.pid}) + "\n")
+            note_state(child.pid)
             while True:
                 try:
                     code = child.wait(timeout=_LOG_CHECK_S)
@@ -207,6 +218,8 @@ def _supervise(files: _Files, argv: list[str]) -> None:
             if time.monotonic() - started > _GOOD_RUN:
                 backoff = 1.0
             restarts += 1
+            exits = [*exits, time.time()][-CRASH_LOOP_EXITS:]
+            note_state(child.pid)  # at the exit, not at the restart: health sees a crash loop during the backoff
             _note(log, f"exited with {code}; restart {restarts} in {backoff:g}s")
             deadline = time.monotonic() + backoff
             while not stopping and time.monotonic() < deadline:
@@ -276,12 +289,25 @@ def stop(run_dir: Path, name: str, *, timeout: float = 15.0) -> str:
     return stop_many(run_dir, [name], timeout=timeout)[name]
 
 
-def status(run_dir: Path, name: str) -> dict:
-    files = _Files(run_dir, name)
+def _state(files: _Files) -> dict:
     try:
         state = json.loads(files.state.read_text())
-    except (OSError, ValueError):
-        state = {}
+    except (OSError, ValueError):  # none yet, or being written this instant
+        return {}
+    return state if isinstance(state, dict) else {}
+
+
+def _recent_exits(run_dir: Path, name: str, *, window: float = CRASH_LOOP_WINDOW_S) -> int:
+    """How many times the service's program exited within the last ``window`` seconds (of those the
+    supervisor keeps: at most CRASH_LOOP_EXITS)."""
+    exits = _state(_Files(run_dir, name)).get("exits")
+    now = time.time()
+    return sum(1 for t in exits if isinstance(t, (int, float)) and now - t <= window) if isinstance(exits, list) else 0
+
+
+def status(run_dir: Path, name: str) -> dict:
+    files = _Files(run_dir, name)
+    state = _state(files)
     pid = _read_pid(files.pid)
     child = _read_pid(files.child) if pid is not None else None
     # "running" means supervised: between a crash and its restart the child is briefly absent.
@@ -329,6 +355,9 @@ def health(run_dir: Path, name: str, *, check: str, master: str, timeout: float,
     ``master``: the master answers; ``node``: a process of the service's tree is a registered
     node; ``any``: some node other than fogiac's own is registered (containers: their processes are not
     our children); ``alive``: the process runs. ``pid`` names the process when systemd, not us, runs it.
+    A supervised service that is not running and exited :data:`CRASH_LOOP_EXITS` times within
+    :data:`CRASH_LOOP_WINDOW_S` is crash-looping: unhealthy now, not at the timeout (waiting it out only
+    delayed the same verdict).
     """
     deadline = time.monotonic() + timeout
     why = "not checked"
@@ -337,6 +366,8 @@ def health(run_dir: Path, name: str, *, check: str, master: str, timeout: float,
         age = _age(child) if child is not None else None
         if child is None or age is None:
             why = "process not running"
+            if pid is None and _recent_exits(run_dir, name) >= CRASH_LOOP_EXITS:
+                return False, f"{why}; log: {_last_line(_Files(run_dir, name).log)}"
         else:
             ok, why = _registered(check, child, master)
             if ok and age >= stayed_up:

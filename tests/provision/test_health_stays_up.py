@@ -42,6 +42,26 @@ def test_a_program_that_exits_soon_after_starting_is_not_alive(run_dir: Path) ->
     assert _status(run_dir, "flaky")["last_line"] == "cannot open /dev/ttyUSB0"
 
 
+def test_a_crash_loop_is_unhealthy_at_its_fourth_exit_not_at_the_timeout(run_dir: Path) -> None:
+    """Health waited out its whole timeout (30 s by default) on a program that exits at once, for the verdict
+    it could give after a few exits: it now answers while the supervisor waits to restart the program after
+    its CRASH_LOOP_EXITS-th exit (an 8 s backoff), so no further restart has happened."""
+    _sup(run_dir, "start", "broken", "--", "bash", "-c", "echo no such device; exit 1")
+    ok, detail = supervise.health(run_dir, "broken", check="alive", master="http://127.0.0.1:9", timeout=60)
+    assert not ok and detail == "process not running; log: no such device", detail
+    assert _status(run_dir, "broken")["restarts"] == supervise.CRASH_LOOP_EXITS
+
+
+def test_a_program_that_dies_a_few_times_then_stays_up_is_healthy(run_dir: Path, tmp_path: Path) -> None:
+    """A node that exits while something it needs comes up (twice, here) is not a crash loop."""
+    tries = tmp_path / "tries"
+    _sup(run_dir, "start", "late", "--", "bash", "-c",
+         f"echo x >>{tries}; [ $(wc -l <{tries}) -gt 2 ] || {{ echo master not up yet; exit 1; }}; exec sleep 300")
+    ok, detail = supervise.health(run_dir, "late", check="alive", master="http://127.0.0.1:9", timeout=60)
+    assert ok and detail.startswith("pid "), detail
+    assert _status(run_dir, "late")["restarts"] == 2
+
+
 def test_a_program_that_stays_up_is_healthy_and_not_crash_looping(run_dir: Path) -> None:
     _sup(run_dir, "start", "steady", "--", "sleep", "300")
     ok, detail = supervise.health(run_dir, "steady", check="alive", master="http://127.0.0.1:9", timeout=30)

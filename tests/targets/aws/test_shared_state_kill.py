@@ -6,6 +6,15 @@ makes the process SIGKILL itself right after its Nth write to the store (lock ta
 removed, lock dropped); the test walks N up from 1 until the command runs to its end, and after every kill
 shows: the record parses and is a version the command wrote (its serial never goes back), the lock is
 reported naming the dead process, ``fogiac state unlock`` breaks it, and the command run again completes.
+
+What is covered, one kill point per distinct write (each run replays the writes before its point, from what
+the last kill left): ``up`` 7 (lock taken; record begun; hosts recorded before provisioning; hosts recorded
+with their folders; edge recorded; record finished; lock dropped), ``down`` 3 (lock taken; what it took down
+dropped from the record; the record marked removed), each ``state migrate`` 5 (source lock, destination lock,
+record written there, destination lock dropped, source lock dropped). No two points hit the same write. The
+other operator's reads after each kill (``state show`` and ``state unlock`` in each store, ``status``) run in
+one fresh process per kill (tests/support/cli_batch.py): as separate processes they were most of the walk's
+time.
 """
 
 from __future__ import annotations
@@ -73,6 +82,16 @@ class Member:
                 proc.wait()
         return proc.returncode, out, proc.pid
 
+    def batch(self, calls: list[tuple[list[str], str | None]]) -> list[tuple[int, str]]:
+        """Several read-only commands (argv, store URL) one after another in one fresh process
+        (tests/support/cli_batch.py): what each returned and said."""
+        env = self.env()
+        asked = [{"argv": argv, "env": {"FOGIAC_STATE_URL": url or self.url}} for argv, url in calls]
+        done = subprocess.run([sys.executable, "-m", "tests.support.cli_batch"], cwd=self.cwd, input=json.dumps(asked),
+                              capture_output=True, text=True, env=env, timeout=300)
+        assert done.returncode == 0, done.stderr
+        return [(int(code), str(out)) for code, out in json.loads(done.stdout)]
+
     def other(self, state: Path) -> Member:
         """Another operator of the same stack: their own state folder, the same manifest and store."""
         twin = copy.copy(self)
@@ -81,7 +100,15 @@ class Member:
 
     def record(self, url: str | None) -> dict[str, Any] | None:
         """The record ``fogiac state show`` reads in the store (None: it has none, or says it moved)."""
-        code, out, _ = self.run("state", "show", self.stack, url=url)
+        code, out, _ = self.run(*self.show_argv(), url=url)
+        return self.shown(code, out)
+
+    def show_argv(self) -> list[str]:
+        return ["state", "show", self.stack]
+
+    @staticmethod
+    def shown(code: int, out: str) -> dict[str, Any] | None:
+        """What ``state show`` said: the record (None: it has none, or says it moved)."""
         if code != 0:
             assert "no record in" in out or "moved" in out, out
             return None
@@ -89,9 +116,11 @@ class Member:
         assert isinstance(shown["record"], dict) and isinstance(shown["record"].get("serial"), int), shown
         return dict(shown["record"])
 
-    def unlock(self, url: str | None) -> str | None:
-        """Break the stack's lock in the store; the holder ``state unlock`` named (None: it was not locked)."""
-        code, out, _ = self.run("state", "unlock", self.stack, "--yes", url=url)
+    def unlock_argv(self) -> list[str]:
+        return ["state", "unlock", self.stack, "--yes"]
+
+    def unlocked(self, code: int, out: str) -> str | None:
+        """What ``state unlock`` said: the holder whose lock it broke (None: it was not locked)."""
         assert code == 0, out
         if "is not locked" in out:
             return None
@@ -134,15 +163,20 @@ def _killed_then_finished(member: Member, argv: list[str], stores: list[str | No
             assert code == 0, f"{argv} after {point - 1} kill(s): {out}"
             return point - 1
         assert not unlocked, f"{argv} wrote to the store after dropping its lock (killed at write {point})"
-        records = [r for r in (reader.record(url) for url in stores) if r is not None]
+        # the other operator's fogiac: state show in each store, status, state unlock in each store
+        status = argv[0] != "state"  # status reads what the kill left (a migrate's: the store it reads says where)
+        said = reader.batch([(reader.show_argv(), url) for url in stores]
+                            + ([(["status", "fogiac.yaml", "--json"], None)] if status else [])
+                            + [(reader.unlock_argv(), url) for url in stores])
+        records = [r for r in (reader.shown(*s) for s in said[:len(stores)]) if r is not None]
         assert records or removes or serial is None, f"no record anywhere after a kill at write {point} of {argv}"
         for record in records:  # the version before the command or one it wrote, whole: never an older one
             assert serial is None or record["serial"] >= serial, (point, record["serial"], serial)
             serial = record["serial"]
-        if argv[0] != "state":  # status reads what the kill left (a migrate's: the store it reads says where)
-            code, out, _ = reader.run("status", "fogiac.yaml", "--json")
+        if status:
+            code, out = said[len(stores)]
             assert code == 0 and "deployed" in json.loads(out[out.index("{"):]), out
-        holders = [h for h in (reader.unlock(url) for url in stores) if h is not None]
+        holders = [h for h in (reader.unlocked(*s) for s in said[-len(stores):]) if h is not None]
         unlocked = not holders
         for holder in holders:  # the lock names the dead process and what it was doing
             assert holder.startswith(f"{operation} by ") and f"(pid {pid}" in holder, holder

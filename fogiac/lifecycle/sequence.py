@@ -140,17 +140,23 @@ def _edge_or_undo(plan: Plan, master: str, *, start: bool, before: deployment.De
         raise
 
 
-def _recorded_hosts_too(target: Target, plan: Plan, access: Mapping[str, Any]) -> tuple[Plan, dict[str, Any]]:
+def _recorded_hosts_too(target: Target, plan: Plan, access: Mapping[str, Any]
+                        ) -> tuple[Plan, dict[str, Any], dict[str, Any]]:
     """The plan's hosts and every other host the stack's provisioning record names, with their access (the
     target reads back what it recorded): a ``down --force`` with another manifest of the same stack stops
-    the first manifest's hosts too."""
+    the first manifest's hosts too. A recorded host is reached where it was provisioned, not where ``reach``
+    puts it from this operator's state folder (another operator's ``local`` sandbox is under their folder,
+    and its pid files may not have reached the shared store before their ``up`` died); the third map holds
+    the hosts ``reach`` puts elsewhere, this operator's copy of them, to be removed too."""
     recorded = recorded_access(StackState(plan.stack).folder, target.access_from)
+    reached = {**access, **{name: entry[0] for name, entry in recorded.items()}}
+    copies = {name: mine for name, mine in access.items()
+              if name in recorded and recorded[name][0].describe() != mine.describe()}
     extra = {name: entry for name, entry in recorded.items() if name not in access}
     if not extra or not plan.hosts:
-        return plan, dict(access)
+        return plan, reached, copies
     specs = tuple(dataclasses.replace(plan.hosts[0], name=name, nodes=entry[2]) for name, entry in extra.items())
-    return (dataclasses.replace(plan, hosts=plan.hosts + specs),
-            {**access, **{name: entry[0] for name, entry in extra.items()}})
+    return dataclasses.replace(plan, hosts=plan.hosts + specs), reached, copies
 
 
 def down(target: Target, plan: Plan, opts: DownOptions) -> DownResult:
@@ -170,10 +176,14 @@ def down(target: Target, plan: Plan, opts: DownOptions) -> DownResult:
         if Feature.PROVISIONS in target.features and Feature.CREATES_MACHINES not in target.features:
             try:
                 access = target.reach(plan, Created(plan=plan), announce=lambda _: None).access
-                every, hosts = _recorded_hosts_too(target, plan, access)
-                report = teardown(every, hosts=hosts, state_dir=folder)
-                errors += [o.error or f"{o.host}: failed" for o in report.failed]
-                deleted += [f"{o.host} process {name}" for o in report.hosts for name in o.stopped]
+                every, hosts, copies = _recorded_hosts_too(target, plan, access)
+                for where in (hosts, copies):  # where each host was provisioned, then this operator's copy of it
+                    if not where:
+                        continue
+                    part = dataclasses.replace(every, hosts=tuple(h for h in every.hosts if h.name in where))
+                    report = teardown(part, hosts=where, state_dir=folder)
+                    errors += [o.error or f"{o.host}: failed" for o in report.failed]
+                    deleted += [f"{o.host} process {name}" for o in report.hosts for name in o.stopped]
             except FogiacError as err:
                 errors.append(str(err))
         stop_edge(plan)

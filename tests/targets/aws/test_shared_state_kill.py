@@ -6,6 +6,9 @@ makes the process SIGKILL itself right after its Nth write to the store (lock ta
 removed, lock dropped); the test walks N up from 1 until the command runs to its end, and after every kill
 shows: the record parses and is a version the command wrote (its serial never goes back), the lock is
 reported naming the dead process, ``fogiac state unlock`` breaks it, and the command run again completes.
+With the S3 store, the other operator also removes what a killed ``up`` left, before the walk: ``up`` killed
+with its node running and its hosts recorded (write 4) and once its record is finished but its lock held
+(write 6); each time the other operator, with nothing on disk, breaks the lock and ``down`` leaves no process.
 
 What is covered, one kill point per distinct write (each run replays the writes before its point, from what
 the last kill left): ``up`` 7 (lock taken; record begun; hosts recorded before provisioning; hosts recorded
@@ -189,12 +192,35 @@ def _deployed(member: Member, url: str | None = None) -> bool:
     return bool(json.loads(out[out.index("{"):])["deployed"])
 
 
+def _running(folder: Path) -> list[int]:
+    """The processes working in ``folder`` (a local stack's sandboxes live in its operator's state folder)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        try:
+            if entry.name.isdigit() and Path(os.readlink(entry / "cwd")).is_relative_to(folder):
+                found.append(int(entry.name))
+        except OSError:
+            continue
+    return found
+
+
 def walk_up_and_down(robot: str, tmp_path: Path, url: str | None) -> None:
     """``up`` then ``down``, each killed at every store write in turn; ``url``: the S3 store, None: the folder."""
     member = Member(tmp_path, url, robot)
     # with a shared store another operator reads, unlocks and runs the command again
     other = member.other(tmp_path / "other-state") if url else member
     try:
+        if url:  # the other operator removes what a killed up left: its nodes running, and all but the lock dropped
+            for point in (4, 6):
+                code, out, _ = member.run("up", "fogiac.yaml", "--yes", kill_after=point)
+                assert code == -signal.SIGKILL, out
+                assert _running(member.state), f"up killed at write {point} started no node"
+                assert other.unlocked(*other.run(*other.unlock_argv())[:2]) is not None
+                code, out, _ = other.run("down", "fogiac.yaml", "--yes")
+                assert code == 0, f"the other operator's down after a kill at write {point} of up: {out}"
+                left = {pid: Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ")[:150]
+                        for pid in _running(member.state)}
+                assert not _deployed(member) and not left, f"left after a kill at write {point}: {left} {out}"
         points = _killed_then_finished(member, ["up", "fogiac.yaml", "--yes"], [url], reader=other)
         assert points >= 3, points  # the lock, the record (begun, applied, ...), the lock dropped
         assert _deployed(other)

@@ -200,6 +200,12 @@ class CloudRelay(RelayEnd):
             if framing.parse_json(hello).get("version") != PROTOCOL_VERSION:
                 raise FrameError(f"edge speaks relay protocol {framing.parse_json(hello).get('version')}, "
                                  f"this cloud end {PROTOCOL_VERSION}")
+            if not self._admitted(identity := peer_identity(sock)):  # refused before the HELLO answer: a revoked
+                self.refused_links += 1  # robot's edge never counts itself linked, not even for a moment
+                self._quiet.warning("robot", "refused edge %s from %s: not a robot of this fleet, or revoked",
+                                    identity, peer)
+                sock.close()
+                return None
             send_now(sock, framing.json_frame(Kind.HELLO, {"role": "cloud", "version": PROTOCOL_VERSION}))
             sock.settimeout(None)
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)

@@ -22,7 +22,7 @@ from fogiac.cli.state import migrate
 from fogiac.pulumi_engine.workspace import BACKEND_DIR, workspace_env
 from fogiac.state import StackState
 from fogiac.targets.aws.engine import known_ids
-from stacks import LAYERS, PROJECT
+from stacks.aws import LAYERS, PROJECT
 
 pytestmark = pytest.mark.localstack
 

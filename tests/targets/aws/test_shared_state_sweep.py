@@ -19,7 +19,7 @@ import pytest
 
 from fogiac.targets.aws import api
 from fogiac.targets.aws.engine import known_ids
-from stacks import PROJECT
+from stacks.aws import PROJECT
 
 pytestmark = pytest.mark.localstack
 

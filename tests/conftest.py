@@ -20,6 +20,8 @@ certificates and containers are named after per-test folders or stacks.
 
 from __future__ import annotations
 
+import functools
+import re
 from pathlib import Path
 
 import pytest
@@ -42,9 +44,26 @@ def _state_dir(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.Mon
     return state
 
 
+# The LocalStack folder's fixtures that start or reach the emulator (tests/targets/aws/conftest.py): a module of
+# that folder whose functions ask for none of them needs no emulator and is scheduled on its own.
+EMULATOR_FIXTURES = re.compile(r"\bdef \w+\([^)]*\b(?:localstack|aws_env|ec2|acm|logs|iam|kms|_clients)\b[^)]*\)|"
+                               r"usefixtures")
+
+
+@functools.cache
+def _needs_emulator(module: str) -> bool:
+    try:
+        return bool(EMULATOR_FIXTURES.search((REPO / module).read_text()))
+    except OSError:
+        return True
+
+
 def scope_of(nodeid: str) -> str:
-    """The xdist scope of a test: its shared folder's name, else its module."""
+    """The xdist scope of a test: its shared folder's name, else its module (also a LocalStack folder's module
+    that asks for no emulator fixture: it need not wait on the emulator's worker)."""
     module = nodeid.split("::", 1)[0]
+    if module.startswith("tests/targets/aws/") and not _needs_emulator(module):
+        return module
     return next((name for folder, name in SHARED_FOLDERS.items() if module.startswith(folder)), module)
 
 

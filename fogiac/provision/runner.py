@@ -7,7 +7,6 @@ the others; :class:`ProvisionReport` carries every host's steps and error line.
 
 from __future__ import annotations
 
-import hashlib
 import time
 from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
@@ -21,7 +20,7 @@ from fogiac.net import middleware
 from fogiac.plan.model import HostSpec, Plan
 from fogiac.provision.host import Host, HostAccess, HostPorts, planned_ports, q
 from fogiac.provision.managers import manager_for
-from fogiac.provision.steps import CHANGED, HostRun, Options, step
+from fogiac.provision.steps import CHANGED, HostRun, Options, put_unless_same, step
 from fogiac.state import LEGACY_FILES, StackState
 
 Progress = Callable[[str, str, str], None]  # (host, step, status)
@@ -170,11 +169,8 @@ def _rewrite_one(plan: Plan, spec: HostSpec, access: HostAccess, *, known_hosts:
         layout = Layout(host.base, plan.stack)
         written = []
         for name, data, mode in middleware.fleet_files(plan.middleware, plan, spec, revoked=revoked):
-            remote = f"{layout.certs}/{name}"
-            known = (host.run(f"sha256sum {q(remote)} 2>/dev/null", check=False).stdout.split() or [""])[0]
-            if known != hashlib.sha256(data).hexdigest():
-                host.put(data, remote, mode=mode)  # replaced at once: the link never reads half of it
-                written.append(name)
+            if put_unless_same(host, data, f"{layout.certs}/{name}", mode=mode):  # replaced at once: the link
+                written.append(name)  # never reads half of it
         if written:
             status, detail = CHANGED, f"rewrote {', '.join(written)}"
     except FogiacError as err:

@@ -153,16 +153,23 @@ def _sha(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-def ensure_file(run: HostRun, data: bytes, remote: str, *, mode: int = 0o644) -> bool:
-    """Put ``data`` at ``remote`` unless the host already has exactly it; True if it wrote."""
-    known = run.facts.sha(remote) if run.facts is not None else None
+def put_unless_same(host: Host, data: bytes, remote: str, *, mode: int, known: str | None = None) -> bool:
+    """Put ``data`` at ``remote`` unless the host already has exactly it (``known``: its sha256 there, if the
+    caller has it; else asked); True if it wrote."""
     if known is None:
-        known = (run.host.run(f"sha256sum {q(remote)} 2>/dev/null", check=False).stdout.split() or [""])[0]
+        known = (host.run(f"sha256sum {q(remote)} 2>/dev/null", check=False).stdout.split() or [""])[0]
     if known == _sha(data):
         return False
-    run.host.put(data, remote, mode=mode)
-    run.files_pushed += 1
+    host.put(data, remote, mode=mode)
     return True
+
+
+def ensure_file(run: HostRun, data: bytes, remote: str, *, mode: int = 0o644) -> bool:
+    """Put ``data`` at ``remote`` unless the host already has exactly it; True if it wrote."""
+    wrote = put_unless_same(run.host, data, remote, mode=mode,
+                            known=run.facts.sha(remote) if run.facts is not None else None)
+    run.files_pushed += wrote
+    return wrote
 
 
 def step_connect(run: HostRun) -> StepResult:

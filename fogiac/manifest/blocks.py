@@ -36,6 +36,13 @@ from fogiac.manifest.network import NetworkBlock
 from fogiac.manifest.problems import FieldProblem, raise_all
 
 
+def _not_a_bool(value: object, unit: str) -> object:
+    """A YAML ``true``/``false`` where a number of ``unit`` is asked: refused, as pydantic would read it as 1/0."""
+    if isinstance(value, bool):
+        raise ValueError(f"{str(value).lower()} is not a number of {unit}")
+    return value
+
+
 class Ros(_Model):
     distro: Distro = Field(
         default="noetic",
@@ -68,9 +75,7 @@ class Autostop(_Model):
     @classmethod
     def _minutes(cls, value: object) -> object:
         """YAML's ``true`` would read as 1 minute: a number of minutes is a number."""
-        if isinstance(value, bool):
-            raise ValueError(f"{str(value).lower()} is not a number of minutes")
-        return value
+        return _not_a_bool(value, "minutes")
 
 
 class Registry(_Model):
@@ -121,9 +126,7 @@ class Cloud(_Model):
     @classmethod
     def _dollars(cls, value: object) -> object:
         """YAML's ``true`` would read as $1: a budget is a number of dollars."""
-        if isinstance(value, bool):
-            raise ValueError(f"{str(value).lower()} is not a number of dollars")
-        return value
+        return _not_a_bool(value, "dollars")
 
     @field_validator("region")
     @classmethod

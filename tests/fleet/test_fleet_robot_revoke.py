@@ -15,9 +15,8 @@ from pathlib import Path
 from typer.testing import CliRunner
 
 from fogiac.cli import app
-from fogiac.procs import free_port
 from fogiac.state import StackState, read_json
-from tests.fleet.test_fleet_up_local import PLANNER, REQUESTS, STACK, _clients, _manifest, _pids, pytestmark
+from tests.fleet.test_fleet_up_local import REQUESTS, STACK, _clients, _fleet, _pids, pytestmark
 from tests.plugins.install import installed
 from tests.support.procs import alive_pids
 
@@ -38,11 +37,7 @@ def _wait(what: str, check: object, timeout: float) -> float:
 
 
 def test_revoke_cuts_a_robot_off_and_restore_lets_it_back(tmp_path: Path, _state_dir: Path) -> None:
-    ports = {name: free_port() for name in ("arm1", "arm2", "arm3")}
-    planner = tmp_path / "planner.py"
-    planner.write_text(PLANNER)
-    manifest = tmp_path / "fogiac.yaml"
-    _manifest(manifest, ports, planner)
+    ports, manifest, _ = _fleet(tmp_path)
     runner = CliRunner()
     stack = StackState(STACK)
     sandbox = _state_dir / STACK / "local" / "planner"

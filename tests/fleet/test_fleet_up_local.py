@@ -170,12 +170,18 @@ def _opened(sock: socket.socket, topics: tuple[str, ...], *, seconds: float) -> 
     return opened
 
 
-def test_up_deploys_a_fleet_each_robot_its_own_edge_end_and_access(tmp_path: Path, _state_dir: Path) -> None:
+def _fleet(tmp_path: Path) -> tuple[dict[str, int], Path, Path]:
+    """Three robots' master ports and, in ``tmp_path``, the fleet's manifest and its shared stand-in planner."""
     ports = {name: free_port() for name in ("arm1", "arm2", "arm3")}
     planner = tmp_path / "planner.py"
     planner.write_text(PLANNER)
     manifest = tmp_path / "fogiac.yaml"
     _manifest(manifest, ports, planner)
+    return ports, manifest, planner
+
+
+def test_up_deploys_a_fleet_each_robot_its_own_edge_end_and_access(tmp_path: Path, _state_dir: Path) -> None:
+    ports, manifest, planner = _fleet(tmp_path)
     runner = CliRunner()
     stack = StackState(STACK)
     sandbox = _state_dir / STACK / "local" / "planner"

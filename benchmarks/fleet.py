@@ -64,6 +64,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from benchmarks.replicas import percentile  # noqa: E402  (the replica benchmark's, as replicas_hosts.py uses)
 from fogiac.certs import edge_identity, edge_role, load_or_create_edges, write_relay_lab  # noqa: E402
 from fogiac.net.relay.fleet import ACCESS_FILE, FleetAccess, Robot, SharedPair, write_access  # noqa: E402
 from tests.net.relay.relay_support import Master, Proc, Procs, free_port, wait_for  # noqa: E402
@@ -115,11 +116,6 @@ def rss_mb(pid: int) -> float:
         if line.startswith("VmRSS:"):
             return int(line.split()[1]) / 1024
     raise RuntimeError(f"no VmRSS for pid {pid}")
-
-
-def percentile(values: list[float], q: float) -> float:
-    ordered = sorted(values)
-    return ordered[min(len(ordered) - 1, int(round(q * (len(ordered) - 1))))]
 
 
 def planner_robot(argv: list[str]) -> None:

@@ -87,9 +87,14 @@ def summary(name: str, robot: Mapping[str, Any], links: Sequence[Mapping[str, An
 
 def robot_status(plan: Plan, running: Sequence[Mapping[str, Any]] = ()) -> list[dict[str, Any]]:
     """One row per robot the record links, each from its own stats files; [] for a stack of one robot.
-    ``running``: the stack's edge processes that run (a robot's carry ``@<robot>`` after their name)."""
-    robots = recorded_robots(plan.stack, StackState(plan.stack).get(StackState.EDGES))
-    return [summary(str(r["name"]), r, _links(plan, r),
+    ``running``: the stack's edge processes that run (a robot's carry ``@<robot>`` after their name). A robot
+    is revoked where the record's revoked list (``fogiac robot revoke``) names it: its edge entry says nothing
+    of it, and its link merely down would hide why."""
+    state = StackState(plan.stack)
+    robots = recorded_robots(plan.stack, state.get(StackState.EDGES))
+    listed = state.get(StackState.REVOKED)
+    revoked = {str(name) for name in listed} if isinstance(listed, list) else set()
+    return [summary(str(r["name"]), {**r, "revoked": True} if r["name"] in revoked else r, _links(plan, r),
                     [p for p in running if str(p.get("name", "")).endswith(f"@{r['name']}")]) for r in robots]
 
 

@@ -133,6 +133,19 @@ def test_a_revoked_robot_and_a_hostile_edges_list(tmp_path: Path) -> None:
     assert shown.exit_code == 0 and "Traceback" not in shown.output and "\x1b[31m" not in shown.output
 
 
+def test_a_robot_revoked_by_the_verb_says_revoked(tmp_path: Path) -> None:
+    """``fogiac robot revoke`` keeps the robot in the record's revoked list (``StackState.REVOKED``), not on its
+    edge: status read only the edge's own flag, which nothing writes, and showed a revoked robot as a link down."""
+    manifest, plan = _deploy(tmp_path)
+    StackState(plan.stack).update(lambda document: document.__setitem__(StackState.REVOKED, ["arm3"]))  # as the verb
+    rows = {row["robot"]: row for row in json.loads(runner.invoke(app, ["status", str(manifest), "--json"]).output)
+            ["robots"]}
+    assert {name: row["revoked"] for name, row in rows.items()} == {"arm1": False, "arm2": False, "arm3": True}
+    shown = runner.invoke(app, ["status", str(manifest)], env=WIDE).output
+    arm3 = next(line for line in shown.splitlines() if line.startswith("│ arm3 "))
+    assert "revoked" in arm3
+
+
 def test_odd_figures_in_a_robots_stats_are_unknown_not_trusted(tmp_path: Path) -> None:
     """A stats file with text, NaN or a string for connected (not what the relay writes) gives unknown figures,
     never a link up, a NaN in the JSON or a control character on the terminal."""

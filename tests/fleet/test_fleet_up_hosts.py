@@ -38,6 +38,7 @@ from fogiac.procs import free_port
 from fogiac.provision import SshAccess
 from fogiac.state import StackState, read_json
 from fogiac.targets.hosts.target import HostsTarget
+from tests.docs.blocks import REPO, blocks, normalise
 from tests.fleet.test_fleet_up_local import PLANNER, REQUESTS, _clients, _pids
 from tests.plugins.install import installed
 from tests.provision.conftest import ros_skip_reason
@@ -152,7 +153,9 @@ def test_a_fleet_on_a_lab_host_grows_is_revoked_and_goes(tmp_path: Path, _state_
 
             revoked = runner.invoke(app, ["robot", "revoke", "arm3", str(manifest)])
             assert revoked.exit_code == 0, revoked.output
-            assert "robot arm3 revoked: every cloud end refuses its certificate (1 of 1 hosts)" in revoked.output
+            shown_in_guide = [b for b in blocks(REPO / "docs" / "guides" / "fleet.md") if b.kind == "checked"
+                              and b.field("test") == "tests/fleet/test_fleet_up_hosts.py"]
+            assert [normalise(b.body) for b in shown_in_guide] == [normalise(revoked.output)]  # the guide shows it
             took = _wait("arm3's link cut", lambda: _connected(stack, host.name, "arm3") is False, 10)
             assert took < 10
             assert json.loads(access.read_text())["revoked"] == ["arm3"]

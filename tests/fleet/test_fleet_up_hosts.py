@@ -72,14 +72,18 @@ robots:
 
 
 def _host_processes(host: LabHost) -> set[int]:
-    """Every process in the host's namespace but its sshd (and the sessions it forks for a login)."""
+    """Every process in the host's namespace but its sshd and what runs in an SSH session (a command of
+    provisioning still exiting): fogiac's services are detached from the session that started them."""
     found = set()
     for pid in host.ns.pids():
         try:
-            if not Path(f"/proc/{pid}/comm").read_text().strip().startswith("sshd"):
-                found.add(pid)
-        except OSError:
-            continue
+            ancestor = pid
+            while ancestor > 1 and not Path(f"/proc/{ancestor}/comm").read_text().startswith("sshd"):
+                ancestor = int(Path(f"/proc/{ancestor}/stat").read_text().rsplit(")", 1)[1].split()[1])
+        except (OSError, ValueError, IndexError):
+            continue  # gone meanwhile: not a service
+        if ancestor <= 1:
+            found.add(pid)
     return found
 
 

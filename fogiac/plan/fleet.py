@@ -46,9 +46,11 @@ def node_row(plan: Plan, node: NodeSpec) -> dict[str, Any]:
 
 
 def access(plan: Plan, robot: str) -> list[str]:
-    """The topics a robot may cross: its namespace, and the topics of the shared nodes that serve it."""
+    """The topics a robot may cross: its namespace, and the topics of the shared nodes that serve it but for
+    those in another robot's namespace (that robot's alone, as every cloud end's access file has it)."""
+    others = tuple(f"/{edge.name}/" for edge in plan.edges if edge.name != robot)
     shared = {topic for node in plan.nodes if robot in plan.robots_of(node) and not node.per_robot
-              for topic in (*node.topics_in, *node.topics_out)}
+              for topic in (*node.topics_in, *node.topics_out) if not topic.startswith(others)}
     return [f"/{robot}/..."] + sorted(shared)
 
 

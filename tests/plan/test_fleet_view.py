@@ -12,8 +12,10 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
+from fogiac.certs import edge_identity
 from fogiac.cli import app
 from fogiac.manifest.schema import parse_manifest
+from fogiac.net.relay import deploy as relay_deploy
 from fogiac.plan import fleet
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.document import document
@@ -44,6 +46,20 @@ def test_each_robot_bears_its_share_and_the_shares_add_up_to_the_hosts() -> None
     assert robots["arm2"]["access"] == ["/arm2/...", "/plan/path", "/plan/request"]  # not grasp's topics
     assert robots["arm3"]["access"] == ["/arm3/...", "/grasp/reply", "/grasp/request", "/plan/path", "/plan/request"]
     assert robots["arm1"]["edge_links"] == ["planner", "grasp"] and robots["arm2"]["nodes"] == ["planner"]
+
+
+def test_a_topic_in_another_robots_namespace_is_not_shown_in_a_robots_access() -> None:
+    """A shared node's listed topic in arm2's namespace (``/arm2/status``) is arm2's alone at every cloud end
+    (:func:`fogiac.net.relay.deploy.fleet_access`); the plan listed it as arm1's and arm3's to cross too, so a
+    reviewer read a neighbour's topic as open to them. The plan's access is what the access files say."""
+    plan = _plan(PRICED.replace("out: [/plan/path]", "out: [/plan/path, /arm2/status]"))
+    shown = {r["name"]: r["access"] for r in fleet.robots(plan) or []}
+    assert shown["arm1"] == ["/arm1/...", "/grasp/reply", "/grasp/request", "/plan/path", "/plan/request"]
+    assert shown["arm2"] == ["/arm2/...", "/arm2/status", "/plan/path", "/plan/request"]
+    for edge in plan.edges:
+        enforced = set().union(*(relay_deploy.fleet_access(plan, spec).robots[
+            edge_identity(plan.stack, edge.named)].topics for spec in plan.hosts))
+        assert set(shown[edge.name][1:]) == enforced, edge.name
 
 
 def test_a_per_robot_node_runs_one_instance_per_robot_and_splits_its_host() -> None:

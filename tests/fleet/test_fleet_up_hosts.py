@@ -12,7 +12,8 @@ host. One walk, one ``up`` of two robots, in the order an operator meets it:
 - All three robots' requests, stamped alike, are each answered exactly once and to the robot that asked;
   arm2's own namespace reaches arm2 alone.
 - ``fogiac robot revoke arm3`` cuts arm3's link within 10 s while arm1 and arm2 stay linked, with no process
-  restarted on the host; ``status`` says arm3 is revoked.
+  restarted on the host; ``status`` says arm3 is revoked. Dropped from the manifest, ``plan`` names it alone and
+  ``up`` stops its edge end only, the host's processes still keeping their pids.
 - ``down`` leaves nothing: no process in the host's namespace but its sshd, no folder, no edge process here.
 
 As the other hosts tests do, fogiac's code is not pushed (the namespaces share this checkout, which other work
@@ -170,6 +171,18 @@ def test_a_fleet_on_a_lab_host_grows_is_revoked_and_goes(tmp_path: Path, _state_
             rows = {row["robot"]: row for row in json.loads(status.output)["robots"]}
             assert {name: (row["revoked"], row["links_up"]) for name, row in rows.items()} == {
                 "arm1": (False, 1), "arm2": (False, 1), "arm3": (True, 0)}  # revoked, not merely down
+
+            # arm3 leaves the manifest: the plan names it alone, up stops only its edge end and forgets it was
+            # revoked; the host's file lists the two others, and still nothing on the host restarts.
+            _manifest(manifest, host, key, two, planner)
+            shown = runner.invoke(app, ["plan", str(manifest), "--detailed-exitcode"])
+            assert shown.exit_code == 2 and "Robots: 0 to add, 0 to change, 1 to remove." in shown.output, shown.output
+            dropped = runner.invoke(app, ["up", str(manifest), "--yes"])
+            assert dropped.exit_code == 0 and "robot arm3: its edge end stopped" in dropped.output, dropped.output
+            assert _pids(stack.edge) == edge_pids and stack.get(StackState.REVOKED) is None
+            assert (set(json.loads(access.read_text())["robots"]), json.loads(access.read_text())["revoked"]) == (
+                set(two), [])
+            assert _host_processes(host) == on_host and _pids(base) == host_pids
         finally:
             down = runner.invoke(app, ["down", str(manifest), "--yes"])
         assert down.exit_code == 0, down.output

@@ -60,11 +60,6 @@ class Bundle:
     client: KeyPair
 
 
-def relay_name(stack: str, host: str) -> str:
-    """The name in ``host``'s relay certificate, which the edge relay dialing that host checks."""
-    return f"{host}.relay.{stack}.fogiac"
-
-
 def _new_key() -> rsa.RSAPrivateKey:
     return rsa.generate_private_key(public_exponent=65537, key_size=2048)
 
@@ -317,18 +312,6 @@ def load_or_create_edges(stack: str, directory: Path, edges: Iterable[str | None
             save_pair(directory, role, pair)
         pairs[edge] = pair
     return pairs
-
-
-def write_relay_lab(stack: str, directory: Path) -> str:
-    """For a relay run by hand (``fogiac relay certs``): ca, client and one cloud-end server
-    certificate (server.pem/.key) in ``directory``; returns the server's name. A stack's hosts
-    never get these: each makes its own key at provisioning."""
-    ca = new_ca(f"fogiac CA {stack}")
-    name = relay_name(stack, "server")
-    save_pair(directory, "ca", ca)
-    save_pair(directory, "server", issue(ca, name, server=True, dns_names=(name,)))
-    save_pair(directory, "client", _client_pair(ca, stack))
-    return name
 
 
 SSH_KEY = "id_ed25519"  # under stack_dir(stack)/"ssh": private 0600, public beside it (.pub)

@@ -65,8 +65,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from benchmarks.replicas import percentile  # noqa: E402  (the replica benchmark's, as replicas_hosts.py uses)
-from fogiac.certs import edge_identity, edge_role, load_or_create_edges, write_relay_lab  # noqa: E402
+from fogiac.certs import edge_identity, edge_role, load_or_create_edges  # noqa: E402
 from fogiac.net.relay.fleet import ACCESS_FILE, FleetAccess, Robot, SharedPair, write_access  # noqa: E402
+from fogiac.net.relay.tls import write_relay_lab  # noqa: E402
 from tests.net.relay.relay_support import Master, Proc, Procs, free_port, wait_for  # noqa: E402
 from tests.support.ros import ros_missing  # noqa: E402
 

@@ -55,7 +55,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from fogiac.certs import write_relay_lab  # noqa: E402
+from fogiac.net.relay.tls import write_relay_lab  # noqa: E402
 from tests.net.relay.relay_support import Master, Proc, Procs, free_port, wait_for  # noqa: E402
 from tests.support.delayproxy import DelayProxy  # noqa: E402
 from tests.support.ros import ros_missing  # noqa: E402

@@ -30,7 +30,6 @@ from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
 from fogiac.errors import CertError
-from fogiac.plan.model import server_name
 from fogiac.state import write_atomic
 
 _VALID_DAYS = 825
@@ -58,11 +57,6 @@ class Bundle:
     ca: KeyPair
     vpn: KeyPair
     client: KeyPair
-
-
-def relay_name(stack: str, host: str) -> str:
-    """The name in ``host``'s relay certificate, which the edge relay dialing that host checks."""
-    return f"{host}.relay.{stack}.fogiac"
 
 
 def _new_key() -> rsa.RSAPrivateKey:
@@ -215,6 +209,12 @@ def serves(ca: KeyPair, cert_pem: bytes, name: str, public_key_pem: bytes, *, ad
     return same_key and named and left > _dt.timedelta(days=days)
 
 
+def server_name(stack: str) -> str:
+    """The DNS-style name the stack's VPN endpoint certificate carries (ACM needs a domain): a certificate's
+    name, kept here with the others rather than in the plan, so this module needs nothing above it."""
+    return f"server.{stack}.fogiac"
+
+
 def _vpn_pair(ca: KeyPair, stack: str) -> KeyPair:
     name = server_name(stack)
     return issue(ca, name, server=True, dns_names=(name,))
@@ -317,18 +317,6 @@ def load_or_create_edges(stack: str, directory: Path, edges: Iterable[str | None
             save_pair(directory, role, pair)
         pairs[edge] = pair
     return pairs
-
-
-def write_relay_lab(stack: str, directory: Path) -> str:
-    """For a relay run by hand (``fogiac relay certs``): ca, client and one cloud-end server
-    certificate (server.pem/.key) in ``directory``; returns the server's name. A stack's hosts
-    never get these: each makes its own key at provisioning."""
-    ca = new_ca(f"fogiac CA {stack}")
-    name = relay_name(stack, "server")
-    save_pair(directory, "ca", ca)
-    save_pair(directory, "server", issue(ca, name, server=True, dns_names=(name,)))
-    save_pair(directory, "client", _client_pair(ca, stack))
-    return name
 
 
 SSH_KEY = "id_ed25519"  # under stack_dir(stack)/"ssh": private 0600, public beside it (.pub)

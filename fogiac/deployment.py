@@ -192,6 +192,36 @@ def forget(stack: str) -> None:
     StackState(stack).drop(StackState.DEPLOYMENT)
 
 
+def stack_for(names: tuple[str, str | None], manifest: Path) -> str:
+    """Which of a manifest's stack names (:func:`fogiac.plan.compile.stack_names`: the name, and the one of
+    before ``--`` or None) its stack has: one deployed under the older naming (an environment with a '-' was
+    joined with a single '-') keeps its old name while its record names ``manifest`` and nothing took the new one."""
+    new, old = names
+    if old is None or read(new) is not None:
+        return new
+    record = read(old)
+    return old if record is not None and record.exists and record.manifest == manifest_id(manifest) else new
+
+
+def locate(names: tuple[str, str | None], manifest: Path, requested: str | None, *, force_hint: bool,
+           force: bool = False, creating: bool = False) -> tuple[str, str | None]:
+    """Where a verb on ``manifest`` acts, from the records alone: its stack (:func:`stack_for`) and the target
+    it must use (:func:`choose_target`), in one place."""
+    stack = stack_for(names, manifest)
+    return stack, choose_target(stack, manifest, requested, force_hint=force_hint, force=force, creating=creating)
+
+
+def undo_begin(stack: str, before: Deployment | None, *, existed: bool) -> None:
+    """``up`` failed after :func:`begin` and before anything was made (the robot's side did not answer): the
+    stack's folder goes if this run made it, else the record goes back to what it was (none, or removed)."""
+    if not existed:
+        StackState(stack).discard()
+    elif before is None:
+        forget(stack)
+    elif not before.exists:
+        removed(stack)
+
+
 def choose_target(stack: str, manifest: Path, requested: str | None, *, force_hint: bool,
                   force: bool = False, creating: bool = False) -> str | None:
     """The target a verb on ``stack`` must use: the recorded one, if the stack exists.

@@ -27,6 +27,9 @@ entry point anywhere else is a plain import in disguise and counts as one.
   strings of a field's ``description=`` or an option's ``help=`` may name them);
 - ``fogiac/errors.py`` is one neutral tree: it names no middleware, VPN, cloud or engine, whose errors
   subclass its classes in their own folders;
+- ``fogiac/certs.py`` keeps what every middleware shares (the CA, edge identities, signing a host's CSR) and
+  names no middleware in code: a middleware's certificate names and files live in its folder
+  (``net/relay/tls.py``, ``net/zenoh/tls.py``);
 - no branch on a target's name outside that target's own folder;
 - ``stacks/`` holds one folder per cloud, named after that cloud's target (``stacks/aws/``), and nothing
   else but its empty top.
@@ -72,6 +75,7 @@ TAG_LINE, TAG_LIMIT, NODE_CAP = re.compile(r"tag", re.I), re.compile(r"^(50|128|
 CLOUD_IMPORTERS = ("fogiac.manifest.fogros", "fogiac.manifest.fogros2", "fogiac.manifest.fogros2_nearest")
 # What errors.py may not name: a middleware (relay, Zenoh), a VPN, a cloud, an engine.
 PLUGIN_WORDS = re.compile(r"relay|zenoh|vpn|aws|amazon|pulumi|engine|boto", re.I)
+MIDDLEWARE_WORDS = re.compile(r"relay|zenoh", re.I)  # what certs.py may not name in code
 ERROR_FOLDERS = ("fogiac.net", "fogiac.targets", "fogiac.pulumi_engine")  # where plug-ins keep their own errors
 
 
@@ -308,6 +312,13 @@ def test_errors_is_one_neutral_tree() -> None:
                     if isinstance(node, ast.ClassDef)
                     and any(ast.unparse(base).endswith("FogiacError") for base in node.bases))
     assert direct == []
+
+
+def test_certs_name_no_middleware() -> None:
+    """The shared certificate module names no middleware in code: the relay's host names and its hand-run
+    lab files are the relay's (:mod:`fogiac.net.relay.tls`), as the Zenoh router's are Zenoh's."""
+    path = REPO / "fogiac" / "certs.py"
+    assert sorted(f"certs.py:{line}: {text}" for line, text in _code_lines(path) if MIDDLEWARE_WORDS.search(text)) == []
 
 
 def test_no_branch_on_a_target_name_outside_its_own_folder() -> None:

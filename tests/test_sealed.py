@@ -15,6 +15,7 @@ import pytest
 from fogiac import certs, sealed
 from fogiac.errors import StateError
 from fogiac.net import hostkey
+from fogiac.net.relay.tls import write_relay_lab
 from fogiac.procs import free_port
 from tests.conftest import REPO
 
@@ -136,7 +137,7 @@ def test_a_stack_folder_made_by_the_cert_functions_seals_to_no_key(passphrase: s
     folder = tmp_path / "lab-dev"
     certs.load_or_create_bundle("lab-dev", folder / "certs")
     certs.load_or_create_edges("lab-dev", folder / "certs", ["lab", None])
-    certs.write_relay_lab("lab-dev", folder / "certs")
+    write_relay_lab("lab-dev", folder / "certs")
     certs.load_or_create_ssh_key(folder / "ssh")
     hostkey.main(["new", str(folder / "local" / "planner" / "certs"), "planner"])  # a host's key, made where it runs
     (folder / "pulumi-passphrase").write_text("generated")

@@ -10,9 +10,9 @@ import typer
 
 from fogiac import deployment, store
 from fogiac.errors import FogiacError, ManifestError
-from fogiac.manifest.fogros import load_any
+from fogiac.manifest.importers import load_any
 from fogiac.manifest.schema import Manifest
-from fogiac.plan.compile import compile_plan, legacy_stack_name, stack_name
+from fogiac.plan.compile import compile_plan, stack_names
 from fogiac.plan.model import Plan
 
 MANIFEST = typer.Argument(Path("fogiac.yaml"), help="The manifest (fogiac.yaml) or a FogROS launch file.",
@@ -38,19 +38,8 @@ def load(manifest: Path) -> Manifest:
 
 def compile_for(manifest: Path, env: str = "dev", target: str | None = None) -> Plan:
     loaded = load(manifest)
-    return compile_plan(loaded, target=target, environment=env, stack=_stack(loaded, manifest, env))
-
-
-def _stack(loaded: Manifest, manifest: Path, env: str) -> str:
-    """The stack's name; one deployed under the older naming (an environment with a '-' was joined with
-    a single '-') keeps its old name while its record names this manifest and nothing took the new one."""
-    new = stack_name(loaded, env)
-    old = legacy_stack_name(loaded, env)
-    if old is None or deployment.read(new) is not None:
-        return new
-    record = deployment.read(old)
-    return old if record is not None and record.exists and record.manifest == deployment.manifest_id(manifest) \
-        else new
+    stack = deployment.stack_for(stack_names(loaded, env), manifest)
+    return compile_plan(loaded, target=target, environment=env, stack=stack)
 
 
 def compile_deployed(manifest: Path, env: str = "dev", target: str | None = None, *, force: bool = False,
@@ -61,8 +50,8 @@ def compile_deployed(manifest: Path, env: str = "dev", target: str | None = None
     stack name, is refused in one line; nothing deployed: ``target`` or the manifest's own.
     """
     loaded = load(manifest)
-    stack = _stack(loaded, manifest, env)
-    chosen = deployment.choose_target(stack, manifest, target, force=force, force_hint=has_force, creating=creating)
+    stack, chosen = deployment.locate(stack_names(loaded, env), manifest, target, force=force, force_hint=has_force,
+                                      creating=creating)
     return compile_plan(loaded, target=chosen, environment=env, stack=stack)
 
 

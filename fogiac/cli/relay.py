@@ -9,12 +9,12 @@ from pathlib import Path
 
 import typer
 
-from fogiac.certs import write_relay_lab
 from fogiac.net.relay.cloud import CloudRelay
 from fogiac.net.relay.compression import parse_spec
 from fogiac.net.relay.config import CloudConfig, EdgeConfig, default_ros_host, parse_hostport, policy_from_spec
 from fogiac.net.relay.edge import EdgeRelay
 from fogiac.net.relay.errors import RelayError
+from fogiac.net.relay.tls import write_relay_lab
 
 _MASTER = typer.Option("http://127.0.0.1:11311/", "--master", help="This side's ROS master URI.")
 _CERTS = typer.Option(..., "--certs", help="Directory from `fogiac certs` (ca.pem and this end's pair).")

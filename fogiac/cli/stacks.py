@@ -17,7 +17,7 @@ import typer
 from fogiac import deployment
 from fogiac.errors import FogiacError
 from fogiac.lifecycle.robots import robot_count
-from fogiac.manifest.fogros import load_any
+from fogiac.manifest.importers import load_any
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.guard import duration
 from fogiac.state import StackState, stack_names, state_root

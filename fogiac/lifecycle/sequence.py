@@ -131,12 +131,7 @@ def _edge_or_undo(plan: Plan, master: str, *, start: bool, before: deployment.De
     try:
         ensure_edge_master(plan, master, start=start)
     except FogiacError:
-        if not existed:
-            StackState(plan.stack).discard()
-        elif before is None:
-            deployment.forget(plan.stack)
-        elif not before.exists:
-            deployment.removed(plan.stack)
+        deployment.undo_begin(plan.stack, before, existed=existed)
         raise
 
 

@@ -104,23 +104,32 @@ def variant(provider: str | None = None) -> CloudVariant:
     return found
 
 
+def sizing(provider: object) -> CloudVariant:
+    """The variant that names and prices machines for ``provider``: its own where it names one, else the
+    default's. One decision for every lenient reader: a manifest whose provider is wrong (its own error
+    says so) still has its nodes' machines checked, and a target without a ``cloud:`` variant of its own
+    (one registered in code only) sizes and prices its machines in the default's terms."""
+    found: CloudVariant | None = registry.find(GROUP, provider) if isinstance(provider, str) else None
+    return found if found is not None else variant()
+
+
 def prices(target: str | None = None) -> PriceSource:
-    """Where ``target``'s prices come from; a target without a ``cloud:`` variant of its own (one
-    registered in code only) prices its machines in the default's terms, as it sized them."""
-    return variant(target if known(target) else None).prices()
+    """Where ``target``'s prices come from (:func:`sizing`: the default's for a target without a variant)."""
+    return sizing(target).prices()
 
 
 def catalogue_digest(target: str | None = None) -> str | None:
     """The digest of the machine catalogue ``target`` chooses and prices machines from (as :func:`prices`, the
     default's for a target without a variant of its own); None for a variant that keeps none."""
-    found = getattr(variant(target if known(target) else None), "catalogue_sha256", None)
+    found = getattr(sizing(target), "catalogue_sha256", None)
     return str(found()) if callable(found) else None
 
 
-def limits(provider: str | None = None) -> Limits:
-    """What ``provider``'s cloud allows; a variant naming none is held to the default's, as its machines
-    are sized in the default's terms (a manifest valid for one target stays valid for the others)."""
-    found: Limits | None = getattr(variant(provider), "limits", None)
+def limits(provider: object = None) -> Limits:
+    """What ``provider``'s cloud allows (:func:`sizing`: a provider that names no variant, the default's); a
+    variant naming none is held to the default's, as its machines are sized in the default's terms (a manifest
+    valid for one target stays valid for the others)."""
+    found: Limits | None = getattr(sizing(provider), "limits", None)
     return found if found is not None else getattr(variant(), "limits", NO_LIMITS)
 
 

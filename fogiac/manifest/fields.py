@@ -23,7 +23,7 @@ from pydantic import (
 )
 
 from fogiac import middlewares
-from fogiac.manifest.clouds import CloudVariant, providers, variant
+from fogiac.manifest.clouds import CloudVariant, providers, sizing
 
 _DNS_NAME = re.compile(r"^[a-z]([a-z0-9-]{0,38}[a-z0-9])?$")
 
@@ -66,9 +66,10 @@ def ssh_from_problem(nets: Iterable[ipaddress.IPv4Network]) -> str | None:
 
 def _sizing(info: ValidationInfo | None) -> CloudVariant:
     """The ``cloud:`` variant that names the machines: the manifest's provider's, which
-    :func:`parse_manifest` passes as context; without one (a model built in code), the default's."""
+    :func:`parse_manifest` passes as context; without one (a model built in code) or with one that names
+    no variant, the default's (:func:`~fogiac.manifest.clouds.sizing`)."""
     context = info.context if info is not None else None
-    return variant(context.get("provider") if isinstance(context, dict) else None)
+    return sizing(context.get("provider") if isinstance(context, dict) else None)
 
 
 def _no_control(value: Path) -> Path:

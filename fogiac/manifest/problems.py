@@ -132,7 +132,9 @@ def _screen(text: str, *, source: str) -> None:
             depth -= 1
 
 
-def parse_yaml(text: str, *, source: str) -> tuple[yaml.Node | None, Any]:
+def parse_yaml(text: str, *, source: str) -> tuple[Any, dict[Loc, int]]:
+    """The manifest's data and the line of each of its keys and list items (:func:`line_index`), which
+    :func:`format_errors` places its lines by: this module is entered once to read and once to report."""
     try:
         _screen(text, source=source)
         root = yaml.compose(text, Loader=yaml.SafeLoader)
@@ -148,7 +150,7 @@ def parse_yaml(text: str, *, source: str) -> tuple[yaml.Node | None, Any]:
         raise ManifestError(
             [f"{source}:{line}: {path_str(path)}: key given twice" for path, line in duplicates]
         )
-    return root, data
+    return data, line_index(root)
 
 
 def _duplicate_keys(node: yaml.Node | None, path: Loc) -> Iterable[tuple[Loc, int]]:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from fogiac.errors import ManifestError
-from fogiac.manifest.fogros import load_any
+from fogiac.manifest.importers import load_any
 from fogiac.manifest.schema import Manifest, parse_manifest
 
 GIT_PREFIX = "git:"

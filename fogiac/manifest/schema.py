@@ -24,12 +24,12 @@ from pydantic_core import InitErrorDetails, PydanticCustomError
 from fogiac import middlewares
 from fogiac.errors import ManifestError
 from fogiac.manifest.blocks import Autostop, Cloud, Edge, HostMachine, Network, Registry, Relay, Robot, Ros
-from fogiac.manifest.clouds import Limits, known, limits
+from fogiac.manifest.clouds import Limits, limits
 from fogiac.manifest.crossfield import cross_field_problems
 from fogiac.manifest.fields import DnsName, _Model, ssh_from_problem
 from fogiac.manifest.machines import NoMachine
 from fogiac.manifest.nodes import Build, Launch, Machine, Node, NodeKind, TopicLists, Workload
-from fogiac.manifest.problems import FieldProblem, format_errors, line_index, parse_yaml, raise_all
+from fogiac.manifest.problems import FieldProblem, format_errors, parse_yaml, raise_all
 from fogiac.manifest.replicas import Hedge
 from fogiac.manifest.requirements import RequirementsProblem, specifiers
 from fogiac.manifest.source import read_source
@@ -281,15 +281,14 @@ def _resolve_paths(data: dict, base: Path) -> list[tuple[tuple, str]]:
 
 def parse_manifest(text: str, *, source: str = "<manifest>", base: Path | None = None) -> Manifest:
     """Validate manifest text; ``base`` is the folder relative paths are taken from."""
-    root, data = parse_yaml(text, source=source)
-    lines = line_index(root)
+    data, lines = parse_yaml(text, source=source)
     if not isinstance(data, dict):
         raise ManifestError([f"{source}:1: the manifest must be a mapping (name:, nodes:, ...)"])
     missing = _resolve_paths(data, base or Path.cwd())
     cloud = data.get("cloud")
     provider = cloud.get("provider") if isinstance(cloud, dict) else None
-    try:  # the provider's variant names the nodes' machines (a broken provider: the default's)
-        manifest = Manifest.model_validate(data, context={"provider": provider if known(provider) else None})
+    try:  # the provider's variant names the nodes' machines (a broken provider: the default's, clouds.sizing)
+        manifest = Manifest.model_validate(data, context={"provider": provider})
     except ValidationError as err:
         # Field errors and the rules across fields together: one run shows every problem.
         extra = missing + cross_field_problems(Manifest, data)

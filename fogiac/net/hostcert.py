@@ -8,7 +8,7 @@ Why: one server key sent to every host meant any host (a lab machine included) c
 any other, and as the Client VPN endpoint. Now each host's key is born there
 (:mod:`.hostkey`, run through :class:`Host`), only its CSR comes back, and the operator's CA
 (whose key never leaves this machine) signs a certificate for the host's own name
-(:func:`fogiac.certs.relay_name` for the relay's cloud end, which the edge relay checks; the
+(:func:`fogiac.net.relay.tls.relay_name` for the relay's cloud end, which the edge relay checks; the
 Zenoh router's name plus the address the edge dials, which the edge router checks). A second
 run keeps the key and certificate while the certificate is the CA's, for those names and that
 key, and has more than a month left. The relay and the Zenoh router both come through here,

@@ -47,16 +47,19 @@ def stack_name(manifest: Manifest, environment: str = "dev") -> str:
     return f"{manifest.name}{'--' if '-' in environment else '-'}{environment}"
 
 
-def legacy_stack_name(manifest: Manifest, environment: str) -> str | None:
-    """The name fogiac gave this stack before ``--`` (``<name>-<environment>``), where it differs."""
+def stack_names(manifest: Manifest, environment: str) -> tuple[str, str | None]:
+    """The stack's name (:func:`stack_name`) and the one fogiac gave it before ``--``
+    (``<name>-<environment>``) where it differs, else None: the record decides which a deployment has
+    (:func:`fogiac.deployment.stack_for`)."""
+    new = stack_name(manifest, environment)
     old = f"{manifest.name}-{environment}"
-    return old if old != stack_name(manifest, environment) else None
+    return new, (old if old != new else None)
 
 
 def compile_plan(manifest: Manifest, *, target: str | None = None, environment: str = "dev",
                  stack: str | None = None) -> Plan:
     """Compile ``manifest`` for ``target`` (default: the manifest's own provider); ``stack``: the name a
-    deployment made under an older naming still has (:func:`legacy_stack_name`), else :func:`stack_name`."""
+    deployment made under an older naming still has (:func:`stack_names`), else :func:`stack_name`."""
     name = target or manifest.cloud.provider
     place = targets.placer(name)  # loads only what the target decides at compile time
     carrier = middleware.for_distro(manifest.ros.distro)

@@ -74,15 +74,17 @@ def shown_env(env: Mapping[str, Any], secrets: Mapping[str, str] | None = None) 
     return dict(sorted({**out, **{k: f"[secret {ref}]" for k, ref in (secrets or {}).items()}}.items()))
 
 
-def _node(node: NodeSpec) -> dict[str, Any]:
-    return {**cost.node_row(node), "command": list(node.command), "env": shown_env(dict(node.env), dict(node.secrets)),
+def _node(node: NodeSpec, row: Mapping[str, Any]) -> dict[str, Any]:
+    """A node's row: what :func:`fogiac.plan.cost.nodes` says of it (what it runs, where, its replicas), and what
+    a reviewer compares besides (its command, environment and topics)."""
+    return {**row, "command": list(node.command), "env": shown_env(dict(node.env), dict(node.secrets)),
             "in": list(node.topics_in), "out": list(node.topics_out)}
 
 
-def _host(host: HostSpec) -> dict[str, Any]:
-    """A host's row: its machine and price, and how fogiac reaches and runs it (user, key, port, runtime)."""
-    return {**cost.host_row(host), "ssh": {"user": host.user, "key": host.key, "port": host.port},
-            "runtime": host.runtime}
+def _host(host: HostSpec, row: Mapping[str, Any]) -> dict[str, Any]:
+    """A host's row: what :func:`fogiac.plan.cost.hosts` says of it (its machine, price and replica), and how
+    fogiac reaches and runs it (user, key, port, runtime)."""
+    return {**row, "ssh": {"user": host.user, "key": host.key, "port": host.port}, "runtime": host.runtime}
 
 
 def autostop(plan: Plan) -> dict[str, Any] | None:
@@ -157,8 +159,8 @@ def document(plan: Plan, resources: Sequence[Mapping[str, Any]], *, manifest_pat
         "middleware": middleware_doc(plan),
         "stacks": list(dict.fromkeys(str(r["stack"]) for r in resources)),  # in the order the target declares
         "resources": [dict(r) for r in resources],
-        "hosts": [{**_host(host), **row} for host, row in zip(plan.hosts, cost.hosts(plan), strict=True)],
-        "nodes": [{**_node(node), **row, **(fleet.node_row(plan, node) if plan.fleet else {})}
+        "hosts": [_host(host, row) for host, row in zip(plan.hosts, cost.hosts(plan), strict=True)],
+        "nodes": [{**_node(node, row), **(fleet.node_row(plan, node) if plan.fleet else {})}
                   for node, row in zip(plan.nodes, cost.nodes(plan), strict=True)],
         **({"robots": robots} if (robots := fleet.robots(plan)) is not None else {}),
         "topics": topics(plan),

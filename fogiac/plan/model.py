@@ -33,11 +33,6 @@ NetworkMode = Literal["vpn", "proxy", "relay"]  # how the edge reaches the hosts
 ConnectVia = Literal["private", "public", "address", "loopback"]  # which host address the edge relay dials
 
 
-def server_name(stack: str) -> str:
-    """The DNS-style name every server certificate of ``stack`` carries (ACM needs a domain)."""
-    return f"server.{stack}.fogiac"
-
-
 @dataclass(frozen=True)
 class EdgeSpec:
     """One robot's side of the stack: who it is, and where its ROS graph is reached.

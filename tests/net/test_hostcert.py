@@ -16,9 +16,10 @@ from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import rsa
 from cryptography.x509.oid import NameOID
 
-from fogiac.certs import Bundle, KeyPair, issue, load_or_create_bundle, new_ca, relay_name, serves, sign_csr
+from fogiac.certs import Bundle, KeyPair, issue, load_or_create_bundle, new_ca, serves, sign_csr
 from fogiac.errors import CertError, ProvisionError
 from fogiac.net import hostcert
+from fogiac.net.relay.tls import relay_name
 from fogiac.provision.local import LocalHost
 from tests.support.tls import handshake, private_keys_under, public_der
 

@@ -18,8 +18,9 @@ from typing import Iterator
 
 import pytest
 
-from fogiac.certs import load_or_create_bundle, relay_name
+from fogiac.certs import load_or_create_bundle
 from fogiac.manifest.schema import load_manifest
+from fogiac.net.relay.tls import relay_name
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.model import Plan
 from fogiac.provision import ProvisionReport, SshAccess, provision, teardown

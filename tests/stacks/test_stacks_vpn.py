@@ -7,8 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from fogiac.certs import Bundle, new_bundle, relay_name, save_bundle, save_pair
+from fogiac.certs import Bundle, new_bundle, save_bundle, save_pair
 from fogiac.net import hostcert
+from fogiac.net.relay.tls import relay_name
 from fogiac.provision.local import LocalHost
 from fogiac.targets.aws.offline import OfflinePlan
 from stacks.aws.program import network_program

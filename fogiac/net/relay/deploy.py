@@ -20,13 +20,14 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import urlparse
 
-from fogiac.certs import edge_identity, edge_role, load_bundle, relay_name
+from fogiac.certs import edge_identity, edge_role, load_bundle
 from fogiac.errors import FogiacError
 from fogiac.hostmodel import NativeRos, Service, Where, autostop_service
 from fogiac.net import hostcert
 from fogiac.net.relay.fleet import ACCESS_FILE, FleetAccess, Robot, SharedPair
 from fogiac.net.relay.match import DEFAULT_MATCH
 from fogiac.net.relay.services import CLOUD_END, master_service, node_env, relay_service, relay_stats
+from fogiac.net.relay.tls import relay_name
 from fogiac.net.replicas import groups_of, host_figures
 from fogiac.plan.model import EdgeSpec, HostSpec, Plan, Route
 from fogiac.procs import poll

@@ -1,5 +1,10 @@
 """Mutual TLS 1.3 for the link: the cloud end shows server.pem, the edge end client.pem,
 and each accepts only certificates signed by the stack's ca.pem.
+
+The relay's own certificate names live here too, beside the contexts that check them (as the Zenoh
+router's do in :mod:`fogiac.net.zenoh.tls`): :func:`relay_name` for a host's cloud end and
+:func:`write_relay_lab` for a relay run by hand. :mod:`fogiac.certs` keeps what every middleware
+shares (the CA, each edge's identity, signing a host's CSR).
 """
 
 from __future__ import annotations
@@ -9,7 +14,25 @@ from pathlib import Path
 
 from cryptography import x509
 
+from fogiac.certs import edge_identity, issue, new_ca, save_pair
 from fogiac.net.relay.errors import RelayError
+
+
+def relay_name(stack: str, host: str) -> str:
+    """The name in ``host``'s relay certificate, which the edge relay dialing that host checks."""
+    return f"{host}.relay.{stack}.fogiac"
+
+
+def write_relay_lab(stack: str, directory: Path) -> str:
+    """For a relay run by hand (``fogiac relay certs``): ca, client and one cloud-end server
+    certificate (server.pem/.key) in ``directory``; returns the server's name. A stack's hosts
+    never get these: each makes its own key at provisioning."""
+    ca = new_ca(f"fogiac CA {stack}")
+    name = relay_name(stack, "server")
+    save_pair(directory, "ca", ca)
+    save_pair(directory, "server", issue(ca, name, server=True, dns_names=(name,)))
+    save_pair(directory, "client", issue(ca, edge_identity(stack, None), server=False))
+    return name
 
 
 def _need(directory: Path, *names: str) -> list[Path]:

@@ -6,6 +6,7 @@ import dataclasses
 import ipaddress
 from collections.abc import Mapping
 
+from fogiac.certs import server_name
 from fogiac.errors import FogiacError, PlanError
 from fogiac.manifest.machines import MachineSpec
 from fogiac.manifest.schema import Manifest
@@ -19,7 +20,6 @@ from fogiac.plan.model import (
     MachineImage,
     Rule,
     SecurityGroup,
-    server_name,
 )
 from fogiac.plan.placement import Placement, Tags, autostop_for, host_per_node, replica_groups, ssh_sources
 from fogiac.targets.aws.catalog import catalog, on_demand, spot_price

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from fogiac.certs import write_relay_lab
+from fogiac.net.relay.tls import write_relay_lab
 from tests.net.relay.relay_support import Master, Procs, ros_missing
 
 

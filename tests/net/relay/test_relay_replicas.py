@@ -17,12 +17,13 @@ from pathlib import Path
 
 import pytest
 
-from fogiac.certs import issue, new_bundle, relay_name, save_bundle, save_pair
+from fogiac.certs import issue, new_bundle, save_bundle, save_pair
 from fogiac.lifecycle.report import replicas_lines
 from fogiac.manifest.schema import load_manifest
 from fogiac.net.relay import EdgeConfig, TopicPolicy
 from fogiac.net.relay.deploy import edge_links, edge_up
 from fogiac.net.relay.replicas import GroupConfig, ReplicaGroup, ReplicaTarget
+from fogiac.net.relay.tls import relay_name
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.model import Replica, Route
 from fogiac.provision import supervise

@@ -15,9 +15,8 @@ from pathlib import Path
 
 import pytest
 
-from fogiac.certs import write_relay_lab
 from fogiac.net.relay import CloudConfig, CloudRelay, EdgeConfig, EdgeRelay, TopicPolicy, read_stats
-from fogiac.net.relay.tls import client_context, expected_server_name
+from fogiac.net.relay.tls import client_context, expected_server_name, write_relay_lab
 from tests.net.relay.relay_support import Master, Procs, free_port, indices, string_msg, wait_for
 
 pytestmark = pytest.mark.ros

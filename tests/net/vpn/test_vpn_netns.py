@@ -24,6 +24,7 @@ from typing import Iterator
 import pytest
 
 from fogiac import certs
+from fogiac.net.relay.tls import relay_name
 from fogiac.targets.aws.vpn import render_server_config, write_client_profile
 from tests.support.netns import Namespace, NetLab, skip_reason
 
@@ -198,7 +199,7 @@ def test_relay_carries_topics_both_ways_through_the_tunnel(lab: VpnLab, tmp_path
         pytest.skip(reason)
     certs_dir = tmp_path / "certs"
     certs.save_bundle(lab.bundle, certs_dir)  # one CA for the VPN and the relay, as in a stack
-    name = certs.relay_name(STACK, "cloud")  # the cloud end's own certificate, not the VPN endpoint's
+    name = relay_name(STACK, "cloud")  # the cloud end's own certificate, not the VPN endpoint's
     certs.save_pair(certs_dir, "server", certs.issue(lab.bundle.ca, name, server=True, dns_names=(name,)))
     started: list[tuple[Namespace, subprocess.Popen[str]]] = []
     logs: dict[str, Path] = {}

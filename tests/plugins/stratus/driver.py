@@ -16,7 +16,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
-from fogiac.certs import issue, load_or_create_bundle, relay_name, write_private
+from fogiac.certs import issue, load_or_create_bundle, write_private
 from fogiac.errors import FogiacError, ProvisionError
 from fogiac.lifecycle.driver import (
     Check,
@@ -32,6 +32,7 @@ from fogiac.lifecycle.driver import (
 )
 from fogiac.lifecycle.events import OnEvent
 from fogiac.manifest.schema import Manifest
+from fogiac.net.relay.tls import relay_name
 from fogiac.plan.model import NodeSpec, Plan
 from fogiac.plan.placement import Placement, Tags, host_per_node
 from fogiac.procs import free_port, poll

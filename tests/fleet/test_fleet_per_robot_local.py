@@ -6,8 +6,9 @@ stand-in that keeps state: it counts the scans it has seen and answers each with
 ``/arm1/slam``); each robot's scans reach its own instance only (every robot's counts run 1, 2, 3... though
 all three send at once, and each answer names the robot's own namespace); the access file lists the node
 under ``per_robot`` and adds none of its bare topics to any robot; arm1's certificate is refused arm2's
-instance's output at the cloud end. A 4th robot added starts its instance and edge end only (every other
-pid kept); dropped, only those stop.
+instance's output at the cloud end. ``status`` and ``logs`` name each instance (``slam@arm2``). A 4th robot
+added starts its instance and edge end only (every other pid kept); dropped, only those stop. ``fogiac robot
+revoke arm3`` still cuts arm3's link within 10 s, the others' kept, nothing restarted.
 """
 
 from __future__ import annotations
@@ -34,9 +35,11 @@ from fogiac.net.relay.session import read_frame
 from fogiac.net.relay.tls import client_context
 from fogiac.procs import free_port
 from fogiac.provision import supervise
-from fogiac.state import StackState
+from fogiac.state import StackState, read_json
 from tests.conftest import REPO
+from tests.fleet.test_fleet_robot_revoke import _wait
 from tests.fleet.test_fleet_up_local import _opened, _pids
+from tests.plugins.install import installed
 from tests.support.procs import alive, alive_pids, started_pids
 
 pytestmark = [
@@ -51,6 +54,7 @@ SLAM = textwrap.dedent("""\
     import rospy
     from std_msgs.msg import Header
     rospy.init_node("slam")
+    print("slam up as", rospy.get_name(), flush=True)
     seen = []  # this instance's own state: the scans it has seen
     count = rospy.Publisher("/slam/count", Header, queue_size=100)
     def scan(m):
@@ -171,6 +175,13 @@ def test_a_per_robot_node_runs_one_instance_per_robot_each_with_its_own_state(tm
         reports = _clients(ports, tmp_path)
         for robot, answers in reports.items():
             _own_state_only(robot, answers)
+        status = runner.invoke(app, ["status", str(manifest), "--target", "local", "--json"])
+        assert status.exit_code == 0 and all(f'"slam@{name}"' in status.output for name in ports), status.output
+        logs = runner.invoke(app, ["logs", "slam@arm2", str(manifest)])
+        assert logs.exit_code == 0 and "slam up as /arm2/slam" in logs.output, logs.output
+        bare = runner.invoke(app, ["logs", "slam", str(manifest)])
+        assert bare.exit_code == 1 and "node 'slam' runs one instance per robot: name one (slam@arm1, slam@arm2, " \
+            "slam@arm3)" in bare.output, bare.output
 
         # A 4th robot: its instance and its edge end start; every other process keeps its pid.
         host_before, edge_before = _pids(sandbox), _pids(stack.edge)
@@ -190,6 +201,17 @@ def test_a_per_robot_node_runs_one_instance_per_robot_each_with_its_own_state(tm
         _manifest(manifest, ports, slam)
         dropped = runner.invoke(app, ["up", str(manifest), "--target", "local", "--yes"])
         assert dropped.exit_code == 0, dropped.output
+        assert _pids(sandbox) == host_before and _pids(stack.edge) == edge_before
+
+        # Revoked: arm3's link is cut within 10 s (its instance keeps running, unreachable); nothing restarts.
+        def linked(robot: str) -> bool | None:
+            return (read_json(stack.edge / f"relay-edge-slam@{robot}.stats.json") or {}).get("connected")
+
+        with installed(tmp_path / "verb", "robotverb", {"fogiac.commands": {"robot": "fogiac.cli.robots"}}):
+            revoked = runner.invoke(app, ["robot", "revoke", "arm3", str(manifest), "--target", "local"])
+        assert revoked.exit_code == 0, revoked.output
+        assert _wait("arm3's link cut", lambda: linked("arm3") is False, 10) < 10
+        assert linked("arm1") and linked("arm2")
         assert _pids(sandbox) == host_before and _pids(stack.edge) == edge_before
 
         # At the cloud end, arm1's certificate is given its own instance's output and refused arm2's. arm1's own

@@ -135,3 +135,15 @@ def test_a_robot_added_shows_its_instance_and_no_node_changed(tmp_path: Path) ->
             "replaced or restarted (0 hosts to replace)") in lines
     assert "per-robot instances: slam@arm3 on slam (started; the host's other processes untouched)" in lines
     assert "Plan: 0 to add, 0 to change, 0 to destroy. Robots: 1 to add, 0 to change, 0 to remove." in lines
+
+
+def test_a_per_robot_instance_in_a_container_is_named_without_an_at() -> None:
+    """Engines take no ``@`` in a container's name: arm1's instance runs as ``fogiac-lab-dev-slam.arm1``."""
+    plan = _plan()
+    where = svc.Where(layout=svc.Layout("/home/ubuntu/.fogiac/lab-dev/slam"), runtime=svc.CONTAINER,
+                      master_port=11311, relay_port=11411, ros_address="127.0.0.1", python="python3",
+                      code_root="/home/ubuntu/.fogiac/lab-dev/slam/lib", user="ubuntu")
+    first, _ = svc.node_services(plan, plan.host("slam"), where)
+    assert first.name == "node-slam@arm1"
+    assert "--name fogiac-lab-dev-slam.arm1 " in first.script and "@" not in first.script.split("--name ")[1].split()[0]
+    assert "slam_node --rate 10 __ns:=/arm1 /map:=/arm1/map /scan:=/arm1/scan" in first.script

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import hashlib
 import shlex
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -169,7 +170,8 @@ class Service:
 
 @dataclass(frozen=True)
 class Launching:
-    """How a ROS generation builds a pushed workspace and runs one package's launch file from it."""
+    """How a ROS generation builds a pushed workspace and runs one package's launch file from it, and how it
+    puts one instance of a node in a robot's namespace (``serve: per_robot``)."""
 
     command: tuple[str, ...]  # what comes before PACKAGE FILE: ("roslaunch", "--wait"), ("ros2", "launch")
     has_packages: str  # a shell test, in the workspace's root: it has packages to build
@@ -178,6 +180,9 @@ class Launching:
     overlay: str  # the setup script a build leaves, relative to the workspace's root
     package_path: bool  # True: packages are found through ROS_PACKAGE_PATH (natively, that alone)
     image_has_tool: bool  # True: the ROS image always carries ``tool``; else the build asks first
+    # (robot, the node's listed topics) -> the arguments a node's command takes to run as that robot's instance:
+    # in /<robot>, its listed topics remapped there. None: this generation runs no per-robot instances yet.
+    instance_args: Callable[[str, tuple[str, ...]], tuple[str, ...]] | None = None
 
     def build_in_image(self) -> str:
         """The build inside the ROS image, when the workspace has packages; an image without the build
@@ -215,8 +220,9 @@ def master_uri(where: Where) -> str:
 
 
 def container_name(stack: str, name: str) -> str:
-    """Containers carry the stack, so two stacks on one machine never take each other's names."""
-    return f"fogiac-{stack}-{name}"
+    """Containers carry the stack, so two stacks on one machine never take each other's names. A
+    per-robot instance (``slam@arm1``) is ``slam.arm1`` there: engines take no ``@``, and node names no dot."""
+    return f"fogiac-{stack}-{name.replace('@', '.')}"
 
 
 def unit_name(stack: str, name: str) -> str:
@@ -232,6 +238,17 @@ def node_image(plan: Plan, where: Where) -> str:
     """The ROS image nodes run in on the host: the plan's, or the one provisioning gave what the
     middleware needs (rmw_zenoh_cpp), which the official image lacks."""
     return where.ros_image or ros_image(plan)
+
+
+def instance_name(node: str, robot: str) -> str:
+    """A per-robot node's instance for ``robot``: its service is ``node-slam@arm1``, as the robot's edge end
+    is ``relay-edge-HOST@arm1``."""
+    return f"{node}@{robot}"
+
+
+def node_instances(plan: Plan, node: NodeSpec) -> tuple[str, ...]:
+    """The names ``node`` runs under on its host: its own, or one per robot it serves (``serve: per_robot``)."""
+    return tuple(instance_name(node.name, robot) for robot in plan.robots_of(node)) if node.per_robot else (node.name,)
 
 
 def node_env_file(layout: Layout, node: str) -> str:

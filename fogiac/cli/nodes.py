@@ -21,6 +21,7 @@ from fogiac import targets
 from fogiac.certs import load_or_create_bundle
 from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_deployed, compile_for
 from fogiac.errors import ProvisionError
+from fogiac.hostmodel import node_instances
 from fogiac.lifecycle.driver import Created, Feature
 from fogiac.plan.model import Plan
 from fogiac.provision import provision, recorded_access
@@ -37,9 +38,13 @@ def _host_of(node: str, manifest: Path, env: str) -> tuple[str, Any, str, Path, 
     """(host name, access, base, stack dir, plan) of the host running ``node``, from the last provisioning;
     the target that made the stack reads its recorded access back."""
     plan = compile_deployed(manifest, env)
-    known = sorted(n.name for n in plan.nodes)
+    known = sorted(instance for n in plan.nodes for instance in node_instances(plan, n))
     if node not in known:
+        bare = [n for n in known if n.partition("@")[0] == node]
+        if bare:  # a per-robot node runs one instance per robot, each its own service and log
+            raise ProvisionError(f"node {node!r} runs one instance per robot: name one ({', '.join(bare)})")
         raise ProvisionError(f"{manifest} has no node {node!r}; its nodes: {', '.join(known)}")
+    node = node.partition("@")[0]  # the host records the node, which runs each robot's instance
     chosen = targets.get(plan.target)
     if Feature.PROVISIONS not in chosen.features:
         raise ProvisionError(f"target {plan.target} runs its nodes itself: fogiac reaches none of its hosts, so "

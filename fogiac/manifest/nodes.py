@@ -194,7 +194,8 @@ class Node(_Model):
                                             "{/plan: geometry_msgs/PoseArray}: validate checks reply_match with it.")
     serve: Literal["all", "per_robot"] | tuple[str, ...] = Field(
         default="all", description="Whom the node serves in a fleet (robots:): all (one instance every robot "
-        "shares), per_robot (one instance per robot, in its namespace), or a list of robot names.")
+        "shares), per_robot (one instance per robot, in its namespace /<robot>, its listed topics remapped there; "
+        "ROS 1 command nodes), or a list of robot names.")
     replica_hosts: tuple[str, ...] = Field(default=(), description="For the hosts target: the cloud.hosts entries "
                                            "that carry the node's replicas, one each (default: the next ones).")
 

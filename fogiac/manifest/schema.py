@@ -22,7 +22,7 @@ from pydantic import (
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from fogiac import middlewares
-from fogiac.errors import ManifestError
+from fogiac.errors import ManifestError, PlanError
 from fogiac.manifest.blocks import Autostop, Cloud, Edge, HostMachine, Network, Registry, Relay, Robot, Ros
 from fogiac.manifest.clouds import Limits, limits
 from fogiac.manifest.crossfield import cross_field_problems
@@ -197,8 +197,8 @@ def fleet_problems(manifest: Manifest) -> list[FieldProblem]:
         if not manifest.robots:
             problems.append(FieldProblem(f"serve: {_said(node.serve)} needs a robots: list", field=f"nodes[{i}].serve"))
         elif node.serve == "per_robot":
-            problems.append(FieldProblem("serve: per_robot (one instance per robot) is not built yet; give all or "
-                                         "a list of robots", field=f"nodes[{i}].serve"))
+            problems += [FieldProblem(message, field=f"nodes[{i}].{field}")
+                         for message, field in _per_robot_problems(manifest, node)]
         else:
             for name in node.serve:
                 if name not in names:
@@ -207,6 +207,31 @@ def fleet_problems(manifest: Manifest) -> list[FieldProblem]:
             if not node.serve:
                 problems.append(FieldProblem("serves no robot: give all or at least one robot's name",
                                              field=f"nodes[{i}].serve"))
+    return problems
+
+
+def _per_robot_problems(manifest: Manifest, node: Node) -> list[tuple[str, str]]:
+    """What ``serve: per_robot`` (one instance per robot, each in its namespace) needs today: a ROS generation
+    whose nodes take a namespace and remaps as arguments (ROS 1's ``__ns:=``), a command node to give them to,
+    and listed topics to remap (a topic left out would be one topic every instance shares)."""
+    try:
+        chosen = middlewares.for_distro(manifest.ros.distro)
+    except PlanError:
+        return []  # the unknown distribution is reported by its own field
+    # Its Launching (fogiac.hostmodel) says how; a middleware plug-in without one runs no per-robot instances.
+    if getattr(getattr(chosen, "launching", None), "instance_args", None) is None:
+        return [(f"serve: per_robot (one instance per robot) runs on ROS 1 through the relay; ROS "
+                 f"{manifest.ros.distro} has no per-robot instances yet: give all or a list of robots", "serve")]
+    problems = []
+    if node.kind != "command":
+        problems.append((f"serve: per_robot runs a command: node (each instance takes its robot's namespace as "
+                         f"ROS arguments); a {node.kind} node cannot yet: give all or a list of robots", "serve"))
+    if node.topics == "auto":
+        problems.append(("serve: per_robot needs the node's topics listed (topics: {in: [...], out: [...]}): each "
+                         "instance's are remapped into its robot's namespace", "topics"))
+    if node.replicas > 1:
+        problems.append((f"serve: per_robot with replicas: {node.replicas} is not built: give one or the other",
+                         "replicas"))
     return problems
 
 

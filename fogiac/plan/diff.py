@@ -329,9 +329,9 @@ def _edges(before: Mapping[str, Any], after: Mapping[str, Any]) -> tuple[tuple[s
     return (("edges", old, new),) if old != new else ()
 
 
-# A node's fields that follow from the robots (whom ``serve: all`` serves, each robot's share of its hour): a robot
-# added or removed shows in the robots section, not as every shared node changed.
-ROBOT_FOLLOWED = ("serves", "usd_per_hour_per_robot")
+# A node's fields that follow from the robots (whom ``serve: all`` serves, a per-robot node's instances, each robot's
+# share of its hour): a robot added or removed shows in the robots section, not as every shared node changed.
+ROBOT_FOLLOWED = ("serves", "instances", "usd_per_hour_per_robot")
 # A robot's share of the hour follows every other robot's coming and going: the cost section says the total.
 ROBOT_IGNORED = ("usd_per_hour",)
 

@@ -166,6 +166,10 @@ def _robot(row: Mapping[str, Any], verb: str) -> list[str]:
         hosts = [str(h) for h in row["edge_links"]]
         run = "started" if verb == "add" else "stopped"
         lines.append(f"    edge process on this machine: linked to {', '.join(hosts) or 'no host'} ({run})")
+    if row.get("instances"):  # its own instances of the per-robot nodes, each beside the host's other processes
+        run = "started" if verb == "add" else "stopped"
+        lines.append(f"    per-robot instances: {', '.join(str(i) for i in row['instances'])} ({run}; the host's "
+                     "other processes untouched)")
     return lines
 
 
@@ -190,7 +194,9 @@ def _robots_touch_no_host(diff: PlanDiff) -> list[str]:
         return []
     names = [f"+{r['name']}" for r in diff.robots.added] + [f"-{r['name']}" for r in diff.robots.removed]
     said = f"robots {', '.join(names)}: " if names else "robots changed: "
-    return [said + "certificates, access rules and edge processes only; no host is replaced or restarted "
+    instances = any(r.get("instances") for r in (*diff.robots.added, *diff.robots.removed))
+    what = "access rules, edge processes and per-robot instances" if instances else "access rules and edge processes"
+    return [said + f"certificates, {what} only; no host is replaced or restarted "
             "(0 hosts to replace)"]
 
 

@@ -19,7 +19,9 @@ A fleet's cloud end also follows its access file (:mod:`.fleet`, ``fleet.json`` 
 only a listed, unrevoked robot is linked, and only for its own namespace and the shared nodes' topics;
 when the file changes, the links that lost their access are closed (within the watch's poll). The replies of
 the shared request/reply nodes the file names go back only to the robot whose request each answers
-(:mod:`.replyroute`; :meth:`CloudRelay.reply_stats` counts them); with one edge nothing is routed.
+(:mod:`.replyroute`; :meth:`CloudRelay.reply_stats` counts them); with one edge nothing is routed. A
+per-robot node's instances' topics (``/arm1/scan``) cross for their own robot as the file says, beyond the
+topic policy, which names no robot so that robots come and go without this end restarted.
 """
 
 from __future__ import annotations
@@ -314,6 +316,8 @@ class CloudRelay(RelayEnd):
         rules = self._rules()
         if rules is not None and not rules.allows(identity, topic, direction):
             return False  # another robot's topic, a shared node's the wrong way, or a revoked robot's last frames
+        if rules is not None and rules.crosses(identity, topic, direction):
+            return True  # its own per-robot instance's topic: the access file names these, not the policy
         policy = self.cloud_config.policy
         if may_cross(topic, direction, policy, self._graph):
             return True

@@ -24,11 +24,12 @@ from fogiac.certs import edge_identity, edge_role, load_bundle
 from fogiac.errors import FogiacError
 from fogiac.hostmodel import NativeRos, Service, Where, autostop_service
 from fogiac.net import hostcert
-from fogiac.net.relay.fleet import ACCESS_FILE, FleetAccess, Robot, SharedPair
+from fogiac.net.relay.fleet import ACCESS_FILE, FleetAccess, PerRobot, Robot, SharedPair
 from fogiac.net.relay.match import DEFAULT_MATCH
 from fogiac.net.relay.services import CLOUD_END, master_service, node_env, relay_service, relay_stats
 from fogiac.net.relay.tls import relay_name
 from fogiac.net.replicas import groups_of, host_figures
+from fogiac.plan.fleet import robot_route
 from fogiac.plan.model import EdgeSpec, HostSpec, Plan, Route
 from fogiac.procs import poll
 from fogiac.provision import supervise
@@ -181,16 +182,19 @@ def fleet_access(plan: Plan, spec: HostSpec, *, revoked: tuple[str, ...] = ()) -
     shared nodes that serve it; ``revoked``: the record's revoked robots, refused until restored. A shared
     node without topic lists gives no robot anything beyond its namespace (whose request it answers is
     unknown), so a fleet's shared nodes list theirs. A listed topic in another robot's namespace is that
-    robot's alone, whoever publishes it."""
+    robot's alone, whoever publishes it. A per-robot node's topics are no robot's as named (``/scan``): each
+    robot's instance uses them in its own namespace, listed under ``per_robot`` (the same for every robot)."""
     names = [edge.name for edge in plan.edges]
     robots = {}
     for edge in plan.edges:
         others = tuple(f"/{name}/" for name in names if name != edge.name)
         topics = {t for node in plan.nodes if node.host == spec.name and edge.name in plan.robots_of(node)
-                  for t in (*node.topics_in, *node.topics_out) if not t.startswith(others)}
+                  and not node.per_robot for t in (*node.topics_in, *node.topics_out) if not t.startswith(others)}
         identity = edge_identity(plan.stack, edge.named)
         robots[identity] = Robot(edge.name, identity, frozenset(topics))
-    return FleetAccess(robots, frozenset(revoked), _shared_pairs(plan, spec, names))
+    per_robot = tuple(PerRobot(node.name, frozenset(node.topics_in), frozenset(node.topics_out))
+                      for node in plan.nodes if node.host == spec.name and node.per_robot)
+    return FleetAccess(robots, frozenset(revoked), _shared_pairs(plan, spec, names), per_robot)
 
 
 def _shared_pairs(plan: Plan, spec: HostSpec, robots: list[str]) -> tuple[SharedPair, ...]:
@@ -202,7 +206,7 @@ def _shared_pairs(plan: Plan, spec: HostSpec, robots: list[str]) -> tuple[Shared
     pairs: list[SharedPair] = []
     taken: set[str] = set()
     for node in plan.nodes:
-        if node.host != spec.name:
+        if node.host != spec.name or node.per_robot:  # a per-robot instance answers its own robot only
             continue
         requests = frozenset(t for t in node.topics_in if not t.startswith(namespaces))
         replies = frozenset(t for t in node.topics_out if not t.startswith(namespaces))
@@ -251,8 +255,9 @@ def edge_up(plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path, 
         suffix = edge_suffix(plan, edge)
         for route in plan.routes:
             if route.host in connect and route.replica is None:
+                mine = robot_route(plan, route, edge.name)  # its own per-robot instances' topics, in its namespace
                 supervise.start(folder, f"relay-edge-{route.host}{suffix}", edge_argv(
-                    route, stack=plan.stack, connect=connect[route.host], master=edge.entry, certs=certs,
+                    mine, stack=plan.stack, connect=connect[route.host], master=edge.entry, certs=certs,
                     stats=_stats(folder, route.host, suffix), edge=edge.named))
         for group, routes in replica_groups(plan).items():
             up = [r for r in routes if r.host in connect]

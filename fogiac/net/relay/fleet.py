@@ -6,7 +6,8 @@ provisioning and rewritten by ``fogiac robot revoke``/``restore``)::
     {"robots": {"arm1": {"identity": "arm1.edge.lab.fogiac", "topics": ["/plan/request", "/plan/reply"]}},
      "revoked": ["arm3"],
      "shared": [{"node": "planner", "requests": ["/plan/request"], "replies": ["/plan/reply"],
-                 "match": "header.stamp"}]}
+                 "match": "header.stamp"}],
+     "per_robot": [{"node": "slam", "in": ["/scan"], "out": ["/slam/count"]}]}
 
 A robot may ask for (SUBSCRIBE) and send (OPEN) only the topics of its own namespace ``/<robot>/...`` and
 the listed ones (the request/reply topics of the shared nodes that serve it; those named under ``shared``
@@ -19,6 +20,11 @@ cloud end keeps the rules of a single edge (every identity linked, the topic pol
 request (the manifest's ``reply_match``; ``null``: its outputs carry no key): the cloud end sends each
 reply only to the robot whose request it answers (:mod:`.replyroute`). A shared node's outputs not listed
 there, or listed with no match, go to every robot that may subscribe them (the robots the node serves).
+
+``per_robot`` (optional) names each per-robot node's listed topics (the manifest's ``in`` and ``out``, as the
+node itself names them): its instance for robot arm1 uses them as ``/arm1/scan``..., so each robot's own
+copies cross in their direction (:meth:`FleetAccess.crosses`) whatever the cloud end's topic policy says,
+which keeps no robot's name (a robot added or removed changes the file, never the cloud end's command).
 """
 
 from __future__ import annotations
@@ -85,6 +91,32 @@ class SharedPair:
 
 
 @dataclass(frozen=True)
+class PerRobot:
+    """A per-robot node's listed topics as the node names them (``/scan``); each robot's instance uses them in
+    that robot's namespace (``/arm1/scan``). ``inputs`` reach the node (the robot sends them), ``outputs``
+    come from it (the robot hears them)."""
+
+    node: str
+    inputs: frozenset[str] = frozenset()
+    outputs: frozenset[str] = frozenset()
+
+    def to_json(self) -> dict[str, object]:
+        return {"node": self.node, "in": sorted(self.inputs), "out": sorted(self.outputs)}
+
+    @classmethod
+    def from_json(cls, body: object, where: str) -> PerRobot:
+        if not isinstance(body, dict) or not isinstance(body.get("node"), str):
+            raise AccessError(f"{where} needs a 'node' string")
+        topics: dict[str, frozenset[str]] = {}
+        for side in ("in", "out"):
+            names = body.get(side, [])
+            if not isinstance(names, list) or not all(isinstance(t, str) and t.startswith("/") for t in names):
+                raise AccessError(f"{where} ({body['node']}): '{side}' must be a list of absolute topic names")
+            topics[side] = frozenset(names)
+        return cls(body["node"], topics["in"], topics["out"])
+
+
+@dataclass(frozen=True)
 class FleetAccess:
     """The parsed access file: robots by certificate identity, the revoked robots' names, and the shared
     request/reply nodes whose replies are routed to the robot that asked."""
@@ -92,6 +124,7 @@ class FleetAccess:
     robots: Mapping[str, Robot] = field(default_factory=dict)
     revoked: frozenset[str] = frozenset()
     shared: tuple[SharedPair, ...] = ()
+    per_robot: tuple[PerRobot, ...] = ()
 
     def robot(self, identity: str) -> Robot | None:
         """The robot this identity may link as; None when it is unknown or revoked."""
@@ -111,6 +144,15 @@ class FleetAccess:
             return not any(topic in pair.replies for pair in self.shared)
         return True
 
+    def crosses(self, identity: str, topic: str, direction: str) -> bool:
+        """Whether ``topic`` is one of this robot's own per-robot instances' topics in ``direction`` (``out``: the
+        robot sends it to the node, ``in``: it hears the node's): ``/arm1/scan`` for arm1 only, never for arm2."""
+        robot = self.robot(identity)
+        if robot is None or not topic.startswith(f"/{robot.name}/"):
+            return False
+        bare = topic[len(robot.name) + 1:]
+        return any(bare in (node.inputs if direction == "out" else node.outputs) for node in self.per_robot)
+
     def visible(self, identity: str, graph: GraphState) -> GraphState:
         """The part of the cloud's graph this robot may use: other robots' topic names are not its business."""
         robot = self.robot(identity)
@@ -127,6 +169,8 @@ class FleetAccess:
                                    "revoked": sorted(self.revoked)}
         if self.shared:
             body["shared"] = [pair.to_json() for pair in self.shared]
+        if self.per_robot:
+            body["per_robot"] = [node.to_json() for node in self.per_robot]
         return body
 
     @classmethod
@@ -154,7 +198,11 @@ class FleetAccess:
                 if topic in seen:
                     raise AccessError(f"topic {topic} belongs to two shared nodes' pairs ({seen[topic]}, {pair.node})")
                 seen[topic] = pair.node
-        return cls(robots, frozenset(revoked), pairs)
+        per_robot = body.get("per_robot", [])
+        if not isinstance(per_robot, list):
+            raise AccessError("'per_robot' must be a list of per-robot nodes")
+        nodes = tuple(PerRobot.from_json(entry, f"per_robot[{i}]") for i, entry in enumerate(per_robot))
+        return cls(robots, frozenset(revoked), pairs, nodes)
 
 
 def write_access(path: Path, access: FleetAccess) -> None:

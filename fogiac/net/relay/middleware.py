@@ -11,6 +11,13 @@ from fogiac.net.relay.config import RELAY_PORT
 MASTER = "ros-master"  # the host's roscore service, which nodes and the relay's cloud end start after
 
 
+def instance_args(robot: str, topics: tuple[str, ...]) -> tuple[str, ...]:
+    """ROS 1's command-line arguments (rospy and roscpp read them) for a node's instance serving ``robot``:
+    its namespace ``/<robot>`` (its node name and relative topics move there) and each listed topic remapped
+    into it (``/scan:=/arm1/scan``), so the robot's access (its namespace) reaches this instance only."""
+    return (f"__ns:=/{robot}", *(f"{topic}:=/{robot}{topic}" for topic in sorted(set(topics))))
+
+
 @dataclass(frozen=True)
 class RelayMiddleware:
     name: str = "relay"
@@ -30,7 +37,7 @@ class RelayMiddleware:
     block: type[Any] | None = None  # its settings are the manifest's shared relay: block (compile reads it)
     launching: Launching = Launching(command=("roslaunch", "--wait"), has_packages="[ -f src/CMakeLists.txt ]",
                                      tool="catkin_make", build="catkin_make", overlay="devel/setup.bash",
-                                     package_path=True, image_has_tool=True)
+                                     package_path=True, image_has_tool=True, instance_args=instance_args)
 
     def edge_entry(self, edge: Any) -> str:
         return str(edge.ros_master)

@@ -13,6 +13,7 @@ from collections.abc import Mapping
 from fogiac.hostmodel import Service, Where, make_service, master_uri
 from fogiac.net.relay.middleware import MASTER
 from fogiac.net.rosenv import side_env
+from fogiac.plan.fleet import shared_route
 from fogiac.plan.model import HostSpec, Plan
 
 CLOUD_END = "relay-cloud"  # the cloud end's service, whose stats the autostop watchdog reads
@@ -39,7 +40,8 @@ def master_service(plan: Plan, spec: HostSpec, where: Where) -> Service:
 
 def relay_service(plan: Plan, spec: HostSpec, where: Where) -> Service:
     route = next((r for r in plan.routes if r.host == spec.name), None)
-    policy = " ".join(shlex.quote(arg) for arg in route.policy_argv()) if route is not None else ""
+    # A per-robot node's bare topics are left out: each robot's instance's cross by the access file (fleet.json)
+    policy = " ".join(shlex.quote(arg) for arg in shared_route(plan, route).policy_argv()) if route is not None else ""
     command = (f"{shlex.quote(where.python)} -m fogiac relay cloud --listen {where.listen}:{where.relay_port} "
                f"--master {master_uri(where)} --certs {shlex.quote(where.layout.certs)} --ros-host {LOOPBACK} "
                f"--stats-file {shlex.quote(relay_stats(where))} {policy}").rstrip()

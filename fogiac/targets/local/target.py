@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from fogiac.errors import FogiacError
+from fogiac.hostmodel import node_instances
 from fogiac.manifest.schema import Manifest
 from fogiac.plan.model import HostSpec, Plan
 from fogiac.plan.placement import Placement, Tags
@@ -50,7 +51,8 @@ class LocalTarget(ExistingMachines):
         if entry is None:
             return super().node_states(plan, spec, entry)
         run_dir = Path(entry[1] or entry[0].sandbox) / "run"
-        return [{"node": node, **supervise.status(run_dir, f"node-{node}")} for node in spec.nodes]
+        return [{"node": each, **supervise.status(run_dir, f"node-{each}")} for node in spec.nodes
+                for each in node_instances(plan, plan.node(node))]  # a per-robot node: each instance (slam@arm1)
 
     def ready(self, plan: Plan, *, verb: str) -> None:
         """Before ``up`` starts anything: the workload nodes' requirements installed for this interpreter

@@ -27,12 +27,12 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from fogiac.certs import edge_role, relay_name
+from fogiac.certs import edge_role
 from fogiac.cli import app
 from fogiac.net.relay import framing
 from fogiac.net.relay.framing import Kind
 from fogiac.net.relay.session import read_frame
-from fogiac.net.relay.tls import client_context
+from fogiac.net.relay.tls import client_context, relay_name
 from fogiac.procs import free_port
 from fogiac.provision import supervise
 from fogiac.state import StackState, read_json

@@ -136,13 +136,15 @@ def write_client_profile(
 
 def render_server_config(
     *, bundle: certs.Bundle, client_cidr: str, listen: str, routes: tuple[str, ...],
-    port: int = 443, proto: str = "udp",
+    port: int = 443, proto: str = "udp", crl: Path | None = None,
 ) -> str:
     """An OpenVPN server set up the way AWS Client VPN is, for tests and on-prem labs.
 
     Mutual TLS with the stack's CA, ``dh none`` (ECDHE only), TLS 1.2 or newer, clients numbered
     from ``client_cidr`` and told to route ``routes`` (the VPC) through the tunnel. Source NAT of
-    clients to the server's VPC-side address is the host's firewall's job, as at AWS.
+    clients to the server's VPC-side address is the host's firewall's job, as at AWS. ``crl``: the
+    stack's revocation list (a fleet's revoked robots), checked on every handshake as the endpoint
+    checks the one imported into it.
     """
     if proto not in _PROTOCOLS:
         raise VpnError(f"VPN protocol {proto!r} is not one of: {', '.join(_PROTOCOLS)}")
@@ -157,7 +159,7 @@ def render_server_config(
         routes=[(str(n.network_address), str(n.netmask)) for n in pushed],
         ca_pem=_pem(bundle.ca.cert_pem, what="CA certificate"),
         cert_pem=_pem(bundle.vpn.cert_pem, what="VPN endpoint certificate"),
-        key_pem=_pem(bundle.vpn.key_pem, what="VPN endpoint key"),
+        key_pem=_pem(bundle.vpn.key_pem, what="VPN endpoint key"), crl=str(crl) if crl is not None else None,
     )
 
 

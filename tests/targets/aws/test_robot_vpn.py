@@ -288,3 +288,28 @@ def test_up_of_a_one_robot_stack_is_as_before(tmp_path: Path, _state_dir: Path, 
                        "up)")
     assert _inline(profile, "cert") == (StackState(STACK).certs / "client.pem").read_bytes()
     assert not (StackState(STACK).certs / robotvpn.FOLDER).exists()
+
+
+def _vpn_facing(plan: Plan) -> dict[str, set[int]]:
+    """Each source of the hosts group's ingress rules -> the ports it opens (SSH's aside)."""
+    (hosts,) = [g for g in plan.security_groups if g.name == "hosts"]
+    opened: dict[str, set[int]] = {}
+    for rule in hosts.ingress:
+        if rule.from_port != 22:
+            opened.setdefault(rule.cidr, set()).add(rule.from_port)
+    return opened
+
+
+def test_a_fleets_robots_reach_the_relays_port_only(tmp_path: Path) -> None:
+    """The endpoint source-NATs its clients into the VPC (its subnet ``vpn``): a fleet opens the master's and the
+    nodes' ports to the hosts' subnet only, so a robot cannot reach the master every robot's topics pass through
+    past the relay's per-robot access; a one-robot stack's rules are as before."""
+    fleet = _plan(tmp_path)
+    subnets = {s.role: s.cidr for s in fleet.network.subnets}  # type: ignore[union-attr]
+    assert _vpn_facing(fleet) == {subnets["instances"]: {11311, 32768}, "10.10.0.0/16": {11411},
+                                  "10.200.0.0/22": {11411}}
+    manifest = tmp_path / "one.yaml"
+    manifest.write_text("name: lab\ncloud: {provider: aws, region: us-west-2}\nnetwork: {mode: vpn}\n"
+                        'edge: {ros_master: "http://127.0.0.1:11312"}\n' + NODES)
+    one = compile_plan(load_manifest(manifest))
+    assert _vpn_facing(one) == {"10.10.0.0/16": {11311, 32768, 11411}, "10.200.0.0/22": {11311, 32768, 11411}}

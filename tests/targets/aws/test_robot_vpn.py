@@ -12,7 +12,9 @@ Stubber: the sanctioned stand-in for an API LocalStack lacks; it checks the requ
 
 from __future__ import annotations
 
+import dataclasses
 import shutil
+import socket
 import stat
 import subprocess
 from pathlib import Path
@@ -23,18 +25,22 @@ import pytest
 from botocore.stub import ANY, Stubber
 from cryptography import x509
 from cryptography.x509.oid import NameOID
+from typer.testing import CliRunner
 
 from fogiac import certs
+from fogiac.cli import app
 from fogiac.errors import CloudError
 from fogiac.manifest.schema import load_manifest
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.model import Plan
+from fogiac.provision import SshAccess
 from fogiac.state import StackState
 from fogiac.targets.aws import api, engine, robotvpn
 from fogiac.targets.aws.errors import VpnError
 from fogiac.targets.aws.target import AWS, HOST_KEYS_FILE
 from fogiac.targets.aws.vpn import default_profile_path, write_client_profile
 from fogiac.targets.base import Created
+from tests.plugins.install import installed
 
 STACK = "lab-dev"
 ENDPOINT = "cvpn-endpoint-0123456789abcdef0"
@@ -313,3 +319,40 @@ def test_a_fleets_robots_reach_the_relays_port_only(tmp_path: Path) -> None:
                         'edge: {ros_master: "http://127.0.0.1:11312"}\n' + NODES)
     one = compile_plan(load_manifest(manifest))
     assert _vpn_facing(one) == {"10.10.0.0/16": {11311, 32768, 11411}, "10.200.0.0/22": {11311, 32768, 11411}}
+
+
+def test_robot_revoke_has_the_endpoint_refuse_the_robot_too(tmp_path: Path, _state_dir: Path, ec2: Any,
+                                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    """``fogiac robot revoke`` on aws: besides every host's ``fleet.json``, the Client VPN endpoint gets the CRL
+    listing the robot. The one host recorded here cannot be reached (a closed local port), so its rewrite fails
+    and is named; the endpoint still refuses the robot, and the exit status says something failed."""
+    plan = _plan(tmp_path)
+    robotvpn.write_profiles(plan, endpoint_dns=DNS)
+    StackState(STACK).write(engine.OUTPUTS_FILE, {"network": {"vpn_endpoint_id": ENDPOINT, "vpn_dns_name": DNS}})
+    closed = socket.socket()
+    closed.bind(("127.0.0.1", 0))  # bound, never listening: a connection is refused at once
+    access = {"kind": "ssh", "address": "127.0.0.1", "user": "ubuntu", "port": closed.getsockname()[1],
+              "key": str(tmp_path / "id"), "base_dir": "/opt/fogiac", "python": "python3"}
+    StackState(STACK).set(StackState.HOSTS, {"planner": {**access, "base": "/opt/fogiac", "nodes": ["planner"]}})
+    # an instance's patience is a minute (a booting one answers within it); a closed port needs a second
+    monkeypatch.setattr(AWS, "access_from", lambda d: dataclasses.replace(SshAccess.from_description(d),
+                                                                          connect_timeout=1.0))
+    sent: list[str] = []
+    ec2.meta.events.register("provide-client-params.ec2.ImportClientVpnClientCertificateRevocationList",
+                             lambda params, **_: sent.append(params["CertificateRevocationList"]))
+    try:
+        with installed(tmp_path / "verb", "robotverb", {"fogiac.commands": {"robot": "fogiac.cli.robots"}}), \
+                Stubber(ec2) as stub:
+            stub.add_response("import_client_vpn_client_certificate_revocation_list", {"Return": True},
+                              {"ClientVpnEndpointId": ENDPOINT, "CertificateRevocationList": ANY})
+            result = CliRunner().invoke(app, ["robot", "revoke", "arm3", str(tmp_path / "fogiac.yaml"),
+                                              "--target", "aws"])
+            stub.assert_no_pending_responses()
+    finally:
+        closed.close()
+    assert result.exit_code == 1, result.output
+    assert f"Client VPN {ENDPOINT} now refuses arm3 (the stack's shared certificate too)" in result.output
+    assert "robot arm3 revoked" in result.output and "(0 of 1 hosts)" in result.output
+    assert StackState(STACK).get(StackState.REVOKED) == ["arm3"]
+    assert _serials(x509.load_pem_x509_crl(sent[0].encode())) == {
+        _robot_serial("arm3"), _cert((StackState(STACK).certs / "client.pem").read_bytes()).serial_number}

@@ -88,7 +88,7 @@ def default_profile_path(stack: str, *, create: bool = True, robot: str | None =
     state = StackState(stack)
     if robot is None:
         return state.target_file(PROFILE_NAME, create=create)
-    if not _ROBOT_RE.match(robot):
+    if not _ROBOT_RE.fullmatch(robot):  # fullmatch: "$" alone lets a trailing newline through
         raise VpnError(f"robot {robot!r}: a robot's name is one DNS label (a-z, 0-9, '-', up to 63)")
     folder = state.target_file(f"vpn-{robot}", create=create)
     if create:

@@ -57,7 +57,7 @@ def test_up_says_root_is_needed(tmp_path: Path) -> None:
 
 
 @pytest.mark.skipif(os.geteuid() != 0, reason="needs root: only root gets past the root check to the profile lookup")
-def test_a_fleets_robot_has_its_own_profile_and_a_bad_name_is_one_line(tmp_path: Path) -> None:
+def test_a_fleets_robot_has_its_own_profile(tmp_path: Path) -> None:
     """Issue 34 on aws: ``--robot NAME`` runs the robot's own profile (``vpn-NAME/client.ovpn`` of the stack)."""
     if not MINIMAL.exists():
         pytest.skip("examples/minimal.yaml is not there")
@@ -67,6 +67,3 @@ def test_a_fleets_robot_has_its_own_profile_and_a_bad_name_is_one_line(tmp_path:
                                              "mode)\n")
     status = fogiac("vpn", "status", str(MINIMAL), "--robot", "arm1", state=tmp_path)
     assert (status.returncode, status.stdout) == (0, "VPN stopped\n")
-    bad = fogiac("vpn", "status", str(MINIMAL), "--robot", "../arm1", state=tmp_path)
-    assert (bad.returncode, bad.stdout) == (1, "")
-    assert bad.stderr == "error: robot '../arm1': a robot's name is one DNS label (a-z, 0-9, '-', up to 63)\n"

@@ -9,14 +9,14 @@ within a second, closing the robot's link and refusing its redials (well within 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import typer
 
 from fogiac import targets
 from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_deployed
-from fogiac.errors import ProvisionError
-from fogiac.lifecycle.driver import Feature
+from fogiac.errors import FogiacError, ProvisionError
+from fogiac.lifecycle.driver import Feature, RobotRefuser
 from fogiac.net import middleware
 from fogiac.provision.runner import recorded_access, rewrite_fleet_access
 from fogiac.state import StackState, stack_lock
@@ -55,11 +55,21 @@ def _change(name: str, manifest: Path, env: str, target: str | None, *, revoke: 
             raise ProvisionError(f"stack {plan.stack} is not up; run `fogiac up {manifest}` first")
         stack.update(change)
         report = rewrite_fleet_access(plan, hosts=hosts, state_dir=stack.folder)
+        refused, refusal = None, None
+        if Feature.REFUSES_ROBOTS in chosen.features:  # its network holds the robot's credential too (aws VPN)
+            try:
+                refused = cast(RobotRefuser, chosen).refuse_revoked(plan)
+            except FogiacError as err:
+                refusal = err
     for failed in report.failed:
         typer.echo(f"error: {failed.error}", err=True)
+    if refusal is not None:
+        typer.echo(f"error: {refusal}", err=True)
+    elif refused:
+        typer.echo(refused)
     done = "revoked: every cloud end refuses its certificate" if revoke else "restored: its edge end links again"
     typer.echo(f"robot {name} {done} ({len(report.hosts) - len(report.failed)} of {len(report.hosts)} hosts)")
-    if not report.ok:
+    if not report.ok or refusal is not None:
         raise typer.Exit(1)
 
 

@@ -33,6 +33,9 @@ class Feature(str, Enum):
     PROVISIONS = "provisions hosts"
     INFRA_ONLY = "infra only"  # up --infra-only: make the machines, provision nothing
     KEEP_NETWORK = "keep network"  # down --keep-network: a network layer that outlives the machines
+    # a fleet's robot holds a credential of the target's network too (aws: its Client VPN certificate), which
+    # ``robot revoke``/``restore`` has the target refuse or accept again (:class:`RobotRefuser`)
+    REFUSES_ROBOTS = "refuses robots"
 
 
 @dataclass(frozen=True)
@@ -165,6 +168,15 @@ class Destroyed:
     not_checked: tuple[str, ...] = ()
     deleted: tuple[str, ...] = ()
     kept: str | None = None  # what stays on purpose (down --keep-network), one line
+
+
+class RobotRefuser(Protocol):
+    """What a target with :attr:`Feature.REFUSES_ROBOTS` answers besides :class:`Target`'s questions."""
+
+    def refuse_revoked(self, plan: Plan) -> str:
+        """Have the target's network refuse exactly the robots the record keeps revoked (and those dropped from
+        the manifest); one line says what it refuses now."""
+        ...
 
 
 @runtime_checkable

@@ -35,6 +35,17 @@ def test_env_must_be_dns_safe(env: str, state: Path) -> None:
     assert not (state.parent / "outside").exists() and not state.exists()
 
 
+@pytest.mark.parametrize("robot", ["../arm1", "arm1/../../outside", "Arm1", "arm1\n", "", "-arm1"])
+def test_vpn_robot_must_be_one_dns_label(robot: str, state: Path) -> None:
+    """``fogiac vpn --robot NAME`` names a folder in the stack's state (its profile's): never a path."""
+    for verb in ("status", "down"):
+        result = runner.invoke(app, ["vpn", verb, str(EXAMPLES / "minimal.yaml"), "--robot", robot])
+        assert result.exit_code == 1, result.output
+        assert result.output.strip().splitlines() == [f"error: robot {robot!r}: a robot's name is one DNS label "
+                                                      "(a-z, 0-9, '-', up to 63)"]
+    assert not (state.parent / "outside").exists() and not state.exists()
+
+
 def test_plan_out_to_a_directory_is_one_line(tmp_path: Path, state: Path) -> None:
     result = runner.invoke(app, ["plan", str(EXAMPLES / "minimal.yaml"), "--out", str(tmp_path)])
     assert result.exit_code == 1

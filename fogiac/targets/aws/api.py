@@ -417,3 +417,16 @@ def host_fingerprints(instance_id: str, *, region: str, ec2: Any = None, timeout
             raise CloudError(f"{instance_id}: no SSH host keys on its console after {timeout:.0f} s; "
                              "refusing to connect without pinning them (is cloud-init running?)")
         sleep(poll)
+
+
+def import_revocations(endpoint_id: str, crl_pem: bytes, *, region: str, ec2: Any = None) -> None:
+    """Hand the Client VPN endpoint the stack's certificate revocation list (it replaces the one before);
+    the endpoint refuses new connections of the certificates listed and ends theirs that are connected."""
+    ec2 = ec2 or client("ec2", region=region)
+    errors = need("botocore.exceptions")
+    try:
+        _call(ec2.import_client_vpn_client_certificate_revocation_list, ClientVpnEndpointId=endpoint_id,
+              CertificateRevocationList=crl_pem.decode("ascii"))
+    except errors.ClientError as err:
+        raise CloudError(f"the Client VPN endpoint {endpoint_id} did not take the revocation list "
+                         f"({error_code(err) or 'error'}): {err}") from None

@@ -148,10 +148,12 @@ def _egress(manifest: Manifest, inside: list[str]) -> tuple[Rule, ...]:
     return tuple(rules)
 
 
-def _firewall(manifest: Manifest, ssh_from: tuple[str, ...], *, vpn_mode: bool) -> tuple[SecurityGroup, ...]:
+def _firewall(manifest: Manifest, ssh_from: tuple[str, ...], *, vpn_mode: bool,
+              host_cidrs: tuple[str, ...] = ()) -> tuple[SecurityGroup, ...]:
     """Least privilege: SSH from ssh_from only; the middleware's port (and, for ROS 1, the master's and
-    the nodes') from the VPC and VPN clients; in proxy mode the middleware's port also from ssh_from,
-    never from the world. ROS 2 traffic leaves a host only through its Zenoh router."""
+    the nodes') from the VPC and VPN clients (a fleet's VPN clients: the middleware's port only); in proxy
+    mode the middleware's port also from ssh_from, never from the world. ROS 2 traffic leaves a host only
+    through its Zenoh router."""
     carrier = middleware.for_distro(manifest.ros.distro)
     port, what = carrier.port, carrier.rule_description
     ranges = network_of(manifest.network)
@@ -159,13 +161,20 @@ def _firewall(manifest: Manifest, ssh_from: tuple[str, ...], *, vpn_mode: bool) 
     if vpn_mode:
         inside.append(str(ranges.client_cidr))
     ingress = [Rule("tcp", SSH_PORT, SSH_PORT, cidr, "SSH from the operator") for cidr in ssh_from]
-    for cidr in inside:
-        if carrier.node_master:  # ROS 1 over the VPN reaches the master and its nodes; ROS 2 crosses only the router
+    # ROS 1 over the VPN reaches the master and its nodes; ROS 2 crosses only the router. Not a fleet's robots
+    # (vpn mode): the master is every robot's, so a robot there would bypass the relay's per-robot access. The
+    # endpoint source-NATs its clients into the VPC, so the master's and nodes' ports are then opened to the
+    # hosts' subnets only (not the VPN's, nor the client range): the robots reach the relay's port alone.
+    fleet_vpn = vpn_mode and bool(manifest.robots)
+    ros_from = list(host_cidrs) if fleet_vpn else inside
+    for cidr in dict.fromkeys([*ros_from, *inside]):
+        if carrier.node_master and cidr in ros_from:
             ingress += [
                 Rule("tcp", ROS_MASTER_PORT, ROS_MASTER_PORT, cidr, "ROS master"),
                 Rule("tcp", ROS_EPHEMERAL[0], ROS_EPHEMERAL[1], cidr, "ROS node ports (TCPROS, XML-RPC)"),
             ]
-        ingress.append(Rule("tcp", port, port, cidr, what))
+        if cidr in inside:
+            ingress.append(Rule("tcp", port, port, cidr, what))
     if not vpn_mode:
         ingress += [Rule("tcp", port, port, cidr, f"{what} from the edge") for cidr in ssh_from]
     hosts = SecurityGroup(
@@ -226,7 +235,9 @@ def place(manifest: Manifest, *, stack: str, tags: Tags) -> Placement:
     return Placement(
         hosts=hosts, node_hosts=node_hosts, mode=manifest.network.mode,
         connect_via="private" if vpn_mode else "public", network=network,
-        security_groups=_firewall(manifest, ssh_sources(manifest), vpn_mode=vpn_mode), vpn=vpn,
+        security_groups=_firewall(manifest, ssh_sources(manifest), vpn_mode=vpn_mode,
+                                  host_cidrs=tuple(s.cidr for s in network.subnets if s.role == "instances")),
+        vpn=vpn,
         cost=cost_lines(hosts, vpn),
         autostop=autostop_for(manifest, power="machine", default_minutes=AUTOSTOP_MINUTES),
         replica_hosts=groups, notes=notes,

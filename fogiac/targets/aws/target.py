@@ -22,13 +22,15 @@ from fogiac.plan import drift, guard
 from fogiac.plan.model import Plan
 from fogiac.plan.placement import Placement, Tags
 from fogiac.provision import SshAccess, idle, recorded_access
+from fogiac.provision.runner import revoked_robots
 from fogiac.pulumi_engine.workspace import pulumi_cli
 from fogiac.state import StackState, read_json, stack_lock
 from fogiac.tables import table
-from fogiac.targets.aws import api, engine, iam, observe, offline, placement, quotas, spot
+from fogiac.targets.aws import api, engine, iam, observe, offline, placement, quotas, robotvpn, spot
 from fogiac.targets.aws import sweep as sweeping
 from fogiac.targets.aws.catalog import catalog
 from fogiac.targets.aws.errors import EngineError
+from fogiac.targets.aws.model import vpn_of
 from fogiac.targets.aws.vpn import write_client_profile
 from fogiac.targets.base import (
     Check,
@@ -62,7 +64,8 @@ class _Preflight:
 class AwsTarget:
     name = "aws"
     summary = "EC2 machines in their own VPC, through a Client VPN (or proxy mode), made with Pulumi"
-    features = frozenset({Feature.CREATES_MACHINES, Feature.PROVISIONS, Feature.INFRA_ONLY, Feature.KEEP_NETWORK})
+    features = frozenset({Feature.CREATES_MACHINES, Feature.PROVISIONS, Feature.INFRA_ONLY, Feature.KEEP_NETWORK,
+                          Feature.REFUSES_ROBOTS})
 
     def place(self, manifest: Manifest, *, stack: str, tags: Tags) -> Placement:
         return placement.place(manifest, stack=stack, tags=tags)
@@ -138,15 +141,48 @@ class AwsTarget:
     def reach(self, plan: Plan, created: Created, *, announce: Callable[[str], None]) -> Reach:
         """After the stacks: the edge's VPN profile, and each host's address with host keys pinned from its console."""
         outputs = created.outputs
-        if plan.vpn is not None:
+        if plan.vpn is not None and not plan.fleet:
             profile = write_client_profile(
                 endpoint_dns=outputs["network"]["vpn_dns_name"], stack=plan.stack,
                 bundle=load_or_create_bundle(plan.stack, StackState(plan.stack).certs))
             announce(f"VPN profile: {profile} (connect with: sudo fogiac vpn up; the relays retry until it is up)")
+        elif plan.vpn is not None:
+            self._robot_profiles(plan, outputs["network"], announce=announce)
         announce("waiting for each instance to print its SSH host keys on its console (pinned, never trusted on sight)")
         access, connect = access_from_outputs(plan, outputs, fingerprints=lambda iid: pinned_host_keys(
             plan.stack, iid, fetch=lambda: api.host_fingerprints(iid, region=plan.region)))
         return Reach(access=access, connect=connect)
+
+    def _robot_profiles(self, plan: Plan, network: Mapping[str, Any], *, announce: Callable[[str], None]) -> None:
+        """A fleet's robots each dial the Client VPN with a certificate of their own; the endpoint refuses the
+        revoked and removed ones' (and the stack's shared one) by the CRL it is handed here."""
+        spec = vpn_of(plan)
+        assert spec is not None
+        for robot in robotvpn.retire_dropped(plan.stack, [e.name for e in plan.edges]):
+            announce(f"robot {robot} left robots:, so its VPN certificate is revoked for good")
+        profiles = robotvpn.write_profiles(plan, endpoint_dns=network["vpn_dns_name"], port=spec.port,
+                                           proto=spec.transport)
+        for robot, profile in profiles.items():
+            announce(f"VPN profile of robot {robot}: {profile} (connect with: sudo fogiac vpn up --robot {robot}, "
+                     "or on the robot itself: sudo fogiac vpn up --profile PATH)")
+        announce(self.refuse_revoked(plan, endpoint_id=network["vpn_endpoint_id"]))
+
+    def refuse_revoked(self, plan: Plan, *, endpoint_id: str | None = None) -> str:
+        """Hand the Client VPN endpoint the CRL of the robots revoked or removed (``up``, ``robot revoke`` and
+        ``restore``); one line says what it refuses. Only when that changed: importing resets every tunnel."""
+        if endpoint_id is None:
+            network = (StackState(plan.stack).read(engine.OUTPUTS_FILE) or {}).get("network", {})
+            endpoint_id = network.get("vpn_endpoint_id")
+        if plan.vpn is None or not plan.fleet or not endpoint_id:
+            return "no Client VPN endpoint: nothing to refuse there"
+        revocations = robotvpn.write_crl(plan, revoked_robots(StackState(plan.stack).folder))
+        refused = ", ".join(revocations.robots) or "no robot"
+        if not robotvpn.needs_import(plan.stack, endpoint_id, revocations):
+            return f"Client VPN {endpoint_id} already refuses {refused} (the stack's shared certificate too)"
+        api.import_revocations(endpoint_id, revocations.pem, region=plan.region)
+        robotvpn.imported(plan.stack, endpoint_id, revocations)
+        return (f"Client VPN {endpoint_id} now refuses {refused} (the stack's shared certificate too); "
+                "the other robots' tunnels redial")
 
     def access_from(self, description: Mapping[str, Any]) -> SshAccess:
         """Its instances are reached over SSH only (the host keys pinned apart, in ``host-keys.json``)."""

@@ -24,10 +24,12 @@ from fogiac import certs
 from fogiac.procs import pid_alive, poll, stop_tree
 from fogiac.render import render
 from fogiac.state import StackState
+from fogiac.store import make_private
 from fogiac.targets.aws.errors import VpnError
 
 PROFILE_NAME = "client.ovpn"
 _PROTOCOLS = ("udp", "tcp")
+_ROBOT_RE = re.compile(r"^[a-z0-9]([a-z0-9-]{0,61}[a-z0-9])?$")  # as fogiac.certs checks an edge's name
 _HOST_RE = re.compile(r"^(?=.{1,253}$)([A-Za-z0-9]([A-Za-z0-9-]{0,61}[A-Za-z0-9])?\.)*"
                       r"[A-Za-z0-9]([A-Za-z0-9-]{0,61}[A-Za-z0-9])?$")
 
@@ -80,9 +82,18 @@ def render_client_profile(
     )
 
 
-def default_profile_path(stack: str, *, create: bool = True) -> Path:
-    """``client.ovpn`` in the stack's state folder (made 0700 when ``create``)."""
-    return StackState(stack).target_file(PROFILE_NAME, create=create)
+def default_profile_path(stack: str, *, create: bool = True, robot: str | None = None) -> Path:
+    """``client.ovpn`` in the stack's state folder (made 0700 when ``create``); a fleet's ``robot``'s in a folder
+    of its own (``vpn-ROBOT/``), since OpenVPN's pid file and log sit beside the profile it runs."""
+    state = StackState(stack)
+    if robot is None:
+        return state.target_file(PROFILE_NAME, create=create)
+    if not _ROBOT_RE.fullmatch(robot):  # fullmatch: "$" alone lets a trailing newline through
+        raise VpnError(f"robot {robot!r}: a robot's name is one DNS label (a-z, 0-9, '-', up to 63)")
+    folder = state.target_file(f"vpn-{robot}", create=create)
+    if create:
+        make_private(folder)
+    return folder / PROFILE_NAME
 
 
 def git_work_tree(path: Path) -> Path | None:
@@ -125,13 +136,15 @@ def write_client_profile(
 
 def render_server_config(
     *, bundle: certs.Bundle, client_cidr: str, listen: str, routes: tuple[str, ...],
-    port: int = 443, proto: str = "udp",
+    port: int = 443, proto: str = "udp", crl: Path | None = None,
 ) -> str:
     """An OpenVPN server set up the way AWS Client VPN is, for tests and on-prem labs.
 
     Mutual TLS with the stack's CA, ``dh none`` (ECDHE only), TLS 1.2 or newer, clients numbered
     from ``client_cidr`` and told to route ``routes`` (the VPC) through the tunnel. Source NAT of
-    clients to the server's VPC-side address is the host's firewall's job, as at AWS.
+    clients to the server's VPC-side address is the host's firewall's job, as at AWS. ``crl``: the
+    stack's revocation list (a fleet's revoked robots), checked on every handshake as the endpoint
+    checks the one imported into it.
     """
     if proto not in _PROTOCOLS:
         raise VpnError(f"VPN protocol {proto!r} is not one of: {', '.join(_PROTOCOLS)}")
@@ -146,7 +159,7 @@ def render_server_config(
         routes=[(str(n.network_address), str(n.netmask)) for n in pushed],
         ca_pem=_pem(bundle.ca.cert_pem, what="CA certificate"),
         cert_pem=_pem(bundle.vpn.cert_pem, what="VPN endpoint certificate"),
-        key_pem=_pem(bundle.vpn.key_pem, what="VPN endpoint key"),
+        key_pem=_pem(bundle.vpn.key_pem, what="VPN endpoint key"), crl=str(crl) if crl is not None else None,
     )
 
 

@@ -19,13 +19,14 @@ from fogiac.targets.aws.vpn import TunnelStatus, default_profile_path, tunnel_do
 
 _MANIFEST = typer.Argument(Path("fogiac.yaml"), help="The manifest (or launch file) whose stack's profile to use.")
 _PROFILE = typer.Option(None, "--profile", help="Use this client.ovpn instead.", dir_okay=False)
+_ROBOT = typer.Option(None, "--robot", help="A fleet's robot: the profile on its own certificate.")
 
 
-def _profile(manifest: Path, profile: Path | None, env: str) -> Path:
+def _profile(manifest: Path, profile: Path | None, env: str, robot: str | None = None) -> Path:
     if profile is not None:
         return profile.expanduser().resolve()
 
-    return default_profile_path(stack_name(load(manifest), env), create=False)
+    return default_profile_path(stack_name(load(manifest), env), create=False, robot=robot)
 
 
 def _describe(status: object) -> str:
@@ -49,22 +50,24 @@ def commands() -> typer.Typer:
                       no_args_is_help=True)
 
     @vpn.command("up")
-    def up(manifest: Path = _MANIFEST, profile: Path | None = _PROFILE, env: str = ENV,
+    def up(manifest: Path = _MANIFEST, profile: Path | None = _PROFILE, env: str = ENV, robot: str | None = _ROBOT,
            timeout: float = typer.Option(30.0, help="Seconds to wait for the tunnel.")) -> None:
         """Start OpenVPN and wait until the tunnel is up."""
-        outcome = tunnel_up(profile=_profile(manifest, profile, env), timeout=timeout)
+        outcome = tunnel_up(profile=_profile(manifest, profile, env, robot), timeout=timeout)
         prefix = "VPN up" if outcome.changed else "VPN already up"
         typer.echo(f"{prefix}: {_describe(outcome.status)}")
 
     @vpn.command("down")
-    def down(manifest: Path = _MANIFEST, profile: Path | None = _PROFILE, env: str = ENV) -> None:
+    def down(manifest: Path = _MANIFEST, profile: Path | None = _PROFILE, env: str = ENV,
+             robot: str | None = _ROBOT) -> None:
         """Stop OpenVPN and wait for it to exit."""
-        outcome = tunnel_down(profile=_profile(manifest, profile, env))
+        outcome = tunnel_down(profile=_profile(manifest, profile, env, robot))
         typer.echo("VPN down" if outcome.changed else "VPN not running")
 
     @vpn.command("status")
-    def status(manifest: Path = _MANIFEST, profile: Path | None = _PROFILE, env: str = ENV) -> None:
+    def status(manifest: Path = _MANIFEST, profile: Path | None = _PROFILE, env: str = ENV,
+               robot: str | None = _ROBOT) -> None:
         """Say whether OpenVPN runs, on which tun device, with which address."""
-        typer.echo(f"VPN {_describe(tunnel_status(profile=_profile(manifest, profile, env)))}")
+        typer.echo(f"VPN {_describe(tunnel_status(profile=_profile(manifest, profile, env, robot)))}")
 
     return vpn

@@ -54,3 +54,16 @@ def test_up_says_root_is_needed(tmp_path: Path) -> None:
     assert (up.returncode, up.stdout) == (1, "")
     assert up.stderr == ("error: `fogiac vpn up` needs root: OpenVPN creates a tun device and sets "
                          "routes (run it with sudo)\n")
+
+
+@pytest.mark.skipif(os.geteuid() != 0, reason="needs root: only root gets past the root check to the profile lookup")
+def test_a_fleets_robot_has_its_own_profile(tmp_path: Path) -> None:
+    """Issue 34 on aws: ``--robot NAME`` runs the robot's own profile (``vpn-NAME/client.ovpn`` of the stack)."""
+    if not MINIMAL.exists():
+        pytest.skip("examples/minimal.yaml is not there")
+    up = fogiac("vpn", "up", str(MINIMAL), "--robot", "arm1", state=tmp_path)
+    where = tmp_path / "minimal-dev" / "vpn-arm1" / "client.ovpn"
+    assert (up.returncode, up.stderr) == (1, f"error: no VPN profile at {where}; write one first (fogiac up in vpn "
+                                             "mode)\n")
+    status = fogiac("vpn", "status", str(MINIMAL), "--robot", "arm1", state=tmp_path)
+    assert (status.returncode, status.stdout) == (0, "VPN stopped\n")

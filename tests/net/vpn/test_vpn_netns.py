@@ -17,14 +17,16 @@ import shutil
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator
 
 import pytest
+from cryptography import x509
 
 from fogiac import certs
 from fogiac.net.relay.tls import relay_name
+from fogiac.targets.aws.robotvpn import build_crl, identity
 from fogiac.targets.aws.vpn import render_server_config, write_client_profile
 from tests.support.netns import Namespace, NetLab, skip_reason
 
@@ -110,8 +112,10 @@ def lab(tmp_path_factory: pytest.TempPathFactory) -> Iterator[VpnLab]:
 
         server_dir = workdir / "server"
         server_conf = server_dir / "server.conf"
+        crl = server_dir / "revoked.crl.pem"  # what the endpoint imports: nothing revoked yet
+        certs.write_private(crl, build_crl(bundle.ca, ()))
         certs.write_private(server_conf, render_server_config(
-            bundle=bundle, client_cidr=CLIENT_CIDR, listen=AWS_PUBLIC, routes=(VPC_CIDR,),
+            bundle=bundle, client_cidr=CLIENT_CIDR, listen=AWS_PUBLIC, routes=(VPC_CIDR,), crl=crl,
         ).encode())
         server_log = server_dir / "openvpn.log"
         server = aws.popen(["openvpn", "--config", str(server_conf), "--log", str(server_log)])
@@ -259,3 +263,33 @@ def test_vpn_down_stops_it_and_is_idempotent(lab: VpnLab) -> None:
     assert fogiac(lab.edge, "vpn", "status", "--profile", str(lab.profile)).stdout == "VPN stopped\n"
     again = fogiac(lab.edge, "vpn", "down", "--profile", str(lab.profile))
     assert (again.returncode, again.stdout) == (0, "VPN not running\n")
+
+
+def test_a_revoked_robots_certificate_is_refused_and_restored(lab: VpnLab) -> None:
+    """Issue 34 on aws: each robot of a fleet dials with its own certificate; once the stack's CRL lists arm3's
+    (``fogiac robot revoke arm3``), the endpoint refuses arm3 while arm1 still connects, and a CRL without it
+    (``restore``) lets arm3 in again. OpenVPN re-reads ``crl-verify`` on each handshake, as the Client VPN
+    endpoint applies the list imported into it."""
+    server_dir = lab.workdir / "server"
+    robots = {r: certs.issue(lab.bundle.ca, identity(STACK, r), server=False) for r in ("arm1", "arm3")}
+    profiles = {r: write_client_profile(endpoint_dns=AWS_PUBLIC, stack=STACK, ca_pem=lab.bundle.ca.cert_pem,
+                                        cert_pem=p.cert_pem, key_pem=p.key_pem,
+                                        path=lab.workdir / f"vpn-{r}" / "client.ovpn") for r, p in robots.items()}
+    serial = x509.load_pem_x509_certificate(robots["arm3"].cert_pem).serial_number
+    certs.write_private(server_dir / "revoked.crl.pem", build_crl(lab.bundle.ca, (serial,)))
+    try:
+        up = fogiac(lab.edge, "vpn", "up", "--profile", str(profiles["arm1"]), "--timeout", "30")
+        assert up.returncode == 0, up.stderr
+        assert fogiac(lab.edge, "vpn", "down", "--profile", str(profiles["arm1"])).returncode == 0
+
+        refused = fogiac(lab.edge, "vpn", "up", "--profile", str(profiles["arm3"]), "--timeout", "20")
+        assert refused.returncode == 1, refused.stdout
+        assert "certificate revoked" in (server_dir / "openvpn.log").read_text(errors="replace")
+        assert fogiac(lab.edge, "vpn", "status", "--profile", str(profiles["arm3"])).stdout == "VPN stopped\n"
+
+        certs.write_private(server_dir / "revoked.crl.pem", build_crl(lab.bundle.ca, ()))  # restored
+        back = fogiac(lab.edge, "vpn", "up", "--profile", str(profiles["arm3"]), "--timeout", "30")
+        assert back.returncode == 0, back.stderr
+    finally:
+        for profile in profiles.values():
+            fogiac(lab.edge, "vpn", "down", "--profile", str(profile))

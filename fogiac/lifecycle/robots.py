@@ -9,7 +9,9 @@ stack) has no robot rows: its status reads as it always did.
 What a row sums up, over the robot's links: how many are up (and the best round trip), the topics that
 carried messages, the median one-way latency of its topics and the worst 99th percentile, what the robot sent
 (manifest direction ``in``: robot to node), the requests served (``out``: messages the nodes sent back to this
-robot), and the drops and topics its cloud ends refused it.
+robot), and the drops and topics its cloud ends refused it; and why a cloud end refused the robot's link
+itself, as its edge end heard it (``refused: revoked``), which the record may not know (revoked from another
+machine).
 """
 
 from __future__ import annotations
@@ -82,6 +84,7 @@ def summary(name: str, robot: Mapping[str, Any], links: Sequence[Mapping[str, An
             "latency_p99_ms": max(p99) if p99 else None,
             "sent": total("msgs", "in"), "served": total("msgs", "out"), "drops": total("drops"),
             "refused": sum(int(_number(link.get("refused")) or 0) for link in links),
+            "link_refused": sorted({v for link in links if isinstance(v := link.get("link_refused"), str)}),
             "processes": [{"name": p.get("name"), "pid": p.get("pid")} for p in running]}
 
 
@@ -110,7 +113,8 @@ def robots_table(rows: Sequence[Mapping[str, Any]]) -> Any:
         else:
             state = "up" if r["links_up"] == len(links) else "partly up" if r["links_up"] else "down"
             link = f"{state} {r['links_up']}/{len(links)}" + (
-                f" ({r['rtt_ms']:.2f} ms)" if r["rtt_ms"] is not None else "")
+                f" ({r['rtt_ms']:.2f} ms)" if r["rtt_ms"] is not None else "") + (
+                f" (refused: {', '.join(r['link_refused'])})" if r.get("link_refused") else "")
         pids = ", ".join(str(p["pid"]) for p in r["processes"]) or "not running"
         shown.add_row(*map(printable, (r["robot"], str(r["edge_master"] or "-"), link,
                                        ", ".join(r["topics"]) or "-",

@@ -151,3 +151,16 @@ def test_odd_figures_in_a_robots_stats_are_unknown_not_trusted(tmp_path: Path) -
     out = StringIO()
     Console(file=out, width=250, color_system=None).print(robots_table([row]))
     assert "\x1b" not in out.getvalue() and "/a\\x1b[31m" in out.getvalue() and "down 0/2" in out.getvalue()
+
+
+def test_a_link_its_cloud_end_refuses_says_why(tmp_path: Path) -> None:
+    """A robot's edge end that a cloud end refuses (revoked, maybe from another machine: this record does not say
+    so) writes the reason in its stats; the robot's row shows it beside the link, printable."""
+    manifest, plan = _deploy(tmp_path)
+    _stats(plan, "planner", "arm2", RelayStats("edge", False, None, 0.0, 0, (), link_refused="revoked"))
+    _stats(plan, "grasp", "arm2", RelayStats("edge", False, None, 0.0, 0, (), link_refused="revoked\x1b[31m"))
+    rows = {r["robot"]: r for r in robot_status(plan)}
+    assert rows["arm2"]["link_refused"] == ["revoked", "revoked\x1b[31m"] and rows["arm1"]["link_refused"] == []
+    shown = runner.invoke(app, ["status", str(manifest)], env=WIDE).output
+    arm2 = next(line for line in shown.splitlines() if line.startswith("│ arm2 "))
+    assert "down 0/2 (refused: revoked, revoked\\x1b[31m)" in arm2 and "\x1b" not in shown

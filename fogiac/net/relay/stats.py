@@ -69,6 +69,7 @@ class RelayStats:
     reconnects: int
     topics: tuple[TopicStats, ...] = field(default_factory=tuple)
     refused: int = 0  # the peer's requests for topics outside this end's policy, this link
+    link_refused: str | None = None  # edge: why the cloud end refused the link at the last dial ("revoked")
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), separators=(",", ":"))

@@ -21,11 +21,13 @@ when the file changes, the links that lost their access are closed (within the w
 edge is told why (a REFUSE frame with the reason, ``revoked``, instead of the HELLO answer) so that it backs off
 instead of redialling at its normal pace. The replies of
 the shared request/reply nodes the file names go back only to the robot whose request each answers
-(:mod:`.replyroute`; :meth:`CloudRelay.reply_stats` counts them); with one edge nothing is routed.
+(:mod:`.replyroute`; :meth:`CloudRelay.reply_stats` counts them, in the stats file too, and each robot's edge
+end hears its own served and undelivered counts in the REPORT frames); with one edge nothing is routed.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import socket
 import ssl
@@ -44,6 +46,7 @@ from fogiac.net.relay.ratelog import RateLimitedLog
 from fogiac.net.relay.replyroute import ReplyRouter
 from fogiac.net.relay.session import Session, read_frame, send_now
 from fogiac.net.relay.shared import SharedTopics
+from fogiac.net.relay.stats import RelayStats
 from fogiac.net.relay.tls import server_context
 
 log = logging.getLogger(__name__)
@@ -243,6 +246,7 @@ class CloudRelay(RelayEnd):
                               outlet=lambda sink, meta: topics.outlet(sink, meta, identity))
             session.handlers[Kind.SUBSCRIBE] = lambda f: self._on_subscribe(session, f, identity)
             session.handlers[Kind.UNSUBSCRIBE] = lambda f: self._on_unsubscribe(session, f)
+            session.report_replies = lambda: self.replies.robot_figures(identity)  # its edge shows them (status)
             self.sessions[identity] = self.session = session
         log.info("edge %s connected from %s", identity, peer)
         threading.Thread(target=self._report_graph, args=(session, identity), name="relay-poll", daemon=True).start()
@@ -278,14 +282,20 @@ class CloudRelay(RelayEnd):
 
     def reply_stats(self) -> dict[str, dict[str, Any]]:
         """Per shared request/reply node: requests forwarded, answered, waiting; replies that reached no robot;
-        the replies each robot got (``served``, by robot name where the access file names it)."""
+        the replies each robot got (``served``) and of those the ones its link was gone for (``lost``), by robot
+        name where the access file names it."""
         figures = self.replies.stats()
         rules = self._rules()
         if rules is not None:
             for node in figures.values():
-                node["served"] = {(r.name if (r := rules.robots.get(i)) is not None else i): n
-                                  for i, n in node["served"].items()}
+                for key in ("served", "lost"):
+                    node[key] = {(r.name if (r := rules.robots.get(i)) is not None else i): n
+                                 for i, n in node[key].items()}
         return figures
+
+    def stats(self) -> RelayStats:
+        """The end's figures, and a fleet's reply routing (written to the stats file every second)."""
+        return dataclasses.replace(super().stats(), replies=self.reply_stats() or None)
 
     def _access_changed(self, rules: FleetAccess | None) -> None:
         """Route the shared nodes' replies the file names; close the links of robots that lost their access

@@ -159,7 +159,9 @@ class EdgeRelay(RelayEnd):
         session.close(f"refused: {self.link_refused}")
 
     def stats(self) -> RelayStats:
-        return dataclasses.replace(super().stats(), link_refused=self.link_refused)
+        session = self.session
+        return dataclasses.replace(super().stats(), link_refused=self.link_refused,
+                                   routed=session.peer_replies if session is not None else None)
 
     def _on_state(self, frame: Frame) -> None:
         try:

@@ -36,9 +36,11 @@ def _run(end: object, verbose: bool) -> None:
     done = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: done.set())
-    reload = getattr(end, "reload_access", None)
-    if reload is not None:  # the cloud end: SIGHUP reads a fleet's access file now (it is polled anyway)
-        signal.signal(signal.SIGHUP, lambda *_: reload())
+    # SIGHUP: the cloud end reads a fleet's access file now (it is polled anyway); the edge end dials now instead
+    # of at the end of its wait (a restored robot's, whose refusals made it wait up to 30 s)
+    hangup = getattr(end, "reload_access", None) or getattr(end, "redial_now", None)
+    if hangup is not None:
+        signal.signal(signal.SIGHUP, lambda *_: hangup())
     end.start()  # type: ignore[attr-defined]
     try:
         done.wait()

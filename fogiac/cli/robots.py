@@ -3,7 +3,12 @@ manifest edit and no process restarted.
 
 The record keeps the robot revoked (``StackState.REVOKED``) until ``restore`` or until the manifest drops it;
 every host's access file (the relay's ``fleet.json``) is rewritten at once, and each cloud end re-reads it
-within a second, closing the robot's link and refusing its redials (well within 10 s).
+within a second, closing the robot's link and refusing its redials (well within 10 s). A refused edge end
+waits longer between dials (up to 30 s); ``restore`` wakes the robot's edge ends that run on this machine, so
+they link within a second or two, and one elsewhere links at its next dial.
+
+``revoke`` leaves the robot's edge processes running: the cut is the cloud ends' refusal, which holds whoever
+runs the edge (a robot that runs its own cannot be stopped from here), and the edge backs off on its own.
 """
 
 from __future__ import annotations
@@ -17,6 +22,7 @@ from fogiac import targets
 from fogiac.cli._common import ENV, MANIFEST, TARGET, compile_deployed
 from fogiac.errors import FogiacError, ProvisionError
 from fogiac.lifecycle.driver import Feature, RobotRefuser
+from fogiac.lifecycle.edge import wake_robot
 from fogiac.net import middleware
 from fogiac.provision.runner import recorded_access, rewrite_fleet_access
 from fogiac.state import StackState, stack_lock
@@ -61,13 +67,17 @@ def _change(name: str, manifest: Path, env: str, target: str | None, *, revoke: 
                 refused = cast(RobotRefuser, chosen).refuse_revoked(plan)
             except FogiacError as err:
                 refusal = err
+    # Its edge ends on this machine waited longer after each refusal (up to 30 s): they dial now. One elsewhere
+    # links at its next dial.
+    woken = wake_robot(plan, name) if not revoke else []
     for failed in report.failed:
         typer.echo(f"error: {failed.error}", err=True)
     if refusal is not None:
         typer.echo(f"error: {refusal}", err=True)
     elif refused:
         typer.echo(refused)
-    done = "revoked: every cloud end refuses its certificate" if revoke else "restored: its edge end links again"
+    done = "revoked: every cloud end refuses its certificate" if revoke else (
+        "restored: its edge end links again" + (" now" if woken else " at its next dial (within 30 s)"))
     typer.echo(f"robot {name} {done} ({len(report.hosts) - len(report.failed)} of {len(report.hosts)} hosts)")
     if not report.ok or refusal is not None:
         raise typer.Exit(1)

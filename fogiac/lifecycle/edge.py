@@ -169,6 +169,12 @@ def edge_idle_since(plan: Plan, *, now: float) -> float | None:
     return max(last) if last else None
 
 
+def wake_robot(plan: Plan, robot: str) -> list[str]:
+    """Restored: ``robot``'s edge processes on this machine dial now (its middleware's, none elsewhere)."""
+    folder = edge_dir(plan, create=False)
+    return middleware.wake_robot(plan.middleware, plan, robot, folder=folder) if folder.exists() else []
+
+
 def stop_edge(plan: Plan, *, keep_master: bool = False) -> None:
     """Stop this machine's edge processes of the stack: the links, and what stands in for the robot's
     graph (the demo's master) unless kept."""

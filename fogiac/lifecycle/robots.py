@@ -9,7 +9,10 @@ stack) has no robot rows: its status reads as it always did.
 What a row sums up, over the robot's links: how many are up (and the best round trip), the topics that
 carried messages, the median one-way latency of its topics and the worst 99th percentile, what the robot sent
 (manifest direction ``in``: robot to node), the requests served (``out``: messages the nodes sent back to this
-robot), and the drops and topics its cloud ends refused it.
+robot; and the shared request/reply nodes' replies its cloud ends routed to it, as they counted them and told
+its edge end, with those lost because its link was down: ``routed``), and the drops and topics its cloud ends
+refused it; and why a cloud end refused the robot's link itself, as its edge end heard it (``refused:
+revoked``), which the record may not know (revoked from another machine).
 """
 
 from __future__ import annotations
@@ -61,6 +64,16 @@ def _up(link: Mapping[str, Any]) -> bool:
     return link.get("connected") is True  # "yes" or 1 in a file fogiac did not write is not a link
 
 
+def _routed(links: Sequence[Mapping[str, Any]]) -> dict[str, int] | None:
+    """The shared nodes' replies the robot's cloud ends routed to it (``served``) and, of those, the ones its link
+    was gone for (``undelivered``), summed over the links whose edge end heard the counts; None: none did (one
+    robot's stack, no shared request/reply node, or an edge end from before the counts)."""
+    heard = [r for link in links if isinstance(r := link.get("routed"), Mapping)]
+    if not heard:
+        return None
+    return {key: sum(int(_number(r.get(key)) or 0) for r in heard) for key in ("served", "undelivered")}
+
+
 def summary(name: str, robot: Mapping[str, Any], links: Sequence[Mapping[str, Any]],
             running: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     """One robot's row from its links' figures and its running edge processes."""
@@ -82,6 +95,8 @@ def summary(name: str, robot: Mapping[str, Any], links: Sequence[Mapping[str, An
             "latency_p99_ms": max(p99) if p99 else None,
             "sent": total("msgs", "in"), "served": total("msgs", "out"), "drops": total("drops"),
             "refused": sum(int(_number(link.get("refused")) or 0) for link in links),
+            "link_refused": sorted({v for link in links if isinstance(v := link.get("link_refused"), str)}),
+            "routed": _routed(links),
             "processes": [{"name": p.get("name"), "pid": p.get("pid")} for p in running]}
 
 
@@ -106,6 +121,13 @@ def robots_table(rows: Sequence[Mapping[str, Any]]) -> Any:
     def ms(value: Any) -> str:
         return "-" if value is None else f"{value:.2f}"
 
+    def served(r: Mapping[str, Any]) -> str:
+        routed = r.get("routed")
+        if not routed:
+            return str(r["served"])
+        return f"{r['served']} (routed {routed['served']}" + (
+            f", lost {routed['undelivered']})" if routed["undelivered"] else ")")
+
     for r in rows:
         links = r["links"]
         if r["revoked"]:
@@ -115,10 +137,11 @@ def robots_table(rows: Sequence[Mapping[str, Any]]) -> Any:
         else:
             state = "up" if r["links_up"] == len(links) else "partly up" if r["links_up"] else "down"
             link = f"{state} {r['links_up']}/{len(links)}" + (
-                f" ({r['rtt_ms']:.2f} ms)" if r["rtt_ms"] is not None else "")
+                f" ({r['rtt_ms']:.2f} ms)" if r["rtt_ms"] is not None else "") + (
+                f" (refused: {', '.join(r['link_refused'])})" if r.get("link_refused") else "")
         pids = ", ".join(str(p["pid"]) for p in r["processes"]) or "not running"
         shown.add_row(*map(printable, (r["robot"], str(r["edge_master"] or "-"), link,
                                        ", ".join(r["topics"]) or "-",
                                        f"{ms(r['latency_ms'])} / {ms(r['latency_p99_ms'])}", str(r["sent"]),
-                                       str(r["served"]), str(r["drops"]), str(r["refused"]), pids)))
+                                       served(r), str(r["drops"]), str(r["refused"]), pids)))
     return shown

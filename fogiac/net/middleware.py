@@ -158,6 +158,14 @@ def fleet_files(name: str, plan: Plan, spec: HostSpec, *,
     return tuple(made(plan, spec, revoked=revoked)) if made is not None else ()
 
 
+def wake_robot(name: str, plan: Plan, robot: str, *, folder: Path) -> list[str]:
+    """Make a restored robot's edge processes on this machine link now rather than at the end of the wait its
+    refusals made (``fogiac robot restore``); returns what was woken. Optional, as :func:`fleet_files` is: a
+    middleware whose edge does not back off on refusal has nothing to wake."""
+    wake = getattr(deployment(name), "wake_robot", None)
+    return list(wake(plan, robot, folder=folder)) if wake is not None else []
+
+
 def register(middleware: Middleware, deployment: Deployment) -> Middleware:
     """Add (or replace) a middleware for this process (tests, embedders); returns it."""
     middlewares.DEPLOYMENTS.register(middleware.name, deployment)

@@ -45,10 +45,12 @@ def cloud_end(master: Master, certs: Path, policy: TopicPolicy = TopicPolicy(aut
         cloud.stop()
 
 
-def edge_end(robot: str, master: Master, certs: Path, cloud: CloudRelay, n: int) -> EdgeRelay:
-    """``robot``'s edge end on its own master, started (the caller stops it)."""
+def edge_end(robot: str, master: Master, certs: Path, cloud: CloudRelay, n: int, **options: object) -> EdgeRelay:
+    """``robot``'s edge end on its own master, started (the caller stops it); it dials at a test's pace, refused
+    or not (``options``: more of its config)."""
+    settings: dict[str, object] = {"backoff_initial": 0.1, "backoff_max": 0.5, "refused_backoff_max": 2.0, **options}
     end = EdgeRelay(EdgeConfig(master_uri=master.uri, certs=certs, client=edge_role(STACK, robot),
                                ros_host="127.0.0.1", connect=cloud.address, poll_interval=0.1,
-                               backoff_initial=0.1, backoff_max=0.5, caller_id=f"/fogiac_relay_edge_{n}"))
+                               caller_id=f"/fogiac_relay_edge_{n}", **settings))  # type: ignore[arg-type]
     end.start()
     return end

@@ -65,7 +65,9 @@ def test_a_robot_is_refused_another_robots_topics(masters: tuple[Master, Master]
         before = cloud.refused_links
         with _hello(fleet_certs, None, cloud.address, answered=False) as stranger:
             stranger.settimeout(10)
-            assert stranger.recv(1) == b""  # closed at once, with no HELLO back: it never counts itself linked
+            refused = read_frame(stranger)  # no HELLO back (it never counts itself linked): the reason, and closed
+            assert (refused.kind, framing.parse_json(refused)) == (Kind.REFUSE, {"reason": "not a robot of this fleet"})
+            assert stranger.recv(1) == b""
         assert cloud.refused_links == before + 1 and edge_identity(STACK, None) not in cloud.sessions
 
 

@@ -39,6 +39,17 @@ def _replies(proc: Proc) -> list[dict]:
     return [json.loads(line) for line in proc.lines if line.startswith("{")]
 
 
+def _written(path: Path, *keys: str) -> object:
+    """What a stats file says under ``keys`` (None while it is not written yet, or says nothing there)."""
+    try:
+        found: object = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    for key in keys:
+        found = found.get(key) if isinstance(found, dict) else None
+    return found
+
+
 def _go(asking: dict[str, Proc], go: Path) -> None:
     """Let the robots send at once, when every one is linked: their requests are in flight together."""
     wait_for(lambda: all("connected" in p.lines for p in asking.values()), 60, "every robot linked")
@@ -54,9 +65,11 @@ def test_each_reply_goes_to_the_robot_that_asked(masters: tuple[Master, Master],
     # stamps from arm1 and arm2, and arm3's zero stamps, are in flight together.
     _node(procs, cloud_m, "echo", "/plan/request", "/plan/reply", "--name", "planner", "--work-ms", "30")
     _node(procs, cloud_m, "echo", "/stray/request", "/plan/reply", "--name", "stray")  # answers no robot
-    with cloud_end(cloud_m, fleet_certs) as cloud, contextlib.ExitStack() as stack:
+    cloud_file = tmp_path / "relay-cloud.stats.json"
+    edge_files = {name: tmp_path / f"relay-edge-planner@{name}.stats.json" for name in robots}
+    with cloud_end(cloud_m, fleet_certs, stats_file=cloud_file) as cloud, contextlib.ExitStack() as stack:
         for n, (name, master) in enumerate(robots.items()):
-            stack.callback(edge_end(name, master, fleet_certs, cloud, n).stop)
+            stack.callback(edge_end(name, master, fleet_certs, cloud, n, stats_file=edge_files[name]).stop)
         asking = {name: _node(procs, master, "robot", "/plan/request", "/plan/reply", "--count", str(COUNT),
                               "--rate", "20", "--wait", "5", "--seq-base", str(SEQ_BASE[name]), "--go",
                               str(tmp_path / "go"), *(["--zero-stamp"] if name == "arm3" else ["--base", "1000"]))
@@ -79,6 +92,13 @@ def test_each_reply_goes_to_the_robot_that_asked(masters: tuple[Master, Master],
         assert figures["served"] == dict.fromkeys(ROBOTS, COUNT) and figures["undelivered"] == 0
         assert figures["restamped"] > 0  # equal stamps were in flight together
         assert figures["unmatched"] >= 1  # the stray replies, dropped
+        # The cloud end's stats file has the same figures (per robot served, the strays); each robot's edge end
+        # hears its own count (REPORT frames) and writes it in its stats file, which `fogiac status` reads.
+        wait_for(lambda: _written(cloud_file, "replies", "planner", "served") == dict.fromkeys(ROBOTS, COUNT)
+                 and _written(cloud_file, "replies", "planner", "unmatched") == figures["unmatched"], 10,
+                 "the cloud end's stats file")
+        wait_for(lambda: all(_written(edge_files[name], "routed") == {"served": COUNT, "undelivered": 0}
+                             for name in ROBOTS), 10, "each robot's count in its edge's stats file")
 
 
 def test_equal_keys_of_another_field_are_answered_in_arrival_order(masters: tuple[Master, Master],

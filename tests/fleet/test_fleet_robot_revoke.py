@@ -23,9 +23,13 @@ from tests.support.procs import alive_pids
 __all__ = ["pytestmark"]
 
 
+def _stats(stack: StackState, robot: str) -> dict[str, object]:
+    return read_json(stack.edge / f"relay-edge-planner@{robot}.stats.json") or {}
+
+
 def _connected(stack: StackState, robot: str) -> bool | None:
-    stats = read_json(stack.edge / f"relay-edge-planner@{robot}.stats.json") or {}
-    return stats.get("connected")
+    connected = _stats(stack, robot).get("connected")
+    return connected if isinstance(connected, bool) else None
 
 
 def _wait(what: str, check: object, timeout: float) -> float:
@@ -57,6 +61,7 @@ def test_revoke_cuts_a_robot_off_and_restore_lets_it_back(tmp_path: Path, _state
             assert revoked.exit_code == 0, revoked.output
             took = _wait("arm3's link cut", lambda: _connected(stack, "arm3") is False, 10)
             assert took < 10
+            _wait("arm3's edge told why", lambda: _stats(stack, "arm3").get("link_refused") == "revoked", 10)
             assert json.loads(access.read_text())["revoked"] == ["arm3"] and stack.get(StackState.REVOKED) == ["arm3"]
             assert _connected(stack, "arm1") and _connected(stack, "arm2")  # the others carry on ...
             reports = _clients({"arm1": ports["arm1"]}, tmp_path)
@@ -71,6 +76,7 @@ def test_revoke_cuts_a_robot_off_and_restore_lets_it_back(tmp_path: Path, _state
 
             restored = runner.invoke(app, ["robot", "restore", "arm3", str(manifest), *local])
             assert restored.exit_code == 0, restored.output
+            assert "its edge end links again now" in restored.output  # woken: it does not wait out its backoff
             assert json.loads(access.read_text())["revoked"] == [] and stack.get(StackState.REVOKED) is None
             _wait("arm3 linked again", lambda: _connected(stack, "arm3") is True, 30)
             report = _clients({"arm3": ports["arm3"]}, tmp_path)["arm3"]

@@ -164,3 +164,38 @@ def test_odd_figures_in_a_robots_stats_are_unknown_not_trusted(tmp_path: Path) -
     out = StringIO()
     Console(file=out, width=250, color_system=None).print(robots_table([row]))
     assert "\x1b" not in out.getvalue() and "/a\\x1b[31m" in out.getvalue() and "down 0/2" in out.getvalue()
+
+
+def test_a_link_its_cloud_end_refuses_says_why(tmp_path: Path) -> None:
+    """A robot's edge end that a cloud end refuses (revoked, maybe from another machine: this record does not say
+    so) writes the reason in its stats; the robot's row shows it beside the link, printable."""
+    manifest, plan = _deploy(tmp_path)
+    _stats(plan, "planner", "arm2", RelayStats("edge", False, None, 0.0, 0, (), link_refused="revoked"))
+    _stats(plan, "grasp", "arm2", RelayStats("edge", False, None, 0.0, 0, (), link_refused="revoked\x1b[31m"))
+    rows = {r["robot"]: r for r in robot_status(plan)}
+    assert rows["arm2"]["link_refused"] == ["revoked", "revoked\x1b[31m"] and rows["arm1"]["link_refused"] == []
+    shown = runner.invoke(app, ["status", str(manifest)], env=WIDE).output
+    arm2 = next(line for line in shown.splitlines() if line.startswith("│ arm2 "))
+    assert "down 0/2 (refused: revoked, revoked\\x1b[31m)" in arm2 and "\x1b" not in shown
+
+
+def test_the_replies_a_robots_cloud_ends_routed_to_it(tmp_path: Path) -> None:
+    """The shared nodes' replies each cloud end routed to the robot (its count, which the robot's edge end hears in
+    the link's REPORT frames and writes as ``routed``) show beside its served count, summed over its links."""
+    manifest, plan = _deploy(tmp_path)
+    _stats(plan, "planner", "arm1", RelayStats("edge", True, 1.0, 0.0, 0, (_topic("/plan/path", "in", 6, 5.0),),
+                                               routed={"served": 6, "undelivered": 0}))
+    _stats(plan, "grasp", "arm1", RelayStats("edge", True, 1.0, 0.0, 0, (_topic("/grasp/reply", "in", 2, 5.0),),
+                                             routed={"served": 3, "undelivered": 1}))
+    _stats(plan, "planner", "arm2", RelayStats("edge", True, 1.0, 0.0, 0, (_topic("/plan/path", "in", 4, 5.0),),
+                                               routed={"served": 4, "undelivered": 0}))
+    rows = {r["robot"]: r for r in robot_status(plan)}
+    assert rows["arm1"]["routed"] == {"served": 9, "undelivered": 1} and rows["arm1"]["served"] == 8
+    assert rows["arm2"]["routed"] == {"served": 4, "undelivered": 0} and rows["arm3"]["routed"] is None
+    shown = runner.invoke(app, ["status", str(manifest)], env=WIDE).output
+    cells = {line.split("│")[1].strip(): [c.strip() for c in line.split("│")[2:-1]]
+             for line in shown.splitlines() if line.startswith("│ arm")}
+    assert cells["arm1"][5] == "8 (routed 9, lost 1)" and cells["arm2"][5] == "4 (routed 4)"
+    assert cells["arm3"][5] == "0"
+    doc = json.loads(runner.invoke(app, ["status", str(manifest), "--json"]).output)
+    assert doc["robots"][0]["routed"] == {"served": 9, "undelivered": 1}

@@ -17,15 +17,19 @@ Refusals are logged at most once per kind per 10 s (:mod:`.ratelog`).
 
 A fleet's cloud end also follows its access file (:mod:`.fleet`, ``fleet.json`` beside its certificates):
 only a listed, unrevoked robot is linked, and only for its own namespace and the shared nodes' topics;
-when the file changes, the links that lost their access are closed (within the watch's poll). The replies of
+when the file changes, the links that lost their access are closed (within the watch's poll). A refused robot's
+edge is told why (a REFUSE frame with the reason, ``revoked``, instead of the HELLO answer) so that it backs off
+instead of redialling at its normal pace. The replies of
 the shared request/reply nodes the file names go back only to the robot whose request each answers
-(:mod:`.replyroute`; :meth:`CloudRelay.reply_stats` counts them); with one edge nothing is routed. A
+(:mod:`.replyroute`; :meth:`CloudRelay.reply_stats` counts them, in the stats file too, and each robot's edge
+end hears its own served and undelivered counts in the REPORT frames); with one edge nothing is routed. A
 per-robot node's instances' topics (``/arm1/scan``) cross for their own robot as the file says, beyond the
 topic policy, which names no robot so that robots come and go without this end restarted.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import socket
 import ssl
@@ -44,11 +48,14 @@ from fogiac.net.relay.ratelog import RateLimitedLog
 from fogiac.net.relay.replyroute import ReplyRouter
 from fogiac.net.relay.session import Session, read_frame, send_now
 from fogiac.net.relay.shared import SharedTopics
+from fogiac.net.relay.stats import RelayStats
 from fogiac.net.relay.tls import server_context
 
 log = logging.getLogger(__name__)
 PROTOCOL_VERSION = 1
 HANDSHAKE_TIMEOUT = 10.0
+REVOKED = "revoked"  # a REFUSE frame's reasons: the robot is revoked (``fogiac robot revoke``) ...
+NOT_A_ROBOT = "not a robot of this fleet"  # ... or its certificate names no robot of the access file
 
 
 def peer_identity(sock: ssl.SSLSocket) -> str:
@@ -202,12 +209,9 @@ class CloudRelay(RelayEnd):
             if framing.parse_json(hello).get("version") != PROTOCOL_VERSION:
                 raise FrameError(f"edge speaks relay protocol {framing.parse_json(hello).get('version')}, "
                                  f"this cloud end {PROTOCOL_VERSION}")
-            if not self._admitted(identity := peer_identity(sock)):  # refused before the HELLO answer: a revoked
-                self.refused_links += 1  # robot's edge never counts itself linked, not even for a moment
-                self._quiet.warning("robot", "refused edge %s from %s: not a robot of this fleet, or revoked",
-                                    identity, peer)
-                sock.close()
-                return None
+            if (reason := self._refusal(identity := peer_identity(sock))) is not None:
+                self._refuse(sock, identity, peer, reason)  # refused before the HELLO answer: a revoked robot's
+                return None  # edge never counts itself linked, not even for a moment
             send_now(sock, framing.json_frame(Kind.HELLO, {"role": "cloud", "version": PROTOCOL_VERSION}))
             sock.settimeout(None)
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
@@ -227,11 +231,8 @@ class CloudRelay(RelayEnd):
             if self._stopping.is_set():
                 sock.close()
                 return
-            if not self._admitted(identity):
-                self.refused_links += 1
-                self._quiet.warning("robot", "refused edge %s from %s: not a robot of this fleet, or revoked",
-                                    identity, peer)
-                sock.close()
+            if (reason := self._refusal(identity)) is not None:  # revoked between its HELLO and here
+                self._refuse(sock, identity, peer, reason)
                 return
             old = self.sessions.get(identity)  # the same edge's earlier session; other edges' stay
             if old is not None and old.alive:
@@ -247,6 +248,7 @@ class CloudRelay(RelayEnd):
                               outlet=lambda sink, meta: topics.outlet(sink, meta, identity))
             session.handlers[Kind.SUBSCRIBE] = lambda f: self._on_subscribe(session, f, identity)
             session.handlers[Kind.UNSUBSCRIBE] = lambda f: self._on_unsubscribe(session, f)
+            session.report_replies = lambda: self.replies.robot_figures(identity)  # its edge shows them (status)
             self.sessions[identity] = self.session = session
         log.info("edge %s connected from %s", identity, peer)
         threading.Thread(target=self._report_graph, args=(session, identity), name="relay-poll", daemon=True).start()
@@ -261,20 +263,41 @@ class CloudRelay(RelayEnd):
     def _rules(self) -> FleetAccess | None:
         return self.access.rules if self.access is not None else None
 
-    def _admitted(self, identity: str) -> bool:
+    def _refusal(self, identity: str) -> str | None:
+        """Why the access file refuses this identity (``revoked``, or ``not a robot of this fleet``); None: linked."""
         rules = self._rules()
-        return rules is None or rules.robot(identity) is not None
+        if rules is None or rules.robot(identity) is not None:
+            return None
+        robot = rules.robots.get(identity)
+        return REVOKED if robot is not None and robot.name in rules.revoked else NOT_A_ROBOT
+
+    def _refuse(self, sock: ssl.SSLSocket, identity: str, peer: str, reason: str) -> None:
+        """Tell the edge why in a REFUSE frame, then close: it backs off (:mod:`.edge`) instead of redialling at
+        its normal pace. The frame goes to an edge that completed mutual TLS with the stack's CA only."""
+        self.refused_links += 1
+        self._quiet.warning("robot", "refused edge %s from %s: %s", identity, peer, reason)
+        try:
+            send_now(sock, framing.json_frame(Kind.REFUSE, {"reason": reason}))
+        except OSError:
+            pass  # gone already: nothing to tell
+        sock.close()
 
     def reply_stats(self) -> dict[str, dict[str, Any]]:
         """Per shared request/reply node: requests forwarded, answered, waiting; replies that reached no robot;
-        the replies each robot got (``served``, by robot name where the access file names it)."""
+        the replies each robot got (``served``) and of those the ones its link was gone for (``lost``), by robot
+        name where the access file names it."""
         figures = self.replies.stats()
         rules = self._rules()
         if rules is not None:
             for node in figures.values():
-                node["served"] = {(r.name if (r := rules.robots.get(i)) is not None else i): n
-                                  for i, n in node["served"].items()}
+                for key in ("served", "lost"):
+                    node[key] = {(r.name if (r := rules.robots.get(i)) is not None else i): n
+                                 for i, n in node[key].items()}
         return figures
+
+    def stats(self) -> RelayStats:
+        """The end's figures, and a fleet's reply routing (written to the stats file every second)."""
+        return dataclasses.replace(super().stats(), replies=self.reply_stats() or None)
 
     def _access_changed(self, rules: FleetAccess | None) -> None:
         """Route the shared nodes' replies the file names; close the links of robots that lost their access

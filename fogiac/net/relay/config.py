@@ -66,6 +66,8 @@ class EdgeConfig(EndConfig):
     caller_id: str = "/fogiac_relay_edge"
     backoff_initial: float = 0.2
     backoff_max: float = 5.0
+    refused_backoff_initial: float = 1.0  # the wait after the cloud end first refuses this edge (a revoked robot's),
+    refused_backoff_max: float = 30.0  # doubling at each refusal up to this
 
     def __post_init__(self) -> None:
         check_name(self.compression)

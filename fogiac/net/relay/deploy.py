@@ -12,7 +12,9 @@ gets its access file (``fleet.json``: :func:`fleet_files`), which its cloud end 
 from __future__ import annotations
 
 import json
+import os
 import re
+import signal
 import sys
 import xmlrpc.client
 from collections.abc import Mapping
@@ -246,6 +248,25 @@ def stop_gone_robots(plan: Plan, *, folder: Path) -> list[str]:
     return gone
 
 
+def wake_robot(robot: str, *, folder: Path) -> list[str]:
+    """SIGHUP to ``robot``'s edge ends on this machine (its links and replica groups): a restored robot's edge,
+    which the cloud ends' refusals made wait up to 30 s between dials, dials at once. Returns the services
+    signalled; a robot whose edge runs elsewhere finds none here and links at its next dial."""
+    names = sorted(p.stem for p in folder.glob("*.pid")) if folder.exists() else []
+    woken = []
+    for name in names:
+        if _robot_of(name) != robot or not name.startswith(("relay-edge-", "relay-replicas-")):
+            continue  # the robot's demo master is no relay: SIGHUP would end it
+        child = supervise.status(folder, name)["child"]
+        if child is not None and supervise.pid_alive(child):
+            try:
+                os.kill(child, signal.SIGHUP)
+            except OSError:
+                continue  # ended between the look and the signal: its restart dials at once anyway
+            woken.append(name)
+    return woken
+
+
 def edge_up(plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path, folder: Path) -> list[str]:
     """Every edge's relays (``entry``: where the first edge's master is, ``up --edge-master`` or the plan's);
     a robot's that is already running is left as it is, and a robot no longer in the plan is stopped."""
@@ -352,6 +373,9 @@ class RelayDeployment:
     def fleet_files(self, plan: Plan, spec: HostSpec, *,
                     revoked: tuple[str, ...]) -> tuple[tuple[str, bytes, int], ...]:
         return fleet_files(plan, spec, revoked=revoked)
+
+    def wake_robot(self, plan: Plan, robot: str, *, folder: Path) -> list[str]:
+        return wake_robot(robot, folder=folder)
 
 
 DEPLOYMENT = RelayDeployment()

@@ -46,6 +46,8 @@ class Kind(enum.IntEnum):
     PING = 8  # stamp
     PONG = 9  # echoed stamp + responder's stamp
     REPORT = 10  # JSON {"latency": {topic: [median_ms, p99_ms]}}: one-way latency where the sender receives
+    REFUSE = 11  # JSON {"reason"}: the cloud end will not link this edge (a fleet's revoked or unknown robot);
+    # sent instead of its HELLO, then it closes, so the edge backs off instead of redialling at its normal pace
 
 
 @dataclass(frozen=True)

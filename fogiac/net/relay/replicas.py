@@ -283,6 +283,11 @@ class ReplicaGroup:
         self._monitor: Monitor | None = None
 
     # --- lifecycle -------------------------------------------------------------------------
+    def redial_now(self) -> None:
+        """Every link whose cloud end refused it dials now (SIGHUP: the robot was restored)."""
+        for link in self.links:
+            link.redial_now()
+
     def start(self) -> None:
         self.node.start()
         try:
@@ -486,6 +491,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     done = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: done.set())
+    signal.signal(signal.SIGHUP, lambda *_: group.redial_now())  # as the edge end's: a restored robot dials now
     group.start()
     try:
         done.wait()

@@ -85,6 +85,7 @@ class _Node:
     by_robot: dict[str, OrderedDict[int, None]] = field(default_factory=dict)  # each robot's, oldest first
     moved: dict[Key, Key] = field(default_factory=dict)  # a robot's stamp -> the last stamp it was moved to
     served: dict[str, int] = field(default_factory=dict)  # replies routed to each robot (``fogiac status``)
+    lost: dict[str, int] = field(default_factory=dict)  # of those, the ones its link was gone for (undelivered)
     seq: int = 0
     counts: dict[str, int] = field(default_factory=lambda: dict.fromkeys(
         ("forwarded", "answered", "undelivered", "restamped", "queued", "unmatched", "keyless", "expired",
@@ -212,12 +213,24 @@ class ReplyRouter:
                 node.served[asked.robot] = node.served.get(asked.robot, 0) + 1
         return asked.robot, (_with_stamp(data, asked.own) if asked.own != asked.key else data)
 
-    def undelivered(self, topic: str) -> None:
+    def undelivered(self, topic: str, robot: str | None = None) -> None:
         """Count a routed reply whose robot has no link that hears ``topic`` now (it went away, or was revoked)."""
         node = self._replies.get(topic)
         if node is not None:
             with self._lock:
                 node.counts["undelivered"] += 1
+                if robot is not None and (robot in node.lost or len(node.lost) < 4 * self.pending):
+                    node.lost[robot] = node.lost.get(robot, 0) + 1
+
+    def robot_figures(self, robot: str) -> dict[str, int] | None:
+        """The replies routed to ``robot`` over every shared node (``served``) and, of those, the ones that found
+        no link of it (``undelivered``): what its edge end hears of them (:mod:`.cloud`'s REPORT). None when no
+        shared node is routed (one edge, or a fleet whose nodes serve robots of their own)."""
+        with self._lock:
+            if not self._nodes:
+                return None
+            return {"served": sum(n.served.get(robot, 0) for n in self._nodes.values()),
+                    "undelivered": sum(n.lost.get(robot, 0) for n in self._nodes.values())}
 
     def _expire(self, node: _Node, now: float) -> None:
         while node.asked:
@@ -230,7 +243,9 @@ class ReplyRouter:
     def stats(self) -> dict[str, dict[str, Any]]:
         """Per shared node: requests forwarded and answered (and of those, undelivered: the robot had gone),
         replies unmatched, requests keyless, restamped (their stamp was in flight already), queued (their key was:
-        answered in arrival order), expired or forgotten, how many wait now, and the replies each robot got."""
+        answered in arrival order), expired or forgotten, how many wait now, the replies each robot got (``served``)
+        and of those the ones its link was gone for (``lost``)."""
         with self._lock:
-            return {name: {**node.counts, "pending": len(node.asked), "served": dict(sorted(node.served.items()))}
+            return {name: {**node.counts, "pending": len(node.asked), "served": dict(sorted(node.served.items())),
+                           "lost": dict(sorted(node.lost.items()))}
                     for name, node in sorted(self._nodes.items())}

@@ -168,6 +168,10 @@ class Session:
         # One-way latency of the topics this end sends, as the peer measured them where they arrive
         # (a REPORT each ping interval): so this end's stats show it for both directions.
         self.peer_latency: dict[str, tuple[float | None, float | None]] = {}
+        # A fleet's cloud end adds to each REPORT the replies its shared nodes routed to this link's robot
+        # (``report_replies``); the edge keeps the latest (``peer_replies``: served, undelivered) for its stats.
+        self.report_replies: Callable[[], dict[str, int] | None] | None = None
+        self.peer_replies: dict[str, int] | None = None
         self.handlers: dict[Kind, Handler] = {
             Kind.OPEN: self._on_open, Kind.CLOSE: self._on_close, Kind.DATA: self._on_data,
             Kind.PING: self._on_ping, Kind.PONG: self._on_pong, Kind.REPORT: self._on_report,
@@ -330,13 +334,20 @@ class Session:
         with self._lock:
             sinks = [s.counters.snapshot() for s in self._sinks.values()]
         latency = {t.topic: [t.latency_ms, t.latency_p99_ms] for t in sinks if t.latency_ms is not None}
-        if latency:
-            self.send(framing.json_frame(Kind.REPORT, {"latency": latency}))
+        replies = self.report_replies() if self.report_replies is not None else None
+        if latency or replies:  # "latency" always there: an edge from before "replies" requires it
+            body: dict[str, Any] = {"latency": latency, **({"replies": replies} if replies else {})}
+            self.send(framing.json_frame(Kind.REPORT, body))
 
     def _on_report(self, frame: Frame) -> None:
-        body = framing.parse_json(frame).get("latency")
+        report = framing.parse_json(frame)
+        body = report.get("latency")
         if not isinstance(body, dict):
             raise FrameError("REPORT frame without a latency object")
+        replies = report.get("replies")
+        if isinstance(replies, dict):  # counts only: anything else in it is not kept
+            self.peer_replies = {k: v for k in ("served", "undelivered")
+                                 if isinstance(v := replies.get(k), int) and not isinstance(v, bool) and v >= 0}
         with self._lock:
             sources = set(self._sources)
         for topic, pair in body.items():

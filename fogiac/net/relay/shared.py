@@ -76,7 +76,7 @@ class _Fan:
         with self.topics.lock:
             sources = [s for s in self.sources if self.robots.get(s) == robot]
         if not sources:
-            router.undelivered(self.topic)
+            router.undelivered(self.topic, robot)
         for source in sources:
             source._message(reply)
 

@@ -16,6 +16,7 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 
 class ClockSync:
@@ -69,6 +70,11 @@ class RelayStats:
     reconnects: int
     topics: tuple[TopicStats, ...] = field(default_factory=tuple)
     refused: int = 0  # the peer's requests for topics outside this end's policy, this link
+    link_refused: str | None = None  # edge: why the cloud end refused the link at the last dial ("revoked")
+    # A fleet's cloud end: per shared request/reply node, its routing figures (:meth:`ReplyRouter.stats`: the
+    # replies each robot was served, those lost with its link, the strays no robot asked for: ``unmatched``...)
+    replies: dict[str, dict[str, Any]] | None = None
+    routed: dict[str, int] | None = None  # a fleet robot's edge: the cloud end's count of its replies (served...)
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), separators=(",", ":"))

@@ -205,8 +205,10 @@ def _vpn(manifest: Manifest, stack: str, network: VpcSpec) -> VpnSpec:
     )
 
 
-def cost_lines(hosts: tuple[HostSpec, ...], vpn: VpnSpec | None) -> tuple[CostLine, ...]:
-    """Each instance at its on-demand price, a spot one with its spot estimate beside; the Client VPN."""
+def cost_lines(hosts: tuple[HostSpec, ...], vpn: VpnSpec | None, robots: int = 1) -> tuple[CostLine, ...]:
+    """Each instance at its on-demand price, a spot one with its spot estimate beside; the Client VPN: one subnet
+    association, and one connection per robot (``robots``: a fleet's count), because AWS bills each connected
+    client by the hour and every robot's edge joins the VPC through a Client VPN connection of its own."""
     lines = [
         CostLine(f"instance {h.name} ({h.machine}{', spot' if h.spot else ''}{', ' + h.zone if h.zone else ''})", 1,
                  h.usd_per_hour,
@@ -216,7 +218,9 @@ def cost_lines(hosts: tuple[HostSpec, ...], vpn: VpnSpec | None) -> tuple[CostLi
     if vpn is not None:
         cat = catalog()
         lines.append(CostLine("Client VPN subnet association", 1, cat.vpn_association_usd_per_hour))
-        lines.append(CostLine("Client VPN connection (the edge)", 1, cat.vpn_connection_usd_per_hour))
+        lines.append(CostLine("Client VPN connection (the edge)", 1, cat.vpn_connection_usd_per_hour) if robots <= 1
+                     else CostLine(f"Client VPN connections ({robots} robots, one each)", robots,
+                                   cat.vpn_connection_usd_per_hour))
     return tuple(lines)
 
 
@@ -238,7 +242,7 @@ def place(manifest: Manifest, *, stack: str, tags: Tags) -> Placement:
         security_groups=_firewall(manifest, ssh_sources(manifest), vpn_mode=vpn_mode,
                                   host_cidrs=tuple(s.cidr for s in network.subnets if s.role == "instances")),
         vpn=vpn,
-        cost=cost_lines(hosts, vpn),
+        cost=cost_lines(hosts, vpn, robots=len(manifest.robots) or 1),
         autostop=autostop_for(manifest, power="machine", default_minutes=AUTOSTOP_MINUTES),
         replica_hosts=groups, notes=notes,
     )

@@ -33,7 +33,7 @@ def on_demand(plan: Plan, hosts: Collection[str]) -> Plan:
         return plan
     specs = tuple(dataclasses.replace(h, spot=False, spot_usd_per_hour=None) if h.name in hosts else h
                   for h in plan.hosts)
-    return dataclasses.replace(plan, hosts=specs, cost=cost_lines(specs, vpn_of(plan)))
+    return dataclasses.replace(plan, hosts=specs, cost=cost_lines(specs, vpn_of(plan), robots=len(plan.edges)))
 
 
 def fallback_line(plan: Plan, host: str, code: str) -> str:

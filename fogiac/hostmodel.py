@@ -141,6 +141,7 @@ class Where:
     user: str = "root"
     workspace_digests: tuple[tuple[str, str], ...] = ()  # (local path, digest) of pushed workspaces
     engine: str = "docker"  # the container engine's command on the host (container runtime)
+    init: bool = False  # the engine runs nodes under an init (--init), so a stop's SIGTERM reaches them at once
     images: tuple[tuple[str, str], ...] = ()  # (node, tag) of images built on the host
     workload_python: str = ""  # interpreter of workload nodes on a native host ('' : python)
     launch_bin: str = ""  # a venv's bin folder put first on native launch nodes' PATH ('' : none)

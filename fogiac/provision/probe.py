@@ -24,6 +24,7 @@ class Facts:
     missing: list[str] = field(default_factory=list)
     flags: set[str] = field(default_factory=set)  # engine, ros, roscore, nvidia, systemd, linkprogram
     engines: list[str] = field(default_factory=list)  # container engines that answered, docker first
+    inits: set[str] = field(default_factory=set)  # of those, the ones that can run a node under an init (--init)
 
     @property
     def has_ros(self) -> bool:
@@ -67,6 +68,8 @@ def gather(host: Host, layout: Layout, *, link_program: str, engines: tuple[str,
         elif key == "engine":
             facts.flags.add(key)
             facts.engines.append(rest.strip())
+        elif key == "init":
+            facts.inits.add(rest.strip())
         elif key in ("ros", "roscore", "nvidia", "systemd", "linkprogram"):
             facts.flags.add(key)
         elif key == "sha":

@@ -94,6 +94,7 @@ class HostRun:
                          relay_port=ports.relay_port, ros_address=self.access.ros_address,
                          python=self.venv_python or self.access.python, code_root=code_root, user=self.access.user,
                          workspace_digests=tuple(sorted(self.digests.items())), engine=self.engine or "docker",
+                         init=self.facts is not None and bool(self.engine) and self.engine in self.facts.inits,
                          images=tuple(sorted(self.images.items())),
                          workload_python=self.venv_python or self.access.python, launch_bin=self.launch_bin,
                          ros_image=self.ros_image)

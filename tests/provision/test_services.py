@@ -180,3 +180,16 @@ def test_a_ros2_nodes_unit_starts_after_its_hosts_zenoh_router_not_a_master(tmp_
     (service,) = svc.node_services(plan, plan.host("talker"), _where(svc.CONTAINER))
     assert "After=network-online.target fogiac-fleet-dev-zenoh-router.service\n" in service.unit
     assert "ros-master" not in service.unit
+
+
+def test_an_engine_with_an_init_runs_every_container_under_it(plan: Plan) -> None:
+    """`--init`: the engine's init is PID 1 and passes a stop's SIGTERM on to the node, which as PID 1 would ignore
+    it (down then waited out the engine's stop timeout, and a kill, for every container)."""
+    import dataclasses
+
+    where = dataclasses.replace(_where(svc.CONTAINER), init=True)
+    spec = plan.host("plan")
+    assert svc.docker_run(plan.node("plan"), plan=plan, spec=spec, where=where) == _line(plan, "plan").replace(
+        "docker run --rm --network host", "docker run --rm --init --network host")
+    master = relay_svc.master_service(plan, spec, where)
+    assert " run --rm --init --network host " in master.script, master.script

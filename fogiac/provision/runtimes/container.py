@@ -68,7 +68,7 @@ def docker_run(node: NodeSpec, *, plan: Plan, spec: HostSpec, where: Where) -> s
         workdir = _WS_MOUNT
     else:
         image, command = _built(node, where), ("python", "-m", workload.package(node.workload or ""), "node")
-    return render("provision/docker_run.j2", engine=where.engine, stack=plan.stack, host=spec.name,
+    return render("provision/docker_run.j2", engine=where.engine, init=where.init, stack=plan.stack, host=spec.name,
                   gpus=spec.has_gpu, container=container_name(plan.stack, node.name), env=env,
                   env_file=node_env_file(where.layout, node.name) if node.env or node.secrets else "", volumes=volumes,
                   workdir=workdir, image=image, command=command).strip()
@@ -95,8 +95,8 @@ class ContainerRuntime:
     def program(self, plan: Plan, spec: HostSpec, where: Where, *, name: str, argv: tuple[str, ...],
                 env: tuple[tuple[str, str], ...]) -> tuple[str, tuple[str, ...]]:
         container = container_name(plan.stack, name)
-        command = render("provision/docker_run.j2", engine=where.engine, stack=plan.stack, host=spec.name, gpus=False,
-                         container=container, env=env, env_file="", volumes=(), workdir="",
+        command = render("provision/docker_run.j2", engine=where.engine, init=where.init, stack=plan.stack,
+                         host=spec.name, gpus=False, container=container, env=env, env_file="", volumes=(), workdir="",
                          image=ros_image(plan), command=argv).strip()
         return command, _remove_first(where, container)
 

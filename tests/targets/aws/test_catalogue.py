@@ -119,3 +119,30 @@ def test_a_region_without_a_price_source_is_offered_but_unpriced(cat: catalogue.
     assert cat.price("g4dn.xlarge", "sa-east-1") is None and cat.spot("g4dn.xlarge", "sa-east-1") is None
     assert cat.search(region="sa-east-1", gpu="T4") == []
     assert "g4dn.xlarge" in names(cat.search(region="sa-east-1", gpu="T4", priced_only=False))
+
+
+def test_carrying_the_catalogue_over_reads_each_types_zones_a_bounded_number_of_times(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """`catalog update --region R` carries every other region over (Builder.keep), asking zones_offering for each
+    (type, region); each ask gathered the region's zones over every type afresh, so one update read zones
+    ~60 million times and took half a minute. Counted in reads, not seconds: each region is gathered once."""
+    from fogiac.targets.aws.refresh import Builder
+
+    load.cache_clear()
+    cat = load()
+    reads = 0
+    zones_of = catalogue.Catalogue._zones_of
+
+    def counted(self: catalogue.Catalogue, name: str) -> dict[str, tuple[str, ...]]:
+        nonlocal reads
+        reads += 1
+        return zones_of(self, name)
+
+    monkeypatch.setattr(catalogue.Catalogue, "_zones_of", counted)
+    built = Builder()
+    kept = built.keep(cat, refreshed=["sa-east-1"])
+    load.cache_clear()
+    assert "sa-east-1" not in kept and "us-east-1" in kept
+    assert built.zones  # zones were carried over
+    # one read per (type, region) asked, plus one gathering of every type per region
+    assert reads <= len(cat.types) * len(cat.regions) * 2, reads

@@ -2,8 +2,9 @@
 manifest edit and no process restarted.
 
 The record keeps the robot revoked (``StackState.REVOKED``) until ``restore`` or until the manifest drops it;
-every host's access file (the relay's ``fleet.json``) is rewritten at once, and each cloud end re-reads it
-within a second, closing the robot's link and refusing its redials (well within 10 s).
+every host's access file (the relay's ``fleet.json``, Zenoh's ``zenoh-fleet.json``) is rewritten at once, and
+each cloud end re-reads it within a second, closing the robot's link and refusing its redials (the relay) or
+reloading its rules without it (a Zenoh router), well within 10 s.
 """
 
 from __future__ import annotations

@@ -96,7 +96,7 @@ def test_up_refuses_a_fleet_its_middleware_cannot_deploy_in_one_line_and_creates
     finally:
         middleware.register(RELAY, relay_deploy.DEPLOYMENT)
     assert done.exit_code == 1, done.output
-    assert "robots: up deploys a fleet over the relay (ROS 1) only; the relay middleware has no per-robot " \
-           "access yet" in done.output
+    assert "robots: up deploys a fleet over the relay (ROS 1) and Zenoh (ROS 2) only; the relay middleware has no " \
+           "per-robot access yet" in done.output
     assert "Traceback" not in done.output and list(_state_dir.iterdir()) == []
     assert CliRunner().invoke(app, ["plan", str(manifest)]).exit_code == 0

@@ -16,7 +16,8 @@ equal stamps from several robots are in flight at once). What ``up`` must have b
 - ``fogiac robot revoke r3``: r3 unanswered within 10 s, and a session with r3's certificate gets nothing,
   while r1 and r2 are answered on; no process restarted (every pid kept); ``restore``: answered again;
 - r3 dropped from ``robots:`` and ``up``: only its edge processes stop; added back and ``up``: only its start
-  again, it is answered; the sandbox's processes keep their pids throughout; ``down`` leaves nothing.
+  again, it is answered; the sandbox's processes keep their pids throughout; ``status`` shows each robot's
+  link up and only its own namespaced topics, with requests served; ``down`` leaves nothing.
 """
 
 from __future__ import annotations
@@ -244,8 +245,18 @@ def test_up_deploys_a_ros2_fleet_over_zenoh(tmp_path: Path, _state_dir: Path) ->
                 k: v for k, v in edge_before.items() if "@r3" not in k}
             assert {k for k in edge_now if "@r3" in k} == {k for k in edge_before if "@r3" in k}
             _more(outs, ("r3", "r1", "r2"), timeout=60)  # the stand-in on r3's router, which came back, asks on
-            status = runner.invoke(app, ["status", str(manifest), *local, "--json"])
-            assert status.exit_code == 0, status.output
+
+            def rows() -> dict[str, Any] | None:  # the edge routers and monitors write their figures every second
+                shown = runner.invoke(app, ["status", str(manifest), *local, "--json"])
+                assert shown.exit_code == 0, shown.output
+                found = {r["robot"]: r for r in json.loads(shown.output)["robots"]}
+                return found if all(found.get(r, {}).get("served") for r in ROBOTS) else None
+
+            robot_rows = poll(rows, timeout=30)
+            assert robot_rows is not None, "status never showed every robot served"
+            for robot, row in robot_rows.items():  # each robot's own link and its namespaced topics
+                mine = {f"/{robot}/plan_request", f"/{robot}/plan_result"}
+                assert row["links_up"] == 1 and row["topics"] and set(row["topics"]) <= mine, row
         finally:
             down = runner.invoke(app, ["down", str(manifest), *local, "--yes"])
     assert down.exit_code == 0, down.output

@@ -48,8 +48,10 @@ def fleet_config(config: dict[str, Any], fleet: Path) -> tuple[dict[str, Any], l
     """``config`` with the fleet file's access control (no robot when the file is absent), and the edge router
     ids that count as connected (the robots not revoked). A file that cannot be read raises ValueError/OSError."""
     doc = json.loads(fleet.read_text()) if fleet.exists() else {"robots": {}, "revoked": []}
-    robots, revoked = doc.get("robots", {}), set(doc.get("revoked", []))
-    if not isinstance(robots, dict) or not all(isinstance(r, dict) for r in robots.values()):
+    robots = doc.get("robots", {}) if isinstance(doc, dict) else None
+    revoked = set(map(str, doc.get("revoked", []))) if isinstance(doc, dict) else set()
+    if not isinstance(robots, dict) or not all(isinstance(r, dict) and {"common_name", "zid"} <= set(r)
+                                               for r in robots.values()):
         raise ValueError(f"{fleet}: robots is not a mapping of robot -> {{common_name, zid}}")
     names = {name: str(robot["common_name"]) for name, robot in robots.items()}
     made = {**config, "access_control": fleet_access_control(names, revoked=revoked)}
@@ -86,7 +88,7 @@ def serve(config_path: Path, *, stats: Path | None = None, edge_id: str | list[s
                 seen = now
                 try:
                     opened, edges = fleet_config(config, fleet)
-                except (OSError, ValueError, KeyError) as err:  # half an edit: the rules of before stand
+                except (OSError, ValueError, KeyError, TypeError) as err:  # half an edit: the rules of before stand
                     print(f"error: {fleet}: {err}; the rules of before stand", file=sys.stderr, flush=True)
                 else:
                     session.close()
@@ -112,6 +114,6 @@ if __name__ == "__main__":
     args = parser.parse_args()
     try:
         serve(args.config, stats=args.stats_file, edge_id=args.edge_id, fleet=args.fleet_file)
-    except (ZenohError, OSError, ValueError, IndexError) as err:
+    except (ZenohError, OSError, ValueError, IndexError, KeyError, TypeError) as err:
         print(f"error: {err}", file=sys.stderr)
         sys.exit(1)

@@ -111,6 +111,7 @@ def test_the_router_reads_its_fleet_file_and_refuses_one_it_cannot(tmp_path: Pat
     fleet.write_text('{"robots": ["r1"]')  # half written: the router keeps the rules it has (it catches this)
     with pytest.raises(ValueError):
         fleet_config(base, fleet)
-    fleet.write_text('{"robots": ["r1"]}')
-    with pytest.raises(ValueError, match="robots is not a mapping"):
-        fleet_config(base, fleet)
+    for shape in ('{"robots": ["r1"]}', '["r1"]', '{"robots": {"r1": {"zid": "aa"}}}'):
+        fleet.write_text(shape)
+        with pytest.raises(ValueError, match="robots is not a mapping"):
+            fleet_config(base, fleet)

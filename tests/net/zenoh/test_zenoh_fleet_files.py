@@ -19,6 +19,7 @@ from fogiac.manifest.schema import parse_manifest
 from fogiac.net.zenoh import deploy, tls
 from fogiac.net.zenoh.config import TlsFiles, edge_router
 from fogiac.net.zenoh.router import fleet_config
+from fogiac.plan import fleet
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.model import Plan
 from fogiac.provision.runtimes.native import NATIVE
@@ -63,6 +64,11 @@ def test_the_fleet_file_names_each_robot_its_revocations_and_the_shared_pairs() 
     ((_, body, _),) = deploy.fleet_files(plan, host, revoked=())
     assert [s for s in json.loads(body)["shared"] if s["node"] == "grasp"] == [
         {"node": "grasp", "requests": ["/grasp/request"], "replies": ["/grasp/reply"], "robots": ["r1"]}]
+
+
+def test_the_plan_names_each_robots_own_edge_router_certificate() -> None:
+    plan = _plan()
+    assert [r["certificate"] for r in fleet.robots(plan) or []] == [tls.edge_name(plan.stack, r) for r in ("r1", "r2")]
 
 
 def test_one_robot_writes_no_fleet_file_and_keeps_its_router_as_before() -> None:

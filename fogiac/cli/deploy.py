@@ -158,8 +158,8 @@ def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str |
     if (problem := over_budget(plan, accept_unknown=accept_unknown_cost)) is not None:
         raise FogiacError(f"{manifest}: {problem}")
     if plan.fleet and not middleware.deploys_fleet(plan.middleware):  # it would link every robot to every topic
-        raise FogiacError(f"{manifest}: robots: up deploys a fleet over the relay (ROS 1) only; the "
-                          f"{plan.middleware} middleware has no per-robot access yet (docs/guides/fleet.md); "
+        raise FogiacError(f"{manifest}: robots: up deploys a fleet over the relay (ROS 1) and Zenoh (ROS 2) only; "
+                          f"the {plan.middleware} middleware has no per-robot access yet (docs/guides/fleet.md); "
                           "use edge: for one robot")
     chosen = targets.get(plan.target)
     need_yes(yes, "apply")

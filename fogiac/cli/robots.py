@@ -2,8 +2,9 @@
 manifest edit and no process restarted.
 
 The record keeps the robot revoked (``StackState.REVOKED``) until ``restore`` or until the manifest drops it;
-every host's access file (the relay's ``fleet.json``) is rewritten at once, and each cloud end re-reads it
-within a second, closing the robot's link and refusing its redials (well within 10 s). A refused edge end
+every host's access file (the relay's ``fleet.json``, Zenoh's ``zenoh-fleet.json``) is rewritten at once, and
+each cloud end re-reads it within a second, closing the robot's link and refusing its redials (the relay) or
+reloading its rules without it (a Zenoh router), well within 10 s. A refused relay edge end
 waits longer between dials (up to 30 s); ``restore`` wakes the robot's edge ends that run on this machine, so
 they link within a second or two, and one elsewhere links at its next dial.
 

@@ -182,15 +182,15 @@ def fleet_problems(manifest: Manifest) -> list[FieldProblem]:
     names = [r.name for r in manifest.robots]
     if manifest.robots and "edge" in manifest.model_fields_set:
         problems.append(FieldProblem("give edge: (one robot) or robots: (a fleet), not both", field="robots"))
-    if manifest.robots and manifest.ros.distro != "noetic":
-        problems.append(FieldProblem(f"a fleet is built for ROS 1 (noetic) through the relay; ROS "
-                                     f"{manifest.ros.distro} has no robots: yet", field="robots"))
+    # each robot's side where its middleware reaches it: its ROS master (ROS 1), its edge router (ROS 2)
+    entry = getattr(middlewares.for_distro(manifest.ros.distro), "edge_entry", None) if manifest.robots else None
     for i, robot in enumerate(manifest.robots):
+        reached = entry(robot) if entry is not None else robot.ros_master
         if robot.name in names[:i]:
             problems.append(FieldProblem(f"duplicate robot name {robot.name!r}", field=f"robots[{i}].name"))
-        elif robot.ros_master in [r.ros_master for r in manifest.robots[:i]]:
-            problems.append(FieldProblem(f"{robot.ros_master!r} is another robot's master too",
-                                         field=f"robots[{i}].ros_master"))
+        elif reached in [entry(r) if entry is not None else r.ros_master for r in manifest.robots[:i]]:
+            field, what = ("ros_master", "master") if reached == robot.ros_master else ("zenoh_router", "edge router")
+            problems.append(FieldProblem(f"{reached!r} is another robot's {what} too", field=f"robots[{i}].{field}"))
     for i, node in enumerate(manifest.nodes):
         if node.serve == "all":
             continue

@@ -18,6 +18,7 @@ import dataclasses
 from typing import Any
 
 from fogiac.certs import edge_identity
+from fogiac.net import middleware
 from fogiac.plan.model import NodeSpec, Plan, Route
 
 
@@ -73,9 +74,13 @@ def robots(plan: Plan) -> list[dict[str, Any]] | None:
     None for a plan of one robot (``edge:``), whose document stays as it was."""
     if not plan.fleet:
         return None
+    # the middleware names its robots' certificates where it has its own (Zenoh's edge routers'), else the relay's
+    named = getattr(middleware.get(plan.middleware), "robot_certificate", None)
     rows: list[dict[str, Any]] = []
     for edge in plan.edges:
-        row = {"name": edge.name, "entry": edge.entry, "certificate": edge_identity(plan.stack, edge.named),
+        row = {"name": edge.name, "entry": edge.entry,
+               "certificate": named(plan.stack, edge.name) if named is not None and edge.named is not None
+               else edge_identity(plan.stack, edge.named),
                "access": access(plan, edge.name), "edge_links": [route.host for route in plan.routes],
                "nodes": [node.name for node in plan.nodes if edge.name in plan.robots_of(node)],
                "usd_per_hour": robot_cost(plan, edge.name)}

@@ -347,16 +347,17 @@ def step_link(run: HostRun) -> StepResult:
     certs = run.options.certs_dir
     if certs is None:
         return SKIPPED, "no certificates given"
+    # A fleet's access rules: before the link starts (it never runs without them), and never a restart when
+    # they change (the link re-reads them), so a robot added or revoked leaves the host's processes alone. Also
+    # where the host's services carry the link (a Zenoh router follows its fleet file).
+    for name, data, mode in middleware.fleet_files(run.plan.middleware, run.plan, run.spec,
+                                                   revoked=run.options.revoked):
+        ensure_file(run, data, f"{run.layout.certs}/{name}", mode=mode)
     wanted = run.deploying.link_services(run.plan, run.spec, run.where())
     if not wanted:
         return OK, "the host's services carry the link"
     changed = [name for name, mode in run.deploying.link_files()
                if ensure_file(run, (certs / name).read_bytes(), f"{run.layout.certs}/{name}", mode=mode)]
-    # A fleet's access rules: before the link starts (it never runs without them), and never a restart when
-    # they change (the link re-reads them), so a robot added or revoked leaves the host's processes alone.
-    for name, data, mode in middleware.fleet_files(run.plan.middleware, run.plan, run.spec,
-                                                   revoked=run.options.revoked):
-        ensure_file(run, data, f"{run.layout.certs}/{name}", mode=mode)
     if not link_available(run):
         for service in wanted:
             ensure_file(run, service.script.encode(), f"{run.layout.services}/{service.name}.sh", mode=0o700)

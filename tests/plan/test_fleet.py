@@ -67,7 +67,7 @@ def test_the_edge_block_stays_the_one_robot_shorthand() -> None:
     (("name: planner\n", "name: planner\n    serve: [arm4]\n"), "nodes[0].serve: 'arm4' is not in robots"),
     (("serve: [arm1, arm3]", "serve: []"), "nodes[1].serve: serves no robot"),
     (("cloud: {provider: local}", "cloud: {provider: local}\nros: {distro: humble}"),
-     "robots: a fleet is built for ROS 1 (noetic) through the relay"),
+     "robots[1].zenoh_router: 'tcp/127.0.0.1:7447' is another robot's edge router too"),  # ROS 2: one router each
 ])
 def test_a_bad_fleet_is_named_in_one_line(change: tuple[str, str], expect: str) -> None:
     text = FLEET.replace(*change)
@@ -96,7 +96,7 @@ def test_up_refuses_a_fleet_its_middleware_cannot_deploy_in_one_line_and_creates
     finally:
         middleware.register(RELAY, relay_deploy.DEPLOYMENT)
     assert done.exit_code == 1, done.output
-    assert "robots: up deploys a fleet over the relay (ROS 1) only; the relay middleware has no per-robot " \
-           "access yet" in done.output
+    assert "robots: up deploys a fleet over the relay (ROS 1) and Zenoh (ROS 2) only; the relay middleware has no " \
+           "per-robot access yet" in done.output
     assert "Traceback" not in done.output and list(_state_dir.iterdir()) == []
     assert CliRunner().invoke(app, ["plan", str(manifest)]).exit_code == 0

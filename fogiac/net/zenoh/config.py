@@ -157,16 +157,40 @@ def fleet_access_control(robots: Mapping[str, str], *, revoked: Collection[str] 
     policies: list[dict[str, Any]] = [{"id": "host-nodes", "rules": ["local-in", "local-out"],
                                        "subjects": ["host-nodes"]}]
     for robot in sorted(set(robots) - set(revoked)):
-        data, tokens = [namespace_key(robot)], namespace_graph_keys(robot)
-        mine = [_rule(f"robot-{robot}-data-in", "ingress", _DATA, data),
-                _rule(f"robot-{robot}-data-out", "egress", _DATA, data),
-                _rule(f"robot-{robot}-interest-in", "ingress", ["declare_subscriber"], data),
-                _rule(f"robot-{robot}-interest-out", "egress", ["declare_subscriber"], data),
-                _rule(f"robot-{robot}-graph-in", "ingress", ["liveliness_token"], tokens),
-                _rule(f"robot-{robot}-graph-out", "egress", ["liveliness_token"], tokens)]
+        mine = namespace_rules(f"robot-{robot}", robot)
         rules += mine
         subjects.append({"id": f"robot-{robot}", "link_protocols": ["tls"], "cert_common_names": [robots[robot]]})
         policies.append({"id": f"robot-{robot}", "rules": [r["id"] for r in mine], "subjects": [f"robot-{robot}"]})
+    return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects,
+            "policies": policies}
+
+
+def namespace_rules(prefix: str, robot: str) -> list[dict[str, Any]]:
+    """One link's rules for ``robot``'s namespace only, both ways: its topics' data and subscriptions, their
+    publisher/subscriber tokens (the cloud router's rules for a robot, and the robot's edge router's for a cloud)."""
+    data, tokens = [namespace_key(robot)], namespace_graph_keys(robot)
+    return [_rule(f"{prefix}-data-in", "ingress", _DATA, data),
+            _rule(f"{prefix}-data-out", "egress", _DATA, data),
+            _rule(f"{prefix}-interest-in", "ingress", ["declare_subscriber"], data),
+            _rule(f"{prefix}-interest-out", "egress", ["declare_subscriber"], data),
+            _rule(f"{prefix}-graph-in", "ingress", ["liveliness_token"], tokens),
+            _rule(f"{prefix}-graph-out", "egress", ["liveliness_token"], tokens)]
+
+
+def edge_fleet_access_control(clouds: Sequence[str], robot: str) -> dict[str, Any]:
+    """A fleet robot's edge router: deny by default; the robot's nodes (TCP on loopback) anything among themselves;
+    each cloud router (``clouds``: their certificates' common names) only the robot's own namespace, the mirror of
+    the cloud router's rules for it (:func:`fleet_access_control`). A cloud host that lost its rules still reaches
+    nothing of the robot outside ``/<robot>/...``."""
+    rules = _local_rules()
+    subjects: list[dict[str, Any]] = [{"id": "robot-nodes", "link_protocols": ["tcp"], "interfaces": ["lo"]}]
+    policies: list[dict[str, Any]] = [{"id": "robot-nodes", "rules": ["local-in", "local-out"],
+                                       "subjects": ["robot-nodes"]}]
+    if clouds:
+        mine = namespace_rules("cloud", robot)
+        rules += mine
+        subjects.append({"id": "cloud", "link_protocols": ["tls"], "cert_common_names": sorted(set(clouds))})
+        policies.append({"id": "cloud", "rules": [r["id"] for r in mine], "subjects": ["cloud"]})
     return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects,
             "policies": policies}
 
@@ -235,11 +259,13 @@ def cloud_router(route: Route, *, listen_host: str, tls: TlsFiles, edge_name: st
 
 
 def edge_router(cloud: Sequence[tuple[str, int]], *, tls: TlsFiles, policy: Sequence[tuple[str, Route]],
-                local_port: int = LOCAL_PORT) -> dict[str, Any]:
+                local_port: int = LOCAL_PORT, robot: str | None = None) -> dict[str, Any]:
     """The robot's router: dials every cloud router, listens on loopback only (for the robot's nodes), and lets
-    each cloud router (``policy``: its certificate's common name and its route) reach only its route's topics."""
+    each cloud router (``policy``: its certificate's common name and its route) reach only its route's topics;
+    a fleet's ``robot``: only that robot's namespace (:func:`edge_fleet_access_control`)."""
     config = _base(listen=(f"tcp/127.0.0.1:{local_port}",), connect=[f"tls/{host}:{port}" for host, port in cloud],
                    tls=_tls(tls, listen=False))
-    config["access_control"] = edge_access_control(policy)
+    config["access_control"] = (edge_access_control(policy) if robot is None
+                                else edge_fleet_access_control([name for name, _ in policy], robot))
     return config
 

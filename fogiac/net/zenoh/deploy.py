@@ -17,6 +17,19 @@ The Zenoh variant's answers to :class:`fogiac.net.middleware.Middleware`'s deplo
 - One edge router (with its monitor and configs) per edge of the plan, each with its own certificate and
   Zenoh id; a cloud router accepts every edge's certificate. The edge named after the stack (today's
   manifests' only one) keeps the names it always had; any other's processes and files carry ``@<edge>``.
+
+A fleet (``robots:``) adds per-robot access and shared nodes (:func:`fleet_document`):
+
+- Each host's router follows a fleet file beside its certificates (``zenoh-fleet.json``, 0600): every
+  robot's certificate name and edge router id and the revoked robots. Each robot may cross only its own
+  namespace ``/<robot>/...`` (:func:`fogiac.net.zenoh.config.fleet_access_control`); the router reloads
+  its rules in-process when provisioning or ``fogiac robot revoke|restore`` rewrites the file, so no
+  service restarts and every pid stays.
+- Each shared request/reply node (its listed inputs and outputs outside every robot's namespace) gets a
+  ``zenoh-fleet-<node>`` service on its host (:mod:`fogiac.net.zenoh.fleet`): robot r1's
+  ``/r1/<request>`` to the node's ``/<request>``, each reply back to the robot that asked only.
+- Each robot's edge router (``zenoh-edge-router@<robot>``) lets the cloud routers reach that robot's
+  namespace only; a robot dropped from ``robots:`` has its edge processes stopped, the others untouched.
 """
 
 from __future__ import annotations
@@ -47,6 +60,8 @@ from fogiac.state import read_json
 EDGE_ROUTER = "zenoh-edge-router"
 EDGE_MONITOR = "zenoh-edge-monitor"
 REPLICA = "zenoh-replica"  # on a replica's host: its keys renamed under the replica's prefix
+FLEET = "zenoh-fleet"  # on a fleet's host: one per shared request/reply node, zenoh-fleet-<node>
+FLEET_FILE = "zenoh-fleet.json"  # a fleet's robots and revocations, in the host's certs folder
 BRIDGE_NOTE = ("zenoh-bridge-ros2dds is not installed by fogiac: for a DDS robot install it on the robot and "
                "run `zenoh-bridge-ros2dds -c {path}`")
 
@@ -141,13 +156,17 @@ def host_services(plan: Plan, spec: HostSpec, where: Where, *, certs: Path) -> t
     route = next(r for r in plan.routes if r.host == spec.name)
     listen = where.listen
     names = [tls.edge_name(plan.stack, e.named) for e in plan.edges]
-    config = cloud_router(route, listen_host=listen, tls=files, edge_name=names[0] if len(names) == 1 else names,
-                          local_port=where.master_port)
+    # A fleet's robots are in its fleet file, not here: a robot added or revoked changes no service file
+    config = (cloud_router(route, listen_host=listen, tls=files, robots={}, local_port=where.master_port)
+              if plan.fleet else
+              cloud_router(route, listen_host=listen, tls=files, edge_name=names[0] if len(names) == 1 else names,
+                           local_port=where.master_port))
     config["id"] = router_id(plan.stack, spec.name)
     config["listen"]["endpoints"][0] = f"tls/{listen}:{where.relay_port}"
     path, stats = f"{where.layout.env}/zenoh-router.json", router_stats(where)
     command = (f"{q(where.python)} -m fogiac.net.zenoh.router {q(path)} --stats-file {q(stats)} "
-               + " ".join(f"--edge-id {edge_router_id(plan.stack, e.named)}" for e in plan.edges))
+               + (f"--fleet-file {q(fleet_path(where))}" if plan.fleet else
+                  " ".join(f"--edge-id {edge_router_id(plan.stack, e.named)}" for e in plan.edges)))
     router = make_service(ROUTER, plan=plan, spec=spec, where=where, command=command, check="alive",
                               python_path=where.code_root, files=(
                                   (path, json.dumps(config, indent=1, sort_keys=True), 0o600),
@@ -155,6 +174,65 @@ def host_services(plan: Plan, spec: HostSpec, where: Where, *, certs: Path) -> t
     watchdog = autostop_service(plan, spec, where, stats=stats, after=ROUTER)
     renamer = replica_service(plan, spec, where, route)
     return (router,) + ((renamer,) if renamer is not None else ()) + ((watchdog,) if watchdog is not None else ())
+
+
+def fleet_path(where: Where) -> str:
+    """The host's fleet file (``FLEET_FILE`` in its certs folder, where provisioning writes fleet files)."""
+    return f"{where.layout.certs}/{FLEET_FILE}"
+
+
+def shared_pairs(plan: Plan, spec: HostSpec) -> list[tuple[str, tuple[str, ...], tuple[str, ...]]]:
+    """The host's shared request/reply nodes: (node, its listed inputs outside every robot's namespace, its
+    outputs likewise), the topics :mod:`fogiac.net.zenoh.fleet` carries to and from each robot's namespace. A
+    topic already another node's pair is left out (one mux per topic)."""
+    namespaces = tuple(f"/{edge.name}/" for edge in plan.edges)
+    pairs: list[tuple[str, tuple[str, ...], tuple[str, ...]]] = []
+    taken: set[str] = set()
+    for node in plan.nodes:
+        if node.host != spec.name:
+            continue
+        requests = tuple(sorted({t for t in node.topics_in if not t.startswith(namespaces)}))
+        replies = tuple(sorted({t for t in node.topics_out if not t.startswith(namespaces)}))
+        if requests and replies and not set(requests + replies) & taken:
+            pairs.append((node.name, requests, replies))
+            taken |= set(requests + replies)
+    return pairs
+
+
+def fleet_document(plan: Plan, spec: HostSpec, *, revoked: tuple[str, ...] = ()) -> dict[str, Any]:
+    """What a fleet's host follows (``FLEET_FILE``): each robot by its edge router certificate's common name and
+    Zenoh id (its router admits each only to ``/<robot>/...``), the record's revoked robots (admitted to
+    nothing), and the host's shared pairs with the robots each serves (:func:`shared_pairs`)."""
+    robots = {edge.name: {"common_name": tls.edge_name(plan.stack, edge.named),
+                          "zid": edge_router_id(plan.stack, edge.named)} for edge in plan.edges}
+    serves = {node.name: plan.robots_of(node) for node in plan.nodes}
+    return {"robots": robots, "revoked": sorted(set(revoked) & set(robots)),
+            "shared": [{"node": node, "requests": list(requests), "replies": list(replies),
+                        "robots": sorted(serves[node])} for node, requests, replies in shared_pairs(plan, spec)]}
+
+
+def fleet_files(plan: Plan, spec: HostSpec, *, revoked: tuple[str, ...]) -> tuple[tuple[str, bytes, int], ...]:
+    """A fleet's host gets its fleet file (:func:`fleet_document`); its router and fleet services follow it, so
+    a robot added, removed or revoked restarts nothing. One robot's stack (``edge:``) writes none."""
+    if not plan.fleet:
+        return ()
+    body = json.dumps(fleet_document(plan, spec, revoked=revoked), indent=2, sort_keys=True) + "\n"
+    return ((FLEET_FILE, body.encode(), 0o600),)
+
+
+def link_services(plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ...]:
+    """A fleet's shared pairs, one ``zenoh-fleet-<node>`` each on the host's loopback router; its robots come
+    from the fleet file (the command names none, so a robot added changes no service)."""
+    if not plan.fleet:
+        return ()
+    services = []
+    for node, requests, replies in shared_pairs(plan, spec):
+        command = (f"{q(where.python)} -m fogiac.net.zenoh.fleet {q(local_endpoint(where))} "
+                   f"--fleet-file {q(fleet_path(where))} --node {q(node)}")
+        command += "".join(f" --request {q(t)}" for t in requests) + "".join(f" --reply {q(t)}" for t in replies)
+        services.append(make_service(f"{FLEET}-{node}", plan=plan, spec=spec, where=where, command=command,
+                                     check="alive", python_path=where.code_root, after=ROUTER))
+    return tuple(services)
 
 
 def replica_service(plan: Plan, spec: HostSpec, where: Where, route: Route) -> Service | None:
@@ -218,10 +296,43 @@ def _port(endpoint: str) -> int:
 
 def edge_up(plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path, folder: Path) -> list[str]:
     """Every edge's router, monitor and configs (``entry``: the first edge's, ``up --edge-master`` or the plan's)."""
-    notes: list[str] = []
+    gone = stop_gone_robots(plan, folder=folder)
+    notes = [f"robot {robot}: its edge router stopped (no longer in robots:)" for robot in gone]
     for edge in plan.edges_at(entry):
         notes += _edge_up(plan, edge, connect=connect, certs=certs, folder=folder)
     return notes
+
+
+def _robot_of(service: str) -> str | None:
+    """The robot an edge service is for (``zenoh-edge-router@arm1``: arm1); None for the stack-named edge's."""
+    _, at, robot = service.rpartition("@")
+    return robot if at else None
+
+
+def stop_gone_robots(plan: Plan, *, folder: Path) -> list[str]:
+    """Stop the edge processes of robots the plan no longer has, the router last (what runs on it first); the
+    other robots' keep running, untouched. Returns the robots stopped."""
+    robots = {edge.name for edge in plan.edges}
+    names = sorted(p.stem for p in folder.glob("*.pid")) if folder.exists() else []
+    gone = [n for n in names if _robot_of(n) not in (None, *robots)]
+    routers = [n for n in gone if n.startswith(EDGE_ROUTER + "@")]
+    supervise.stop_many(folder, [n for n in gone if n not in routers])
+    supervise.stop_many(folder, routers)
+    return sorted({r for r in map(_robot_of, gone) if r is not None})
+
+
+def robot_topic(plan: Plan, edge: EdgeSpec, topic: str) -> str | None:
+    """What ``topic`` is on ``edge``'s side: as it is for one robot; for a fleet's robot in its namespace
+    (``/plan_request`` -> ``/arm1/plan_request``; ``/arm1/scan`` as it is), None in another robot's."""
+    if not plan.fleet or topic.startswith(f"/{edge.name}/"):
+        return topic
+    if topic.startswith(tuple(f"/{e.name}/" for e in plan.edges)):
+        return None
+    return f"/{edge.name}{topic}"
+
+
+def _mine(plan: Plan, edge: EdgeSpec, topics: set[str]) -> list[str]:
+    return sorted({t for t in (robot_topic(plan, edge, topic) for topic in topics) if t is not None})
 
 
 def _edge_up(plan: Plan, edge: EdgeSpec, *, connect: Mapping[str, str], certs: Path, folder: Path) -> list[str]:
@@ -232,15 +343,16 @@ def _edge_up(plan: Plan, edge: EdgeSpec, *, connect: Mapping[str, str], certs: P
     files = tls.write_files(folder / "zenoh", role, pair, ca)
     cloud = [(e.host, e.port) for e in (Endpoint.parse(address) for _, address in sorted(connect.items()))]
     policy = [(tls.host_name(plan.stack, r.host), r) for r in plan.routes if r.host in connect]
-    config = edge_router(cloud, tls=files, local_port=_port(entry), policy=policy)
+    config = edge_router(cloud, tls=files, local_port=_port(entry), policy=policy,
+                         robot=edge.name if plan.fleet else None)
     config["id"] = edge_router_id(plan.stack, edge.named)
     router_file, stats = folder / f"zenoh-edge{suffix}.json", folder / f"zenoh-edge{suffix}.stats.json"
     router_file.write_text(json.dumps(config, indent=1, sort_keys=True))
     supervise.start(folder, EDGE_ROUTER + suffix, [sys.executable, "-m", "fogiac.net.zenoh.router", str(router_file),
                                                    "--stats-file", str(stats)])
     routes = [r for r in plan.routes if r.host in connect]
-    to_edge = sorted({t for r in routes for t in r.to_edge + r.listed})
-    to_cloud = sorted({t for r in routes for t in r.to_cloud})
+    to_edge = _mine(plan, edge, {t for r in routes for t in r.to_edge + r.listed})
+    to_cloud = _mine(plan, edge, {t for r in routes for t in r.to_cloud})
     monitor = [sys.executable, "-m", "fogiac.net.zenoh.monitor", entry, "--stats-file",
                str(folder / f"zenoh-monitor{suffix}.stats.json")]
     monitor += [a for t in to_edge for a in ("--to-edge", t)] + [a for t in to_cloud for a in ("--to-cloud", t)]
@@ -271,8 +383,9 @@ def edge_links(plan: Plan, *, folder: Path, connect: Mapping[str, str]) -> list[
         for route in plan.routes:
             if route.host not in connect:
                 continue
-            mine = [{**figures[t], "direction": "in" if t in route.to_cloud else "out"}
-                    for t in sorted(set(route.to_cloud + route.to_edge + route.listed)) if t in figures]
+            seen = {t: robot_topic(plan, edge, t) for t in sorted(set(route.to_cloud + route.to_edge + route.listed))}
+            mine = [{**figures[m], "direction": "in" if t in route.to_cloud else "out"}
+                    for t, m in seen.items() if m is not None and m in figures]
             links.append({"host": route.host, "connect": connect[route.host],
                           "connected": router_id(plan.stack, route.host) in linked, "topics": mine,
                           **({"edge": edge.name} if suffix else {}),
@@ -298,12 +411,12 @@ class ZenohDeployment:
         return host_services(plan, spec, where, certs=certs)
 
     def link_services(self, plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ...]:
-        return ()  # the host's router (host_services) is the link
+        return link_services(plan, spec, where)  # the host's router (host_services) is the link; a fleet's muxes
 
     def link_files(self) -> tuple[tuple[str, int], ...]:
         return ()
 
-    link_program = ""  # no link services: the router (a host service) is the link
+    link_program = ""  # the router (a host service) is the link; a fleet's muxes run fogiac's code as it does
 
     def host_credentials(self, host: Host, *, python: str, folder: str, certs_dir: Path, plan: Plan,
                          spec: HostSpec, dialed: str) -> bool:
@@ -322,6 +435,12 @@ class ZenohDeployment:
 
     def edge_stats(self, plan: Plan, *, folder: Path) -> tuple[Path, ...]:
         return ()  # the edge router's stats list linked routers, not one link's state: not dated here
+
+    deploys_fleet = True  # a fleet's robots: each its edge router and certificate, its access in the fleet file
+
+    def fleet_files(self, plan: Plan, spec: HostSpec, *,
+                    revoked: tuple[str, ...]) -> tuple[tuple[str, bytes, int], ...]:
+        return fleet_files(plan, spec, revoked=revoked)
 
 
 DEPLOYMENT = ZenohDeployment()

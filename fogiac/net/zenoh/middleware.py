@@ -36,6 +36,11 @@ class ZenohMiddleware:
     def edge_entry(self, edge: Any) -> str:
         return str(edge.zenoh_router)
 
+    def robot_certificate(self, stack: str, robot: str) -> str:
+        """The common name of a fleet robot's edge router certificate (:func:`fogiac.net.zenoh.tls.edge_name`, which
+        imports the certificates' code: the plan names it without)."""
+        return f"{robot}.edge.router.{stack}.fogiac"
+
     def manifest_problems(self, manifest: Any) -> tuple[tuple[str, str], ...]:
         """Access control allows exactly the listed topics: a node whose topics are "auto" has none. The replica
         merge reads a reply's key where a CDR ``header.stamp`` is (rmw_zenoh sends no message definition to

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from fogiac.certs import KeyPair, issue, write_private
 from fogiac.net.zenoh.config import TlsFiles
+from fogiac.net.zenoh.middleware import ZENOH
 
 
 def host_name(stack: str, host: str) -> str:
@@ -21,7 +22,7 @@ def host_name(stack: str, host: str) -> str:
 def edge_name(stack: str, edge: str | None = None) -> str:
     """The common name of ``edge``'s router certificate, its identity at the cloud routers (None: the one edge
     of today's manifests, with the name it always had; else :attr:`fogiac.plan.model.EdgeSpec.named`)."""
-    return f"edge.router.{stack}.fogiac" if edge is None else f"{edge}.edge.router.{stack}.fogiac"
+    return f"edge.router.{stack}.fogiac" if edge is None else ZENOH.robot_certificate(stack, edge)
 
 
 def edge_pair(ca: KeyPair, *, stack: str, edge: str | None = None) -> KeyPair:

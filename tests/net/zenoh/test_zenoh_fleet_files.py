@@ -1,0 +1,123 @@
+"""Issue 34, ROS 2: what ``up`` renders for a Zenoh fleet, as pure functions, and how the router reads it.
+
+The host's fleet file (each robot by its certificate's name and router id, the revoked ones, the shared pairs
+with their robots), a router config and command that name no robot (so a robot added changes no service), the
+fleet process per shared pair, each robot's edge router rules (its namespace only), and a router that reads a
+broken fleet file keeps no robot it was not given. The running parts: ``tests/fleet/test_fleet_zenoh_local.py``.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+from fogiac.hostmodel import Layout, Where
+from fogiac.manifest.schema import parse_manifest
+from fogiac.net.zenoh import deploy, tls
+from fogiac.net.zenoh.config import TlsFiles, edge_router
+from fogiac.net.zenoh.router import fleet_config
+from fogiac.plan import fleet
+from fogiac.plan.compile import compile_plan
+from fogiac.plan.model import Plan
+from fogiac.provision.runtimes.native import NATIVE
+from tests.net.zenoh.lab import route
+
+FLEET = """name: lab
+ros: {distro: jazzy}
+cloud: {provider: local}
+robots:
+  - {name: r1, zenoh_router: "tcp/127.0.0.1:7451"}
+  - {name: r2, zenoh_router: "tcp/127.0.0.1:7452"}
+nodes:
+  - name: planner
+    machine: t3.micro
+    command: [sleep, "3600"]
+    topics: {in: [/plan_request], out: [/plan_result, /r2/status]}
+  - name: grasp
+    machine: t3.micro
+    command: [sleep, "3600"]
+    topics: {in: [/grasp/request], out: [/grasp/reply]}
+    serve: [r1]
+"""
+
+
+def _plan(text: str = FLEET) -> Plan:
+    return compile_plan(parse_manifest(text, base=Path.cwd()), target="local")
+
+
+def test_the_fleet_file_names_each_robot_its_revocations_and_the_shared_pairs() -> None:
+    plan = _plan()
+    spec = plan.hosts[0]
+    ((name, body, mode),) = deploy.fleet_files(plan, spec, revoked=("r2", "gone"))
+    assert (name, mode) == ("zenoh-fleet.json", 0o600)
+    doc = json.loads(body)
+    assert doc["robots"] == {r: {"common_name": tls.edge_name(plan.stack, r),
+                                 "zid": deploy.edge_router_id(plan.stack, r)} for r in ("r1", "r2")}
+    assert doc["revoked"] == ["r2"]  # a name no longer in robots: is no one's
+    # the planner's plain topics are its pair; /r2/status is r2's own namespace, never a pair's reply
+    assert [s for s in doc["shared"] if s["node"] == "planner"] == [
+        {"node": "planner", "requests": ["/plan_request"], "replies": ["/plan_result"], "robots": ["r1", "r2"]}]
+    (host,) = [h for h in plan.hosts if h.name == plan.node("grasp").host]
+    ((_, body, _),) = deploy.fleet_files(plan, host, revoked=())
+    assert [s for s in json.loads(body)["shared"] if s["node"] == "grasp"] == [
+        {"node": "grasp", "requests": ["/grasp/request"], "replies": ["/grasp/reply"], "robots": ["r1"]}]
+
+
+def test_the_plan_names_each_robots_own_edge_router_certificate() -> None:
+    plan = _plan()
+    assert [r["certificate"] for r in fleet.robots(plan) or []] == [tls.edge_name(plan.stack, r) for r in ("r1", "r2")]
+
+
+def test_one_robot_writes_no_fleet_file_and_keeps_its_router_as_before() -> None:
+    one = FLEET.split("robots:")[0] + 'edge: {zenoh_router: "tcp/127.0.0.1:7451"}\nnodes:' + FLEET.split("nodes:")[1]
+    plan = _plan(one.replace("    serve: [r1]\n", ""))
+    assert deploy.fleet_files(plan, plan.hosts[0], revoked=()) == ()
+
+
+def test_a_fleets_router_command_and_config_name_no_robot(tmp_path: Path) -> None:
+    """A robot added or revoked must change no service's script or files, or provisioning would restart it."""
+    plan = _plan()
+    three = _plan(FLEET.replace('  - {name: r2, zenoh_router: "tcp/127.0.0.1:7452"}\n',
+                                '  - {name: r2, zenoh_router: "tcp/127.0.0.1:7452"}\n'
+                                '  - {name: r3, zenoh_router: "tcp/127.0.0.1:7453"}\n'))
+    where = Where(layout=Layout(str(tmp_path / "host")), runtime=NATIVE, master_port=17447, relay_port=7448,
+                  ros_address="127.0.0.1", python=sys.executable, code_root=str(Path.cwd()))
+    two = [(s.script, s.files) for s in deploy.host_services(plan, plan.hosts[0], where, certs=tmp_path / "c")]
+    more = [(s.script, s.files) for s in deploy.host_services(three, three.hosts[0], where, certs=tmp_path / "c")]
+    assert two == more
+    assert "--fleet-file" in two[0][0] and "--edge-id" not in two[0][0]
+    (mux,) = [s for s in deploy.link_services(three, three.hosts[0], where) if s.name == "zenoh-fleet-planner"]
+    assert mux == next(s for s in deploy.link_services(plan, plan.hosts[0], where) if s.name == "zenoh-fleet-planner")
+    assert "--node planner --request /plan_request --reply /plan_result" in mux.script
+
+
+def test_a_robots_edge_router_lets_the_cloud_reach_its_namespace_only() -> None:
+    files = TlsFiles(ca="ca.pem", cert="edge.pem", key="edge.key")
+    config = edge_router([("127.0.0.1", 7448)], tls=files, policy=[("gpu.router.lab.fogiac", route(7448))],
+                         local_port=7451, robot="r1")
+    acl = config["access_control"]
+    (cloud,) = [s for s in acl["subjects"] if s["id"] == "cloud"]
+    assert cloud["cert_common_names"] == ["gpu.router.lab.fogiac"]
+    keys = {k for rule in acl["rules"] if rule["id"].startswith("cloud-") for k in rule["key_exprs"]}
+    assert "*/r1/**" in keys and not [k for k in keys if "r1" not in k]  # nothing outside /r1/..., no listed topic
+
+
+def test_the_router_reads_its_fleet_file_and_refuses_one_it_cannot(tmp_path: Path) -> None:
+    fleet = tmp_path / "zenoh-fleet.json"
+    base = {"mode": "router", "access_control": {"enabled": True, "rules": []}}
+    config, edges = fleet_config(base, fleet)  # no file yet: no robot gets anything
+    assert [s["id"] for s in config["access_control"]["subjects"]] == ["host-nodes"] and edges == []
+    fleet.write_text(json.dumps({"robots": {"r1": {"common_name": "r1.cn", "zid": "aa"},
+                                            "r2": {"common_name": "r2.cn", "zid": "bb"}}, "revoked": ["r2"]}))
+    config, edges = fleet_config(base, fleet)
+    assert [s["id"] for s in config["access_control"]["subjects"]] == ["host-nodes", "robot-r1"] and edges == ["aa"]
+    fleet.write_text('{"robots": ["r1"]')  # half written: the router keeps the rules it has (it catches this)
+    with pytest.raises(ValueError):
+        fleet_config(base, fleet)
+    for shape in ('{"robots": ["r1"]}', '["r1"]', '{"robots": {"r1": {"zid": "aa"}}}'):
+        fleet.write_text(shape)
+        with pytest.raises(ValueError, match="robots is not a mapping"):
+            fleet_config(base, fleet)

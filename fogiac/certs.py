@@ -29,6 +29,7 @@ from cryptography.hazmat.primitives.asymmetric import rsa
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
+from fogiac.certnames import server_name
 from fogiac.errors import CertError
 from fogiac.state import write_atomic
 
@@ -207,12 +208,6 @@ def serves(ca: KeyPair, cert_pem: bytes, name: str, public_key_pem: bytes, *, ad
     named = set(dns + (name,)) <= set(names.get_values_for_type(x509.DNSName))
     named = named and {ipaddress.ip_address(a) for a in ips} <= set(names.get_values_for_type(x509.IPAddress))
     return same_key and named and left > _dt.timedelta(days=days)
-
-
-def server_name(stack: str) -> str:
-    """The DNS-style name the stack's VPN endpoint certificate carries (ACM needs a domain): a certificate's
-    name, kept here with the others rather than in the plan, so this module needs nothing above it."""
-    return f"server.{stack}.fogiac"
 
 
 def _vpn_pair(ca: KeyPair, stack: str) -> KeyPair:

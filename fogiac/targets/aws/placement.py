@@ -6,7 +6,7 @@ import dataclasses
 import ipaddress
 from collections.abc import Mapping
 
-from fogiac.certs import server_name
+from fogiac.certnames import server_name
 from fogiac.errors import FogiacError, PlanError
 from fogiac.manifest.machines import MachineSpec
 from fogiac.manifest.schema import Manifest

@@ -20,7 +20,7 @@ import subprocess
 from dataclasses import dataclass
 from pathlib import Path
 
-from fogiac import certs
+from fogiac import certnames, certs
 from fogiac.procs import pid_alive, poll, stop_tree
 from fogiac.render import render
 from fogiac.state import StackState
@@ -76,7 +76,7 @@ def render_client_profile(
     host = _remote_host(endpoint_dns)
     return render(
         "vpn/client.ovpn.j2", stack=stack, proto=proto, remote=host, port=port,
-        random_hostname=not _is_ip(host), server_name=certs.server_name(stack),
+        random_hostname=not _is_ip(host), server_name=certnames.server_name(stack),
         ca_pem=_pem(ca_pem, what="CA certificate"), cert_pem=_pem(cert_pem, what="client certificate"),
         key_pem=_pem(key_pem, what="client key"),
     )

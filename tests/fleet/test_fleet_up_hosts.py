@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import json
 import sys
-import time
 from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
@@ -40,6 +39,7 @@ from fogiac.provision import SshAccess
 from fogiac.state import StackState, read_json
 from fogiac.targets.hosts.target import HostsTarget
 from tests.docs.blocks import REPO, blocks, normalise
+from tests.fleet.test_fleet_robot_revoke import _wait
 from tests.fleet.test_fleet_up_local import PLANNER, REQUESTS, _clients, _pids
 from tests.plugins.install import installed
 from tests.provision.conftest import ros_skip_reason
@@ -90,14 +90,6 @@ def _host_processes(host: LabHost) -> set[int]:
 
 def _connected(stack: StackState, host: str, robot: str) -> bool | None:
     return (read_json(stack.edge / f"relay-edge-{host}@{robot}.stats.json") or {}).get("connected")
-
-
-def _wait(what: str, check: object, timeout: float) -> float:
-    started = time.monotonic()
-    while not check():  # type: ignore[operator]
-        assert time.monotonic() - started < timeout, what
-        time.sleep(0.2)
-    return time.monotonic() - started
 
 
 def test_a_fleet_on_a_lab_host_grows_is_revoked_and_goes(tmp_path: Path, _state_dir: Path,

@@ -59,6 +59,21 @@ class Robot:
         return topic.startswith(f"/{self.name}/") or topic in self.topics
 
 
+def _topic_lists(body: dict[str, object], sides: tuple[str, ...], where: str, *,
+                 required: bool) -> dict[str, frozenset[str]]:
+    """Each of ``sides`` in an access file's entry: a list of absolute topic names, non-empty when ``required``
+    (a shared pair's requests and replies), else possibly absent or empty (a per-robot node's in and out)."""
+    topics: dict[str, frozenset[str]] = {}
+    for side in sides:
+        names = body.get(side) if required else body.get(side, [])
+        if not isinstance(names, list) or (required and not names) or \
+                not all(isinstance(t, str) and t.startswith("/") for t in names):
+            said = "a non-empty list of absolute topic names" if required else "a list of absolute topic names"
+            raise AccessError(f"{where} ({body['node']}): '{side}' must be {said}")
+        topics[side] = frozenset(names)
+    return topics
+
+
 @dataclass(frozen=True)
 class SharedPair:
     """A shared node's request and reply topics, and the reply field that names its request (None: no key)."""
@@ -76,14 +91,7 @@ class SharedPair:
     def from_json(cls, body: object, where: str) -> SharedPair:
         if not isinstance(body, dict) or not isinstance(body.get("node"), str):
             raise AccessError(f"{where} needs a 'node' string")
-        topics: dict[str, frozenset[str]] = {}
-        for side in ("requests", "replies"):
-            names = body.get(side)
-            if not isinstance(names, list) or not names or \
-                    not all(isinstance(t, str) and t.startswith("/") for t in names):
-                raise AccessError(f"{where} ({body['node']}): '{side}' must be a non-empty list of absolute "
-                                  "topic names")
-            topics[side] = frozenset(names)
+        topics = _topic_lists(body, ("requests", "replies"), where, required=True)
         match = body.get("match", DEFAULT_MATCH)
         if match is not None and (not isinstance(match, str) or not [p for p in match.split(".") if p]):
             raise AccessError(f"{where} ({body['node']}): 'match' must be a dotted field path or null")
@@ -107,12 +115,7 @@ class PerRobot:
     def from_json(cls, body: object, where: str) -> PerRobot:
         if not isinstance(body, dict) or not isinstance(body.get("node"), str):
             raise AccessError(f"{where} needs a 'node' string")
-        topics: dict[str, frozenset[str]] = {}
-        for side in ("in", "out"):
-            names = body.get(side, [])
-            if not isinstance(names, list) or not all(isinstance(t, str) and t.startswith("/") for t in names):
-                raise AccessError(f"{where} ({body['node']}): '{side}' must be a list of absolute topic names")
-            topics[side] = frozenset(names)
+        topics = _topic_lists(body, ("in", "out"), where, required=False)
         return cls(body["node"], topics["in"], topics["out"])
 
 

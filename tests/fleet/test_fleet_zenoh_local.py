@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import json
 import os
-import struct
 import sys
 import time
 from pathlib import Path
@@ -40,7 +39,7 @@ from fogiac.state import StackState
 from tests.conftest import REPO
 from tests.fleet.test_fleet_up_local import _pids
 from tests.net.zenoh.lab import ZenohLab
-from tests.net.zenoh.test_zenoh_fleet import TYPE, _frame_id, _probe, _request, _text, replies
+from tests.net.zenoh.test_zenoh_fleet import TYPE, _frame_id, _probe, _request, _text, ask_with_one_stamp, replies
 from tests.plugins.install import installed
 from tests.support.procs import alive, alive_pids, started_pids
 from tests.support.ros2 import standin_ros2
@@ -133,16 +132,8 @@ def test_up_deploys_a_ros2_fleet_over_zenoh(tmp_path: Path, _state_dir: Path) ->
                 assert poll(lambda o=out: len(replies(o)) >= 8 or None, timeout=90), f"{robot} was never answered"
             # Raw requests with one stamp from r1 and r2 back to back, on their edge routers: each gets its own.
             probes = {r: _probe(ports[r]) for r in ("r1", "r2")}
-            heard: dict[str, list[tuple[str, tuple[int, int]]]] = {"r1": [], "r2": []}
             try:
-                for robot, probe in probes.items():
-                    probe.declare_subscriber(f"0/{robot}/plan_result/{TYPE}", lambda s, r=robot: heard[r].append(
-                        (_frame_id(s.payload.to_bytes()), struct.unpack_from("<iI", s.payload.to_bytes(), 4))))
-                time.sleep(1)  # the subscriptions reach the cloud
-                for n in range(5):
-                    for robot, probe in probes.items():
-                        probe.put(f"0/{robot}/plan_request/{TYPE}", _request(777, f"{robot} asks {n}"))
-                poll(lambda: all(len(h) >= 5 for h in heard.values()) or None, timeout=30)
+                heard = ask_with_one_stamp(probes)
 
                 # r1's certificate at the cloud router itself: refused r2's topics, both ways.
                 (edge,) = [e for e in stack.get(StackState.EDGES) if e["name"] == "r1"]

@@ -91,6 +91,21 @@ def _text(payload: bytes) -> str:
         return repr(payload[:64])
 
 
+def ask_with_one_stamp(probes: dict[str, Any]) -> dict[str, list[tuple[str, tuple[int, int]]]]:
+    """Each probe (a robot's session) sends five requests stamped alike, back to back with the others; what
+    each robot heard back: (frame id, stamp) per reply, once each robot has five."""
+    heard: dict[str, list[tuple[str, tuple[int, int]]]] = {robot: [] for robot in probes}
+    for robot, probe in probes.items():
+        probe.declare_subscriber(f"0/{robot}/plan_result/{TYPE}", lambda s, r=robot: heard[r].append(
+            (_frame_id(s.payload.to_bytes()), struct.unpack_from("<iI", s.payload.to_bytes(), 4))))
+    time.sleep(1)  # the subscriptions reach the cloud
+    for n in range(5):
+        for robot, probe in probes.items():
+            probe.put(f"0/{robot}/plan_request/{TYPE}", _request(777, f"{robot} asks {n}"))
+    poll(lambda: all(len(h) >= 5 for h in heard.values()) or None, timeout=30)
+    return heard
+
+
 def test_each_reply_reaches_only_the_robot_that_asked_also_with_equal_stamps(tmp_path: Path) -> None:
     with ZenohLab(tmp_path) as lab:
         fleet = Fleet(lab, delay=0.3)  # the node answers late: equal stamps from two robots are in flight at once
@@ -99,16 +114,8 @@ def test_each_reply_reaches_only_the_robot_that_asked_also_with_equal_stamps(tmp
             assert poll(lambda o=out: len(replies(o)) >= 8 or None, timeout=60), f"{robot} was never answered"
         # raw requests with one stamp from r1 and r2, back to back, several rounds: each gets its own back
         probes = {r: _probe(fleet.local[r]) for r in ("r1", "r2")}
-        heard: dict[str, list[tuple[str, tuple[int, int]]]] = {"r1": [], "r2": []}
         try:
-            for robot, probe in probes.items():
-                probe.declare_subscriber(f"0/{robot}/plan_result/{TYPE}", lambda s, r=robot: heard[r].append(
-                    (_frame_id(s.payload.to_bytes()), struct.unpack_from("<iI", s.payload.to_bytes(), 4))))
-            time.sleep(1)  # the subscriptions reach the cloud
-            for n in range(5):
-                for robot, probe in probes.items():
-                    probe.put(f"0/{robot}/plan_request/{TYPE}", _request(777, f"{robot} asks {n}"))
-            poll(lambda: all(len(h) >= 5 for h in heard.values()) or None, timeout=30)
+            heard = ask_with_one_stamp(probes)
             time.sleep(1)  # any stray or duplicate reply has time to arrive
         finally:
             for probe in probes.values():

@@ -1,7 +1,7 @@
 """The wheels the getting-started page's install needs, kept once per list (issue 35's fresh-venv test).
 
 The test installs from them with no network at all. ``.ci/test`` starts ``python -m tests.support.first_day``
-in the background before the static checks, so the download overlaps them; the test then finds the
+in the background before the tests, so the download overlaps the first of them; the test then finds the
 wheelhouse complete, or waits on its lock while the download finishes. Run on its own it downloads the
 same way the test would.
 """

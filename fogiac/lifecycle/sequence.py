@@ -28,7 +28,6 @@ from fogiac.lifecycle.driver import (
     Target,
     UpOptions,
     UpResult,
-    untouched_on_failure,
 )
 from fogiac.lifecycle.edge import (
     connect_edge,
@@ -46,7 +45,7 @@ from fogiac.net import middleware
 from fogiac.plan.document import plan_document
 from fogiac.plan.model import Plan
 from fogiac.provision import recorded_access, recorded_hosts, teardown
-from fogiac.state import StackState, stack_lock
+from fogiac.state import StackState, changing
 
 
 def up(target: Target, plan: Plan, opts: UpOptions) -> UpResult:
@@ -57,7 +56,7 @@ def up(target: Target, plan: Plan, opts: UpOptions) -> UpResult:
     doc = plan_document(plan, target.declare(plan), manifest=opts.manifest_path)
     infra_only = opts.infra_only and Feature.INFRA_ONLY in target.features
     existed = StackState(plan.stack).exists()
-    with untouched_on_failure(plan.stack) as commit, stack_lock(plan.stack, operation="up"):
+    with changing(plan.stack, operation="up") as commit:
         prepared = target.prepare(plan, ssh_from=opts.ssh_from)
         opts.show(doc, prepared.summary)
         for line in prepared.notices:
@@ -165,7 +164,7 @@ def down(target: Target, plan: Plan, opts: DownOptions) -> DownResult:
         return DownResult(engine_errors=(), left=(), not_checked=(), existed=False)  # and nothing created
     errors: list[str] = []
     deleted = [f"edge process {e['name']}" for e in running_edge(plan)]
-    with untouched_on_failure(plan.stack), stack_lock(plan.stack, operation="down"):
+    with changing(plan.stack, operation="down"):
         stop_edge(plan, keep_master=True)  # the edge relays first: their peers are about to go
         # the machines stay: stop what fogiac started there (a platform that runs the nodes stops its own)
         if Feature.PROVISIONS in target.features and Feature.CREATES_MACHINES not in target.features:

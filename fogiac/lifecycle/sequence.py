@@ -65,11 +65,11 @@ def up(target: Target, plan: Plan, opts: UpOptions) -> UpResult:
             raise FogiacError("not applied: nothing was changed")
         master = opts.edge_master or plan.edge_master
         commit()
-        before = deployment.read(plan.stack)
-        deployment.begin(prepared.plan, opts.manifest_path)  # before anything exists, so down always finds it
-        if not infra_only:  # before anything is made: the robot's side must be there to connect
-            with _step(opts.on_event, "edge", "robot's ROS master", master):
-                _edge_or_undo(prepared.plan, master, start=opts.start_edge_master, before=before, existed=existed)
+        # recorded before anything exists, so down always finds it; undone if the robot's side does not answer
+        with deployment.begun(prepared.plan, opts.manifest_path, existed=existed):
+            if not infra_only:  # before anything is made: the robot's side must be there to connect
+                with _step(opts.on_event, "edge", "robot's ROS master", master):
+                    ensure_edge_master(prepared.plan, master, start=opts.start_edge_master)
         created = target.create(prepared.plan, prepared, announce=opts.announce, on_event=opts.on_event)
         plan = created.plan
         report, relays = None, {}
@@ -120,18 +120,6 @@ def _provision_steps(on_event: OnEvent | None) -> Callable[[str, str, str], None
         on_event(Progress(phase=phase, key=f"provision:{host}:{step}", name=host, type=step, op="provision",
                           message=status))
     return progress
-
-
-def _edge_or_undo(plan: Plan, master: str, *, start: bool, before: deployment.Deployment | None,
-                  existed: bool) -> None:
-    """Start (or check) the robot's side. If that fails, nothing was made: the stack's folder goes if this
-    run made it, else the record goes back to what it was. (Interrupted instead, the record stays
-    partial: a master may have started, and ``down`` stops it.)"""
-    try:
-        ensure_edge_master(plan, master, start=start)
-    except FogiacError:
-        deployment.undo_begin(plan.stack, before, existed=existed)
-        raise
 
 
 def _recorded_hosts_too(target: Target, plan: Plan, access: Mapping[str, Any]

@@ -31,17 +31,15 @@ from fogiac.lifecycle.driver import (
 )
 from fogiac.lifecycle.edge import (
     connect_edge,
-    edge_dir,
     edge_services,
+    edge_status,
     ensure_edge_master,
     provision_and_connect,
-    recorded_edge,
     running_edge,
     stop_edge,
 )
 from fogiac.lifecycle.events import OnEvent, Phase, Progress
 from fogiac.lifecycle.robots import robot_status
-from fogiac.net import middleware
 from fogiac.plan.document import plan_document
 from fogiac.plan.model import Plan
 from fogiac.provision import recorded_access, recorded_hosts, teardown
@@ -206,11 +204,8 @@ def status(target: Target, plan: Plan, *, now: float | None = None) -> dict[str,
         return {**nothing, "unchecked": str(err)}
     if not known and not provisioned and not described.get("hosts"):
         return {**nothing, "checked": "the cloud reports no instances"}  # asked, and nothing runs there
-    saved = recorded_edge(plan)
-    relays = middleware.deployment(plan.middleware).edge_links(plan, folder=edge_dir(plan, create=False),
-                                                               connect=saved.get("relays", {}))
-    running = running_edge(plan)
-    robots = robot_status(plan, running)  # a fleet's robots, one row each; none for a stack of one robot
+    edge = edge_status(plan)
+    robots = robot_status(plan, edge["edge"])  # a fleet's robots, one row each; none for a stack of one robot
     return {**head, "deployed": True, "partial": record.partial if record is not None and known else provisioned,
-            "edge_master": saved.get("edge_master", plan.edge_master), **described,
-            "relays": relays, "edge": running, **({"robots": robots} if robots else {})}
+            "edge_master": edge["edge_master"], **described,
+            "relays": edge["relays"], "edge": edge["edge"], **({"robots": robots} if robots else {})}

@@ -142,10 +142,12 @@ class Walk:
 
 
 def rank(module: str) -> int:
+    """A module's layer: a folder's package (``fogiac.targets``, its ``__init__``) is of its folder's layer; a
+    module at fogiac's top (``fogiac.state``, ``fogiac.middlewares``) of none (0)."""
     parts = module.split(".")
     if parts[0] == "stacks":
         return RANK["stacks"]
-    return RANK.get(parts[1], 0) if len(parts) > 2 else 0
+    return RANK.get(parts[1], 0) if len(parts) > 1 else 0
 
 
 def summarise(trip: list[tuple[str, str]]) -> tuple[int, int, int, list[str]]:

@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import hashlib
 import time
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Any
@@ -154,6 +155,21 @@ def begin(plan: Plan, manifest: Path) -> Deployment:
     record = _begun(plan, manifest)
     StackState(plan.stack).set(StackState.DEPLOYMENT, asdict(record))
     return record
+
+
+@contextmanager
+def begun(plan: Plan, manifest: Path, *, existed: bool) -> Iterator[None]:
+    """Record that ``up`` of ``manifest`` began (:func:`begin`) around the check of the robot's side, which comes
+    before anything is made: if that fails, the record goes back to what it was (:func:`undo_begin`; ``existed``:
+    the stack's folder was there before this run). Interrupted instead, the record stays partial: a master may
+    have started, and ``down`` stops it."""
+    before = read(plan.stack)
+    begin(plan, manifest)
+    try:
+        yield
+    except FogiacError:
+        undo_begin(plan.stack, before, existed=existed)
+        raise
 
 
 def finish(plan: Plan, manifest: Path, *, plan_digest: str, applied: Mapping[str, Any] | None = None) -> Deployment:

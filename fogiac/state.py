@@ -64,9 +64,9 @@ from fogiac.store import (
     write_atomic,
 )
 
-__all__ = ["FORMAT_VERSION", "LEGACY_FILES", "Section", "StackState", "StaleRecord", "StateStore", "read_json",
-           "stack_dir", "stack_lock", "stack_names", "state_root", "write_atomic", "write_json_atomic",
-           "write_text_atomic"]
+__all__ = ["FORMAT_VERSION", "LEGACY_FILES", "Section", "StackState", "StaleRecord", "StateStore", "changing",
+           "read_json", "stack_dir", "stack_lock", "stack_names", "state_root", "untouched_on_failure", "write_atomic",
+           "write_json_atomic", "write_text_atomic"]
 
 FORMAT_VERSION = 1  # of the record document; a newer one is refused, never half-read
 
@@ -403,3 +403,31 @@ def _said(value: object) -> str:
 def stack_lock(stack: str, *, operation: str) -> AbstractContextManager[None]:
     """Hold ``stack``'s lock for ``operation`` (see :meth:`StackState.lock`)."""
     return StackState(stack).lock(operation=operation)
+
+
+@contextmanager
+def untouched_on_failure(stack: str) -> Iterator[Callable[[], None]]:
+    """Remove the stack folder again if this run created it and fails before ``commit()``."""
+    existed = StackState(stack).exists()
+    committed = False
+
+    def commit() -> None:
+        nonlocal committed
+        committed = True
+
+    try:
+        yield commit
+    except BaseException:
+        path = StackState(stack).folder
+        if not existed and not committed and path.exists():
+            shutil.rmtree(path, ignore_errors=True)
+        raise
+
+
+@contextmanager
+def changing(stack: str, *, operation: str) -> Iterator[Callable[[], None]]:
+    """Change ``stack`` for ``operation`` (``up``, ``down``): under its lock (:func:`stack_lock`), and if this
+    run made the stack's folder and fails before it calls the ``commit()`` it is handed, the folder goes
+    again (:func:`untouched_on_failure`), so a refused first ``up`` leaves nothing behind."""
+    with untouched_on_failure(stack) as commit, stack_lock(stack, operation=operation):
+        yield commit

@@ -32,7 +32,7 @@ from fogiac.plan.cost import total_words
 from fogiac.plan.guard import ACCEPT_UNKNOWN, over_budget, up_summary
 from fogiac.plan.model import Plan
 from fogiac.plan.review import visible, visible_doc
-from fogiac.plan.saved import check_applies, check_saved_plan
+from fogiac.plan.saved import checked_show
 from fogiac.provision import secrets
 from fogiac.provision.report import report_table
 from fogiac.tables import console, table
@@ -61,16 +61,6 @@ def _show(doc: Mapping[str, Any], summary: tuple[str, ...] | None) -> None:
     if spot is not None:
         out.print(f"with spot: about ${spot:.4f} per hour (the catalogue's spot estimate of "
                   f"{doc['cost']['spot_prices']['as_of']}; never more than on-demand)")
-
-
-def _reviewed(path: Path, reviewed: Mapping[str, Any]) -> Callable[[Mapping[str, Any], tuple[str, ...] | None], None]:
-    """``_show``, after checking (under the stack's lock, where the lifecycle shows it) that the document
-    about to be applied is the saved plan's and that nobody applied since it was made."""
-    def show(doc: Mapping[str, Any], summary: tuple[str, ...] | None) -> None:
-        check_applies(path, reviewed, doc)
-        _show(doc, summary)
-
-    return show
 
 
 @contextmanager
@@ -165,8 +155,7 @@ def up(manifest: Path = MANIFEST, yes: bool = YES, env: str = ENV, target: str |
     need_yes(yes, "apply")
     show: Callable[[Mapping[str, Any], tuple[str, ...] | None], None] = _show
     if plan_file is not None:  # exactly what was reviewed, or nothing: checked now, and again under the lock
-        show = _reviewed(plan_file, check_saved_plan(plan_file, manifest=manifest, stack=plan.stack,
-                                                     target=plan.target, plan=plan))
+        show = checked_show(plan_file, plan, manifest=manifest, show=_show)
     found = placeholders.found(plan)
     if found and not force:  # copied from the documentation: nothing of the user's would run, or be reachable
         raise FogiacError("; ".join(found) + "; up refuses documentation placeholders (pass --force to deploy anyway)")

@@ -8,9 +8,7 @@ target decides, the CLI shows.
 
 from __future__ import annotations
 
-import shutil
-from collections.abc import Callable, Iterator, Mapping
-from contextlib import contextmanager
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from enum import Enum
 from pathlib import Path
@@ -20,7 +18,6 @@ from fogiac.lifecycle.events import OnEvent
 from fogiac.manifest.schema import Manifest
 from fogiac.plan.model import Plan
 from fogiac.plan.placement import Placement, Tags
-from fogiac.state import StackState
 
 
 class Feature(str, Enum):
@@ -249,22 +246,3 @@ class Target(Protocol):
     def refresh(self, plan: Plan) -> list[Refreshed]: ...
 
     def sweep(self, plan: Plan, *, dry_run: bool) -> SweepOutcome: ...
-
-
-@contextmanager
-def untouched_on_failure(stack: str) -> Iterator[Callable[[], None]]:
-    """Remove the stack folder again if this run created it and fails before ``commit()``."""
-    existed = StackState(stack).exists()
-    committed = False
-
-    def commit() -> None:
-        nonlocal committed
-        committed = True
-
-    try:
-        yield commit
-    except BaseException:
-        path = StackState(stack).folder
-        if not existed and not committed and path.exists():
-            shutil.rmtree(path, ignore_errors=True)
-        raise

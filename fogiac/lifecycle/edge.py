@@ -148,6 +148,15 @@ def running_edge(plan: Plan) -> list[dict[str, Any]]:
             if s["running"]]
 
 
+def edge_status(plan: Plan) -> dict[str, Any]:
+    """The edge's part of ``status``: its master as the last ``up`` recorded it (``edge_master``), each link as
+    its middleware reads it from the edge's stats (``relays``), and its processes still running here (``edge``)."""
+    saved = recorded_edge(plan)
+    relays = middleware.deployment(plan.middleware).edge_links(plan, folder=edge_dir(plan, create=False),
+                                                               connect=saved.get("relays", {}))
+    return {"edge_master": saved.get("edge_master", plan.edge_master), "relays": relays, "edge": running_edge(plan)}
+
+
 def edge_idle_since(plan: Plan, *, now: float) -> float | None:
     """Since when no edge link of the stack has run on this machine, from the stats files its
     middleware names (:meth:`fogiac.net.middleware.Deployment.edge_stats`).

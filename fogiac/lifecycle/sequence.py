@@ -28,25 +28,22 @@ from fogiac.lifecycle.driver import (
     Target,
     UpOptions,
     UpResult,
-    untouched_on_failure,
 )
 from fogiac.lifecycle.edge import (
     connect_edge,
-    edge_dir,
     edge_services,
+    edge_status,
     ensure_edge_master,
     provision_and_connect,
-    recorded_edge,
     running_edge,
     stop_edge,
 )
 from fogiac.lifecycle.events import OnEvent, Phase, Progress
 from fogiac.lifecycle.robots import robot_status
-from fogiac.net import middleware
 from fogiac.plan.document import plan_document
 from fogiac.plan.model import Plan
 from fogiac.provision import recorded_access, recorded_hosts, teardown
-from fogiac.state import StackState, stack_lock
+from fogiac.state import StackState, changing
 
 
 def up(target: Target, plan: Plan, opts: UpOptions) -> UpResult:
@@ -57,7 +54,7 @@ def up(target: Target, plan: Plan, opts: UpOptions) -> UpResult:
     doc = plan_document(plan, target.declare(plan), manifest=opts.manifest_path)
     infra_only = opts.infra_only and Feature.INFRA_ONLY in target.features
     existed = StackState(plan.stack).exists()
-    with untouched_on_failure(plan.stack) as commit, stack_lock(plan.stack, operation="up"):
+    with changing(plan.stack, operation="up") as commit:
         prepared = target.prepare(plan, ssh_from=opts.ssh_from)
         opts.show(doc, prepared.summary)
         for line in prepared.notices:
@@ -66,11 +63,11 @@ def up(target: Target, plan: Plan, opts: UpOptions) -> UpResult:
             raise FogiacError("not applied: nothing was changed")
         master = opts.edge_master or plan.edge_master
         commit()
-        before = deployment.read(plan.stack)
-        deployment.begin(prepared.plan, opts.manifest_path)  # before anything exists, so down always finds it
-        if not infra_only:  # before anything is made: the robot's side must be there to connect
-            with _step(opts.on_event, "edge", "robot's ROS master", master):
-                _edge_or_undo(prepared.plan, master, start=opts.start_edge_master, before=before, existed=existed)
+        # recorded before anything exists, so down always finds it; undone if the robot's side does not answer
+        with deployment.begun(prepared.plan, opts.manifest_path, existed=existed):
+            if not infra_only:  # before anything is made: the robot's side must be there to connect
+                with _step(opts.on_event, "edge", "robot's ROS master", master):
+                    ensure_edge_master(prepared.plan, master, start=opts.start_edge_master)
         created = target.create(prepared.plan, prepared, announce=opts.announce, on_event=opts.on_event)
         plan = created.plan
         report, relays = None, {}
@@ -123,18 +120,6 @@ def _provision_steps(on_event: OnEvent | None) -> Callable[[str, str, str], None
     return progress
 
 
-def _edge_or_undo(plan: Plan, master: str, *, start: bool, before: deployment.Deployment | None,
-                  existed: bool) -> None:
-    """Start (or check) the robot's side. If that fails, nothing was made: the stack's folder goes if this
-    run made it, else the record goes back to what it was. (Interrupted instead, the record stays
-    partial: a master may have started, and ``down`` stops it.)"""
-    try:
-        ensure_edge_master(plan, master, start=start)
-    except FogiacError:
-        deployment.undo_begin(plan.stack, before, existed=existed)
-        raise
-
-
 def _recorded_hosts_too(target: Target, plan: Plan, access: Mapping[str, Any]
                         ) -> tuple[Plan, dict[str, Any], dict[str, Any]]:
     """The plan's hosts and every other host the stack's provisioning record names, with their access (the
@@ -165,7 +150,7 @@ def down(target: Target, plan: Plan, opts: DownOptions) -> DownResult:
         return DownResult(engine_errors=(), left=(), not_checked=(), existed=False)  # and nothing created
     errors: list[str] = []
     deleted = [f"edge process {e['name']}" for e in running_edge(plan)]
-    with untouched_on_failure(plan.stack), stack_lock(plan.stack, operation="down"):
+    with changing(plan.stack, operation="down"):
         stop_edge(plan, keep_master=True)  # the edge relays first: their peers are about to go
         # the machines stay: stop what fogiac started there (a platform that runs the nodes stops its own)
         if Feature.PROVISIONS in target.features and Feature.CREATES_MACHINES not in target.features:
@@ -219,11 +204,8 @@ def status(target: Target, plan: Plan, *, now: float | None = None) -> dict[str,
         return {**nothing, "unchecked": str(err)}
     if not known and not provisioned and not described.get("hosts"):
         return {**nothing, "checked": "the cloud reports no instances"}  # asked, and nothing runs there
-    saved = recorded_edge(plan)
-    relays = middleware.deployment(plan.middleware).edge_links(plan, folder=edge_dir(plan, create=False),
-                                                               connect=saved.get("relays", {}))
-    running = running_edge(plan)
-    robots = robot_status(plan, running)  # a fleet's robots, one row each; none for a stack of one robot
+    edge = edge_status(plan)
+    robots = robot_status(plan, edge["edge"])  # a fleet's robots, one row each; none for a stack of one robot
     return {**head, "deployed": True, "partial": record.partial if record is not None and known else provisioned,
-            "edge_master": saved.get("edge_master", plan.edge_master), **described,
-            "relays": relays, "edge": running, **({"robots": robots} if robots else {})}
+            "edge_master": edge["edge_master"], **described,
+            "relays": edge["relays"], "edge": edge["edge"], **({"robots": robots} if robots else {})}

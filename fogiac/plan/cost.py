@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import shlex
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, NamedTuple
 
 from fogiac.manifest.clouds import prices as price_source
 from fogiac.plan.model import CostLine, HostSpec, NodeSpec, Plan, Replica
@@ -145,6 +145,20 @@ def hosts(plan: Plan) -> list[dict[str, Any]]:
 def nodes(plan: Plan) -> list[dict[str, Any]]:
     return [{**node_row(node), **({"replica_hosts": reps} if (reps := replica_hosts(plan, node.name)) else {})}
             for node in plan.nodes]
+
+
+class Rows(NamedTuple):
+    """All this module says of one plan, as the plan document shows it: a row per host and per node (in the
+    plan's order) and the cost section."""
+
+    hosts: list[dict[str, Any]]
+    nodes: list[dict[str, Any]]
+    cost: dict[str, Any]
+
+
+def rows(plan: Plan) -> Rows:
+    """The plan's host rows, node rows and cost section, asked of this module in one call."""
+    return Rows(hosts=hosts(plan), nodes=nodes(plan), cost=cost(plan))
 
 
 def rate(usd_per_hour: float | None, digits: int = 4) -> str:

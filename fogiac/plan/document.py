@@ -147,6 +147,8 @@ def edges(plan: Plan) -> list[dict[str, str]] | None:
 
 def document(plan: Plan, resources: Sequence[Mapping[str, Any]], *, manifest_path: str,
              manifest_sha256: str) -> dict[str, Any]:
+    priced = cost.rows(plan)
+    served, robots = fleet.rows(plan)
     body = {
         "stack": plan.stack,
         "environment": plan.environment,
@@ -159,14 +161,14 @@ def document(plan: Plan, resources: Sequence[Mapping[str, Any]], *, manifest_pat
         "middleware": middleware_doc(plan),
         "stacks": list(dict.fromkeys(str(r["stack"]) for r in resources)),  # in the order the target declares
         "resources": [dict(r) for r in resources],
-        "hosts": [_host(host, row) for host, row in zip(plan.hosts, cost.hosts(plan), strict=True)],
-        "nodes": [{**_node(node, row), **(fleet.node_row(plan, node) if plan.fleet else {})}
-                  for node, row in zip(plan.nodes, cost.nodes(plan), strict=True)],
-        **({"robots": robots} if (robots := fleet.robots(plan)) is not None else {}),
+        "hosts": [_host(host, row) for host, row in zip(plan.hosts, priced.hosts, strict=True)],
+        "nodes": [{**_node(node, row), **extra}
+                  for node, row, extra in zip(plan.nodes, priced.nodes, served, strict=True)],
+        **({"robots": robots} if robots is not None else {}),
         "topics": topics(plan),
         "security_rules": security_rules(plan),
         "pushed": pushed.pushed(plan),  # every path up pushes, with its content's digest
-        "cost": cost.cost(plan),
+        "cost": priced.cost,
         **({"notes": list(plan.notes)} if plan.notes else {}),  # absent when none: documents as before
         "autostop": autostop(plan),
         "relay": relay_settings(plan),

@@ -92,6 +92,12 @@ def robots(plan: Plan) -> list[dict[str, Any]] | None:
     return rows
 
 
+def rows(plan: Plan) -> tuple[list[dict[str, Any]], list[dict[str, Any]] | None]:
+    """What the plan document shows of a fleet, asked in one call: each node's row additions (:func:`node_row`,
+    in the plan's order; ``{}`` each for a plan of one robot) and the robots (:func:`robots`)."""
+    return [node_row(plan, node) if plan.fleet else {} for node in plan.nodes], robots(plan)
+
+
 def in_namespace(robot: str, topic: str) -> str:
     """A per-robot node's topic as its instance for ``robot`` uses it: ``/scan`` is arm1's ``/arm1/scan``."""
     return f"/{robot}{topic}"

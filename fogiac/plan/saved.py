@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -127,6 +127,21 @@ def check_applies(path: Path, saved: Mapping[str, Any], applying: Mapping[str, A
         was, now = _short(saved.get("plan_digest")), _short(applying.get("plan_digest"))
         raise PlanError(f"saved plan {path} is not what up would apply now (plan digest {was} there, {now} now); "
                         f"{AGAIN}")
+
+
+Show = Callable[[Mapping[str, Any], tuple[str, ...] | None], None]  # up's showing of the document it will apply
+
+
+def checked_show(path: Path, plan: Plan, *, manifest: Path, show: Show) -> Show:
+    """``up --plan path``: the saved plan checked now (:func:`check_saved_plan`), and ``show`` wrapped so that it
+    is checked again under the stack's lock, as the document about to be applied is shown (:func:`check_applies`)."""
+    reviewed = check_saved_plan(path, manifest=manifest, stack=plan.stack, target=plan.target, plan=plan)
+
+    def checked(doc: Mapping[str, Any], summary: tuple[str, ...] | None) -> None:
+        check_applies(path, reviewed, doc)
+        show(doc, summary)
+
+    return checked
 
 
 def _same_pushed(path: Path, was: Any, now: list[dict[str, Any]]) -> None:

@@ -16,8 +16,8 @@ from fogiac.lifecycle.driver import (
     Target,
     UpOptions,
     UpResult,
-    untouched_on_failure,
 )
+from fogiac.state import untouched_on_failure
 
 __all__ = ["Check", "Created", "Destroyed", "DownOptions", "DownResult", "Feature", "Machine", "Prepared", "Reach",
            "Refreshed", "SweepOutcome", "Target", "UpOptions", "UpResult", "untouched_on_failure"]

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import contextlib
 import shutil
-from collections.abc import Iterator
+import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from fogiac.certs import edge_identity, edge_role, load_or_create_edges
@@ -54,3 +55,17 @@ def edge_end(robot: str, master: Master, certs: Path, cloud: CloudRelay, n: int,
                                caller_id=f"/fogiac_relay_edge_{n}", **settings))  # type: ignore[arg-type]
     end.start()
     return end
+
+
+def pids(folder: Path) -> dict[str, int]:
+    """service -> its supervisor's pid, for every supervised process under ``folder``."""
+    return {str(p.relative_to(folder)): int(p.read_text().split()[0]) for p in folder.rglob("*.pid")}
+
+
+def wait(what: str, check: Callable[[], object], timeout: float) -> float:
+    """Poll ``check`` until it holds (``what``: what failed, if not within ``timeout`` s); the seconds it took."""
+    started = time.monotonic()
+    while not check():
+        assert time.monotonic() - started < timeout, what
+        time.sleep(0.1)
+    return time.monotonic() - started

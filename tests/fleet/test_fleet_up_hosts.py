@@ -39,7 +39,7 @@ from fogiac.provision import SshAccess
 from fogiac.state import StackState, read_json
 from fogiac.targets.hosts.target import HostsTarget
 from tests.docs.blocks import REPO, blocks, normalise
-from tests.fleet.test_fleet_robot_revoke import _wait
+from tests.fleet.fleet_support import wait as _wait
 from tests.fleet.test_fleet_up_local import PLANNER, REQUESTS, _clients, _pids
 from tests.plugins.install import installed
 from tests.provision.conftest import ros_skip_reason

@@ -17,7 +17,7 @@ import re
 import signal
 import sys
 import xmlrpc.client
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlparse
@@ -55,15 +55,25 @@ def link_services(plan: Plan, spec: HostSpec, where: Where) -> tuple[Service, ..
     return (relay_service(plan, spec, where),) + ((watchdog,) if watchdog is not None else ())
 
 
-def _master_up(uri: str, *, timeout: float) -> bool:
-    def answers() -> bool | None:
-        try:
-            reply: Any = xmlrpc.client.ServerProxy(uri).getPid("/fogiac")
-        except (OSError, xmlrpc.client.Error):
-            return None
-        return True if reply[0] == 1 else None
+def _answers(uri: str) -> bool:
+    try:
+        reply: Any = xmlrpc.client.ServerProxy(uri).getPid("/fogiac")
+    except (OSError, xmlrpc.client.Error):
+        return False
+    return bool(reply[0] == 1)
 
-    return poll(answers, timeout=timeout, interval=0.2, backoff=1.0) is not None
+
+def _masters_up(uris: Collection[str], *, timeout: float) -> set[str]:
+    """Those of ``uris`` whose master answers within ``timeout`` s, all waited for together (one deadline)."""
+    up: set[str] = set()
+
+    def every() -> bool | None:
+        up.update(u for u in uris if u not in up and _answers(u))
+        return True if up >= set(uris) else None
+
+    poll(every, timeout=timeout, interval=0.2, backoff=1.0)
+    return up
+
 
 
 EDGE_ROS_HOME = "ros"  # the edge master's ROS_HOME, in the edge folder
@@ -76,25 +86,38 @@ def edge_suffix(plan: Plan, edge: EdgeSpec) -> str:
 
 def prepare_edge(uri: str, *, folder: Path, start: bool, name: str = EDGE_MASTER) -> None:
     """The edge's ROS master must answer; for demos fogiac can run it (supervised as ``name``, stopped by down)."""
-    if _master_up(uri, timeout=0.5):
-        return
-    if not start:
-        raise FogiacError(f"no ROS master answers at {uri} (edge.ros_master); start roscore, "
+    prepare_edges({uri: name}, folder=folder, start=start)
+
+
+def prepare_edges(masters: Mapping[str, str], *, folder: Path, start: bool) -> None:
+    """:func:`prepare_edge` for several robots' masters (uri -> supervised name) at once: those that do not answer
+    are started together and waited for together, so a fleet's ``up`` waits about one master's start, not one per
+    robot in turn (each roscore takes a second or more to answer)."""
+    answering = _masters_up(masters, timeout=0.5)
+    missing = [uri for uri in masters if uri not in answering]
+    if missing and not start:
+        raise FogiacError(f"no ROS master answers at {missing[0]} (edge.ros_master); start roscore, "
                           "or pass --start-edge-master to let fogiac run one")
-    url = urlparse(uri)
-    # its logs in the stack's edge folder (down removes it), not the operator's ~/.ros/log
-    home = folder / (EDGE_ROS_HOME + name.removeprefix(EDGE_MASTER))
-    logs = [f"ROS_HOME={home}", f"ROS_LOG_DIR={home / 'log'}"]
-    argv = ["env", *logs, "roscore", "-p", str(url.port)]
-    if _loopback(url.hostname):
-        # rosmaster binds where ROS_IP says: loopback, not 0.0.0.0. The master alone, without roscore's
-        # rosout: roscpp's XML-RPC server binds every interface whatever ROS_IP says, and through it
-        # anyone on the network could point rosout at a publisher of their own.
-        argv = ["env", "-u", "ROS_HOSTNAME", *logs, "ROS_IP=127.0.0.1", "rosmaster", "--core", "-p", str(url.port)]
-    supervise.start(folder, name, argv)
-    if not _master_up(uri, timeout=30):
-        supervise.stop(folder, name)
-        raise FogiacError(f"the edge roscore did not come up at {uri}; see {folder / (name + '.log')}")
+    for uri in missing:
+        url = urlparse(uri)
+        name = masters[uri]
+        # its logs in the stack's edge folder (down removes it), not the operator's ~/.ros/log
+        home = folder / (EDGE_ROS_HOME + name.removeprefix(EDGE_MASTER))
+        logs = [f"ROS_HOME={home}", f"ROS_LOG_DIR={home / 'log'}"]
+        argv = ["env", *logs, "roscore", "-p", str(url.port)]
+        if _loopback(url.hostname):
+            # rosmaster binds where ROS_IP says: loopback, not 0.0.0.0. The master alone, without roscore's
+            # rosout: roscpp's XML-RPC server binds every interface whatever ROS_IP says, and through it
+            # anyone on the network could point rosout at a publisher of their own.
+            argv = ["env", "-u", "ROS_HOSTNAME", *logs, "ROS_IP=127.0.0.1", "rosmaster", "--core", "-p",
+                    str(url.port)]
+        supervise.start(folder, name, argv)
+    came_up = _masters_up(missing, timeout=30)
+    late = [uri for uri in missing if uri not in came_up]
+    for uri in late:
+        supervise.stop(folder, masters[uri])
+    if late:
+        raise FogiacError(f"the edge roscore did not come up at {late[0]}; see {folder / (masters[late[0]] + '.log')}")
 
 
 def _loopback(host: str | None) -> bool:
@@ -354,8 +377,10 @@ class RelayDeployment:
         return host_credentials(host, python=python, folder=folder, certs_dir=certs_dir, plan=plan, spec=spec)
 
     def prepare_edge(self, plan: Plan, entry: str, *, folder: Path, start: bool) -> None:
-        for edge in plan.edges_at(entry):  # each robot's master (``entry``: the first's)
-            prepare_edge(edge.entry, folder=folder, start=start, name=EDGE_MASTER + edge_suffix(plan, edge))
+        masters: dict[str, str] = {}  # each robot's master (``entry``: the first's), started and waited for together
+        for edge in plan.edges_at(entry):
+            masters.setdefault(edge.entry, EDGE_MASTER + edge_suffix(plan, edge))
+        prepare_edges(masters, folder=folder, start=start)
 
     def edge_up(self, plan: Plan, *, entry: str, connect: Mapping[str, str], certs: Path,
                 folder: Path) -> list[str]:

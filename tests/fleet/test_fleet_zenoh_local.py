@@ -305,9 +305,12 @@ def test_up_deploys_a_ros2_fleet_over_zenoh(tmp_path: Path, _state_dir: Path) ->
                 "r3's new SLAM instance never answered it"
             _own_instances(outs, slam_log, ROBOTS)
 
+            shown_last: list[str] = []
+
             def rows() -> dict[str, Any] | None:  # the edge routers and monitors write their figures every second
                 shown = runner.invoke(app, ["status", str(manifest), *local, "--json"])
                 assert shown.exit_code == 0, shown.output
+                shown_last[:] = [shown.output]
                 found = {r["robot"]: r for r in json.loads(shown.output)["robots"]}
                 return found if all(found.get(r, {}).get("served") for r in ROBOTS) else None
 
@@ -316,6 +319,9 @@ def test_up_deploys_a_ros2_fleet_over_zenoh(tmp_path: Path, _state_dir: Path) ->
             for robot, row in robot_rows.items():  # each robot's own link and its namespaced topics
                 mine = {f"/{robot}/{t}" for t in ("plan_request", "plan_result", "scan", "slam/count")}
                 assert row["links_up"] == 2 and row["topics"] and set(row["topics"]) <= mine, row
+            assert all(f'"slam@{r}"' in shown_last[0] for r in ROBOTS), shown_last  # each instance by its name
+            logs = runner.invoke(app, ["logs", "slam@r2", str(manifest)])
+            assert logs.exit_code == 0 and "slam up in /r2: /r2/scan -> /r2/slam/count" in logs.output, logs.output
         finally:
             down = runner.invoke(app, ["down", str(manifest), *local, "--yes"])
     assert down.exit_code == 0, down.output

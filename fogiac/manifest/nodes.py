@@ -195,7 +195,7 @@ class Node(_Model):
     serve: Literal["all", "per_robot"] | tuple[str, ...] = Field(
         default="all", description="Whom the node serves in a fleet (robots:): all (one instance every robot "
         "shares), per_robot (one instance per robot, in its namespace /<robot>, its listed topics remapped there; "
-        "ROS 1 command nodes), or a list of robot names.")
+        "command nodes, ROS 1 and ROS 2), or a list of robot names.")
     replica_hosts: tuple[str, ...] = Field(default=(), description="For the hosts target: the cloud.hosts entries "
                                            "that carry the node's replicas, one each (default: the next ones).")
 

@@ -212,16 +212,18 @@ def fleet_problems(manifest: Manifest) -> list[FieldProblem]:
 
 def _per_robot_problems(manifest: Manifest, node: Node) -> list[tuple[str, str]]:
     """What ``serve: per_robot`` (one instance per robot, each in its namespace) needs today: a ROS generation
-    whose nodes take a namespace and remaps as arguments (ROS 1's ``__ns:=``), a command node to give them to,
-    and listed topics to remap (a topic left out would be one topic every instance shares)."""
+    whose nodes take a namespace and remaps as arguments (ROS 1's ``__ns:=``, ROS 2's ``--ros-args -r``), a
+    command node to give them to, and listed topics to remap (a topic left out would be one topic every
+    instance shares)."""
     try:
         chosen = middlewares.for_distro(manifest.ros.distro)
     except PlanError:
         return []  # the unknown distribution is reported by its own field
     # Its Launching (fogiac.hostmodel) says how; a middleware plug-in without one runs no per-robot instances.
     if getattr(getattr(chosen, "launching", None), "instance_args", None) is None:
-        return [(f"serve: per_robot (one instance per robot) runs on ROS 1 through the relay; ROS "
-                 f"{manifest.ros.distro} has no per-robot instances yet: give all or a list of robots", "serve")]
+        return [(f"serve: per_robot (one instance per robot) needs a middleware that puts a node in a robot's "
+                 f"namespace; ROS {manifest.ros.distro} crosses through {chosen.name}, which has no per-robot "
+                 "instances yet: give all or a list of robots", "serve")]
     problems = []
     if node.kind != "command":
         problems.append((f"serve: per_robot runs a command: node (each instance takes its robot's namespace as "

@@ -73,7 +73,8 @@ def _instances(plan: Plan, node: NodeSpec, launching: Launching) -> tuple[NodeSp
     if not node.per_robot:
         return (node,)
     if launching.instance_args is None or node.kind != "command":
-        raise ProvisionError(f"node {node.name}: serve: per_robot runs a command: node on ROS 1 only")
+        raise ProvisionError(f"node {node.name}: serve: per_robot runs a command: node, on a middleware whose "
+                             "nodes take a robot's namespace as arguments (the relay's ROS 1, Zenoh's ROS 2)")
     topics = (*node.topics_in, *node.topics_out)
     return tuple(dataclasses.replace(node, name=instance, command=node.command + launching.instance_args(robot, topics))
                  for robot, instance in zip(plan.robots_of(node), node_instances(plan, node), strict=True))

@@ -18,6 +18,14 @@ equal stamps from several robots are in flight at once). What ``up`` must have b
 - r3 dropped from ``robots:`` and ``up``: only its edge processes stop; added back and ``up``: only its start
   again, it is answered; the sandbox's processes keep their pids throughout; ``status`` shows each robot's
   link up and only its own namespaced topics, with requests served; ``down`` leaves nothing.
+
+In the same deployment a per-robot SLAM-like stand-in (``serve: per_robot``, :mod:`tests.net.zenoh.slamnode`,
+in a sandbox of its own) counts the scans it sees: ``up`` runs one instance per robot (``node-slam@r1``..., each
+its own pid, ``--ros-args -r __ns:=/r1 -r /scan:=/r1/scan ...``) and no fleet process for it; every robot
+publishes ``/<robot>/scan`` and hears on ``/<robot>/slam/count`` only its own instance's answers, and each
+instance's state (its log) counts only its own robot's scans; r1's certificate at that sandbox's router reaches
+neither r2's instance (scans put in r2's namespace are never counted) nor its answers; r3 revoked hears nothing
+from its instance; dropped, only ``node-slam@r3`` stops there, added back, only it starts again.
 """
 
 from __future__ import annotations
@@ -59,7 +67,7 @@ def _ros2_on_path(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("PATH", f"{standin_ros2(tmp_path / 'ros2')}:{os.environ['PATH']}")
 
 
-def _manifest(path: Path, ports: dict[str, int]) -> None:
+def _manifest(path: Path, ports: dict[str, int], slam_log: Path) -> None:
     robots = "".join(f'  - {{name: {r}, zenoh_router: "tcp/127.0.0.1:{port}"}}\n' for r, port in ports.items())
     path.write_text(f"""name: {NAME}
 ros: {{distro: jazzy}}
@@ -72,6 +80,12 @@ robots:
               --request /plan_request --reply /plan_result --delay 0.3']
     env: {{PYTHONPATH: "{REPO}", RUST_LOG: error}}
     topics: {{in: [/plan_request], out: [/plan_result]}}
+  - name: slam
+    machine: t3.micro
+    command: [{sys.executable}, -m, tests.net.zenoh.slamnode, --log, "{slam_log}"]
+    env: {{PYTHONPATH: "{REPO}", RUST_LOG: error}}
+    topics: {{in: [/scan], out: [/slam/count]}}
+    serve: per_robot
 """)
 
 
@@ -87,8 +101,29 @@ def _as_robot(stack: StackState, robot: str, address: str) -> Any:
     return zenoh.open(zenoh.Config.from_json5(json.dumps(config)))
 
 
+def _heard(out: Path, robot: str, topic: str = "plan_result") -> list[dict[str, Any]]:
+    """What ``robot``'s stand-in received on ``/<robot>/<topic>``."""
+    return [e for e in replies(out) if e["topic"] == f"/{robot}/{topic}"]
+
+
 def _answered(out: Path, robot: str) -> int:
-    return len([e for e in replies(out) if e["topic"] == f"/{robot}/plan_result"])
+    return len(_heard(out, robot))
+
+
+def _counted(slam_log: Path, robot: str) -> list[dict[str, Any]]:
+    """What ``robot``'s SLAM instance counted (its own log, one line per message it saw)."""
+    path = slam_log / f"{robot}.jsonl"
+    return [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
+
+
+def _own_instances(outs: dict[str, Path], slam_log: Path, robots: tuple[str, ...]) -> None:
+    """Each robot heard its own instance only, and each instance counted its own robot's scans only."""
+    for robot in robots:
+        counts = [e["text"] for e in _heard(outs[robot], robot, "slam/count")]
+        assert counts and all(t.startswith(f"/{robot}|") and f"|/{robot}/scan #" in t for t in counts), counts
+        state = _counted(slam_log, robot)
+        assert state and all(e["frame_id"].startswith(f"/{robot}/scan #") and f"/{robot}/scan/" in e["key"]
+                             for e in state), state
 
 
 def _more(outs: dict[str, Path], robots: tuple[str, ...], count: int = 5, timeout: float = 30) -> None:
@@ -102,10 +137,12 @@ def _more(outs: dict[str, Path], robots: tuple[str, ...], count: int = 5, timeou
 def test_up_deploys_a_ros2_fleet_over_zenoh(tmp_path: Path, _state_dir: Path) -> None:
     ports = {robot: free_port() for robot in ROBOTS}
     manifest = tmp_path / "fogiac.yaml"
-    _manifest(manifest, ports)
+    slam_log = tmp_path / "slam"
+    _manifest(manifest, ports, slam_log)
     runner = CliRunner()
     stack = StackState(STACK)
     sandbox = _state_dir / STACK / "local" / "planner"
+    slam_box = _state_dir / STACK / "local" / "slam"
     local = ["--target", "local"]
     pids: list[int] = []
     with installed(tmp_path / "verb", "robotverb", {"fogiac.commands": {"robot": "fogiac.cli.robots"}}), \
@@ -124,12 +161,23 @@ def test_up_deploys_a_ros2_fleet_over_zenoh(tmp_path: Path, _state_dir: Path) ->
                 {"node": "planner", "requests": ["/plan_request"], "replies": ["/plan_result"], "robots": list(ROBOTS)}]
             edge_routers = {p.stem for p in stack.edge.glob("zenoh-edge-router*.pid")}
             assert edge_routers == {f"zenoh-edge-router@{r}" for r in ROBOTS}
+            # one SLAM instance per robot, each its own service and pid, and no fleet process for it
+            slam_json = json.loads((slam_box / "certs" / "zenoh-fleet.json").read_text())
+            assert slam_json["shared"] == [] and set(slam_json["robots"]) == set(ROBOTS)
+            instances = {k: v for k, v in _pids(slam_box).items() if "node-slam" in k}
+            assert sorted(Path(k).stem for k in instances) == [f"node-slam@{r}" for r in ROBOTS]
+            assert len(set(instances.values())) == len(ROBOTS)
+            assert not [k for k in _pids(slam_box) if "zenoh-fleet" in k]
 
             # Every robot's stand-in asks with the stamps every other uses; each hears only its own answers, once.
-            outs = {r: lab.node(r, port, pub=(f"/{r}/plan_request=Header",), sub=(f"/{r}/plan_result=Header",))
+            outs = {r: lab.node(r, port, pub=(f"/{r}/plan_request=Header", f"/{r}/scan=Header"),
+                                sub=(f"/{r}/plan_result=Header", f"/{r}/slam/count=Header"))
                     for r, port in ports.items()}
             for robot, out in outs.items():
-                assert poll(lambda o=out: len(replies(o)) >= 8 or None, timeout=90), f"{robot} was never answered"
+                assert poll(lambda o=out, r=robot: _answered(o, r) >= 8 or None, timeout=90), \
+                    f"{robot} was never answered"
+                assert poll(lambda o=out, r=robot: len(_heard(o, r, "slam/count")) >= 8 or None, timeout=60), \
+                    f"{robot}'s SLAM instance never answered it"
             # Raw requests with one stamp from r1 and r2 back to back, on their edge routers: each gets its own.
             probes = {r: _probe(ports[r]) for r in ("r1", "r2")}
             try:
@@ -138,6 +186,7 @@ def test_up_deploys_a_ros2_fleet_over_zenoh(tmp_path: Path, _state_dir: Path) ->
                 # r1's certificate at the cloud router itself: refused r2's topics, both ways.
                 (edge,) = [e for e in stack.get(StackState.EDGES) if e["name"] == "r1"]
                 attacker = _as_robot(stack, "r1", edge["relays"]["planner"])
+                at_slam = _as_robot(stack, "r1", edge["relays"]["slam"])  # r1 at the SLAM sandbox's router
                 stolen: list[str] = []
                 mine: list[str] = []
                 forged_at_r2: list[str] = []
@@ -145,6 +194,8 @@ def test_up_deploys_a_ros2_fleet_over_zenoh(tmp_path: Path, _state_dir: Path) ->
                     # its own session hands it its own puts back; only r2's messages (their frame ids) would be stolen
                     attacker.declare_subscriber("*/r2/**", lambda s: stolen.append(_text(s.payload.to_bytes())))
                     attacker.declare_subscriber("**", lambda s: stolen.append(_text(s.payload.to_bytes())))
+                    at_slam.declare_subscriber("*/r2/**", lambda s: stolen.append(_text(s.payload.to_bytes())))
+                    at_slam.declare_subscriber("**", lambda s: stolen.append(_text(s.payload.to_bytes())))
                     attacker.declare_subscriber(f"0/r1/plan_result/{TYPE}",
                                                 lambda s: mine.append(_frame_id(s.payload.to_bytes())))
                     probes["r2"].declare_subscriber(f"0/r2/plan_result/{TYPE}", lambda s: forged_at_r2.append(
@@ -155,11 +206,14 @@ def test_up_deploys_a_ros2_fleet_over_zenoh(tmp_path: Path, _state_dir: Path) ->
                         attacker.put(f"0/r2/plan_request/{TYPE}", _request(n, "forged by r1"))  # as r2, to the planner
                         attacker.put(f"0/plan_request/{TYPE}", _request(n, "forged by r1"))  # past the fleet process
                         attacker.put(f"0/r1/plan_request/{TYPE}", _request(5000 + n, "r1 asks"))  # its own: allowed
+                        at_slam.put(f"0/r2/scan/{TYPE}", _request(n, "forged by r1"))  # to r2's SLAM instance
+                        at_slam.put(f"0/scan/{TYPE}", _request(n, "forged by r1"))  # bare, to any instance
                         time.sleep(0.1)
                     assert poll(lambda: len(mine) >= 10 or None, timeout=30), "r1's own requests were not answered"
                     _more(outs, ("r2",), count=10)  # r2 heard on meanwhile: anything forged had time to reach it
                 finally:
                     attacker.close()
+                    at_slam.close()
             finally:
                 for probe in probes.values():
                     probe.close()
@@ -169,16 +223,18 @@ def test_up_deploys_a_ros2_fleet_over_zenoh(tmp_path: Path, _state_dir: Path) ->
             assert stolen and not [t for t in stolen if "r2 asks" in t or "/r2/" in t], stolen  # nothing of r2's
             assert set(mine) == {"r1 asks"} and forged_at_r2 == []
             assert not [e for e in replies(outs["r2"]) if "forged" in e["text"]]
+            assert not [e for r in ROBOTS for e in _counted(slam_log, r) if "forged" in e["frame_id"]]
+            _own_instances(outs, slam_log, ROBOTS)
             for robot, out in outs.items():
-                got = replies(out)
+                got = _heard(out, robot)
                 assert all(e["text"].startswith(f"/{robot}/plan_request #") for e in got), got
                 assert all(e["text"].endswith(f"@{e['seq']}.0") for e in got), "a robot saw a stamp it did not send"
                 assert len({e["seq"] for e in got}) == len(got), f"{robot} was answered twice"
-            seqs = [{e["seq"] for e in replies(out)} for out in outs.values()]
+            seqs = [{e["seq"] for e in _heard(out, robot)} for robot, out in outs.items()]
             assert seqs[0] & seqs[1] & seqs[2], "no stamp was asked by every robot"
 
             # Revoked: r3 unanswered within 10 s, its certificate given nothing; r1 and r2 answered on; no restart.
-            host_before, edge_before = _pids(sandbox), _pids(stack.edge)
+            host_before, edge_before, slam_before = _pids(sandbox), _pids(stack.edge), _pids(slam_box)
             planner_child = (sandbox / "run" / "node-planner.child").read_text().split()[0]
             cut = time.monotonic()
             revoked = runner.invoke(app, ["robot", "revoke", "r3", str(manifest), *local])
@@ -194,6 +250,7 @@ def test_up_deploys_a_ros2_fleet_over_zenoh(tmp_path: Path, _state_dir: Path) ->
             took = time.monotonic() - cut - 2
             assert took < 10, f"r3 still answered {took:.1f} s after revoke"
             r3_count = _answered(outs["r3"], "r3")
+            r3_slam = len(_heard(outs["r3"], "r3", "slam/count"))
             _more(outs, ("r1", "r2"))
             (edge3,) = [e for e in stack.get(StackState.EDGES) if e["name"] == "r3"]
             as_r3 = _as_robot(stack, "r3", edge3["relays"]["planner"])
@@ -209,7 +266,9 @@ def test_up_deploys_a_ros2_fleet_over_zenoh(tmp_path: Path, _state_dir: Path) ->
             finally:
                 as_r3.close()
             assert set(got_r3) == {"r3 asks"} and _answered(outs["r3"], "r3") == r3_count
+            assert len(_heard(outs["r3"], "r3", "slam/count")) == r3_slam  # nor its SLAM instance's answers
             assert _pids(sandbox) == host_before and _pids(stack.edge) == edge_before  # nothing restarted
+            assert _pids(slam_box) == slam_before
             assert (sandbox / "run" / "node-planner.child").read_text().split()[0] == planner_child
             print(f"r3 unanswered {took:.1f} s after revoke")
 
@@ -219,15 +278,16 @@ def test_up_deploys_a_ros2_fleet_over_zenoh(tmp_path: Path, _state_dir: Path) ->
             assert _pids(sandbox) == host_before and _pids(stack.edge) == edge_before
 
             # r3 dropped from robots: and up: only its edge processes stop; added back: only they start again.
-            _manifest(manifest, {r: p for r, p in ports.items() if r != "r3"})
+            _manifest(manifest, {r: p for r, p in ports.items() if r != "r3"}, slam_log)
             dropped = runner.invoke(app, ["up", str(manifest), *local, "--yes"])
             assert dropped.exit_code == 0, dropped.output
             assert "robot r3: its edge router stopped" in dropped.output
             assert _pids(sandbox) == host_before
             assert _pids(stack.edge) == {k: v for k, v in edge_before.items() if "@r3" not in k}
+            assert _pids(slam_box) == {k: v for k, v in slam_before.items() if "@r3" not in k}  # only r3's instance
             assert set(json.loads(fleet.read_text())["robots"]) == {"r1", "r2"}
             _more(outs, ("r1", "r2"), count=3)
-            _manifest(manifest, ports)
+            _manifest(manifest, ports, slam_log)
             again = runner.invoke(app, ["up", str(manifest), *local, "--yes"])
             assert again.exit_code == 0, again.output
             assert _pids(sandbox) == host_before
@@ -235,19 +295,33 @@ def test_up_deploys_a_ros2_fleet_over_zenoh(tmp_path: Path, _state_dir: Path) ->
             assert {k: v for k, v in edge_now.items() if "@r3" not in k} == {
                 k: v for k, v in edge_before.items() if "@r3" not in k}
             assert {k for k in edge_now if "@r3" in k} == {k for k in edge_before if "@r3" in k}
+            slam_now = _pids(slam_box)
+            assert {k: v for k, v in slam_now.items() if "@r3" not in k} == {
+                k: v for k, v in slam_before.items() if "@r3" not in k}
+            assert {k for k in slam_now if "@r3" in k} == {k for k in slam_before if "@r3" in k}
             _more(outs, ("r3", "r1", "r2"), timeout=60)  # the stand-in on r3's router, which came back, asks on
+            r3_back = len(_heard(outs["r3"], "r3", "slam/count"))
+            assert poll(lambda: len(_heard(outs["r3"], "r3", "slam/count")) > r3_back or None, timeout=30), \
+                "r3's new SLAM instance never answered it"
+            _own_instances(outs, slam_log, ROBOTS)
+
+            shown_last: list[str] = []
 
             def rows() -> dict[str, Any] | None:  # the edge routers and monitors write their figures every second
                 shown = runner.invoke(app, ["status", str(manifest), *local, "--json"])
                 assert shown.exit_code == 0, shown.output
+                shown_last[:] = [shown.output]
                 found = {r["robot"]: r for r in json.loads(shown.output)["robots"]}
                 return found if all(found.get(r, {}).get("served") for r in ROBOTS) else None
 
             robot_rows = poll(rows, timeout=30)
             assert robot_rows is not None, "status never showed every robot served"
             for robot, row in robot_rows.items():  # each robot's own link and its namespaced topics
-                mine = {f"/{robot}/plan_request", f"/{robot}/plan_result"}
-                assert row["links_up"] == 1 and row["topics"] and set(row["topics"]) <= mine, row
+                mine = {f"/{robot}/{t}" for t in ("plan_request", "plan_result", "scan", "slam/count")}
+                assert row["links_up"] == 2 and row["topics"] and set(row["topics"]) <= mine, row
+            assert all(f'"slam@{r}"' in shown_last[0] for r in ROBOTS), shown_last  # each instance by its name
+            logs = runner.invoke(app, ["logs", "slam@r2", str(manifest)])
+            assert logs.exit_code == 0 and "slam up in /r2: /r2/scan -> /r2/slam/count" in logs.output, logs.output
         finally:
             down = runner.invoke(app, ["down", str(manifest), *local, "--yes"])
     assert down.exit_code == 0, down.output

@@ -30,6 +30,11 @@ A fleet (``robots:``) adds per-robot access and shared nodes (:func:`fleet_docum
   ``/r1/<request>`` to the node's ``/<request>``, each reply back to the robot that asked only.
 - Each robot's edge router (``zenoh-edge-router@<robot>``) lets the cloud routers reach that robot's
   namespace only; a robot dropped from ``robots:`` has its edge processes stopped, the others untouched.
+- A per-robot node (``serve: per_robot``) runs one instance per robot, ``node-<node>@<robot>``, with ROS 2's
+  ``--ros-args -r __ns:=/<robot> -r /scan:=/<robot>/scan ...``
+  (:func:`fogiac.net.zenoh.middleware.instance_args`): its topics are in the robot's namespace, so the
+  namespace rules above carry robot r1's to r1's instance only and that instance's outputs to r1 only; it gets
+  no fleet process, and the fleet file and router need nothing more for it.
 """
 
 from __future__ import annotations
@@ -184,12 +189,13 @@ def fleet_path(where: Where) -> str:
 def shared_pairs(plan: Plan, spec: HostSpec) -> list[tuple[str, tuple[str, ...], tuple[str, ...]]]:
     """The host's shared request/reply nodes: (node, its listed inputs outside every robot's namespace, its
     outputs likewise), the topics :mod:`fogiac.net.zenoh.fleet` carries to and from each robot's namespace. A
-    topic already another node's pair is left out (one mux per topic)."""
+    topic already another node's pair is left out (one mux per topic). A per-robot node is no pair: each of its
+    instances already takes its topics in its robot's namespace, which that robot alone may cross."""
     namespaces = tuple(f"/{edge.name}/" for edge in plan.edges)
     pairs: list[tuple[str, tuple[str, ...], tuple[str, ...]]] = []
     taken: set[str] = set()
     for node in plan.nodes:
-        if node.host != spec.name:
+        if node.host != spec.name or node.per_robot:
             continue
         requests = tuple(sorted({t for t in node.topics_in if not t.startswith(namespaces)}))
         replies = tuple(sorted({t for t in node.topics_out if not t.startswith(namespaces)}))

@@ -13,6 +13,15 @@ from fogiac.net.zenoh.config import ROUTER_PORT
 ROUTER = "zenoh-router"  # the host's router service, which nodes start after
 
 
+def instance_args(robot: str, topics: tuple[str, ...]) -> tuple[str, ...]:
+    """ROS 2's command-line arguments (rclcpp and rclpy read them, ``ros2 run`` passes them on) for a node's
+    instance serving ``robot``: its namespace ``/<robot>`` and each listed topic remapped into it
+    (``-r /scan:=/arm1/scan``), in a ``--ros-args`` block of their own (a command may hold one already). The
+    fleet's routers let robot ``arm1`` cross ``/arm1/...`` only, so its topics reach this instance alone."""
+    remaps = (f"__ns:=/{robot}", *(f"{topic}:=/{robot}{topic}" for topic in sorted(set(topics))))
+    return ("--ros-args", *(arg for remap in remaps for arg in ("-r", remap)))
+
+
 @dataclass(frozen=True)
 class ZenohMiddleware:
     name: str = "zenoh"
@@ -31,7 +40,8 @@ class ZenohMiddleware:
     block: type[Any] | None = None  # its settings are the manifest's shared relay: block (compile reads it)
     launching: Launching = Launching(
         command=("ros2", "launch"), has_packages='[ -n "$(find src -name package.xml -print -quit 2>/dev/null)" ]',
-        tool="colcon", build="colcon build", overlay="install/setup.bash", package_path=False, image_has_tool=False)
+        tool="colcon", build="colcon build", overlay="install/setup.bash", package_path=False, image_has_tool=False,
+        instance_args=instance_args)
 
     def edge_entry(self, edge: Any) -> str:
         return str(edge.zenoh_router)

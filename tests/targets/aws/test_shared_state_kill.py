@@ -36,7 +36,7 @@ import pytest
 
 from fogiac.store import TEST_KILL_AFTER_WRITES
 from tests.conftest import REPO
-from tests.support.forkserver import ForkServer
+from tests.support.forkserver import ForkServer, forks_fixture
 
 pytestmark = [pytest.mark.localstack, pytest.mark.ros]
 
@@ -131,13 +131,7 @@ def robot(tmp_path: Path) -> Iterator[str]:
         yield env["ROS_MASTER_URI"]
 
 
-@pytest.fixture(scope="module")
-def forks() -> Iterator[ForkServer]:
-    """The fork server every command of the module's walks starts from (tests/support/forkserver.py)."""
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")]))}
-    server = ForkServer(env, REPO)
-    yield server
-    server.close()
+forks = pytest.fixture(scope="module")(forks_fixture)  # every command of the module's walks starts from it
 
 
 @pytest.fixture

@@ -8,13 +8,15 @@ from pathlib import Path
 
 import pytest
 
-from tests.targets.aws.test_shared_state_kill import robot, walk_up_and_down
+from tests.support.forkserver import ForkServer
+from tests.targets.aws.test_shared_state_kill import forks, robot, walk_up_and_down
 
 pytestmark = pytest.mark.ros
-__all__ = ["robot"]  # the fixture, found by pytest in this module's names
+__all__ = ["forks", "robot"]  # the fixtures, found by pytest in this module's names
 
 
 @pytest.mark.timeout(900)
 def test_up_and_down_killed_at_each_folder_store_write_leave_a_record_a_rerun_completes(robot: str,
-                                                                                       tmp_path: Path) -> None:
-    walk_up_and_down(robot, tmp_path, None)
+                                                                                       tmp_path: Path,
+                                                                                       forks: ForkServer) -> None:
+    walk_up_and_down(robot, tmp_path, None, forks)

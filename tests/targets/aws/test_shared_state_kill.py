@@ -15,19 +15,18 @@ the last kill left): ``up`` 7 (lock taken; record begun; hosts recorded before p
 with their folders; edge recorded; record finished; lock dropped), ``down`` 3 (lock taken; what it took down
 dropped from the record; the record marked removed), each ``state migrate`` 5 (source lock, destination lock,
 record written there, destination lock dropped, source lock dropped). No two points hit the same write. The
-other operator's reads after each kill (``state show`` and ``state unlock`` in each store, ``status``) run in
-one fresh process per kill (tests/support/cli_batch.py): as separate processes they were most of the walk's
-time.
+other operator's reads after each kill are ``state show`` and ``state unlock`` in each store and ``status``.
+Every command is a process of its own forked from one that has already imported fogiac
+(tests/support/forkserver.py): each paying Python's start and fogiac's imports was most of the walks' time.
 """
 
 from __future__ import annotations
 
 import copy
+import itertools
 import json
 import os
 import signal
-import subprocess
-import sys
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
@@ -37,6 +36,7 @@ import pytest
 
 from fogiac.store import TEST_KILL_AFTER_WRITES
 from tests.conftest import REPO
+from tests.support.forkserver import ForkServer, forks_fixture
 
 pytestmark = [pytest.mark.localstack, pytest.mark.ros]
 
@@ -53,7 +53,7 @@ MOST_WRITES = 12  # a command that still has not finished after this many is a b
 class Member:
     """One operator's environment: a state folder, the shared store's URL or none (the folder store)."""
 
-    def __init__(self, root: Path, url: str | None, edge: str) -> None:
+    def __init__(self, root: Path, url: str | None, edge: str, forks: ForkServer) -> None:
         self.name = f"kill{uuid.uuid4().hex[:6]}"
         self.stack = f"{self.name}-dev"
         self.cwd = root / "checkout"
@@ -61,6 +61,10 @@ class Member:
         (self.cwd / "fogiac.yaml").write_text(MANIFEST.format(name=self.name, edge=edge))
         self.state = root / "state"
         self.url = url
+        self.forks = forks
+        self.said = root / "said"  # each command's output, a file each
+        self.said.mkdir(exist_ok=True)
+        self.count = itertools.count()
 
     def env(self, *, kill_after: int | None = None, url: str | None = None) -> dict[str, str]:
         env = {k: v for k, v in os.environ.items() if k not in ("FOGIAC_STATE_URL", TEST_KILL_AFTER_WRITES)}
@@ -74,26 +78,12 @@ class Member:
 
     def run(self, *args: str, kill_after: int | None = None, url: str | None = None) -> tuple[int, str, int]:
         """The command's exit status (``-9``: it killed itself), what it said, and its pid."""
-        proc = subprocess.Popen([sys.executable, "-m", "fogiac", *args], cwd=self.cwd, stdout=subprocess.PIPE,
-                                stderr=subprocess.STDOUT, text=True, env=self.env(kill_after=kill_after, url=url),
-                                start_new_session=True)
-        try:
-            out = proc.communicate(timeout=300)[0]
-        finally:
-            if proc.poll() is None:
-                os.killpg(proc.pid, signal.SIGKILL)
-                proc.wait()
-        return proc.returncode, out, proc.pid
+        return self.forks.run(list(args), cwd=self.cwd, env=self.env(kill_after=kill_after, url=url),
+                              out=self.said / f"{next(self.count)}.txt", timeout=300)
 
     def batch(self, calls: list[tuple[list[str], str | None]]) -> list[tuple[int, str]]:
-        """Several read-only commands (argv, store URL) one after another in one fresh process
-        (tests/support/cli_batch.py): what each returned and said."""
-        env = self.env()
-        asked = [{"argv": argv, "env": {"FOGIAC_STATE_URL": url or self.url}} for argv, url in calls]
-        done = subprocess.run([sys.executable, "-m", "tests.support.cli_batch"], cwd=self.cwd, input=json.dumps(asked),
-                              capture_output=True, text=True, env=env, timeout=300)
-        assert done.returncode == 0, done.stderr
-        return [(int(code), str(out)) for code, out in json.loads(done.stdout)]
+        """Several read-only commands (argv, store URL), one after another: what each returned and said."""
+        return [self.run(*argv, url=url)[:2] for argv, url in calls]
 
     def other(self, state: Path) -> Member:
         """Another operator of the same stack: their own state folder, the same manifest and store."""
@@ -139,6 +129,9 @@ def robot(tmp_path: Path) -> Iterator[str]:
         pytest.skip(why)
     with roscore(tmp_path / "robot") as env:  # the robot's own master, which up connects the stack to
         yield env["ROS_MASTER_URI"]
+
+
+forks = pytest.fixture(scope="module")(forks_fixture)  # every command of the module's walks starts from it
 
 
 @pytest.fixture
@@ -204,9 +197,9 @@ def _running(folder: Path) -> list[int]:
     return found
 
 
-def walk_up_and_down(robot: str, tmp_path: Path, url: str | None) -> None:
+def walk_up_and_down(robot: str, tmp_path: Path, url: str | None, forks: ForkServer) -> None:
     """``up`` then ``down``, each killed at every store write in turn; ``url``: the S3 store, None: the folder."""
-    member = Member(tmp_path, url, robot)
+    member = Member(tmp_path, url, robot, forks)
     # with a shared store another operator reads, unlocks and runs the command again
     other = member.other(tmp_path / "other-state") if url else member
     try:
@@ -236,16 +229,16 @@ def walk_up_and_down(robot: str, tmp_path: Path, url: str | None) -> None:
 
 @pytest.mark.timeout(900)
 def test_up_and_down_killed_at_each_store_write_leave_a_record_a_rerun_completes(
-        robot: str, tmp_path: Path, bucket: str) -> None:
+        robot: str, tmp_path: Path, bucket: str, forks: ForkServer) -> None:
     """The S3 store; the folder store's walk is tests/test_store_kill.py (it needs no emulator, so it runs
     beside this folder's one worker)."""
-    walk_up_and_down(robot, tmp_path, bucket)
+    walk_up_and_down(robot, tmp_path, bucket, forks)
 
 
 @pytest.mark.timeout(900)
 def test_state_migrate_killed_at_each_store_write_is_finished_by_a_rerun(
-        bucket: str, robot: str, tmp_path: Path) -> None:
-    member = Member(tmp_path, None, robot)
+        bucket: str, robot: str, tmp_path: Path, forks: ForkServer) -> None:
+    member = Member(tmp_path, None, robot, forks)
     try:
         code, out, _ = member.run("up", "fogiac.yaml", "--yes")
         assert code == 0, out

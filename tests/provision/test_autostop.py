@@ -113,6 +113,14 @@ def test_sandbox_stops_when_its_edge_leaves_and_up_starts_it_again(tmp_path: Pat
         assert up.exit_code == 0, up.output
         (host,) = _status(runner, manifest)["hosts"]
         assert host["nodes"][0]["running"] is True
+        # The watchdog saw the edge linked (idle_since None) before it leaves: from then on idle_s alone counts.
+        # Leaving earlier, before its first poll saw the link, tests the start grace (60 s) instead, which
+        # took this test past its deadline on a loaded machine.
+        deadline = time.monotonic() + 60
+        while (host["autostop"] or {"idle_since": 0})["idle_since"] is not None:
+            assert time.monotonic() < deadline, f"the watchdog never saw the edge linked: {host}"
+            time.sleep(0.2)
+            (host,) = _status(runner, manifest)["hosts"]
 
         stop_edge(plan, keep_master=True)  # the edge disconnects
         deadline = time.monotonic() + 60

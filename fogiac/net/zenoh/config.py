@@ -247,8 +247,9 @@ def cloud_router(route: Route, *, listen_host: str, tls: TlsFiles, edge_name: st
 
     One robot (``edge_name``): the route's topics (:func:`access_control`). A fleet (``robots``: each robot's
     name -> its edge router certificate's common name, ``revoked`` the names cut off): each robot only its own
-    namespace (:func:`fleet_access_control`). Zenoh reads access control once, when the router opens: a
-    running router learns a new fleet (a robot added or revoked) only by being restarted on the new config."""
+    namespace (:func:`fleet_access_control`). Zenoh reads access control once, when the router opens; a
+    deployed fleet's router (``--fleet-file``) therefore serves the TLS address itself and holds each robot's
+    rules in a router of the robot's own (:mod:`fogiac.net.zenoh.gate`), so that robots come and go alone."""
     if robots is None and not edge_name:
         raise ValueError("a cloud router needs its edge's certificate name (edge_name) or a fleet (robots)")
     config = _base(listen=(f"tls/{listen_host}:{route.port}", f"tcp/127.0.0.1:{local_port}"), connect=(),

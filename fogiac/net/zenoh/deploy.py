@@ -22,9 +22,10 @@ A fleet (``robots:``) adds per-robot access and shared nodes (:func:`fleet_docum
 
 - Each host's router follows a fleet file beside its certificates (``zenoh-fleet.json``, 0600): every
   robot's certificate name and edge router id and the revoked robots. Each robot may cross only its own
-  namespace ``/<robot>/...`` (:func:`fogiac.net.zenoh.config.fleet_access_control`); the router reloads
-  its rules in-process when provisioning or ``fogiac robot revoke|restore`` rewrites the file, so no
-  service restarts and every pid stays.
+  namespace ``/<robot>/...``; the router process admits each robot by its certificate at its own TLS gate
+  and gives it a router of its own holding its rules (:mod:`fogiac.net.zenoh.gate`). When provisioning or
+  ``fogiac robot revoke|restore`` rewrites the file, only the robots changed are admitted or refused (a
+  robot refused has its links closed): no service restarts, every pid stays, no other robot's link drops.
 - Each shared request/reply node (its listed inputs and outputs outside every robot's namespace) gets a
   ``zenoh-fleet-<node>`` service on its host (:mod:`fogiac.net.zenoh.fleet`): robot r1's
   ``/r1/<request>`` to the node's ``/<request>``, each reply back to the robot that asked only.
@@ -54,6 +55,7 @@ from fogiac.net import hostcert
 from fogiac.net.replicas import groups_of, host_figures
 from fogiac.net.zenoh import tls
 from fogiac.net.zenoh.config import TlsFiles, cloud_router, edge_router
+from fogiac.net.zenoh.gate import front_id
 from fogiac.net.zenoh.middleware import ROUTER
 from fogiac.net.zenoh.replicas import SUPPORTED_MATCH, replica_prefix
 from fogiac.plan.model import EdgeSpec, HostSpec, Plan, Route
@@ -79,6 +81,12 @@ def _zid(seed: str) -> str:
 def router_id(stack: str, host: str) -> str:
     """A fixed Zenoh id per cloud router, so the edge can tell which host it is linked to."""
     return _zid(f"{stack}/{host}")
+
+
+def linked_id(plan: Plan, host: str, edge: EdgeSpec) -> str:
+    """The Zenoh id ``edge``'s router sees of ``host``'s router: the host's router's (:func:`router_id`); in a
+    fleet, that of the robot's own front behind the host's TLS gate (:mod:`fogiac.net.zenoh.gate`)."""
+    return front_id(router_id(plan.stack, host), edge.name) if plan.fleet else router_id(plan.stack, host)
 
 
 def edge_router_id(stack: str, edge: str | None = None) -> str:
@@ -393,7 +401,7 @@ def edge_links(plan: Plan, *, folder: Path, connect: Mapping[str, str]) -> list[
             mine = [{**figures[m], "direction": "in" if t in route.to_cloud else "out"}
                     for t, m in seen.items() if m is not None and m in figures]
             links.append({"host": route.host, "connect": connect[route.host],
-                          "connected": router_id(plan.stack, route.host) in linked, "topics": mine,
+                          "connected": linked_id(plan, route.host, edge) in linked, "topics": mine,
                           **({"edge": edge.name} if suffix else {}),
                           **({"replica": replicas[route.host]} if route.host in replicas else {})})
     return links

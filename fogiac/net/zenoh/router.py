@@ -6,10 +6,12 @@ is an optional extra (``fogiac[ros2]``), imported through :func:`fogiac.extras.n
 
 A fleet's cloud router also follows a fleet file (``--fleet-file``: each robot's certificate name and edge
 router id, the revoked robots; :func:`fogiac.net.zenoh.deploy.fleet_document`). Zenoh reads access control
-once, when a session opens, so when the file changes this process closes its session and opens another on
-the new rules (half a second, the same process): a robot added, removed or revoked restarts no service, and
-the host's nodes and the other robots' edge routers, which redial, carry on. Until the file exists no robot
-gets anything.
+once, when a session opens, and cannot refuse a TLS link by certificate; so this process serves a fleet as
+:mod:`fogiac.net.zenoh.gate` describes: its own TLS gate on the edges' address, which refuses any certificate
+but an admitted robot's, and a router per robot behind it holding that robot's rules. When the file changes,
+only the robots added, removed, revoked or restored are touched (within a second): a robot cut off has its
+links closed and its redials refused, and no other robot's link drops. Until the file exists no robot is
+admitted.
 """
 
 from __future__ import annotations
@@ -19,20 +21,16 @@ import json
 import signal
 import sys
 import threading
-import time
 from pathlib import Path
 from typing import Any
 
 from fogiac.extras import need
 from fogiac.net.zenoh.config import fleet_access_control
 from fogiac.net.zenoh.errors import ZenohError
+from fogiac.net.zenoh.gate import FleetRouter, read_fleet
 from fogiac.state import write_json_atomic
 
 STATS_PERIOD_S = 1.0
-# Between closing the session and opening the next on new fleet rules: an edge router that redials while the
-# old session is still closing was seen left without routes for good (1 reload in ~10, zenoh 1.10.2, loopback);
-# with a pause none was in 24, and the edge routers' redial (at most 2 s apart) still links them within 4 s.
-REOPEN_PAUSE_S = 1.0
 
 
 def open_router(config: dict[str, Any]) -> Any:
@@ -45,17 +43,12 @@ def open_router(config: dict[str, Any]) -> Any:
 
 
 def fleet_config(config: dict[str, Any], fleet: Path) -> tuple[dict[str, Any], list[str]]:
-    """``config`` with the fleet file's access control (no robot when the file is absent), and the edge router
-    ids that count as connected (the robots not revoked). A file that cannot be read raises ValueError/OSError."""
-    doc = json.loads(fleet.read_text()) if fleet.exists() else {"robots": {}, "revoked": []}
-    robots = doc.get("robots", {}) if isinstance(doc, dict) else None
-    revoked = set(map(str, doc.get("revoked", []))) if isinstance(doc, dict) else set()
-    if not isinstance(robots, dict) or not all(isinstance(r, dict) and {"common_name", "zid"} <= set(r)
-                                               for r in robots.values()):
-        raise ValueError(f"{fleet}: robots is not a mapping of robot -> {{common_name, zid}}")
-    names = {name: str(robot["common_name"]) for name, robot in robots.items()}
-    made = {**config, "access_control": fleet_access_control(names, revoked=revoked)}
-    return made, [str(robot["zid"]) for name, robot in robots.items() if name not in revoked]
+    """``config`` with the fleet file's rules as one router session would hold them (no robot when the file is
+    absent), and the edge router ids that count as connected (the robots not revoked). A file that cannot be
+    read raises ValueError/OSError. The gate's fronts hold the same rules robot by robot."""
+    doc = read_fleet(fleet)
+    made = {**config, "access_control": fleet_access_control(doc.robots, revoked=doc.revoked)}
+    return made, [doc.zids[name] for name in doc.robots if name not in doc.revoked]
 
 
 def _read(path: Path | None) -> bytes | None:
@@ -71,36 +64,57 @@ def serve(config_path: Path, *, stats: Path | None = None, edge_id: str | list[s
     and whether the edge's is one of them (``connected``, which autostop reads). With ``edge_id`` only
     that router counts: a zenohd or a bridge on the host linked to the loopback port is no edge.
     Without it (the edge's own router), any linked router counts. Several ids: one edge router per edge,
-    any of them counts. ``fleet``: the fleet file whose rules and robots replace ``config``'s and
-    ``edge_id``'s, followed while it runs (the module docstring)."""
+    any of them counts. ``fleet``: the fleet file whose robots replace ``edge_id``, followed while it runs
+    (the module docstring)."""
     config = json.loads(config_path.read_text())
-    edges = [edge_id] if isinstance(edge_id, str) else list(edge_id or [])
-    seen = _read(fleet)
-    opened, edges = fleet_config(config, fleet) if fleet is not None else (config, edges)
     stop = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: stop.set())
-    session = open_router(opened)
+    if fleet is not None:
+        _serve_fleet(config, fleet, stats=stats, stop=stop)
+        return
+    edges = [edge_id] if isinstance(edge_id, str) else list(edge_id or [])
+    session = open_router(config)
     print("ready", flush=True)
     try:
-        while not stop.wait(STATS_PERIOD_S if stats is not None or fleet is not None else None):
-            if fleet is not None and (now := _read(fleet)) != seen:
-                seen = now
-                try:
-                    opened, edges = fleet_config(config, fleet)
-                except (OSError, ValueError, KeyError, TypeError) as err:  # half an edit: the rules of before stand
-                    print(f"error: {fleet}: {err}; the rules of before stand", file=sys.stderr, flush=True)
-                else:
-                    session.close()
-                    time.sleep(REOPEN_PAUSE_S)
-                    session = open_router(opened)
-                    print(f"fleet rules reloaded: {len(edges)} robot(s) admitted", file=sys.stderr, flush=True)
-            if stats is not None:
-                routers = sorted(str(z) for z in session.info.routers_zid())
-                linked = bool(set(edges) & set(routers)) if edges else bool(routers)
-                write_json_atomic(stats, {"routers": routers, "connected": linked})
+        while not stop.wait(STATS_PERIOD_S if stats is not None else None):
+            routers = sorted(str(z) for z in session.info.routers_zid())
+            _write_stats(stats, routers, edges)
     finally:
         session.close()
+
+
+def _write_stats(stats: Path | None, routers: list[str], edges: list[str]) -> None:
+    if stats is not None:
+        linked = bool(set(edges) & set(routers)) if edges else bool(routers)
+        write_json_atomic(stats, {"routers": routers, "connected": linked})
+
+
+def _serve_fleet(config: dict[str, Any], fleet: Path, *, stats: Path | None, stop: threading.Event) -> None:
+    """A fleet's router (:mod:`fogiac.net.zenoh.gate`): the fleet file applied robot by robot, each second it
+    changed; one that cannot be read leaves the robots of before (none, at the start)."""
+    router = FleetRouter(config, open_router=open_router)
+    router.start()
+    seen: bytes | None = None
+    edges: list[str] = []
+    print("ready", flush=True)
+    try:
+        while True:
+            if (now := _read(fleet)) != seen or seen is None:
+                seen = now
+                try:
+                    doc = read_fleet(fleet)
+                except (OSError, ValueError, KeyError, TypeError) as err:  # half an edit: the robots of before stand
+                    print(f"error: {fleet}: {err}; the robots of before stand", file=sys.stderr, flush=True)
+                else:
+                    for change in router.apply(doc):
+                        print(change, file=sys.stderr, flush=True)
+                    edges = [doc.zids[r] for r in doc.admitted.values()]
+            _write_stats(stats, router.routers(), edges)
+            if stop.wait(STATS_PERIOD_S):
+                break
+    finally:
+        router.close()
 
 
 if __name__ == "__main__":

@@ -17,7 +17,8 @@ import pytest
 from fogiac.hostmodel import Layout, Where
 from fogiac.manifest.schema import parse_manifest
 from fogiac.net.zenoh import deploy, tls
-from fogiac.net.zenoh.config import TlsFiles, edge_router
+from fogiac.net.zenoh.config import TlsFiles, cloud_router, edge_router
+from fogiac.net.zenoh.gate import front_access_control, front_id, read_fleet, split_config
 from fogiac.net.zenoh.router import fleet_config
 from fogiac.plan import fleet
 from fogiac.plan.compile import compile_plan
@@ -121,3 +122,44 @@ def test_the_router_reads_its_fleet_file_and_refuses_one_it_cannot(tmp_path: Pat
         fleet.write_text(shape)
         with pytest.raises(ValueError, match="robots is not a mapping"):
             fleet_config(base, fleet)
+
+
+def test_a_robots_front_lets_its_gate_link_cross_its_namespace_only_and_its_id_is_fixed() -> None:
+    """Behind the TLS gate (fogiac.net.zenoh.gate) each robot's own router: the link that comes in on the gate's
+    Unix socket may cross only ``*/r1/**`` and its tokens, the core's loopback link anything; and the id the
+    robot's edge sees is fixed per host and robot, which ``status`` reads as the robot's link."""
+    acl = front_access_control("r1")
+    subjects = {s["id"]: s for s in acl["subjects"]}
+    assert subjects["robot"] == {"id": "robot", "link_protocols": ["unixsock-stream"]}
+    assert subjects["core"] == {"id": "core", "link_protocols": ["tcp"], "interfaces": ["lo"]}
+    (robot,) = [p for p in acl["policies"] if p["subjects"] == ["robot"]]
+    keys = {k for rule in acl["rules"] if rule["id"] in robot["rules"] for k in rule["key_exprs"]}
+    assert acl["default_permission"] == "deny" and "*/r1/**" in keys and not [k for k in keys if "%r1%" not in k
+                                                                                 and not k.startswith("*/r1/")]
+    core = deploy.router_id("lab", "gpu")
+    assert front_id(core, "r1") == front_id(core, "r1") != front_id(core, "r2") != core
+    plan = _plan()
+    host, edge = plan.hosts[0].name, plan.edges[0]
+    assert deploy.linked_id(plan, host, edge) == front_id(deploy.router_id(plan.stack, host), edge.name)
+
+
+def test_the_gate_takes_its_address_and_files_from_the_rendered_config_and_refuses_a_config_without() -> None:
+    files = TlsFiles(ca="ca.pem", cert="server.pem", key="server.key")
+    config = cloud_router(route(7448), listen_host="10.0.0.5", tls=files, robots={}, local_port=7447)
+    core, address, pem, local = split_config(config)
+    assert address == ("10.0.0.5", 7448) and pem == {"ca": "ca.pem", "cert": "server.pem", "key": "server.key"}
+    assert core["listen"]["endpoints"] == ["tcp/127.0.0.1:7447"] == [local]  # the core has no TLS port
+    assert [s["id"] for s in core["access_control"]["subjects"]] == ["host-nodes"]
+    for broken in ({**config, "listen": {"endpoints": ["tcp/127.0.0.1:7447"]}},
+                   {**config, "transport": {"link": {"tls": {"root_ca_certificate": "ca.pem"}}}}):
+        with pytest.raises(ValueError, match="a fleet's cloud router"):
+            split_config(broken)
+
+
+def test_a_fleet_file_whose_revoked_is_not_a_list_is_refused(tmp_path: Path) -> None:
+    fleet = tmp_path / "zenoh-fleet.json"
+    fleet.write_text(json.dumps({"robots": {"r1": {"common_name": "r1.cn", "zid": "aa"}}, "revoked": "r1"}))
+    with pytest.raises(ValueError, match="revoked is not a list"):
+        read_fleet(fleet)
+    fleet.write_text(json.dumps({"robots": {"r1": {"common_name": "r1.cn", "zid": "aa"}}, "revoked": ["r1"]}))
+    assert read_fleet(fleet).admitted == {}

@@ -13,8 +13,9 @@ equal stamps from several robots are in flight at once). What ``up`` must have b
 - a session holding r1's certificate, dialing the cloud router itself (past r1's own edge router, whose rules
   a robot could change), is refused r2's topics both ways: it hears none of r2's replies and what it puts in
   r2's namespace reaches neither the planner nor r2; its own request is answered (the link carried it);
-- ``fogiac robot revoke r3``: r3 unanswered within 10 s, and a session with r3's certificate gets nothing,
-  while r1 and r2 are answered on; no process restarted (every pid kept); ``restore``: answered again;
+- ``fogiac robot revoke r3``: r3 unanswered within 10 s, and r3's certificate refused at every host's router
+  (a TLS link with it closed after the handshake, a Zenoh session with it unable to open), while r1 and r2
+  are answered on; no process restarted (every pid kept); ``restore``: answered again;
 - r3 dropped from ``robots:`` and ``up``: only its edge processes stop; added back and ``up``: only its start
   again, it is answered; the sandbox's processes keep their pids throughout; ``status`` shows each robot's
   link up and only its own namespaced topics, with requests served; ``down`` leaves nothing.
@@ -42,12 +43,22 @@ from typer.testing import CliRunner
 
 from fogiac.cli import app
 from fogiac.net.zenoh import tls
+from fogiac.net.zenoh.config import TlsFiles
 from fogiac.procs import free_port, poll
 from fogiac.state import StackState
 from tests.conftest import REPO
 from tests.fleet.test_fleet_up_local import _pids
 from tests.net.zenoh.lab import ZenohLab
-from tests.net.zenoh.test_zenoh_fleet import TYPE, _frame_id, _probe, _request, _text, ask_with_one_stamp, replies
+from tests.net.zenoh.test_zenoh_fleet import (
+    TYPE,
+    _frame_id,
+    _probe,
+    _request,
+    _text,
+    ask_with_one_stamp,
+    replies,
+    tls_link,
+)
 from tests.plugins.install import installed
 from tests.support.procs import alive, alive_pids, started_pids
 from tests.support.ros2 import standin_ros2
@@ -89,10 +100,17 @@ robots:
 """)
 
 
-def _as_robot(stack: StackState, robot: str, address: str) -> Any:
+def _files(stack: StackState, robot: str) -> TlsFiles:
+    """``robot``'s own certificate and key, as ``up`` issued them, and the stack's CA."""
+    folder = stack.edge / "zenoh"
+    return TlsFiles(ca=str(folder / "ca.pem"), cert=str(folder / f"edge-{robot}.pem"),
+                    key=str(folder / f"edge-{robot}.key"))
+
+
+def _as_robot(stack: StackState, robot: str, address: str, *, timeout_ms: int = 10000) -> Any:
     """A Zenoh session holding ``robot``'s own certificate (as ``up`` issued it), dialing the cloud router."""
     folder = stack.edge / "zenoh"
-    config = {"mode": "client", "connect": {"endpoints": [f"tls/{address}"], "timeout_ms": 10000},
+    config = {"mode": "client", "connect": {"endpoints": [f"tls/{address}"], "timeout_ms": timeout_ms},
               "scouting": {"multicast": {"enabled": False}},
               "transport": {"link": {"tls": {
                   "root_ca_certificate": str(folder / "ca.pem"), "enable_mtls": True, "verify_name_on_connect": True,
@@ -253,9 +271,10 @@ def test_up_deploys_a_ros2_fleet_over_zenoh(tmp_path: Path, _state_dir: Path) ->
             r3_slam = len(_heard(outs["r3"], "r3", "slam/count"))
             _more(outs, ("r1", "r2"))
             (edge3,) = [e for e in stack.get(StackState.EDGES) if e["name"] == "r3"]
-            for host in ("planner", "slam"):  # its certificate is refused at each cloud router's TLS gate
-                with pytest.raises(zenoh.ZError):
-                    _as_robot(stack, "r3", edge3["relays"][host]).close()
+            for host, address in edge3["relays"].items():  # its certificate refused at every host's TLS gate
+                assert tls_link(address, _files(stack, "r3"), ca=_files(stack, "r3").ca, silent_s=5) == "closed", host
+            with pytest.raises(zenoh.ZError):  # so a Zenoh session holding it cannot open
+                _as_robot(stack, "r3", edge3["relays"]["planner"], timeout_ms=1500).close()
             _more(outs, ("r1", "r2"))
             assert _answered(outs["r3"], "r3") == r3_count
             assert len(_heard(outs["r3"], "r3", "slam/count")) == r3_slam  # nor its SLAM instance's answers

@@ -107,6 +107,20 @@ def split_config(config: dict[str, Any]) -> tuple[dict[str, Any], tuple[str, int
     return core, (host.strip("[]"), int(port)), pem, local[0]
 
 
+def server_context(pem: dict[str, str]) -> ssl.SSLContext:
+    """The gate's TLS: no weaker than the Zenoh link it stands in for. TLS 1.3 only, the host's certificate, a
+    client certificate required and verified against the stack's CA (chain and dates); no session tickets, so
+    every link is a full handshake whose certificate the gate looks up (a ticket issued before a revocation
+    cannot resume past it)."""
+    context = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
+    context.minimum_version = ssl.TLSVersion.TLSv1_3
+    context.load_cert_chain(pem["cert"], pem["key"])
+    context.load_verify_locations(pem["ca"])
+    context.verify_mode = ssl.CERT_REQUIRED
+    context.num_tickets = 0
+    return context
+
+
 class FleetRouter:
     """The core, the fronts and the gate (the module docstring); :meth:`apply` takes a fleet file's robots."""
 
@@ -128,14 +142,9 @@ class FleetRouter:
 
     def start(self) -> None:
         self.core = self.open_router(self.core_config)
-        context = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
-        context.minimum_version = ssl.TLSVersion.TLSv1_2
-        context.load_cert_chain(self.pem["cert"], self.pem["key"])
-        context.load_verify_locations(self.pem["ca"])
-        context.verify_mode = ssl.CERT_REQUIRED
         self.thread.start()
         future = asyncio.run_coroutine_threadsafe(
-            asyncio.start_server(self._gate, self.address[0], self.address[1], ssl=context,
+            asyncio.start_server(self._gate, self.address[0], self.address[1], ssl=server_context(self.pem),
                                  ssl_handshake_timeout=10), self.loop)
         self.server = future.result(30)
 
@@ -198,6 +207,10 @@ class FleetRouter:
             inner_r, inner_w = await asyncio.open_unix_connection(str(front[2]))
         except OSError:
             writer.transport.abort()
+            return
+        if self.admitted.get(names[0]) != robot:  # refused while its front's socket was being dialled
+            for w in (writer, inner_w):
+                w.transport.abort()
             return
         self.links.setdefault(robot, set()).update((writer, inner_w))
         try:

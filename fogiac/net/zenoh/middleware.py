@@ -55,7 +55,10 @@ class ZenohMiddleware:
         """Access control allows exactly the listed topics: a node whose topics are "auto" has none. The replica
         merge reads a reply's key where a CDR ``header.stamp`` is (rmw_zenoh sends no message definition to
         find any other field by): a replicated node matching by anything else would have its replies keyed by
-        bytes that are not its field, so it is refused."""
+        bytes that are not its field, so it is refused. A fleet's shared node with replicas is refused too: each
+        robot links to a router of its own behind each host's gate (:mod:`fogiac.net.zenoh.gate`) and may cross
+        its own namespace only, which a replica's keys (``fogiac/replica/...``) are outside, and no fleet
+        process carries a robot's requests to a replica; a per-robot node's replicas are refused by the schema."""
         auto = [(f"ROS {manifest.ros.distro} crosses through {self.name}, whose access control allows only "
                  "listed topics: give this node topics: {in: [...], out: [...]}", f"nodes[{i}].topics")
                 for i, node in enumerate(manifest.nodes) if node.topics == "auto"]
@@ -63,7 +66,12 @@ class ZenohMiddleware:
                   f"by {DEFAULT_MATCH} only (rmw_zenoh sends no message definition to find another field by); "
                   f"give the reply a std_msgs/Header copied from its request", f"nodes[{i}].reply_match")
                  for i, node in enumerate(manifest.nodes) if node.replicas > 1 and node.reply_match != DEFAULT_MATCH]
-        return tuple(auto + match)
+        fleet = [(f"replicas: {node.replicas} in a fleet (robots:) over {self.name} (ROS {manifest.ros.distro}) is "
+                  "not built: a robot crosses only its own namespace, which a replica's keys are outside; give "
+                  "replicas: 1 or one robot (edge:)", f"nodes[{i}].replicas")
+                 for i, node in enumerate(manifest.nodes)
+                 if manifest.robots and node.replicas > 1 and node.serve != "per_robot"]
+        return tuple(auto + match + fleet)
 
 
 ZENOH = ZenohMiddleware()

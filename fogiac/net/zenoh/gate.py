@@ -26,7 +26,7 @@ from __future__ import annotations
 import asyncio
 import hashlib
 import json
-import logging
+import os
 import shutil
 import ssl
 import sys
@@ -38,7 +38,6 @@ from typing import Any
 
 from fogiac.net.zenoh.config import _RETRY, _local_rules, fleet_access_control, namespace_rules
 
-log = logging.getLogger(__name__)
 CHUNK = 65536
 
 
@@ -171,6 +170,15 @@ class FleetRouter:
             self.admitted = {**self.admitted, wanted[robot]: robot}
             changes.append(f"robot {robot}: admitted")
         return changes
+
+    def refresh(self) -> None:
+        """Touch the fronts' folder and sockets: systemd-tmpfiles deletes what in ``/tmp`` is not modified for
+        10 days (a socket is not, by being connected to), and a front whose socket is gone admits no new link."""
+        for path in (self.folder, *(sock for _, _, sock in self.fronts.values())):
+            try:
+                os.utime(path, follow_symlinks=False)
+            except OSError:
+                pass  # a front's socket not made yet
 
     def _front_config(self, robot: str, sock: Path) -> dict[str, Any]:
         config: dict[str, Any] = {

@@ -111,6 +111,7 @@ def _serve_fleet(config: dict[str, Any], fleet: Path, *, stats: Path | None, sto
                         print(change, file=sys.stderr, flush=True)
                     edges = [doc.zids[r] for r in doc.admitted.values()]
             _write_stats(stats, router.routers(), edges)
+            router.refresh()
             if stop.wait(STATS_PERIOD_S):
                 break
     finally:

@@ -9,7 +9,9 @@ broken fleet file keeps no robot it was not given. The running parts: ``tests/fl
 from __future__ import annotations
 
 import json
+import os
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -18,7 +20,7 @@ from fogiac.hostmodel import Layout, Where
 from fogiac.manifest.schema import parse_manifest
 from fogiac.net.zenoh import deploy, tls
 from fogiac.net.zenoh.config import TlsFiles, cloud_router, edge_router
-from fogiac.net.zenoh.gate import front_access_control, front_id, read_fleet, split_config
+from fogiac.net.zenoh.gate import FleetFile, FleetRouter, front_access_control, front_id, read_fleet, split_config
 from fogiac.net.zenoh.router import fleet_config
 from fogiac.plan import fleet
 from fogiac.plan.compile import compile_plan
@@ -163,3 +165,31 @@ def test_a_fleet_file_whose_revoked_is_not_a_list_is_refused(tmp_path: Path) -> 
         read_fleet(fleet)
     fleet.write_text(json.dumps({"robots": {"r1": {"common_name": "r1.cn", "zid": "aa"}}, "revoked": ["r1"]}))
     assert read_fleet(fleet).admitted == {}
+
+
+class _Session:
+    """What the gate keeps of a front's Zenoh session here: only that it can be closed (no router is opened)."""
+
+    def close(self) -> None:
+        pass
+
+
+def test_the_fronts_folder_is_private_and_kept_fresh_for_tmp_cleaners() -> None:
+    """The robots' routers listen in a folder only the router's user may enter; systemd-tmpfiles deletes what
+    in /tmp went unmodified for 10 days, so the router touches the folder and its sockets as it runs."""
+    config = cloud_router(route(7448), listen_host="127.0.0.1", robots={}, local_port=7447,
+                          tls=TlsFiles(ca="ca.pem", cert="server.pem", key="server.key"))
+    router = FleetRouter(config, open_router=lambda _config: _Session())
+    try:
+        assert router.folder.stat().st_mode & 0o777 == 0o700
+        router.apply(FleetFile(robots={"r1": "r1.cn"}, zids={"r1": "aa"}, revoked=frozenset()))
+        ((_, _, sock),) = router.fronts.values()
+        sock.write_text("")  # where r1's router listens
+        old = time.time() - 11 * 86400
+        for path in (router.folder, sock):
+            os.utime(path, (old, old))
+        router.refresh()
+        assert [p for p in (router.folder, sock) if time.time() - p.stat().st_mtime > 3600] == []
+    finally:
+        router.close()
+    assert not router.folder.exists()

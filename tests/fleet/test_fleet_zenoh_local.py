@@ -15,7 +15,7 @@ equal stamps from several robots are in flight at once). What ``up`` must have b
   r2's namespace reaches neither the planner nor r2; its own request is answered (the link carried it);
 - ``fogiac robot revoke r3``: r3 unanswered within 10 s, and r3's certificate refused at every host's router
   (a TLS link with it closed after the handshake, a Zenoh session with it unable to open), while r1 and r2
-  are answered on; no process restarted (every pid kept); ``restore``: answered again;
+  are answered on, every request of theirs until r3 is restored; no process restarted (every pid kept); ``restore``: answered again;
 - r3 dropped from ``robots:`` and ``up``: only its edge processes stop; added back and ``up``: only its start
   again, it is answered; the sandbox's processes keep their pids throughout; ``status`` shows each robot's
   link up and only its own namespaced topics, with requests served; ``down`` leaves nothing.
@@ -253,6 +253,7 @@ def test_up_deploys_a_ros2_fleet_over_zenoh(tmp_path: Path, _state_dir: Path) ->
 
             # Revoked: r3 unanswered within 10 s, its certificate refused; r1 and r2 answered on; no restart.
             host_before, edge_before, slam_before = _pids(sandbox), _pids(stack.edge), _pids(slam_box)
+            since = {r: max(e["seq"] for e in _heard(outs[r], r)) for r in ("r1", "r2")}
             planner_child = (sandbox / "run" / "node-planner.child").read_text().split()[0]
             cut = time.monotonic()
             revoked = runner.invoke(app, ["robot", "revoke", "r3", str(manifest), *local])
@@ -286,6 +287,9 @@ def test_up_deploys_a_ros2_fleet_over_zenoh(tmp_path: Path, _state_dir: Path) ->
             restored = runner.invoke(app, ["robot", "restore", "r3", str(manifest), *local])
             assert restored.exit_code == 0, restored.output
             _more(outs, ("r3", "r1"))
+            for robot in ("r1", "r2"):  # while r3 was cut off and let back, none of their requests went unanswered
+                seqs = {e["seq"] for e in _heard(outs[robot], robot)}
+                assert sorted(set(range(since[robot], max(seqs) + 1)) - seqs) == [], f"{robot} lost requests"
             assert _pids(sandbox) == host_before and _pids(stack.edge) == edge_before
 
             # r3 dropped from robots: and up: only its edge processes stop; added back: only they start again.

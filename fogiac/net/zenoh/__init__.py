@@ -6,7 +6,8 @@ edge router dials every cloud router (it never listens beyond loopback), so it w
 Client VPN's source NAT and home NAT; the robot's rmw_zenoh nodes (or zenoh-bridge-ros2dds for
 DDS robots) connect to it. Modules: ``middleware`` (the registry entry), ``config`` (pure
 rendering of router configs), ``tls`` (one certificate per host from fogiac's CA), ``router``
-(a router process for hosts without ``zenohd``; a fleet's follows its fleet file), ``monitor`` (latency
+(a router process for hosts without ``zenohd``; a fleet's follows its fleet file), ``gate`` (a fleet's
+router: a TLS gate that admits a robot by its certificate, and a router per robot behind it), ``monitor`` (latency
 and throughput topics), ``fleet`` (a fleet's shared request/reply node: each reply to the robot that asked),
 ``deploy`` (what ``up`` runs where, a fleet's files and processes included).
 """

@@ -233,6 +233,9 @@ class FleetRouter:
             writer.transport.abort()
 
     def close(self) -> None:
+        """Stop admitting, then close every router. The sockets' folder goes first, so that a process killed
+        while closing (a supervisor's grace run out) leaves nothing in /tmp."""
+        shutil.rmtree(self.folder, ignore_errors=True)
         if self.server is not None:
             self.loop.call_soon_threadsafe(self.server.close)
         for robot in list(self.fronts):

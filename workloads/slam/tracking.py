@@ -292,9 +292,7 @@ class Tracker:
         kf = Keyframe(len(self.map.keyframes), f, pose, point_ids)
         self.map.keyframes.append(kf)
         if self.mono:
-            prior = monocular.median_depth(self.map, kf)
-            for previous in self.map.keyframes[-1 - monocular.PAIR_KEYFRAMES:-1][::-1]:  # nearest first
-                monocular.triangulate_new_points(self.map, self.intrinsics, kf, previous, prior)
+            monocular.add_new_points(self.map, self.intrinsics, kf)
         else:
             fresh = np.flatnonzero((point_ids < 0) & (f.depth > 0))
             cam = self.intrinsics.backproject(f.uv[fresh].astype(np.float64), f.depth[fresh].astype(np.float64))

@@ -72,6 +72,7 @@ def testset(
     mode: str = typer.Option("rgbd,mono", help="rgbd, mono or both"),
     cores: int = typer.Option(0, help="CPUs to run on (0: all this process may use)"),
     as_json: bool = typer.Option(False, "--json", help="one JSON line per run"),
+    check: bool = typer.Option(False, "--check", help="exit 1 if a run misses the issue's ATE or extent target"),
 ) -> None:
     """The harder rendered test set: ATE after alignment and the aligned extent per axis against the truth."""
     from workloads.slam.testset import SEQUENCES, run_testset  # noqa: PLC0415
@@ -83,8 +84,12 @@ def testset(
     modes = tuple(m for m in mode.split(",") if m)
     if not modes or set(modes) - {"rgbd", "mono"}:
         raise WorkloadError(f"--mode {mode!r}: give rgbd, mono or rgbd,mono")
+    missed = []
     for row in run_testset(cache, names=names or None, modes=modes, cores=cores):
         typer.echo(json.dumps(row.summary()) if as_json else row.line())
+        missed += [f"{row.name} {row.mode}" for _ in row.misses()[:1]]
+    if check and missed:
+        raise WorkloadError(f"{len(missed)} run(s) miss the targets (ATE, extent within 10%): {', '.join(missed)}")
 
 
 @app.command(context_settings={"allow_extra_args": True, "ignore_unknown_options": True})

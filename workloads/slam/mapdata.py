@@ -61,6 +61,19 @@ class Map:
     links: dict[int, set[int]] = field(default_factory=dict)  # keyframes joined by a closed loop
     epoch: int = 0  # bumped by each loop correction: back-end answers computed before it are stale
 
+    def keyframes_in_view(self, pose: np.ndarray, *, exclude: set[int], count: int, max_angle_deg: float,
+                          max_distance: float, min_distance: float = 0.0) -> list[int]:
+        """Up to ``count`` keyframes not in ``exclude`` whose optical axis is within ``max_angle_deg``
+        of ``pose``'s and whose centre is ``min_distance`` to ``max_distance`` from it, nearest in angle first."""
+        older = [kf for kf in self.keyframes if kf.id not in exclude]
+        if count <= 0 or not older:
+            return []
+        cos = np.array([kf.pose[:3, 2] for kf in older]) @ pose[:3, 2]
+        dist = np.linalg.norm(np.array([kf.pose[:3, 3] for kf in older]) - pose[:3, 3], axis=1)
+        ok = np.flatnonzero((cos >= np.cos(np.radians(max_angle_deg))) & (dist <= max_distance)
+                            & (dist >= min_distance))
+        return [older[i].id for i in ok[np.argsort(-cos[ok], kind="stable")][:count]]
+
     def point_ids_of(self, keyframe_ids: list[int]) -> np.ndarray:
         seen = [self.keyframes[k].point_ids for k in keyframe_ids]
         ids = np.concatenate(seen) if seen else np.zeros(0, np.int64)

@@ -221,6 +221,18 @@ class Initialiser:
 # the swing (11.3 cm, z 0.51); with 4 at 0.7 degrees 141/150, 2.2 cm, x 0.99 z 1.09.
 PAIR_KEYFRAMES = 4
 PRIOR_MIN_PARALLAX_DEG = 0.7
+# ... and with up to WIDE_KEYFRAMES older keyframes that look the same way (optical axes within
+# WIDE_ANGLE_DEG) from WIDE_MIN_BASELINE to WIDE_MAX_BASELINE of its median depth away. A camera
+# that swings back over what it saw moves on while it turns, but its keyframes in the swing come
+# every few frames and are too close together for any pair to triangulate; with nothing new to
+# track, the map ran out and the rest of the swing was lost (rendered turn-0, measured 28 Nov:
+# keyframes 8-14 gave no new point, their map positions stalled 4-6 cm short of the truth, and
+# frames 77-147 were lost). The keyframe that saw the same view on the way out is 0.3 m (11% of
+# the depth) away.
+WIDE_KEYFRAMES = 2
+WIDE_ANGLE_DEG = 20.0
+WIDE_MIN_BASELINE = 0.03
+WIDE_MAX_BASELINE = 0.5
 
 
 def _prior_parallax(k: np.ndarray, pose_a: np.ndarray, pose_b: np.ndarray, uv_b: np.ndarray,
@@ -241,6 +253,19 @@ def median_depth(m: Map, kf: Keyframe) -> float | None:
     z = transform(inverse(kf.pose), m.points.pos[ids])[:, 2]
     z = z[z > 0]
     return float(np.median(z)) if len(z) else None
+
+
+def add_new_points(m: Map, intrinsics: Intrinsics, new: Keyframe) -> int:
+    """Triangulate ``new`` (the newest keyframe) with the keyframes before it and those that saw the
+    same view from a wider baseline; the number of points added."""
+    prior = median_depth(m, new)
+    pairs = [kf for kf in m.keyframes[-1 - PAIR_KEYFRAMES:] if kf.id != new.id][::-1]  # nearest first
+    if prior is not None:
+        wide = m.keyframes_in_view(new.pose, exclude={new.id, *(kf.id for kf in pairs)}, count=WIDE_KEYFRAMES,
+                                   max_angle_deg=WIDE_ANGLE_DEG, max_distance=WIDE_MAX_BASELINE * prior,
+                                   min_distance=WIDE_MIN_BASELINE * prior)
+        pairs += [m.keyframes[k] for k in wide]
+    return sum(triangulate_new_points(m, intrinsics, new, previous, prior) for previous in pairs)
 
 
 def triangulate_new_points(m: Map, intrinsics: Intrinsics, new: Keyframe, previous: Keyframe,

@@ -224,6 +224,13 @@ class Slam:
         self._loop_in.put(FLUSH)
         while (not self._flushed or self._graphs_pending or self._mapping_busy) and time.monotonic() < deadline:
             self._poll(block=0.05)
+        if self.tracker.mono and len(self.tracker.map.keyframes) >= 3:
+            job = self.tracker.bundle_job(whole=True)
+            if job is not None:
+                self._map_in.put(job)
+                self._mapping_busy = True
+                while self._mapping_busy and time.monotonic() < deadline:
+                    self._poll(block=0.05)
 
     @property
     def pids(self) -> list[int]:

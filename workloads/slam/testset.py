@@ -21,6 +21,10 @@ from workloads.slam.render import render_sequence
 from workloads.slam.tum import Trajectory, matched_positions
 
 MIN_AXIS_M = 0.2  # axes with less ground-truth extent carry no shape to keep
+# The issue's targets: ATE after alignment per mode, and each counted axis's aligned extent within
+# EXTENT_TOLERANCE of the truth's (``testset --check`` fails a run that misses either)
+ATE_TARGET_M = {"rgbd": 0.02, "mono": 0.05}
+EXTENT_TOLERANCE = 0.10
 # (name, kind, frames, seed): full 640 x 480 frames (monocular needs them, see the tests' conftest)
 SEQUENCES = (
     ("bigloop-0", "bigloop", 200, 0),
@@ -87,9 +91,20 @@ class Row:
     tracked: int
     shape: Shape | None  # None: fewer than three poses to align
 
+    def misses(self) -> list[str]:
+        """What of the issue's targets this run misses (ATE, each axis's extent); empty when it meets them."""
+        if self.shape is None:
+            return ["no trajectory"]
+        out = []
+        if self.shape.ate_m > ATE_TARGET_M[self.mode]:
+            out.append(f"ATE {100 * self.shape.ate_m:.2f} cm > {100 * ATE_TARGET_M[self.mode]:.0f} cm")
+        out += [f"{axis} extent {ratio:.2f}" for axis, ratio in self.shape.extent_ratios().items()
+                if abs(ratio - 1.0) > EXTENT_TOLERANCE]
+        return out
+
     def summary(self) -> dict[str, object]:
         out: dict[str, object] = {"sequence": self.name, "mode": self.mode, "frames": self.frames,
-                                  "tracked": self.tracked}
+                                  "tracked": self.tracked, "misses": self.misses()}
         if self.shape is not None:
             out.update(ate_m=round(self.shape.ate_m, 4), scale=round(self.shape.scale, 4),
                        extent_ratio={k: round(v, 3) for k, v in self.shape.extent_ratios().items()})
@@ -99,8 +114,10 @@ class Row:
         if self.shape is None:
             return f"{self.name:<11}{self.mode:<6}{self.tracked:>4}/{self.frames:<4} no trajectory"
         ratios = " ".join(f"{k}={v:.2f}" for k, v in self.shape.extent_ratios().items())
+        missed = self.misses()
+        verdict = "MISS: " + ", ".join(missed) if missed else "ok"
         return (f"{self.name:<11}{self.mode:<6}{self.tracked:>4}/{self.frames:<4}"
-                f"{100 * self.shape.ate_m:>8.2f} cm   extent {ratios}")
+                f"{100 * self.shape.ate_m:>8.2f} cm   extent {ratios}   {verdict}")
 
 
 def run_testset(cache: Path, *, names: list[str] | None = None, modes: tuple[str, ...] = ("rgbd", "mono"),

@@ -114,6 +114,7 @@ class Config:
     local_keyframes: int = 8  # recent keyframes whose points tracking matches against
     ba_window: int = 6  # keyframes a local bundle adjustment moves
     ba_iterations: int = 8
+    final_ba_iterations: int = 20  # monocular: the whole map adjusted once the last frame is tracked
     min_inliers: int = 25
     search_radius_px: float = 12.0
     keyframe_max_gap: int = 15  # frames
@@ -292,9 +293,7 @@ class Tracker:
         kf = Keyframe(len(self.map.keyframes), f, pose, point_ids)
         self.map.keyframes.append(kf)
         if self.mono:
-            prior = monocular.median_depth(self.map, kf)
-            for previous in self.map.keyframes[-1 - monocular.PAIR_KEYFRAMES:-1][::-1]:  # nearest first
-                monocular.triangulate_new_points(self.map, self.intrinsics, kf, previous, prior)
+            monocular.add_new_points(self.map, self.intrinsics, kf)
         else:
             fresh = np.flatnonzero((point_ids < 0) & (f.depth > 0))
             cam = self.intrinsics.backproject(f.uv[fresh].astype(np.float64), f.depth[fresh].astype(np.float64))
@@ -348,13 +347,14 @@ class Tracker:
             self.placed_late += 1
 
     # -- back end: jobs out, answers in ---------------------------------------------------------
-    def bundle_job(self) -> BundleJob | None:
-        """A local bundle adjustment around the newest keyframes, if any arrived since the last job."""
-        if not self.new_keyframes:
+    def bundle_job(self, *, whole: bool = False) -> BundleJob | None:
+        """A local bundle adjustment around the newest keyframes, if any arrived since the last job;
+        ``whole``: every keyframe and point of the map (the first keyframes fixed), whether or not."""
+        if not self.new_keyframes and not whole:
             return None
         self.new_keyframes = []
         kfs = self.map.keyframes
-        window = list(range(max(0, len(kfs) - self.config.ba_window), len(kfs)))
+        window = list(range(0 if whole else max(0, len(kfs) - self.config.ba_window), len(kfs)))
         if len(window) < 2:
             return None
         ids = self.map.point_ids_of(window)
@@ -388,7 +388,7 @@ class Tracker:
             o_kf, o_pt, uv, depth, octave = o_kf[keep], o_pt[keep], uv[keep], depth[keep], octave[keep]
         return BundleJob(self.map.epoch, np.array(members), np.array([kfs[k].pose for k in members]), is_fixed,
                          ids, self.map.points.pos[ids].copy(), o_kf, o_pt, uv, depth, octave, self.intrinsics,
-                         self.config.ba_iterations)
+                         self.config.final_ba_iterations if whole else self.config.ba_iterations)
 
     def apply_bundle(self, result: BundleResult) -> bool:
         if result.epoch != self.map.epoch:

@@ -234,6 +234,17 @@ def _per_robot_problems(manifest: Manifest, node: Node) -> list[tuple[str, str]]
     if node.replicas > 1:
         problems.append((f"serve: per_robot with replicas: {node.replicas} is not built: give one or the other",
                          "replicas"))
+    if node.topics != "auto":
+        # Each instance's topics are remapped to /<robot><topic>: one already under a robot would become
+        # /arm2/arm1/scan for arm2's instance, a topic no robot publishes or reads.
+        robots = {robot.name for robot in manifest.robots}
+        for side, listed in (("in", node.topics.inputs), ("out", node.topics.outputs)):
+            for topic in listed:
+                owner = topic.split("/")[1] if topic.count("/") > 1 else None
+                if owner in robots:
+                    problems.append((f"{topic!r} is inside robot {owner}'s namespace; serve: per_robot puts each "
+                                     f"instance's topics under its robot (/<robot>{topic[len(owner) + 1:]}): "
+                                     f"list it as {topic[len(owner) + 1:]!r}", f"topics.{side}"))
     return problems
 
 

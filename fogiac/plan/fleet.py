@@ -8,8 +8,9 @@ so a reviewer sees that a robot comes and goes without a machine touched.
 A node's hourly cost is its host's, split evenly between the processes on the host (a per-robot node's
 instances each count as one); each robot a shared node serves bears an equal share of it, and each robot
 bears its own instance of a per-robot node. A robot's cost is
-the sum of its shares: the robots' costs add up to the hosts'. An unknown price makes every share it
-enters unknown (None), never $0.
+the sum of its shares plus what the target bills per robot (a cost line marked ``per_robot``: on aws its
+Client VPN connection): the robots' costs add up to the hosts' and those lines. An unknown price makes every
+share it enters unknown (None), never $0.
 """
 
 from __future__ import annotations
@@ -61,8 +62,10 @@ def access(plan: Plan, robot: str) -> list[str]:
 
 
 def robot_cost(plan: Plan, robot: str) -> float | None:
-    """The robot's share of the hosts' hour: the sum of its nodes' shares (None when one is unknown)."""
+    """The robot's share of the hosts' hour: the sum of its nodes' shares, and one of each line the target bills
+    per robot (None when one is unknown)."""
     shares = [share(plan, node) for node in plan.nodes if robot in plan.robots_of(node)]
+    shares += [line.usd_per_hour for line in plan.cost if line.per_robot]
     if any(each is None for each in shares):
         return None
     return round(sum(each for each in shares if each is not None), 6)

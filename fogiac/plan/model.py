@@ -255,6 +255,7 @@ class CostLine:
     quantity: float
     usd_per_hour: float | None  # on-demand; None: the catalogue has no price there (unknown, never $0)
     spot_usd_per_hour: float | None = None  # the catalogue's spot estimate, for a spot instance
+    per_robot: bool = False  # one of its quantity per robot of a fleet (aws: its Client VPN connection): each bears one
 
     @property
     def known(self) -> bool:
@@ -371,6 +372,9 @@ class Plan:
                 del route["replica"]
             elif not route["replica"]["types"]:  # no stated types: the same bytes as before they were carried
                 del route["replica"]["types"]
+        for line in out["cost"]:
+            if not line["per_robot"]:  # shared: the same bytes (and digest) as before a robot bore its own line
+                del line["per_robot"]
         for host in out["hosts"]:
             if host["zone"] is None:  # absent unless set: existing plans keep their bytes (and digests)
                 del host["zone"]

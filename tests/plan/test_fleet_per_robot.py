@@ -120,7 +120,9 @@ def test_each_robot_bears_its_own_instance_and_the_shares_add_up_to_the_host() -
     assert fleet.share(plan, plan.node("mapper")) == pytest.approx(hourly / 3, abs=1e-6)
     assert fleet.share(plan, plan.node("planner")) == pytest.approx(hourly / 6, abs=1e-6)
     robots = {r["name"]: r for r in fleet.robots(plan) or []}
-    assert sum(r["usd_per_hour"] for r in robots.values()) == pytest.approx(hourly, abs=1e-5)
+    vpn = sum(line.total for line in plan.cost if line.per_robot)  # one Client VPN connection per robot
+    assert vpn == pytest.approx(2 * 0.05)
+    assert sum(r["usd_per_hour"] for r in robots.values()) == pytest.approx(hourly + vpn, abs=1e-5)
     assert robots["arm1"]["instances"] == ["mapper@arm1 on lab"]
 
 

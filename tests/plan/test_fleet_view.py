@@ -38,14 +38,31 @@ def test_each_robot_bears_its_share_and_the_shares_add_up_to_the_hosts() -> None
     hourly = {h.name: h.usd_per_hour for h in plan.hosts}
     assert hourly["planner"] == pytest.approx(0.0104) and hourly["grasp"] == pytest.approx(0.0104)
     robots = {r["name"]: r for r in fleet.robots(plan) or []}
-    # planner: every robot, a third each; grasp: arm1 and arm3, half each
-    assert robots["arm2"]["usd_per_hour"] == pytest.approx(0.0104 / 3, abs=1e-6)
-    assert robots["arm1"]["usd_per_hour"] == pytest.approx(0.0104 / 3 + 0.0104 / 2, abs=1e-6)
-    assert sum(r["usd_per_hour"] for r in robots.values()) == pytest.approx(0.0208, abs=1e-5)
+    # planner: every robot, a third each; grasp: arm1 and arm3, half each; each its own Client VPN connection
+    assert robots["arm2"]["usd_per_hour"] == pytest.approx(0.0104 / 3 + 0.05, abs=1e-6)
+    assert robots["arm1"]["usd_per_hour"] == pytest.approx(0.0104 / 3 + 0.0104 / 2 + 0.05, abs=1e-6)
+    assert sum(r["usd_per_hour"] for r in robots.values()) == pytest.approx(0.0208 + 3 * 0.05, abs=1e-5)
     assert robots["arm2"]["certificate"] == "arm2.edge.lab-dev.fogiac"
     assert robots["arm2"]["access"] == ["/arm2/...", "/plan/path", "/plan/request"]  # not grasp's topics
     assert robots["arm3"]["access"] == ["/arm3/...", "/grasp/reply", "/grasp/request", "/plan/path", "/plan/request"]
     assert robots["arm1"]["edge_links"] == ["planner", "grasp"] and robots["arm2"]["nodes"] == ["planner"]
+
+
+def test_on_aws_over_the_vpn_each_robot_also_bears_its_own_client_vpn_connection() -> None:
+    """On aws (the Client VPN unless the manifest says otherwise) each robot's edge is a connection AWS bills by
+    the hour: the robot's cost was only its nodes' shares, so three robots' rows left out three connection-hours the plan's total counted. Now each
+    robot's row carries one, and the robots' costs add up to the hosts' and the connections; the subnet
+    association, which no single robot brings, stays the stack's. A one-robot plan's document is unchanged."""
+    plan = _plan()
+    (connections,) = [line for line in plan.cost if line.per_robot]
+    assert connections.quantity == 3 and connections.usd_per_hour == pytest.approx(0.05)
+    robots = {r["name"]: r for r in fleet.robots(plan) or []}
+    assert robots["arm2"]["usd_per_hour"] == pytest.approx(0.0104 / 3 + 0.05, abs=1e-6)
+    assert sum(r["usd_per_hour"] for r in robots.values()) == pytest.approx(0.0208 + 3 * 0.05, abs=1e-5)
+    assert [line["per_robot"] for line in plan.to_dict()["cost"] if "per_robot" in line] == [True]
+    one = _plan(ONE.replace("cloud: {provider: local}", "cloud: {provider: aws, region: us-west-2}"))
+    assert not any(line.per_robot for line in one.cost)
+    assert all("per_robot" not in line for line in one.to_dict()["cost"])
 
 
 def test_a_topic_in_another_robots_namespace_is_not_shown_in_a_robots_access() -> None:

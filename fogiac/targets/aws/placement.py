@@ -220,7 +220,7 @@ def cost_lines(hosts: tuple[HostSpec, ...], vpn: VpnSpec | None, robots: int = 1
         lines.append(CostLine("Client VPN subnet association", 1, cat.vpn_association_usd_per_hour))
         lines.append(CostLine("Client VPN connection (the edge)", 1, cat.vpn_connection_usd_per_hour) if robots <= 1
                      else CostLine(f"Client VPN connections ({robots} robots, one each)", robots,
-                                   cat.vpn_connection_usd_per_hour))
+                                   cat.vpn_connection_usd_per_hour, per_robot=True))
     return tuple(lines)
 
 

@@ -2,7 +2,9 @@
 
 Each operator has a home and a state folder of their own, the same ``FOGIAC_STATE_URL`` and the same
 ``FOGIAC_STATE_KMS_KEY`` (a LocalStack KMS key: the stack's key material is sealed under it, no passphrase
-is set); every verb is the real ``fogiac`` command in a process of its own. The lab host is a network
+is set); every verb is the real ``fogiac`` command in a process of its own (forked from one that has
+already imported fogiac, tests/support/forkserver.py, but for ``ssh``'s typed input and the ``up`` that waits
+at its question on a terminal: a fresh Python each). The lab host is a network
 namespace with its own sshd (``tests/provision/sshlab.py``), and ``up`` provisions it over SSH as on a
 lab's server.
 
@@ -20,6 +22,7 @@ lab's server.
 from __future__ import annotations
 
 import importlib.util
+import itertools
 import json
 import os
 import pty
@@ -39,6 +42,7 @@ from fogiac.procs import free_port
 from tests.provision.conftest import hosts_manifest, make_workspace, ros_skip_reason
 from tests.provision.sshlab import LabHost, lab_skip_reason, ssh_lab
 from tests.provision.test_plain_user import MIRROR, WHEELS
+from tests.support.forkserver import ForkServer, forks_fixture
 
 pytestmark = [pytest.mark.localstack, pytest.mark.root, pytest.mark.ros]
 
@@ -53,7 +57,7 @@ REPO = Path(__file__).resolve().parents[3]
 class Operator:
     """One lab member: a home and a state folder of their own, their own checkout of the manifest."""
 
-    def __init__(self, root: Path, name: str, manifest: Path, url: str, kms_key: str) -> None:
+    def __init__(self, root: Path, name: str, manifest: Path, url: str, kms_key: str, forks: ForkServer) -> None:
         self.home, self.state = root / name / "home", root / name / "state"
         self.home.mkdir(parents=True)
         self.state.mkdir(parents=True)
@@ -64,6 +68,10 @@ class Operator:
         make_workspace(self.checkout / "ws")  # the lab's repository, as each member checked it out
         self.url = url
         self.kms_key = kms_key
+        self.forks = forks
+        self.said = root / name / "said"  # each forked command's output, a file each
+        self.said.mkdir()
+        self.count = itertools.count()
 
     def env(self, *, shared: bool = True) -> dict[str, str]:
         env = {k: v for k, v in os.environ.items()
@@ -79,6 +87,9 @@ class Operator:
         return [sys.executable, "-m", "fogiac", *args]
 
     def run(self, *args: str, shared: bool = True, timeout: float = 600, input: str | None = None) -> tuple[int, str]:
+        if input is None:
+            return self.forks.run(list(args), cwd=self.checkout, env=self.env(shared=shared),
+                                  out=self.said / f"{next(self.count)}.txt", timeout=timeout)[:2]
         done = subprocess.run(self.argv(*args), cwd=self.checkout, env=self.env(shared=shared), capture_output=True,
                               text=True, timeout=timeout, input=input)
         return done.returncode, done.stdout + done.stderr
@@ -88,6 +99,9 @@ class Operator:
                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
 
 
+forks = pytest.fixture(scope="module")(forks_fixture)  # the operators' commands start from it
+
+
 @pytest.fixture
 def lab(tmp_path: Path) -> Iterator[tuple[LabHost, Path]]:
     with ssh_lab(tmp_path / "lab", 1, env=MIRROR) as (hosts, key):  # pip on the host: the lab's local mirror
@@ -95,7 +109,8 @@ def lab(tmp_path: Path) -> Iterator[tuple[LabHost, Path]]:
 
 
 @pytest.fixture
-def team(lab: tuple[LabHost, Path], kms: Any, tmp_path: Path) -> Iterator[tuple[Operator, Operator, str, LabHost]]:
+def team(lab: tuple[LabHost, Path], kms: Any, tmp_path: Path,
+         forks: ForkServer) -> Iterator[tuple[Operator, Operator, str, LabHost]]:
     import boto3
 
     host, key = lab
@@ -109,7 +124,7 @@ def team(lab: tuple[LabHost, Path], kms: Any, tmp_path: Path) -> Iterator[tuple[
     manifest.write_text(manifest.read_text().replace(
         "nodes:\n", f'edge: {{ros_master: "http://127.0.0.1:{free_port()}"}}\nnodes:\n', 1))
     url = f"s3://{bucket}/lab"
-    a, b = Operator(tmp_path, "a", manifest, url, alias), Operator(tmp_path, "b", manifest, url, alias)
+    a, b = (Operator(tmp_path, who, manifest, url, alias, forks) for who in ("a", "b"))
     stack = f"{name}-dev"
     try:
         yield a, b, stack, host

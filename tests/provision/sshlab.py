@@ -29,6 +29,13 @@ from tests.support.netns import NetLab, Namespace, skip_reason
 
 SSHD = "/usr/sbin/sshd"
 
+# A lab's pip setting for hosts that build a workload's venv (torch, sympy: thousands of modules): pip leaves
+# byte-compiling to Python, which compiles what the nodes import, on first import. Compiling every module at
+# install was half of the venv's CPU (272 s against 141 s for fogiac's and the workloads' requirements,
+# measured on this 2-core machine under load). pip sets an option's destination from its variable, so the
+# variable of ``--no-compile`` (destination ``compile``) says 0 for "do not compile".
+PIP_LEAVES_COMPILING = {"PIP_NO_COMPILE": "0"}
+
 
 def lab_skip_reason() -> str | None:
     reason = skip_reason()

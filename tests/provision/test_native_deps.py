@@ -4,7 +4,8 @@ A namespace host with its own sshd runs the grasp-planning node on Debian's /usr
 (which has rospy but no numpy or torch): provisioning builds a virtual environment with the
 workload's pinned requirements, the node registers with the host's master, and a second run
 installs nothing. The namespaces have no route to the internet: like a lab with a local package
-mirror, their sessions set PIP_INDEX_URL to this machine's package folder (pip finds torch there too).
+mirror, their sessions set PIP_INDEX_URL to this machine's package folder (pip finds torch there too), and
+pip leaves byte-compiling to Python (``sshlab.PIP_LEAVES_COMPILING``).
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from fogiac.provision import provision, teardown, venv
 from fogiac.provision.local import LocalHost
 from fogiac.targets.hosts.target import HOSTS
 from tests.provision.conftest import make_workspace, ros_skip_reason
-from tests.provision.sshlab import lab_skip_reason, ssh_lab
+from tests.provision.sshlab import PIP_LEAVES_COMPILING, lab_skip_reason, ssh_lab
 
 SYSTEM_PYTHON = "/usr/bin/python3"
 WHEELS = Path("/var/cache/fogiac-ci/lab-wheels")  # the lab's mirror (.ci/lab-wheels.sh)
@@ -77,7 +78,8 @@ def test_requirements_come_from_the_recipes_pinned() -> None:
 def test_grasp_workload_runs_on_the_system_python_in_a_venv_built_once(tmp_path: Path) -> None:
     if subprocess.run([SYSTEM_PYTHON, "-c", "import numpy"], capture_output=True).returncode == 0:
         pytest.skip("the system python3 has numpy already: nothing would show the venv is used")
-    with ssh_lab(tmp_path / "lab", 1, env={"PIP_INDEX_URL": "file:///opt/pypi/simple"}) as (hosts, key):
+    lab_env = {"PIP_INDEX_URL": "file:///opt/pypi/simple", **PIP_LEAVES_COMPILING}
+    with ssh_lab(tmp_path / "lab", 1, env=lab_env) as (hosts, key):
         (host,) = hosts
         plan, access = _lab_plan(tmp_path, host, key, name="venvtest",
                                  nodes="  - {name: grasp, machine: t3.small, workload: grasp_planning}\n")
@@ -131,7 +133,8 @@ def test_a_launch_packages_requirements_go_in_the_hosts_venv_once(tmp_path: Path
     talker = ws / "src" / "fogtest" / "scripts" / "talker.py"
     talker.write_text(LAUNCH_TALKER)
     (tmp_path / "requirements.txt").write_text("shellingham==1.5.4\n")
-    with ssh_lab(tmp_path / "lab", 1, env={"PIP_NO_INDEX": "1", "PIP_FIND_LINKS": str(WHEELS)}) as (hosts, key):
+    lab_env = {"PIP_NO_INDEX": "1", "PIP_FIND_LINKS": str(WHEELS), **PIP_LEAVES_COMPILING}
+    with ssh_lab(tmp_path / "lab", 1, env=lab_env) as (hosts, key):
         (host,) = hosts
         plan, access = _lab_plan(tmp_path, host, key, name="launchreqs", nodes=(
             "  - name: talker\n    machine: t3.small\n"

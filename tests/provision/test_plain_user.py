@@ -8,7 +8,8 @@ is fogiac's only folder, pushes its code, and builds one virtual environment ove
 the robot's master, and a second ``up`` installs nothing and restarts nothing.
 
 Like a lab with a package mirror, the host's sessions point pip at this machine's: its index
-(/opt/pypi) and the wheels it lacks (``.ci/lab-wheels.sh``; torch's CPU wheel from /opt/wheels).
+(/opt/pypi) and the wheels it lacks (``.ci/lab-wheels.sh``; torch's CPU wheel from /opt/wheels), and pip
+leaves byte-compiling to Python (``sshlab.PIP_LEAVES_COMPILING``).
 """
 
 from __future__ import annotations
@@ -28,12 +29,13 @@ from fogiac.cli import app
 from fogiac.procs import free_port
 from tests.conftest import REPO
 from tests.provision.conftest import ros_skip_reason
-from tests.provision.sshlab import lab_skip_reason, plain_user, ssh_lab
+from tests.provision.sshlab import PIP_LEAVES_COMPILING, lab_skip_reason, plain_user, ssh_lab
 from tests.targets.test_local import CLIENT as PLAN_CLIENT
 
 WHEELS = Path("/var/cache/fogiac-ci/lab-wheels")
 GRASP_CLIENT = REPO / "tests" / "workloads" / "grasp_planning" / "grasp_ros_client.py"
-MIRROR = {"PIP_INDEX_URL": "file:///opt/pypi/simple", "PIP_FIND_LINKS": f"{WHEELS} /opt/wheels"}
+MIRROR = {"PIP_INDEX_URL": "file:///opt/pypi/simple", "PIP_FIND_LINKS": f"{WHEELS} /opt/wheels",
+          **PIP_LEAVES_COMPILING}
 
 
 def _why_not() -> str | None:

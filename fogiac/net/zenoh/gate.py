@@ -127,7 +127,7 @@ class FleetRouter:
         self.core_config, self.address, self.pem, self.core_end = split_config(config)
         self.open_router = open_router
         self.core_id = str(config.get("id", ""))
-        self.folder = Path(tempfile.mkdtemp(prefix="fogiac-zenoh-fronts-"))  # 0700: only this user connects
+        self.sockets = Path(tempfile.mkdtemp(prefix="fogiac-zenoh-fronts-"))  # 0700: only this user connects
         self.fronts: dict[str, tuple[str, Any, Path]] = {}  # robot -> (its common name, its session, its socket)
         self.admitted: dict[str, str] = {}  # common name -> robot; replaced whole, read by the gate's thread
         self.links: dict[str, set[asyncio.StreamWriter]] = {}  # robot -> the gate's open connections for it
@@ -164,7 +164,7 @@ class FleetRouter:
             changes.append(f"robot {robot}: refused, its links closed")
         for robot in sorted(set(wanted) - set(self.fronts)):
             self.opened += 1
-            sock = self.folder / f"front{self.opened}.sock"
+            sock = self.sockets / f"front{self.opened}.sock"
             session = self.open_router(self._front_config(robot, sock))
             self.fronts[robot] = (wanted[robot], session, sock)
             self.admitted = {**self.admitted, wanted[robot]: robot}
@@ -174,7 +174,7 @@ class FleetRouter:
     def refresh(self) -> None:
         """Touch the fronts' folder and sockets: systemd-tmpfiles deletes what in ``/tmp`` is not modified for
         10 days (a socket is not, by being connected to), and a front whose socket is gone admits no new link."""
-        for path in (self.folder, *(sock for _, _, sock in self.fronts.values())):
+        for path in (self.sockets, *(sock for _, _, sock in self.fronts.values())):
             try:
                 os.utime(path, follow_symlinks=False)
             except OSError:
@@ -235,7 +235,7 @@ class FleetRouter:
     def close(self) -> None:
         """Stop admitting, then close every router. The sockets' folder goes first, so that a process killed
         while closing (a supervisor's grace run out) leaves nothing in /tmp."""
-        shutil.rmtree(self.folder, ignore_errors=True)
+        shutil.rmtree(self.sockets, ignore_errors=True)
         if self.server is not None:
             self.loop.call_soon_threadsafe(self.server.close)
         for robot in list(self.fronts):
@@ -244,7 +244,7 @@ class FleetRouter:
         if self.core is not None:
             self.core.close()
         self.loop.call_soon_threadsafe(self.loop.stop)
-        shutil.rmtree(self.folder, ignore_errors=True)
+        shutil.rmtree(self.sockets, ignore_errors=True)
 
 
 async def _pump(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:

@@ -181,15 +181,15 @@ def test_the_fronts_folder_is_private_and_kept_fresh_for_tmp_cleaners() -> None:
                           tls=TlsFiles(ca="ca.pem", cert="server.pem", key="server.key"))
     router = FleetRouter(config, open_router=lambda _config: _Session())
     try:
-        assert router.folder.stat().st_mode & 0o777 == 0o700
+        assert router.sockets.stat().st_mode & 0o777 == 0o700
         router.apply(FleetFile(robots={"r1": "r1.cn"}, zids={"r1": "aa"}, revoked=frozenset()))
         ((_, _, sock),) = router.fronts.values()
         sock.write_text("")  # where r1's router listens
         old = time.time() - 11 * 86400
-        for path in (router.folder, sock):
+        for path in (router.sockets, sock):
             os.utime(path, (old, old))
         router.refresh()
-        assert [p for p in (router.folder, sock) if time.time() - p.stat().st_mtime > 3600] == []
+        assert [p for p in (router.sockets, sock) if time.time() - p.stat().st_mtime > 3600] == []
     finally:
         router.close()
-    assert not router.folder.exists()
+    assert not router.sockets.exists()

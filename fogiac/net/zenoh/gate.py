@@ -54,6 +54,11 @@ class FleetFile:
         """Common name -> robot, the robots not revoked."""
         return {cn: robot for robot, cn in self.robots.items() if robot not in self.revoked}
 
+    @property
+    def edges(self) -> list[str]:
+        """The admitted robots' edge router ids: the routers whose link counts as the edge connected."""
+        return [self.zids[robot] for robot in self.robots if robot not in self.revoked]
+
 
 def read_fleet(fleet: Path) -> FleetFile:
     """The fleet file (no robot when it is absent); one that cannot be read raises ValueError/OSError."""
@@ -244,7 +249,6 @@ class FleetRouter:
         if self.core is not None:
             self.core.close()
         self.loop.call_soon_threadsafe(self.loop.stop)
-        shutil.rmtree(self.sockets, ignore_errors=True)
 
 
 async def _pump(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:

@@ -25,7 +25,6 @@ from pathlib import Path
 from typing import Any
 
 from fogiac.extras import need
-from fogiac.net.zenoh.config import fleet_access_control
 from fogiac.net.zenoh.errors import ZenohError
 from fogiac.net.zenoh.gate import FleetRouter, read_fleet
 from fogiac.state import write_json_atomic
@@ -40,15 +39,6 @@ def open_router(config: dict[str, Any]) -> Any:
         return zenoh.open(zenoh.Config.from_json5(json.dumps(config)))
     except zenoh.ZError as err:
         raise ZenohError(f"zenoh router: {err}") from None
-
-
-def fleet_config(config: dict[str, Any], fleet: Path) -> tuple[dict[str, Any], list[str]]:
-    """``config`` with the fleet file's rules as one router session would hold them (no robot when the file is
-    absent), and the edge router ids that count as connected (the robots not revoked). A file that cannot be
-    read raises ValueError/OSError. The gate's fronts hold the same rules robot by robot."""
-    doc = read_fleet(fleet)
-    made = {**config, "access_control": fleet_access_control(doc.robots, revoked=doc.revoked)}
-    return made, [doc.zids[name] for name in doc.robots if name not in doc.revoked]
 
 
 def _read(path: Path | None) -> bytes | None:
@@ -95,13 +85,14 @@ def _serve_fleet(config: dict[str, Any], fleet: Path, *, stats: Path | None, sto
     changed; one that cannot be read leaves the robots of before (none, at the start)."""
     router = FleetRouter(config, open_router=open_router)
     router.start()
-    seen: bytes | None = None
+    seen: bytes | None = None  # what the file held when last applied (None: absent)
+    first = True  # the first pass applies the file, or its absence (no robot admitted)
     edges: list[str] = []
     print("ready", flush=True)
     try:
         while True:
-            if (now := _read(fleet)) != seen or seen is None:
-                seen = now
+            if (now := _read(fleet)) != seen or first:
+                seen, first = now, False
                 try:
                     doc = read_fleet(fleet)
                 except (OSError, ValueError, KeyError, TypeError) as err:  # half an edit: the robots of before stand
@@ -109,7 +100,7 @@ def _serve_fleet(config: dict[str, Any], fleet: Path, *, stats: Path | None, sto
                 else:
                     for change in router.apply(doc):
                         print(change, file=sys.stderr, flush=True)
-                    edges = [doc.zids[r] for r in doc.admitted.values()]
+                    edges = doc.edges
             _write_stats(stats, router.routers(), edges)
             router.refresh()
             if stop.wait(STATS_PERIOD_S):

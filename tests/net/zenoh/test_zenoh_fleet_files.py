@@ -19,9 +19,8 @@ import pytest
 from fogiac.hostmodel import Layout, Where
 from fogiac.manifest.schema import parse_manifest
 from fogiac.net.zenoh import deploy, tls
-from fogiac.net.zenoh.config import TlsFiles, cloud_router, edge_router
+from fogiac.net.zenoh.config import TlsFiles, cloud_router, edge_router, fleet_access_control
 from fogiac.net.zenoh.gate import FleetFile, FleetRouter, front_access_control, front_id, read_fleet, split_config
-from fogiac.net.zenoh.router import fleet_config
 from fogiac.plan import fleet
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.model import Plan
@@ -110,20 +109,23 @@ def test_a_robots_edge_router_lets_the_cloud_reach_its_namespace_only() -> None:
 
 def test_the_router_reads_its_fleet_file_and_refuses_one_it_cannot(tmp_path: Path) -> None:
     fleet = tmp_path / "zenoh-fleet.json"
-    base = {"mode": "router", "access_control": {"enabled": True, "rules": []}}
-    config, edges = fleet_config(base, fleet)  # no file yet: no robot gets anything
-    assert [s["id"] for s in config["access_control"]["subjects"]] == ["host-nodes"] and edges == []
+
+    def rules(doc: FleetFile) -> list[str]:
+        return [s["id"] for s in fleet_access_control(doc.robots, revoked=doc.revoked)["subjects"]]
+
+    doc = read_fleet(fleet)  # no file yet: no robot gets anything
+    assert rules(doc) == ["host-nodes"] and doc.admitted == {} and doc.edges == []
     fleet.write_text(json.dumps({"robots": {"r1": {"common_name": "r1.cn", "zid": "aa"},
                                             "r2": {"common_name": "r2.cn", "zid": "bb"}}, "revoked": ["r2"]}))
-    config, edges = fleet_config(base, fleet)
-    assert [s["id"] for s in config["access_control"]["subjects"]] == ["host-nodes", "robot-r1"] and edges == ["aa"]
-    fleet.write_text('{"robots": ["r1"]')  # half written: the router keeps the rules it has (it catches this)
+    doc = read_fleet(fleet)
+    assert rules(doc) == ["host-nodes", "robot-r1"] and doc.admitted == {"r1.cn": "r1"} and doc.edges == ["aa"]
+    fleet.write_text('{"robots": ["r1"]')  # half written: the router keeps the robots it has (it catches this)
     with pytest.raises(ValueError):
-        fleet_config(base, fleet)
+        read_fleet(fleet)
     for shape in ('{"robots": ["r1"]}', '["r1"]', '{"robots": {"r1": {"zid": "aa"}}}'):
         fleet.write_text(shape)
         with pytest.raises(ValueError, match="robots is not a mapping"):
-            fleet_config(base, fleet)
+            read_fleet(fleet)
 
 
 def test_a_robots_front_lets_its_gate_link_cross_its_namespace_only_and_its_id_is_fixed() -> None:

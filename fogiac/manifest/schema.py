@@ -242,9 +242,10 @@ def _per_robot_problems(manifest: Manifest, node: Node) -> list[tuple[str, str]]
             for topic in listed:
                 owner = topic.split("/")[1] if topic.count("/") > 1 else None
                 if owner in robots:
+                    bare = topic[len(owner) + 1:]
                     problems.append((f"{topic!r} is inside robot {owner}'s namespace; serve: per_robot puts each "
-                                     f"instance's topics under its robot (/<robot>{topic[len(owner) + 1:]}): "
-                                     f"list it as {topic[len(owner) + 1:]!r}", f"topics.{side}"))
+                                     f"instance's topics under its robot (/<robot>{bare}): list it as {bare!r}",
+                                     f"topics.{side}"))
     return problems
 
 

@@ -19,8 +19,10 @@ from workloads.slam.mapdata import Keyframe, Map
 from workloads.slam.monocular import triangulate_new_points
 
 
-def _keyframe(kf_id: int, k: Intrinsics, pose: np.ndarray, world: np.ndarray, desc: np.ndarray,
-              rng: np.random.Generator) -> Keyframe:
+def synthetic_keyframe(kf_id: int, k: Intrinsics, pose: np.ndarray, world: np.ndarray, desc: np.ndarray,
+                       rng: np.random.Generator) -> Keyframe:
+    """Keyframe ``kf_id`` at ``pose`` seeing every point of ``world`` (exact descriptors, one pixel of noise),
+    none of them mapped yet."""
     uv, _ = k.project(transform(inverse(pose), world))
     uv = (uv + rng.normal(0.0, 1.0, uv.shape)).astype(np.float32)
     features = Features(kf_id, float(kf_id), uv, np.zeros(len(uv), np.int32), desc, np.zeros(len(uv), np.float32))
@@ -33,8 +35,8 @@ def test_points_of_two_close_keyframes_keep_their_true_depth() -> None:
     world = np.column_stack([rng.uniform(-1.2, 1.2, n), rng.uniform(-0.9, 0.9, n), rng.uniform(1.8, 2.4, n)])
     desc = rng.integers(0, 256, (n, 32), dtype=np.uint8)
     # 4 cm sideways at about 2 m: the pair's parallax is about 1.1 degrees, as between the bigloop's keyframes
-    old = _keyframe(0, k, np.eye(4), world, desc, rng)
-    new = _keyframe(1, k, make(np.eye(3), np.array([0.04, 0.0, 0.0])), world, desc, rng)
+    old = synthetic_keyframe(0, k, np.eye(4), world, desc, rng)
+    new = synthetic_keyframe(1, k, make(np.eye(3), np.array([0.04, 0.0, 0.0])), world, desc, rng)
     m = Map()
     added = triangulate_new_points(m, k, new, old)
     kept = new.point_ids >= 0
@@ -51,8 +53,8 @@ def _pair_depth_ratio(prior_depth: float | None) -> tuple[float, int]:
     n = 800
     world = np.column_stack([rng.uniform(-1.2, 1.2, n), rng.uniform(-0.9, 0.9, n), rng.uniform(1.8, 2.4, n)])
     desc = rng.integers(0, 256, (n, 32), dtype=np.uint8)
-    old = _keyframe(0, k, np.eye(4), world, desc, rng)
-    new = _keyframe(1, k, make(np.eye(3), np.array([0.03, 0.0, 0.0])), world, desc, rng)
+    old = synthetic_keyframe(0, k, np.eye(4), world, desc, rng)
+    new = synthetic_keyframe(1, k, make(np.eye(3), np.array([0.03, 0.0, 0.0])), world, desc, rng)
     m = Map()
     added = triangulate_new_points(m, k, new, old, prior_depth)
     kept = new.point_ids >= 0

@@ -13,19 +13,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from tests.workloads.slam.test_slam_new_points import synthetic_keyframe
 from workloads.slam.camera import Intrinsics
 from workloads.slam.features import Features
 from workloads.slam.geometry import inverse, make, transform
 from workloads.slam.mapdata import Keyframe, Map
 from workloads.slam.monocular import add_new_points
-
-
-def _keyframe(kf_id: int, k: Intrinsics, pose: np.ndarray, world: np.ndarray, desc: np.ndarray,
-              rng: np.random.Generator) -> Keyframe:
-    uv, z = k.project(transform(inverse(pose), world))
-    uv = (uv + rng.normal(0.0, 1.0, uv.shape)).astype(np.float32)
-    features = Features(kf_id, float(kf_id), uv, np.zeros(len(uv), np.int32), desc, np.zeros(len(uv), np.float32))
-    return Keyframe(kf_id, features, pose, np.full(len(uv), -1, np.int64))
 
 
 def test_a_swing_keyframe_triangulates_with_the_older_keyframe_that_saw_its_view() -> None:
@@ -40,7 +33,7 @@ def test_a_swing_keyframe_triangulates_with_the_older_keyframe_that_saw_its_view
     # back, 2 mm apart (0.1% of the depth, as the stalled keyframes were)
     centres = [np.array([-0.3, 0.0, 0.0])] + [np.array([0.002 * i, 0.0, 0.0]) for i in range(5)]
     for kf_id, centre in enumerate(centres):
-        kf = _keyframe(kf_id, k, make(np.eye(3), centre), world, desc, rng)
+        kf = synthetic_keyframe(kf_id, k, make(np.eye(3), centre), world, desc, rng)
         kf.point_ids[tracked] = ids
         m.keyframes.append(kf)
     new = m.keyframes[-1]

@@ -54,13 +54,17 @@ def dialed_addresses(connect: Mapping[str, str]) -> dict[str, str]:
 def provision_and_connect(plan: Plan, *, access: Mapping[str, Any], connect: Mapping[str, str], master: str,
                           started_edge_master: bool = False,
                           progress: Callable[[str, str, str], None] | None = None,
-                          ports: Mapping[str, Any] | None = None) -> FleetUp:
+                          ports: Mapping[str, Any] | None = None, provisions: bool = True) -> FleetUp:
     """Provision every host, start the middleware's edge side for the hosts that came up, record the deployment.
 
-    Every target that provisions (``Feature.PROVISIONS``) ends here: ``local`` and ``hosts`` with
-    their own access records, a cloud with its instances' addresses and pinned host keys. A failed
-    host fails the run; the others stay up so ``fogiac down`` (or a fixed re-run) finds them.
+    Every target ends ``up`` here. One that provisions (``Feature.PROVISIONS``): ``local`` and ``hosts``
+    with their own access records, a cloud with its instances' addresses and pinned host keys. A failed
+    host fails the run; the others stay up so ``fogiac down`` (or a fixed re-run) finds them. One whose
+    platform runs the nodes and their end of the link (``provisions=False``) answered ``connect`` itself:
+    nothing is provisioned, and only the edge's end starts (:func:`connect_edge`).
     """
+    if not provisions:
+        return connect_edge(plan, connect=connect, master=master, started_edge_master=started_edge_master)
     state = StackState(plan.stack)
     folder, certs = state.ensure(), state.certs
     load_or_create_edges(plan.stack, certs, [edge.named for edge in plan.edges])  # the CA's, and each edge's

@@ -30,7 +30,6 @@ from fogiac.lifecycle.driver import (
     UpResult,
 )
 from fogiac.lifecycle.edge import (
-    connect_edge,
     edge_services,
     edge_status,
     ensure_edge_master,
@@ -73,13 +72,12 @@ def up(target: Target, plan: Plan, opts: UpOptions) -> UpResult:
         report, relays = None, {}
         if not infra_only:
             reach = target.reach(plan, created, announce=opts.announce)
-            if Feature.PROVISIONS in target.features:
-                done = provision_and_connect(plan, access=reach.access, connect=reach.connect, master=master,
-                                             started_edge_master=opts.start_edge_master, ports=reach.ports,
-                                             progress=_provision_steps(opts.on_event))
-            else:  # the platform runs the nodes and their end of the link: the target answered the links
-                done = connect_edge(plan, connect=reach.connect, master=master,
-                                    started_edge_master=opts.start_edge_master)
+            # a target without Feature.PROVISIONS: its platform runs the nodes and their end of the link,
+            # and it answered the links itself (reach.connect); only the edge's end starts
+            done = provision_and_connect(plan, access=reach.access, connect=reach.connect, master=master,
+                                         started_edge_master=opts.start_edge_master, ports=reach.ports,
+                                         progress=_provision_steps(opts.on_event),
+                                         provisions=Feature.PROVISIONS in target.features)
             for note in done.notes:
                 opts.announce(note)
             report, relays = done.report, dict(done.relays)

@@ -10,8 +10,9 @@ edits this module.
 from __future__ import annotations
 
 import re
+from typing import cast
 
-from fogiac import targets
+from fogiac import middlewares, targets
 from fogiac.errors import FogiacError
 from fogiac.manifest.replicas import warn_unchecked
 from fogiac.manifest.schema import Manifest, Node
@@ -26,7 +27,6 @@ from fogiac.plan.model import (
     Plan,
     RelayRoute,
     Replica,
-    check_ingress,
 )
 from fogiac.plan.placement import Placement, ssh_sources
 
@@ -62,12 +62,10 @@ def compile_plan(manifest: Manifest, *, target: str | None = None, environment: 
     deployment made under an older naming still has (:func:`stack_names`), else :func:`stack_name`."""
     name = target or manifest.cloud.provider
     place = targets.placer(name)  # loads only what the target decides at compile time
-    carrier = middleware.for_distro(manifest.ros.distro)
+    carrier = cast(middleware.Middleware, middlewares.for_distro(manifest.ros.distro))  # the table holds whole ones
     stack = stack or stack_name(manifest, environment)
     tags = (("fogiac:stack", stack), ("fogiac:manifest", manifest.name)) + tuple(sorted(manifest.tags.items()))
-    placed = place(manifest, stack=stack, tags=tags)
-    for group in placed.security_groups:
-        check_ingress(group.name, group.ingress)
+    placed = place(manifest, stack=stack, tags=tags)  # its security groups checked themselves when made
     nodes = tuple(_node(node, placed.node_hosts[node.name], fleet=bool(manifest.robots)) for node in manifest.nodes)
     return Plan(
         stack=stack,

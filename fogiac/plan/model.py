@@ -68,8 +68,9 @@ class Rule:
 def check_ingress(group: str, rules: tuple[Rule, ...]) -> None:
     """The invariant every plan and every stack keeps: no ingress from 0.0.0.0/0 or ::/0.
 
-    The one implementation: ``compile_plan`` calls it on every group, and the firewall stack
-    again on the rules it is about to create, once the operator's address is filled in.
+    The one implementation: every :class:`SecurityGroup` checks its own rules when it is made (so a
+    plan, whatever target placed it, holds none), and the firewall stack checks again the rules it is
+    about to create, once the operator's address is filled in.
     """
     for rule in rules:
         if rule.cidr in (OPERATOR, OPERATOR_PLACEHOLDER):
@@ -88,6 +89,9 @@ class SecurityGroup:
     description: str
     ingress: tuple[Rule, ...]
     egress: tuple[Rule, ...]
+
+    def __post_init__(self) -> None:
+        check_ingress(self.name, self.ingress)  # no group open to the world can exist, whoever makes it
 
 
 class NetworkSpec(typing.Protocol):

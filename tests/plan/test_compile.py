@@ -13,7 +13,7 @@ from fogiac.plan.model import check_ingress
 from fogiac.targets.aws.placement import NVIDIA, UBUNTU
 from fogiac.errors import PlanError
 from fogiac.manifest.schema import load_manifest, parse_manifest
-from fogiac.plan.model import OPERATOR, RELAY_PORT
+from fogiac.plan.model import OPERATOR, RELAY_PORT, Rule, SecurityGroup
 
 from tests.conftest import EXAMPLES
 
@@ -67,6 +67,18 @@ def test_vpn_mode_rules_are_least_privilege() -> None:
     assert vpn.ingress == () and [r.cidr for r in vpn.egress] == ["10.10.0.0/16"]
     for group in plan.security_groups:
         check_ingress(group.name, group.ingress)
+
+
+def test_a_security_group_open_to_the_world_cannot_be_made() -> None:
+    """The invariant holds where a group is made, whoever makes it (a target's placement, a plug-in's):
+    compile_plan no longer re-checks the groups a placement hands back."""
+    for cidr in ("0.0.0.0/0", "::/0"):
+        with pytest.raises(PlanError, match=rf"^security group 'hosts' would accept {cidr} on port 22$"):
+            SecurityGroup("hosts", "ssh", (Rule("tcp", 22, 22, cidr, "ssh"),), ())
+    with pytest.raises(PlanError, match=r"^security group 'hosts': 'nowhere' is not a CIDR$"):
+        SecurityGroup("hosts", "ssh", (Rule("tcp", 22, 22, "nowhere", "ssh"),), ())
+    # egress may go anywhere, and the operator's address is resolved later (the firewall stack checks it then)
+    SecurityGroup("hosts", "ssh", (Rule("tcp", 22, 22, OPERATOR, "ssh"),), (Rule("-1", 0, 0, "0.0.0.0/0", "out"),))
 
 
 def test_proxy_mode_opens_the_relay_to_ssh_from_only() -> None:

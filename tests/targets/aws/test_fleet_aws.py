@@ -16,6 +16,8 @@ Under Pulumi's mock runtime, no emulator: the aws stack programs are what the cl
 from __future__ import annotations
 
 import json
+import re
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -47,9 +49,18 @@ def _on_aws(text: str) -> str:
     return text.replace(*AWS)
 
 
-def test_a_robot_added_or_removed_on_aws_touches_no_instance_disk_or_security_group(tmp_path: Path) -> None:
-    manifest = _deploy(tmp_path, _on_aws(TWO))
-    manifest.write_text(_on_aws(THREE))
+def _over_zenoh(text: str) -> str:
+    """The same fleet on ROS 2: each robot's edge router on a port of its own instead of its ROS master."""
+    text = re.sub(r'ros_master: "http://127.0.0.1:(\d+)"',
+                  lambda port: f'zenoh_router: "tcp/127.0.0.1:{int(port[1]) - 11312 + 7447}"', text)
+    return text.replace(", compression: zstd", "").replace("cloud:", "ros: {distro: jazzy}\ncloud:", 1)
+
+
+@pytest.mark.parametrize("over", [_on_aws, lambda text: _over_zenoh(_on_aws(text))], ids=["ros1", "ros2-zenoh"])
+def test_a_robot_added_or_removed_on_aws_touches_no_instance_disk_or_security_group(
+        tmp_path: Path, over: Callable[[str], str]) -> None:
+    manifest = _deploy(tmp_path, over(TWO))
+    manifest.write_text(over(THREE))
     shown = runner.invoke(app, ["plan", str(manifest), "--json"])
     assert shown.exit_code == 0, shown.output
     doc = json.loads(shown.output)
@@ -67,8 +78,8 @@ def test_a_robot_added_or_removed_on_aws_touches_no_instance_disk_or_security_gr
     assert changes["nodes"] == {"added": [], "removed": [], "changed": []}  # (the terminal's lines: test_fleet_diff)
 
     StackState(STACK).discard()  # the same stack deployed with three robots instead; arm3 leaves
-    manifest = _deploy(tmp_path, _on_aws(THREE))
-    manifest.write_text(_on_aws(TWO))
+    manifest = _deploy(tmp_path, over(THREE))
+    manifest.write_text(over(TWO))
     doc = json.loads(runner.invoke(app, ["plan", str(manifest), "--json"]).output)
     assert {r["action"] for r in doc["resources"]} == {"no-op"}  # nothing deleted with the robot
     assert [r["name"] for r in doc["changes"]["robots"]["removed"]] == ["arm3"]

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from fogiac.net.zenoh.config import _RETRY, _local_rules, fleet_access_control, namespace_rules
+from fogiac.net.zenoh.config import CONNECT_RETRY, fleet_access_control, loopback_rules, namespace_rules
 
 CHUNK = 65536
 
@@ -84,7 +84,7 @@ def front_id(core_id: str, robot: str) -> str:
 def front_access_control(robot: str) -> dict[str, Any]:
     """A front's rules: the core (TCP on loopback) anything; the robot's link (the gate's Unix socket) only the
     keys of ``robot``'s namespace, both ways (:func:`fogiac.net.zenoh.config.namespace_rules`); else deny."""
-    rules = _local_rules() + namespace_rules(f"robot-{robot}", robot)
+    rules = loopback_rules() + namespace_rules(f"robot-{robot}", robot)
     return {"enabled": True, "default_permission": "deny", "rules": rules,
             "subjects": [{"id": "core", "link_protocols": ["tcp"], "interfaces": ["lo"]},
                          {"id": "robot", "link_protocols": ["unixsock-stream"]}],
@@ -189,7 +189,7 @@ class FleetRouter:
         config: dict[str, Any] = {
             "mode": "router", "listen": {"endpoints": [f"unixsock-stream/{sock}"]},
             "connect": {"endpoints": [self.core_end], "timeout_ms": -1, "exit_on_failure": False,
-                        "retry": dict(_RETRY)},
+                        "retry": dict(CONNECT_RETRY)},
             "scouting": {"multicast": {"enabled": False}, "gossip": {"enabled": False}},
             "adminspace": {"enabled": False}, "access_control": front_access_control(robot)}
         if self.core_id:

@@ -41,7 +41,9 @@ PUBLISHER, SUBSCRIBER = "MP", "MS"  # rmw_zenoh's entity kinds in a liveliness t
 # passed on); a router itself never dials what it hears, so nothing reaches across to the other side.
 _GOSSIP = {"enabled": True, "multihop": False, "target": {"router": ["peer"], "peer": ["router", "peer"]},
            "autoconnect": {"router": [], "peer": ["router", "peer"]}}
-_RETRY = {"period_init_ms": 250, "period_max_ms": 2000, "period_increase_factor": 2}
+# How a router redials a link that dropped or never came up: soon at first, then every 2 s at most (an edge
+# whose cloud host is down, a fleet front whose core is restarting), never giving up.
+CONNECT_RETRY = {"period_init_ms": 250, "period_max_ms": 2000, "period_increase_factor": 2}
 
 
 @dataclass(frozen=True)
@@ -114,7 +116,7 @@ def access_control(route: Route, *, edge_name: str | Sequence[str]) -> dict[str,
     """Deny by default; the host's own nodes (TCP on loopback) may do anything among themselves. A replica's
     host lets only its prefixed keys cross, so the edge's merge sees every copy of a reply, the robot none.
     ``edge_name``: the common name of the edge routers' certificates (one per edge)."""
-    rules = _local_rules()
+    rules = loopback_rules()
     rules += _link_rules("edge", receive=list(route.to_cloud + route.listed), send=list(route.to_edge + route.listed),
                          keys=replica_keys_prefix(route))
     edge_rules = [r["id"] for r in rules if not r["id"].startswith("local")]
@@ -152,7 +154,7 @@ def fleet_access_control(robots: Mapping[str, str], *, revoked: Collection[str] 
     tokens. A shared request/reply node is reached through :mod:`fogiac.net.zenoh.fleet`, which carries each
     robot's requests and replies under that robot's namespace, so no shared plain key ever crosses a link.
     A ``revoked`` robot has no subject and no rule: its certificate gets nothing (deny is the default)."""
-    rules = _local_rules()
+    rules = loopback_rules()
     subjects: list[dict[str, Any]] = [{"id": "host-nodes", "link_protocols": ["tcp"], "interfaces": ["lo"]}]
     policies: list[dict[str, Any]] = [{"id": "host-nodes", "rules": ["local-in", "local-out"],
                                        "subjects": ["host-nodes"]}]
@@ -182,7 +184,7 @@ def edge_fleet_access_control(clouds: Sequence[str], robot: str) -> dict[str, An
     each cloud router (``clouds``: their certificates' common names) only the robot's own namespace, the mirror of
     the cloud router's rules for it (:func:`fleet_access_control`). A cloud host that lost its rules still reaches
     nothing of the robot outside ``/<robot>/...``."""
-    rules = _local_rules()
+    rules = loopback_rules()
     subjects: list[dict[str, Any]] = [{"id": "robot-nodes", "link_protocols": ["tcp"], "interfaces": ["lo"]}]
     policies: list[dict[str, Any]] = [{"id": "robot-nodes", "rules": ["local-in", "local-out"],
                                        "subjects": ["robot-nodes"]}]
@@ -195,7 +197,9 @@ def edge_fleet_access_control(clouds: Sequence[str], robot: str) -> dict[str, An
             "policies": policies}
 
 
-def _local_rules() -> list[dict[str, Any]]:
+def loopback_rules() -> list[dict[str, Any]]:
+    """The rules ``local-in`` and ``local-out``: everything, both ways, data and graph; every router's policy gives
+    them to the processes on its own machine (TCP on loopback) and to nothing else."""
     every = _DATA + ["declare_subscriber", "query", "reply", "declare_queryable"] + _GRAPH
     keys = ["**", f"{GRAPH_SPACE}/**"]  # ``**`` never matches a chunk starting with ``@``
     return [_rule("local-in", "ingress", every, keys), _rule("local-out", "egress", every, keys)]
@@ -204,7 +208,7 @@ def _local_rules() -> list[dict[str, Any]]:
 def edge_access_control(clouds: Sequence[tuple[str, Route]]) -> dict[str, Any]:
     """The edge router's side: deny by default; the robot's nodes (TCP on loopback) may do anything among
     themselves; each cloud router, known by its certificate's common name, only its route's topics."""
-    rules = _local_rules()
+    rules = loopback_rules()
     subjects: list[dict[str, Any]] = [{"id": "robot-nodes", "link_protocols": ["tcp"], "interfaces": ["lo"]}]
     policies: list[dict[str, Any]] = [{"id": "robot-nodes", "rules": ["local-in", "local-out"],
                                        "subjects": ["robot-nodes"]}]
@@ -233,7 +237,8 @@ def _base(*, listen: Sequence[str], connect: Sequence[str], tls: dict[str, Any])
     return {
         "mode": "router",
         "listen": {"endpoints": list(listen)},
-        "connect": {"endpoints": list(connect), "timeout_ms": -1, "exit_on_failure": False, "retry": dict(_RETRY)},
+        "connect": {"endpoints": list(connect), "timeout_ms": -1, "exit_on_failure": False,
+                    "retry": dict(CONNECT_RETRY)},
         "scouting": {"multicast": {"enabled": False}, "gossip": dict(_GOSSIP)},
         "transport": {"link": {"tls": tls}},
         "adminspace": {"enabled": False},

@@ -2,8 +2,9 @@
 
 The host's fleet file (each robot by its certificate's name and router id, the revoked ones, the shared pairs
 with their robots), a router config and command that name no robot (so a robot added changes no service), the
-fleet process per shared pair, each robot's edge router rules (its namespace only), and a router that reads a
-broken fleet file keeps no robot it was not given. The running parts: ``tests/fleet/test_fleet_zenoh_local.py``.
+fleet process per shared pair, each robot's edge router rules (its namespace only), a router that reads a
+broken fleet file keeps no robot it was not given, and the robots' fronts opened together, all or none. The
+running parts: ``tests/fleet/test_fleet_zenoh_local.py``.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -25,7 +27,7 @@ from fogiac.plan import fleet
 from fogiac.plan.compile import compile_plan
 from fogiac.plan.model import Plan
 from fogiac.provision.runtimes.native import NATIVE
-from tests.net.zenoh.lab import route
+from tests.net.zenoh.lab import free_ports, route
 
 FLEET = """name: lab
 ros: {distro: jazzy}
@@ -195,3 +197,42 @@ def test_the_fronts_folder_is_private_and_kept_fresh_for_tmp_cleaners() -> None:
     finally:
         router.close()
     assert not router.sockets.exists()
+
+
+def test_fronts_open_together_and_one_that_cannot_leaves_none_open_and_is_named(tmp_path: Path) -> None:
+    """The fronts of the robots added are opened at once (real Zenoh routers, in this process); when one of them
+    cannot open (here r2's: its socket's folder is gone), the error names r2, the fronts opened with it are
+    closed and none of the three is admitted, so nothing half-open is left; given again, all three open."""
+    pytest.importorskip("zenoh", reason="needs eclipse-zenoh (pip install 'fogiac[ros2]')")
+    from fogiac.net.zenoh.errors import ZenohError
+    from fogiac.net.zenoh.router import open_router
+
+    (core,) = free_ports(1)
+    config = cloud_router(route(7448), listen_host="127.0.0.1", robots={}, local_port=core,
+                          tls=TlsFiles(ca="ca.pem", cert="server.pem", key="server.key"))
+    sessions: dict[str, Any] = {}
+    broken = {"r2"}
+
+    def opening(front: dict[str, Any]) -> Any:
+        (robot,) = {r["id"].split("-")[1] for r in front["access_control"]["rules"] if r["id"].startswith("robot-")}
+        if robot in broken:
+            front = {**front, "listen": {"endpoints": [f"unixsock-stream/{tmp_path}/gone/{robot}.sock"]}}
+        sessions[robot] = session = open_router(front)
+        return session
+
+    router = FleetRouter(config, open_router=opening)
+    three = FleetFile(robots={r: f"{r}.cn" for r in ("r1", "r2", "r3")}, zids={r: r for r in ("r1", "r2", "r3")},
+                      revoked=frozenset())
+    try:
+        with pytest.raises(ZenohError, match=r"^robot r2's router behind the gate did not open \(zenoh router: .*"
+                                             r"; the 2 opened with it closed$"):
+            router.apply(three)
+        assert set(sessions) == {"r1", "r3"} and all(s.is_closed() for s in sessions.values())
+        assert router.fronts == {} and router.admitted == {} and list(router.sockets.iterdir()) == []
+        broken.clear()
+        assert router.apply(three) == ["robot r1: admitted", "robot r2: admitted", "robot r3: admitted"]
+        assert set(router.admitted.values()) == {"r1", "r2", "r3"} and not any(s.is_closed() for s in sessions.values())
+        assert all(sock.is_socket() for _, _, sock in router.fronts.values())
+    finally:
+        router.close()
+    assert all(s.is_closed() for s in sessions.values())

@@ -11,12 +11,13 @@ its own instance's topics; the plan names each robot's instance and its cost. Th
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import pytest
 
+from fogiac.errors import ManifestError
 from fogiac.manifest.schema import parse_manifest
+from fogiac.net import middleware
 from fogiac.net.zenoh import deploy, tls
 from fogiac.net.zenoh.config import fleet_access_control, topic_key
 from fogiac.net.zenoh.middleware import instance_args
@@ -25,6 +26,8 @@ from fogiac.plan.compile import compile_plan
 from fogiac.plan.model import Plan
 from fogiac.provision import services as svc
 from tests.net.zenoh.slamnode import ros_args
+from tests.plugins.beacon import ENTRY_POINTS as BEACON_ENTRY_POINTS
+from tests.plugins.install import installed
 
 zenoh = pytest.importorskip("zenoh", reason="needs eclipse-zenoh (pip install 'fogiac[ros2]')")
 
@@ -136,16 +139,20 @@ def test_a_robot_added_starts_its_instance_and_changes_no_other_service(tmp_path
     assert host == again  # the router follows the fleet file: a robot added restarts no router
 
 
-def test_a_middleware_without_instance_arguments_is_refused_in_one_line(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_middleware_without_instance_arguments_is_refused_in_one_line(tmp_path: Path) -> None:
     """A middleware plug-in whose ROS generation puts no node in a namespace (no ``instance_args``) keeps
-    ``serve: per_robot`` refused at validate, naming it."""
-    from fogiac import middlewares
-    from fogiac.errors import ManifestError
-    from fogiac.net.zenoh.middleware import ZENOH
-
-    bare = dataclasses.replace(ZENOH, launching=dataclasses.replace(ZENOH.launching, instance_args=None))
-    monkeypatch.setattr(middlewares, "for_distro", lambda distro: bare)
-    with pytest.raises(ManifestError, match=r"nodes\[0\]\.serve: serve: per_robot \(one instance per robot\) needs "
-                       r"a middleware that puts a node in a robot's namespace; ROS jazzy crosses through zenoh, "
-                       r"which has no per-robot instances yet: give all or a list of robots"):
-        _plan()
+    ``serve: per_robot`` refused at validate, naming it: the test-only beacon (``tests/plugins/beacon/``),
+    installed through its entry point as a plug-in would be, whose Launching gives none."""
+    manifest = ("name: lab\nros: {distro: lighthouse}\ncloud: {provider: local, runtime: native}\n"
+                "robots:\n  - {name: r1}\n" + NODES)
+    try:
+        with installed(tmp_path / "site", "fogiac_beacon", BEACON_ENTRY_POINTS):
+            assert middleware.get("beacon").launching.instance_args is None
+            refusal = (r"nodes\[0\]\.serve: serve: per_robot \(one instance per robot\) needs a middleware that puts "
+                       r"a node in a robot's namespace; ROS lighthouse crosses through beacon, which has no per-robot "
+                       r"instances yet: give all or a list of robots")
+            with pytest.raises(ManifestError, match=refusal) as refused:
+                parse_manifest(manifest, base=Path.cwd())
+            assert len(str(refused.value).splitlines()) == 1, refused.value
+    finally:
+        middleware.unregister("beacon")  # the loaded halves are cached per process

@@ -37,9 +37,9 @@ No variant reproduces all three data points: --between-files comes within one of
 5d5c9b4 but not on the earlier commit nor the per-file re-entries; the walk without returns gets the
 earlier commit's files and climbs but not its stays nor 5d5c9b4's. So this walker's figures are its
 own; compare them across commits of this repository, not with the issue's 30 stays / 8 climbs. On
-3bbf99c (main, 11-28): 103/38/32 by default, 59/21/23 with --between-files; after compile_plan asked the
-middleware table directly, security groups checked themselves when made and sequence.up made one call
-into edge.py for its last step: 99/37/31 by default, 53/20/22 with --between-files.
+3bbf99c (main, 11-28): 103/38/32 by default, 59/21/23 with --between-files; after security groups checked
+themselves when made and sequence.up made one call into edge.py for its last step: 101/37/32 by default,
+55/20/23 with --between-files.
 """
 
 from __future__ import annotations

@@ -10,9 +10,8 @@ edits this module.
 from __future__ import annotations
 
 import re
-from typing import cast
 
-from fogiac import middlewares, targets
+from fogiac import targets
 from fogiac.errors import FogiacError
 from fogiac.manifest.replicas import warn_unchecked
 from fogiac.manifest.schema import Manifest, Node
@@ -62,7 +61,7 @@ def compile_plan(manifest: Manifest, *, target: str | None = None, environment: 
     deployment made under an older naming still has (:func:`stack_names`), else :func:`stack_name`."""
     name = target or manifest.cloud.provider
     place = targets.placer(name)  # loads only what the target decides at compile time
-    carrier = cast(middleware.Middleware, middlewares.for_distro(manifest.ros.distro))  # the table holds whole ones
+    carrier = middleware.for_distro(manifest.ros.distro)
     stack = stack or stack_name(manifest, environment)
     tags = (("fogiac:stack", stack), ("fogiac:manifest", manifest.name)) + tuple(sorted(manifest.tags.items()))
     placed = place(manifest, stack=stack, tags=tags)  # its security groups checked themselves when made

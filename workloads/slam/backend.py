@@ -26,6 +26,7 @@ import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import L, X
 
+from workloads.slam import sim3
 from workloads.slam.camera import Intrinsics
 from workloads.slam.features import SCALE_FACTOR
 
@@ -129,6 +130,7 @@ class PoseGraphJob:
     edges: np.ndarray  # (E, 2) indices into kf_ids
     relative: np.ndarray  # (E, 4, 4) measured pose of edge's second keyframe in its first's frame
     loop_edges: np.ndarray  # (E,) bool
+    similarity: bool = False  # monocular: loop edges' ``relative`` are similarities, the graph Sim(3)
 
 
 @dataclass(frozen=True)
@@ -141,8 +143,11 @@ class PoseGraphResult:
 
 
 def optimise_pose_graph(job: PoseGraphJob) -> PoseGraphResult:
-    """Spread a loop's correction over the keyframes: odometry edges hold their shape, loops pull."""
+    """Spread a loop's correction over the keyframes: odometry edges hold their shape, loops pull.
+    With ``job.similarity`` the graph is Sim(3) (:func:`optimise_sim3_graph`), else SE(3) on GTSAM."""
     start = time.perf_counter()
+    if job.similarity:
+        return optimise_sim3_graph(job)
     graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
     for i, pose in enumerate(job.poses):
         values.insert(X(i), gtsam.Pose3(pose))
@@ -155,4 +160,22 @@ def optimise_pose_graph(job: PoseGraphJob) -> PoseGraphResult:
     params.setMaxIterations(30)
     result = gtsam.LevenbergMarquardtOptimizer(graph, values, params).optimize()
     after = np.array([result.atPose3(X(i)).matrix() for i in range(len(job.poses))])
+    return PoseGraphResult(job.epoch, job.kf_ids, job.poses, after, time.perf_counter() - start)
+
+
+LOOP_WEIGHT = 10.0  # a loop edge against an odometry edge in the Sim(3) graph
+
+
+def optimise_sim3_graph(job: PoseGraphJob) -> PoseGraphResult:
+    """The monocular pose graph: nodes are keyframe similarities (scale 1 to start with), odometry
+    edges the keyframes' current relative poses (scale 1: they hold the local shape and scale),
+    loop edges the loops' similarities, which carry the scale the map drifted by around the loop;
+    keyframe 0 is held. The answer's ``after`` are similarities (:func:`workloads.slam.sim3.correct_map`
+    turns them into a map correction). On our own numpy optimiser (``sim3.py``, tested on a synthetic
+    scale drift); GTSAM 4.3's ``BetweenFactorSimilarity3`` would serve too (not tried)."""
+    start = time.perf_counter()
+    poses = [p.copy() for p in job.poses]
+    edges = [sim3.Edge(int(a), int(b), rel, LOOP_WEIGHT if is_loop else 1.0)
+             for (a, b), rel, is_loop in zip(job.edges, job.relative, job.loop_edges, strict=True)]
+    after = np.array(sim3.optimise(poses, edges, iterations=30))
     return PoseGraphResult(job.epoch, job.kf_ids, job.poses, after, time.perf_counter() - start)

@@ -22,6 +22,9 @@ import cv2
 import numpy as np
 
 from workloads.slam.geometry import umeyama
+from workloads.slam.mapdata import Map
+
+MIN_SCALE_PAIRS = 15  # a loop's scale is read from at least this many points both ends have
 
 
 def make(rotation: np.ndarray, translation: np.ndarray, scale: float) -> np.ndarray:
@@ -59,6 +62,55 @@ def from_points(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     matched map points of two keyframes, each in its own keyframe's camera frame."""
     a = umeyama(source, target, with_scale=True)
     return make(a.rotation, a.translation, a.scale)
+
+
+def from_loop(query_from_match: np.ndarray, in_query: np.ndarray, in_match: np.ndarray) -> tuple[np.ndarray, int]:
+    """A loop's measured similarity ``inverse(S_match) @ S_query`` (the query keyframe's frame in the
+    matched one's, scale = matched-map units per query-map unit) and how many points gave its scale.
+
+    ``query_from_match`` is the rigid pose PnP found from the matched keyframe's points (in the
+    matched keyframe's units) and the query's pixels; ``in_match`` holds the PnP inliers' points in
+    the matched keyframe's frame and ``in_query`` the same features' own map points in the query's
+    frame (NaN where the query has none). PnP already fixes rotation and direction, so only the
+    scale is left: each pair's ``|in_query| / |query_from_match @ in_match|`` (distances along the
+    same ray from the query camera) is one reading, and their median is robust to the few wrong
+    matches a loop's inliers still hold. A least-squares similarity over all the pairs (Umeyama,
+    what was tried first) lets those few pull rotation and translation away from PnP's answer.
+    Fewer than ``MIN_SCALE_PAIRS`` readings: scale 1, the rigid answer."""
+    predicted = in_match @ query_from_match[:3, :3].T + query_from_match[:3, 3]
+    own = np.linalg.norm(in_query, axis=1)
+    via = np.linalg.norm(predicted, axis=1)
+    ok = np.isfinite(own) & (own > 0) & (via > 0) & (predicted[:, 2] > 0) & np.nan_to_num(in_query[:, 2] > 0)
+    rotation, translation = query_from_match[:3, :3], query_from_match[:3, 3]
+    scale = float(np.median(own[ok] / via[ok])) if ok.sum() >= MIN_SCALE_PAIRS else 1.0
+    # S_qm takes matched-frame points (matched units) to the query's frame (query units)
+    query_sim = make(rotation, scale * translation, scale)
+    return inverse(query_sim), int(ok.sum())
+
+
+def correct_map(m: Map, before: np.ndarray, after: np.ndarray) -> np.ndarray:
+    """Carry a Sim(3) pose graph's answer into the map's scale, and return the rigid poses left.
+
+    ``before`` are the job's keyframe poses, ``after`` their corrected similarities (keyframe ids
+    ``0 .. K-1``). Each map point, and each frame's pose relative to its keyframe, is scaled about
+    its reference keyframe's old centre by that keyframe's scale (keyframes made while the graph ran,
+    and their points, by the newest one's in the job, as the rigid correction moves them); what is
+    left is a rigid move per keyframe, which the caller applies as it applies an SE(3) graph's."""
+    last = len(before) - 1
+    scales = np.array([scale_of(s) for s in after])
+    centres = before[:, :3, 3]
+    pts = m.points
+    refs = np.minimum(pts.ref[:pts.count], last)
+    pts.pos[:pts.count] = centres[refs] + scales[refs, None] * (pts.pos[:pts.count] - centres[refs])
+    for kf in m.keyframes[last + 1:]:
+        kf.pose[:3, 3] = centres[last] + scales[last] * (kf.pose[:3, 3] - centres[last])
+    for record in m.frames:
+        if record.ref >= 0:
+            record.relative = record.relative.copy()
+            record.relative[:3, 3] *= scales[min(record.ref, last)]
+    rigid = after.copy()
+    rigid[:, :3, :3] /= scales[:, None, None]
+    return rigid
 
 
 def correct_point(old_pose: np.ndarray, new_pose: np.ndarray, xyz: np.ndarray) -> np.ndarray:

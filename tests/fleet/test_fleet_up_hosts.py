@@ -72,6 +72,18 @@ robots:
     return path
 
 
+def narrow_to_lab(monkeypatch: pytest.MonkeyPatch, base: Path) -> None:
+    """The hosts target's access as these tests narrow it: the lab host's folder ``base``, this interpreter,
+    fogiac's code not pushed (the namespaces share this checkout)."""
+    real_access = HostsTarget.access
+
+    def lab_access(self: HostsTarget, plan: object, **kwargs: object) -> dict[str, SshAccess]:
+        return {n: replace(a, base_dir=str(base), python=sys.executable, ship_code=False)
+                for n, a in real_access(self, plan, **kwargs).items()}  # type: ignore[arg-type]
+
+    monkeypatch.setattr(HostsTarget, "access", lab_access)
+
+
 def _host_processes(host: LabHost) -> set[int]:
     """Every process in the host's namespace but its sshd and what runs in an SSH session (a command of
     provisioning still exiting): fogiac's services are detached from the session that started them."""
@@ -103,13 +115,7 @@ def test_a_fleet_on_a_lab_host_grows_is_revoked_and_goes(tmp_path: Path, _state_
     with ssh_lab(tmp_path / "lab", 1) as ((host,), key), \
             installed(tmp_path / "verb", "robotverb", {"fogiac.commands": {"robot": "fogiac.cli.robots"}}):
         base = host.base_dir / STACK
-        real_access = HostsTarget.access
-
-        def lab_access(self: HostsTarget, plan: object, **kwargs: object) -> dict[str, SshAccess]:
-            return {n: replace(a, base_dir=str(base), python=sys.executable, ship_code=False)
-                    for n, a in real_access(self, plan, **kwargs).items()}  # type: ignore[arg-type]
-
-        monkeypatch.setattr(HostsTarget, "access", lab_access)
+        narrow_to_lab(monkeypatch, base)
         manifest = _manifest(tmp_path / "fogiac.yaml", host, key, two, planner)
         try:
             up = runner.invoke(app, ["up", str(manifest), "--yes", "--start-edge-master"])

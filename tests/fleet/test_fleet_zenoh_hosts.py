@@ -23,7 +23,6 @@ from __future__ import annotations
 import json
 import sys
 import time
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -34,13 +33,11 @@ from fogiac.cli import app
 from fogiac.net.zenoh import tls
 from fogiac.net.zenoh.config import TlsFiles
 from fogiac.procs import free_port, poll
-from fogiac.provision import SshAccess
 from fogiac.state import StackState
-from fogiac.targets.hosts.target import HostsTarget
 from tests.conftest import REPO
-from tests.fleet.test_fleet_up_hosts import _host_processes
+from tests.fleet.test_fleet_up_hosts import _host_processes, narrow_to_lab
 from tests.fleet.test_fleet_up_local import _pids
-from tests.fleet.test_fleet_zenoh_local import _answered, _as_robot, _files, _heard, _more
+from tests.fleet.test_fleet_zenoh_local import _answered, _as_robot, _files, _heard, _more, _went_quiet
 from tests.net.zenoh.lab import ZenohLab
 from tests.net.zenoh.test_zenoh_fleet import TYPE, _frame_id, _request, _text, tls_link
 from tests.plugins.install import installed
@@ -94,13 +91,7 @@ def test_a_ros2_fleet_on_a_lab_host_is_served_revoked_and_goes(tmp_path: Path, _
             ZenohLab(tmp_path / "robots") as lab:
         (tmp_path / "robots").mkdir()
         base = host.base_dir / STACK
-        real_access = HostsTarget.access
-
-        def lab_access(self: HostsTarget, plan: object, **kwargs: object) -> dict[str, SshAccess]:
-            return {n: replace(a, base_dir=str(base), python=sys.executable, ship_code=False)
-                    for n, a in real_access(self, plan, **kwargs).items()}  # type: ignore[arg-type]
-
-        monkeypatch.setattr(HostsTarget, "access", lab_access)
+        narrow_to_lab(monkeypatch, base)
         manifest = _manifest(tmp_path / "fogiac.yaml", host, key, ports)
         pids: list[int] = []
         try:
@@ -160,14 +151,7 @@ def test_a_ros2_fleet_on_a_lab_host_is_served_revoked_and_goes(tmp_path: Path, _
             assert revoked.exit_code == 0, revoked.output
             assert json.loads(fleet.read_text())["revoked"] == ["r2"]
 
-            def quiet() -> bool | None:  # no answer to r2 for 2 s
-                count = _answered(outs["r2"], "r2")
-                time.sleep(2)
-                return True if _answered(outs["r2"], "r2") == count else None
-
-            assert poll(quiet, timeout=15)
-            took = time.monotonic() - cut - 2
-            assert took < 10, f"r2 still answered {took:.1f} s after revoke"
+            took = _went_quiet(outs["r2"], "r2", cut)
             r2_files: TlsFiles = _files(stack, "r2")
             assert tls_link(gate, r2_files, ca=r2_files.ca, silent_s=5) == "closed"
             assert tls_link(gate, _files(stack, "r1"), ca=r2_files.ca, silent_s=1) == "open"  # r1's still let in

@@ -144,6 +144,20 @@ def _own_instances(outs: dict[str, Path], slam_log: Path, robots: tuple[str, ...
                              for e in state), state
 
 
+def _went_quiet(out: Path, robot: str, cut: float) -> float:
+    """Seconds from ``cut`` (the revoke) until ``robot`` heard no answer for 2 s; it must be under 10."""
+
+    def quiet() -> bool | None:
+        count = _answered(out, robot)
+        time.sleep(2)
+        return True if _answered(out, robot) == count else None
+
+    assert poll(quiet, timeout=15)
+    took = time.monotonic() - cut - 2
+    assert took < 10, f"{robot} still answered {took:.1f} s after revoke"
+    return took
+
+
 def _more(outs: dict[str, Path], robots: tuple[str, ...], count: int = 5, timeout: float = 30) -> None:
     """Each of ``robots`` gets ``count`` more answers (from now)."""
     before = {r: _answered(outs[r], r) for r in robots}
@@ -260,14 +274,7 @@ def test_up_deploys_a_ros2_fleet_over_zenoh(tmp_path: Path, _state_dir: Path) ->
             assert revoked.exit_code == 0, revoked.output
             assert json.loads(fleet.read_text())["revoked"] == ["r3"]
 
-            def quiet() -> bool | None:  # no answer to r3 for 2 s
-                count = _answered(outs["r3"], "r3")
-                time.sleep(2)
-                return True if _answered(outs["r3"], "r3") == count else None
-
-            assert poll(quiet, timeout=15)
-            took = time.monotonic() - cut - 2
-            assert took < 10, f"r3 still answered {took:.1f} s after revoke"
+            took = _went_quiet(outs["r3"], "r3", cut)
             r3_count = _answered(outs["r3"], "r3")
             r3_slam = len(_heard(outs["r3"], "r3", "slam/count"))
             _more(outs, ("r1", "r2"))
